@@ -1,0 +1,5 @@
+import sys
+
+from tactilab.cli.main import main
+
+sys.exit(main())

@@ -1,0 +1,1 @@
+"""tactilab.data_schemas."""

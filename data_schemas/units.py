@@ -1,0 +1,124 @@
+"""Unit strings at the file and command-line edges, converted to SI once.
+
+Quantities inside tactilab are SI (m, Pa, N, s, Hz, m/s). Files and options may write a
+number with an explicit unit suffix, such as ``"1.25mm"``, ``"20 kPa"`` or ``"5ms"``;
+:func:`to_si` turns it into the SI float and checks that the unit measures what the
+field expects (a length for a depth, a pressure for a modulus).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+# unit -> (dimension, factor to SI)
+UNITS: dict[str, tuple[str, float]] = {
+    "m": ("length", 1.0),
+    "cm": ("length", 1e-2),
+    "mm": ("length", 1e-3),
+    "um": ("length", 1e-6),
+    "µm": ("length", 1e-6),
+    "nm": ("length", 1e-9),
+    "Pa": ("pressure", 1.0),
+    "kPa": ("pressure", 1e3),
+    "MPa": ("pressure", 1e6),
+    "GPa": ("pressure", 1e9),
+    "N": ("force", 1.0),
+    "mN": ("force", 1e-3),
+    "s": ("time", 1.0),
+    "ms": ("time", 1e-3),
+    "us": ("time", 1e-6),
+    "Hz": ("frequency", 1.0),
+    "kHz": ("frequency", 1e3),
+    "m/s": ("speed", 1.0),
+    "cm/s": ("speed", 1e-2),
+    "mm/s": ("speed", 1e-3),
+    "N/m": ("line_load", 1.0),
+    "N/mm": ("line_load", 1e3),
+    "1/m": ("wavenumber", 1.0),
+    "1/mm": ("wavenumber", 1e3),
+    "rad/m": ("wavenumber", 1.0),
+    "rad/mm": ("wavenumber", 1e3),
+    "1": ("dimensionless", 1.0),
+    "": ("dimensionless", 1.0),
+}
+
+SI_UNIT = {
+    "length": "m",
+    "pressure": "Pa",
+    "force": "N",
+    "time": "s",
+    "frequency": "Hz",
+    "speed": "m/s",
+    "line_load": "N/m",
+    "wavenumber": "1/m",
+    "dimensionless": "1",
+}
+
+_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?inf|nan)\s*(\S*)\s*$")
+
+
+def factor(unit: str, dimension: str, *, name: str = "value") -> float:
+    """Return the factor that converts ``unit`` to SI, checking its dimension.
+
+    Raises
+    ------
+    ValueError
+        If ``unit`` is unknown or measures another dimension than ``dimension``.
+    """
+    if unit not in UNITS:
+        known = ", ".join(u for u, (d, _) in UNITS.items() if d == dimension)
+        raise ValueError(
+            f"{name}: unknown unit {unit!r}; use one of {known} (SI: {SI_UNIT[dimension]})"
+        )
+    dim, f = UNITS[unit]
+    if dim != dimension and not (unit == "" and dimension == "dimensionless"):
+        known = ", ".join(u for u, (d, _) in UNITS.items() if d == dimension)
+        raise ValueError(
+            f"{name}: unit {unit!r} measures {dim}, but a {dimension} is expected; use one of {known}"
+        )
+    return f
+
+
+def to_si(value: str | float | int, dimension: str, *, name: str = "value",
+          default_unit: str | None = None) -> float:
+    """Convert ``value`` to an SI float.
+
+    Parameters
+    ----------
+    value : str or float
+        A number with a unit suffix (``"1.25mm"``), or a bare number. A bare number is
+        taken in ``default_unit`` if given, else it must already be SI.
+    dimension : str
+        What the value measures: one of ``SI_UNIT``'s keys.
+    name : str
+        The argument or field name, used in error messages.
+    default_unit : str, optional
+        Unit of a bare number (for example ``"mm"`` in files that state it).
+
+    Returns
+    -------
+    float
+        The value in SI units.
+    """
+    if dimension not in SI_UNIT:
+        raise ValueError(f"dimension: unknown dimension {dimension!r}; use one of {sorted(SI_UNIT)}")
+    if isinstance(value, bool):
+        raise ValueError(f"{name}: expected a number with a unit, got the boolean {value!r}")
+    if isinstance(value, (int, float)):
+        unit = default_unit if default_unit is not None else SI_UNIT[dimension]
+        number = float(value)
+    elif isinstance(value, str):
+        match = _QUANTITY.match(value)
+        if match is None:
+            raise ValueError(
+                f"{name}: cannot read {value!r} as a quantity; write a number and a unit, "
+                f"e.g. '1.5{SI_UNIT[dimension]}'"
+            )
+        number = float(match.group(1))
+        unit = match.group(2) or (default_unit if default_unit is not None else SI_UNIT[dimension])
+    else:
+        raise ValueError(f"{name}: expected a number or a string like '1.5mm', got {type(value).__name__}")
+    if not math.isfinite(number):
+        raise ValueError(f"{name}: must be finite, got {value!r}")
+    return number * factor(unit, dimension, name=name)

@@ -1,0 +1,61 @@
+"""Imports flow one way: data_schemas <- forward <- inversion <- experiments; cli on top."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+LAYER = {"data_schemas": 0, "forward": 1, "inversion": 2, "experiments": 3, "cli": 4}
+
+
+def imported_parts(source: str, part: str, module_parts: tuple[str, ...]) -> set[str]:
+    """Return the tactilab parts that ``source`` (a module of ``part``) imports."""
+    found = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:  # relative: stays within the part unless it climbs out
+                if node.level > len(module_parts):
+                    found.add("<relative import leaving its part>")
+                continue
+            names = [node.module or ""]
+        else:
+            continue
+        for name in names:
+            bits = name.split(".")
+            if bits[0] == "tactilab" and len(bits) > 1:
+                found.add(bits[1])
+            elif bits[0] in LAYER:  # a bare 'import forward' works only from the source tree
+                found.add(f"<bare {bits[0]}>")
+    return found
+
+
+def _modules():
+    for part in LAYER:
+        for path in sorted((ROOT / part).rglob("*.py")):
+            yield part, path
+
+
+@pytest.mark.parametrize("part,path", list(_modules()), ids=lambda v: str(v))
+def test_imports_flow_one_way(part, path):
+    rel = path.relative_to(ROOT / part).parts[:-1]
+    for target in imported_parts(path.read_text(), part, rel):
+        assert target in LAYER, f"{path}: import {target} is not an absolute tactilab import"
+        if part == "cli":
+            continue
+        assert target != "cli", f"{path}: nothing may import tactilab.cli"
+        assert LAYER[target] <= LAYER[part], (
+            f"{path}: tactilab.{part} may not import tactilab.{target} "
+            "(data_schemas <- forward <- inversion <- experiments)"
+        )
+
+
+def test_checker_catches_a_backward_import():
+    src = "from tactilab.experiments import runner\nimport tactilab.cli.main\n"
+    assert imported_parts(src, "forward", ()) == {"experiments", "cli"}
+    assert imported_parts("from ..x import y", "forward", ()) == {"<relative import leaving its part>"}
+    assert imported_parts("from .x import y", "forward", ()) == set()
