@@ -19,7 +19,7 @@ def imported_parts(source: str, part: str, module_parts: tuple[str, ...]) -> set
             names = [alias.name for alias in node.names]
         elif isinstance(node, ast.ImportFrom):
             if node.level:  # relative: stays within the part unless it climbs out
-                if node.level > len(module_parts):
+                if node.level - 1 > len(module_parts):
                     found.add("<relative import leaving its part>")
                 continue
             names = [node.module or ""]
