@@ -1,0 +1,156 @@
+"""Surface loads on a regular grid: the tractions applied TO the skin surface.
+
+Conventions (physics.md section 1): ``p`` is the normal pressure, positive when it pushes into
+the skin; ``qx`` and ``qy`` are the tangential tractions along +x and +y. All in Pa.
+A 1-D load (arrays of shape ``(nx,)``) is a plane-strain load, independent of y.
+Grid nodes sit at ``x_j = (j - nx // 2) * dx`` (and likewise in y), so index ``nx // 2``
+is the origin; this makes the grid centred and FFT-friendly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+LOAD_COMPONENTS = ("p", "qx", "qy")
+
+
+def _check_spacing(spacing, ndim: int) -> tuple[float, ...]:
+    values = np.atleast_1d(np.asarray(spacing, dtype=float))
+    if values.size == 1:
+        values = np.repeat(values, ndim)
+    if values.size != ndim:
+        raise ValueError(
+            f"spacing: expected one value or {ndim} values (dx{', dy' if ndim == 2 else ''}) in m, "
+            f"got {values.size}: {spacing!r}"
+        )
+    if not np.all(np.isfinite(values)) or np.any(values <= 0):
+        raise ValueError(f"spacing: grid spacing must be finite and > 0 m, got {spacing!r}; give it in metres")
+    return tuple(float(v) for v in values)
+
+
+@dataclass(frozen=True)
+class SurfaceLoad:
+    """Tractions on the skin surface, sampled on a regular grid.
+
+    Parameters
+    ----------
+    p, qx, qy : array_like or None
+        Normal pressure (into the skin) and tangential tractions along +x, +y, in Pa.
+        Shape ``(nx,)`` for a plane-strain (1-D) load or ``(ny, nx)`` for a 2-D one; all
+        given arrays share one shape. ``None`` means zero.
+    spacing : float or (float, float)
+        Grid spacing ``dx`` (1-D) or ``(dx, dy)`` (2-D), in m. One value means dx = dy.
+
+    Raises
+    ------
+    ValueError
+        If no component is given, shapes differ, values are not finite, or the spacing
+        is not a positive length.
+    """
+
+    p: np.ndarray | None = None
+    qx: np.ndarray | None = None
+    qy: np.ndarray | None = None
+    spacing: float | tuple[float, float] = 1e-4
+    _arrays: dict = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        arrays = {}
+        for name in LOAD_COMPONENTS:
+            value = getattr(self, name)
+            if value is None:
+                continue
+            arr = np.asarray(value)
+            if arr.dtype.kind not in "biuf":
+                raise ValueError(f"{name}: traction must be a real array in Pa, got dtype {arr.dtype}")
+            arr = arr.astype(float)
+            if arr.ndim not in (1, 2):
+                raise ValueError(
+                    f"{name}: expected shape (nx,) for a 1-D load or (ny, nx) for a 2-D load, got {arr.shape}"
+                )
+            bad = ~np.isfinite(arr)
+            if bad.any():
+                idx = tuple(int(i) for i in np.argwhere(bad)[0])
+                raise ValueError(
+                    f"{name}: traction must be finite (no NaN or inf), got {arr[idx]} at index {idx}; "
+                    "fill gaps before building the load"
+                )
+            arr.setflags(write=False)
+            arrays[name] = arr
+            object.__setattr__(self, name, arr)
+        if not arrays:
+            raise ValueError("SurfaceLoad: give at least one of p, qx, qy (arrays in Pa)")
+        shapes = {name: a.shape for name, a in arrays.items()}
+        if len(set(shapes.values())) > 1:
+            raise ValueError(f"SurfaceLoad: p, qx, qy must share one shape, got {shapes}")
+        shape = next(iter(shapes.values()))
+        if min(shape) < 1:
+            raise ValueError(f"SurfaceLoad: grid is empty, shape {shape}")
+        object.__setattr__(self, "spacing", _check_spacing(self.spacing, len(shape)))
+        object.__setattr__(self, "_arrays", arrays)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Grid shape: ``(nx,)`` or ``(ny, nx)``."""
+        return next(iter(self._arrays.values())).shape
+
+    @property
+    def ndim(self) -> int:
+        """1 for a plane-strain load, 2 for a surface load."""
+        return len(self.shape)
+
+    @property
+    def dx(self) -> float:
+        return self.spacing[0]
+
+    @property
+    def dy(self) -> float | None:
+        return self.spacing[1] if self.ndim == 2 else None
+
+    @property
+    def x(self) -> np.ndarray:
+        """Node x coordinates in m, shape (nx,)."""
+        nx = self.shape[-1]
+        return (np.arange(nx) - nx // 2) * self.dx
+
+    @property
+    def y(self) -> np.ndarray | None:
+        """Node y coordinates in m, shape (ny,), or None for a 1-D load."""
+        if self.ndim == 1:
+            return None
+        ny = self.shape[0]
+        return (np.arange(ny) - ny // 2) * self.dy
+
+    @property
+    def cell_area(self) -> float:
+        """Area per node in m^2 (2-D) or length per node in m (1-D)."""
+        return float(np.prod(self.spacing))
+
+    @property
+    def components(self) -> dict[str, np.ndarray]:
+        """The non-zero-by-declaration components, name -> array in Pa."""
+        return dict(self._arrays)
+
+    def is_zero(self) -> bool:
+        """True when every given component is identically zero."""
+        return all(not a.any() for a in self._arrays.values())
+
+    def varies_in_y(self) -> bool:
+        """True for a 2-D load whose rows differ (a 1-D model would not be exact)."""
+        if self.ndim == 1:
+            return False
+        return any(not np.array_equal(a, np.broadcast_to(a[:1], a.shape)) for a in self._arrays.values())
+
+    def row(self) -> "SurfaceLoad":
+        """The 1-D plane-strain load of a 2-D load that does not vary in y."""
+        if self.varies_in_y():
+            raise ValueError("load: varies in y, so it has no exact plane-strain (1-D) form")
+        if self.ndim == 1:
+            return self
+        return SurfaceLoad(**{k: v[0] for k, v in self._arrays.items()}, spacing=self.dx)
+
+    def scaled(self, factor: float) -> "SurfaceLoad":
+        """The same load multiplied by ``factor``."""
+        return SurfaceLoad(**{k: v * factor for k, v in self._arrays.items()}, spacing=self.spacing)
