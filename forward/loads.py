@@ -42,6 +42,9 @@ class SurfaceLoad:
         given arrays share one shape. ``None`` means zero.
     spacing : float or (float, float)
         Grid spacing ``dx`` (1-D) or ``(dx, dy)`` (2-D), in m. One value means dx = dy.
+    periodic : bool
+        True when the grid is one period of an infinitely repeating load (a grating);
+        False (default) when the load is zero outside the grid (an isolated contact).
 
     Raises
     ------
@@ -54,6 +57,7 @@ class SurfaceLoad:
     qx: np.ndarray | None = None
     qy: np.ndarray | None = None
     spacing: float | tuple[float, float] = 1e-4
+    periodic: bool = False
     _arrays: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -89,6 +93,8 @@ class SurfaceLoad:
         if min(shape) < 1:
             raise ValueError(f"SurfaceLoad: grid is empty, shape {shape}")
         object.__setattr__(self, "spacing", _check_spacing(self.spacing, len(shape)))
+        if not isinstance(self.periodic, (bool, np.bool_)):
+            raise ValueError(f"periodic: must be True or False, got {self.periodic!r}")
         object.__setattr__(self, "_arrays", arrays)
 
     @property
@@ -149,8 +155,30 @@ class SurfaceLoad:
             raise ValueError("load: varies in y, so it has no exact plane-strain (1-D) form")
         if self.ndim == 1:
             return self
-        return SurfaceLoad(**{k: v[0] for k, v in self._arrays.items()}, spacing=self.dx)
+        return SurfaceLoad(**{k: v[0] for k, v in self._arrays.items()}, spacing=self.dx, periodic=self.periodic)
 
     def scaled(self, factor: float) -> "SurfaceLoad":
         """The same load multiplied by ``factor``."""
-        return SurfaceLoad(**{k: v * factor for k, v in self._arrays.items()}, spacing=self.spacing)
+        return SurfaceLoad(**{k: v * factor for k, v in self._arrays.items()}, spacing=self.spacing,
+                           periodic=self.periodic)
+
+    @property
+    def total_force(self) -> np.ndarray:
+        """Resultant (Fx, Fy, Fz) in N (2-D) or N/m (1-D): tractions times cell area."""
+        a = self._arrays
+        return np.array([a[k].sum() * self.cell_area if k in a else 0.0 for k in ("qx", "qy", "p")])
+
+    @property
+    def extent(self) -> float:
+        """RMS radius of the load about its centroid, in m (weighted by |traction|)."""
+        w = sum(np.abs(v) for v in self._arrays.values())
+        total = w.sum()
+        if total == 0:
+            return 0.0
+        if self.ndim == 1:
+            x = self.x
+            xc = (w * x).sum() / total
+            return float(np.sqrt((w * (x - xc) ** 2).sum() / total))
+        yy, xx = np.meshgrid(self.y, self.x, indexing="ij")
+        xc, yc = (w * xx).sum() / total, (w * yy).sum() / total
+        return float(np.sqrt((w * ((xx - xc) ** 2 + (yy - yc) ** 2)).sum() / total))

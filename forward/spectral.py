@@ -1,0 +1,262 @@
+"""Exact periodic spectral solution of the elastic half-space (physics.md section 2).
+
+For each Fourier mode of the surface tractions the stress at depth z is
+
+    sigma~(xi, eta, z) = E0 * exp(-rho z) + E1 * (rho z) exp(-rho z),
+
+where the depth-independent coefficient spectra ``E0`` and ``E1`` are linear in the load
+spectra (P~, Qx~, Qy~) and depend only on the direction (c, s) = (xi, eta)/rho and nu.
+They are written out per Voigt component in :func:`_coefficients`; the rotated-frame
+formulas of physics.md were multiplied out once, so no per-mode rotation is done.
+
+Numerical care:
+- ``exp(-rho z)`` is computed directly (never as a ratio), so rho z up to 1e4 and beyond
+  underflows harmlessly to 0.
+- The rho = 0 mode uses its direction-averaged limit (c^2 = s^2 = 1/2, odd terms 0): it
+  carries the total load. In 1-D (plane strain) c^2 = 1, s = 0, which gives
+  sigma_xx -> -P~(0).
+- Terms odd in xi (eta) vanish on the Nyquist column (row) of an even-sized grid: that
+  mode is its own mirror image, so only the average of +/- k is real-consistent. This
+  makes the map exactly real-linear, and its adjoint the conjugate multiplier.
+- nu enters only as a coefficient: nu = 0.5 is exact.
+
+Fourier convention: f~ = sum f exp(-i (xi x + eta y)) (numpy's forward FFT), xi in rad/m.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.fft as sfft
+
+from .loads import SurfaceLoad
+
+VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
+
+
+def wavenumbers(shape: tuple[int, ...], spacing: tuple[float, ...]):
+    """Angular wavenumbers of the rfft half spectrum.
+
+    Parameters
+    ----------
+    shape : (nx,) or (ny, nx)
+        Real-space grid shape.
+    spacing : (dx,) or (dx, dy)
+        Grid spacing in m.
+
+    Returns
+    -------
+    xi : ndarray, shape (nx//2 + 1,) or (1, nx//2 + 1), rad/m
+    eta : ndarray, shape (ny, 1), rad/m, or None in 1-D
+    """
+    nx = shape[-1]
+    xi = 2 * np.pi * sfft.rfftfreq(nx, spacing[0])
+    if len(shape) == 1:
+        return xi, None
+    ny = shape[0]
+    eta = 2 * np.pi * sfft.fftfreq(ny, spacing[1])
+    return xi[None, :], eta[:, None]
+
+
+class _Geometry:
+    """Direction cosines of every mode, with the rho = 0 and Nyquist rules applied."""
+
+    def __init__(self, xi: np.ndarray, eta: np.ndarray | None, nyquist_x: bool, nyquist_y: bool,
+                 dtype=np.float64):
+        if eta is None:  # plane strain: n = sign(xi) e_x
+            self.rho = np.abs(xi).astype(dtype)
+            self.c_odd = np.sign(xi).astype(dtype)
+            if nyquist_x:
+                self.c_odd[..., -1] = 0.0
+            self.s_odd = np.zeros_like(self.rho)
+            self.c2 = np.ones_like(self.rho)
+            self.s2 = np.zeros_like(self.rho)
+            self.cs_odd = np.zeros_like(self.rho)
+            return
+        rho = np.hypot(xi, eta)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c = np.where(rho > 0, xi / rho, 0.0)
+            s = np.where(rho > 0, eta / rho, 0.0)
+        zero = rho == 0
+        self.rho = rho.astype(dtype)
+        self.c2 = np.where(zero, 0.5, c * c).astype(dtype)
+        self.s2 = np.where(zero, 0.5, s * s).astype(dtype)
+        c_odd, s_odd = c.copy(), s.copy()
+        if nyquist_x:
+            c_odd[:, -1] = 0.0
+        if nyquist_y:
+            s_odd[eta.shape[0] // 2, :] = 0.0
+        self.c_odd = c_odd.astype(dtype)
+        self.s_odd = s_odd.astype(dtype)
+        self.cs_odd = (c_odd * s_odd).astype(dtype)
+
+
+def _coefficients(g: _Geometry, nu: float, P, X, Y, component: str):
+    """Depth-independent spectra (E0, E1) of one stress component; None means zero load."""
+    zero = 0
+    P = zero if P is None else P
+    X = zero if X is None else X
+    Y = zero if Y is None else Y
+    c, s, c2, s2, cs = g.c_odd, g.s_odd, g.c2, g.s2, g.cs_odd
+    qpar = c * X + s * Y
+    D = P - 1j * qpar
+    if component == "zz":
+        return -P, -D
+    if component == "xx":
+        e0 = -(c2 + 2 * nu * s2) * P + 2j * c * (c2 + (1 + nu) * s2) * X + 2j * nu * s * s2 * Y
+        return e0, c2 * D
+    if component == "yy":
+        e0 = -(s2 + 2 * nu * c2) * P + 2j * nu * c * c2 * X + 2j * s * (s2 + (1 + nu) * c2) * Y
+        return e0, s2 * D
+    if component == "xy":
+        e0 = (2 * nu - 1) * cs * P + 1j * s * (c2 * (1 - 2 * nu) + s2) * X + 1j * c * (s2 * (1 - 2 * nu) + c2) * Y
+        return e0, cs * P - 1j * s * c2 * X - 1j * c * s2 * Y
+    if component == "zx":
+        return -X, 1j * c * P + c2 * X + cs * Y
+    if component == "yz":
+        return -Y, 1j * s * P + cs * X + s2 * Y
+    raise ValueError(f"components: unknown stress component {component!r}; use one of {VOIGT}")
+
+
+def output_coefficients(g: _Geometry, nu: float, spectra: dict, weights: np.ndarray):
+    """Yield (E0, E1) for each output row of ``weights`` (n_out, 6) applied to Voigt stress.
+
+    A generator, so only one output's coefficient spectra are alive at a time.
+    """
+    P, X, Y = spectra.get("p"), spectra.get("qx"), spectra.get("qy")
+    cdt = np.result_type(g.rho.dtype, np.complex64)
+    for row in np.asarray(weights, dtype=float):
+        e0 = np.zeros(g.rho.shape, cdt)
+        e1 = np.zeros(g.rho.shape, cdt)
+        for j, comp in enumerate(VOIGT):
+            if row[j] != 0.0:
+                a, b = _coefficients(g, nu, P, X, Y, comp)
+                e0 += row[j] * a
+                e1 += row[j] * b
+        yield e0, e1
+
+
+def periodic_stress(load: SurfaceLoad, depths: Sequence[float], nu: float,
+                    weights: np.ndarray, dtype=np.float64, workers: int | None = None) -> np.ndarray:
+    """Linear combinations of the stress of a periodic load at several depths.
+
+    Parameters
+    ----------
+    load : SurfaceLoad
+        One period of the load (the grid is the period), tractions in Pa.
+    depths : sequence of float
+        Depths z > 0 in m.
+    nu : float
+        Poisson's ratio.
+    weights : ndarray, shape (n_out, 6)
+        Each output is ``weights[o] @ sigma_voigt``; identity rows select stress components,
+        Hooke rows give strains.
+    dtype : float32 or float64
+        Working precision (float32 halves memory and FFT time, error ~1e-6 relative).
+
+    Returns
+    -------
+    ndarray, shape (n_depth, n_out, *load.shape)
+    """
+    dtype = np.dtype(dtype)
+    cdtype = np.result_type(dtype, np.complex64)
+    shape = load.shape
+    axes = tuple(range(-load.ndim, 0))
+    xi, eta = wavenumbers(shape, load.spacing)
+    g = _Geometry(xi, eta, nyquist_x=shape[-1] % 2 == 0,
+                  nyquist_y=load.ndim == 2 and shape[0] % 2 == 0, dtype=dtype)
+    # one forward FFT per load component, reused for every depth and output
+    spectra = {k: sfft.rfftn(v.astype(dtype, copy=False), axes=axes, workers=workers).astype(cdtype, copy=False)
+               for k, v in load.components.items()}
+    weights = np.atleast_2d(np.asarray(weights, dtype=float))
+    out = np.empty((len(depths), weights.shape[0], *shape), dtype=dtype)
+    decay = []
+    for z in depths:
+        rz = g.rho * dtype.type(z)
+        e = np.exp(-rz)  # underflows to 0 for rho z > ~745: harmless
+        decay.append((e, rz * e))
+    buf = np.empty(g.rho.shape, dtype=cdtype)
+    for o, (e0, e1) in enumerate(output_coefficients(g, nu, spectra, weights)):
+        for d, (e, rze) in enumerate(decay):
+            np.multiply(e0, e, out=buf)
+            buf += e1 * rze
+            out[d, o] = sfft.irfftn(buf, s=shape, axes=axes, workers=workers)
+    return out
+
+
+def transfer(xi: np.ndarray, eta: np.ndarray | None, depth: float, nu: float,
+             load_component: str, components: Sequence[str] = VOIGT) -> np.ndarray:
+    """Exact Fourier multiplier from one load component to stress components.
+
+    ``sigma~_c(xi, eta, depth) = T[c] * L~(xi, eta)`` for the load component ``L``.
+
+    Parameters
+    ----------
+    xi, eta : ndarray
+        Angular wavenumbers in rad/m (broadcastable); ``eta=None`` for 1-D plane strain.
+    depth : float
+        Depth in m (>= 0).
+    nu : float
+        Poisson's ratio.
+    load_component : {"p", "qx", "qy"}
+    components : sequence of str
+        Voigt stress components wanted.
+
+    Returns
+    -------
+    ndarray, complex, shape (len(components), *broadcast(xi, eta).shape)
+        Multipliers (Pa per Pa). The rho = 0 mode holds its direction-averaged limit.
+        No Nyquist rule is applied: pass the wavenumbers you mean.
+    """
+    if load_component not in ("p", "qx", "qy"):
+        raise ValueError(f"load_component: must be 'p', 'qx' or 'qy', got {load_component!r}")
+    if not np.isfinite(depth) or depth < 0:
+        raise ValueError(f"depth: must be finite and >= 0 m, got {depth!r}")
+    xi = np.asarray(xi, dtype=float)
+    if eta is not None:
+        xi, eta = np.broadcast_arrays(xi, np.asarray(eta, dtype=float))
+    g = _Geometry(xi, eta, nyquist_x=False, nyquist_y=False)
+    unit = {"p": None, "qx": None, "qy": None}
+    unit[load_component] = np.ones(g.rho.shape)
+    rz = g.rho * depth
+    e = np.exp(-rz)
+    out = []
+    for comp in components:
+        e0, e1 = _coefficients(g, nu, unit["p"], unit["qx"], unit["qy"], comp)
+        out.append(np.broadcast_to(e0 * e + e1 * rz * e, g.rho.shape))
+    return np.asarray(out, dtype=complex)
+
+
+def pressure_from_deflection(deflection: np.ndarray, spacing, young_modulus: float, nu: float) -> SurfaceLoad:
+    """Pressure that imposes a normal surface deflection on a frictionless half-space.
+
+    Uses P~ = E rho H~ / (2 (1 - nu^2)) (physics.md section 2); periodic in the grid.
+
+    Parameters
+    ----------
+    deflection : ndarray, shape (nx,) or (ny, nx)
+        Surface deflection into the skin, in m (the undulating rigid surface's height).
+    spacing : float or (float, float)
+        Grid spacing in m.
+    young_modulus : float
+        E in Pa.
+    nu : float
+        Poisson's ratio.
+
+    Returns
+    -------
+    SurfaceLoad
+        The normal pressure (mean zero: a uniform deflection needs no pressure on an
+        infinite half-space, so the mean is a free contact-force parameter).
+    """
+    h = np.asarray(deflection, dtype=float)
+    if not np.all(np.isfinite(h)):
+        raise ValueError("deflection: must be finite (no NaN or inf), in m")
+    template = SurfaceLoad(p=np.zeros_like(h), spacing=spacing)
+    xi, eta = wavenumbers(h.shape, template.spacing)
+    rho = np.abs(xi) if eta is None else np.hypot(xi, eta)
+    axes = tuple(range(-h.ndim, 0))
+    spec = sfft.rfftn(h, axes=axes) * (young_modulus * rho / (2 * (1 - nu**2)))
+    p = sfft.irfftn(spec, s=h.shape, axes=axes)
+    return SurfaceLoad(p=p, spacing=template.spacing)
