@@ -1,0 +1,435 @@
+"""Psychophysical procedures: constant stimuli, transformed staircases, psi / QUEST+.
+
+Every procedure keeps its STATE (what it needs to choose the next level, ``_STATE_KEYS``) apart
+from its HISTORY (what happened, ``_HISTORY_KEYS``), as CUQIpy's samplers do. The state is a
+pure function of the protocol, the seed and the history, so :func:`replay` rebuilds it exactly
+after a crash. Randomness comes only from the per-trial generator passed to
+:meth:`Procedure.next_trial` (derived from ``(seed, trial_index)`` by the runner).
+
+Outcomes are booleans: "positive" means correct in forced choice, "yes" in yes/no and
+"different" in same/different; magnitude estimation records no outcome (``None``).
+"""
+
+from __future__ import annotations
+
+import abc
+import importlib
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.special import ndtr
+
+from tactilab.data_schemas.experiment import ConstantStimuliConfig, PsiConfig, StaircaseConfig
+
+Likelihood = Callable[..., np.ndarray]
+
+
+@dataclass(frozen=True)
+class PlannedLevel:
+    """The level chosen for one trial, SI, with its staircase track and block."""
+
+    level: float
+    track: int = 0
+    block: int = 0
+
+
+class Procedure(abc.ABC):
+    """Template: :meth:`next_trial` and :meth:`update` guard; subclasses supply ``_next``/``_update``."""
+
+    _STATE_KEYS: tuple[str, ...] = ()
+    _HISTORY_KEYS: tuple[str, ...] = ("trial_index", "track", "block", "level", "outcome")
+
+    def __init__(self, config: Any) -> None:
+        self.config = config
+        self.history: list[dict[str, Any]] = []
+        self._pending: tuple[int, PlannedLevel] | None = None
+
+    @property
+    def n_done(self) -> int:
+        """Number of completed trials."""
+        return len(self.history)
+
+    @property
+    @abc.abstractmethod
+    def n_planned(self) -> int:
+        """Trials the procedure will run at most (for progress bars)."""
+
+    @property
+    @abc.abstractmethod
+    def finished(self) -> bool:
+        """True when no more trials are needed."""
+
+    def next_trial(self, trial_index: int, rng: np.random.Generator) -> PlannedLevel | None:
+        """Choose the next level, or return None when finished.
+
+        Parameters
+        ----------
+        trial_index : int
+            Must equal the number of completed trials (trials run in order).
+        rng : numpy.random.Generator
+            The trial's own generator (from ``(seed, trial_index)``).
+        """
+        if trial_index != self.n_done:
+            raise ValueError(
+                f"trial_index: trials run in order; expected {self.n_done}, got {trial_index}"
+            )
+        if self.finished:
+            return None
+        planned = self._next(rng)
+        self._pending = (trial_index, planned)
+        return planned
+
+    def update(self, planned: PlannedLevel, outcome: bool | None) -> None:
+        """Record the outcome of the trial planned last and advance the state.
+
+        ``outcome`` None means the trial says nothing about the level (a yes/no catch trial, a
+        magnitude rating): it is kept in the history, and adaptive state does not move.
+        """
+        if self._pending is None or self._pending[1] != planned:
+            raise ValueError(
+                f"planned: update() must follow next_trial() for the same trial, got {planned!r}; "
+                "call next_trial first"
+            )
+        if outcome is not None and not isinstance(outcome, (bool, np.bool_)):
+            raise ValueError(f"outcome: must be True, False or None, got {outcome!r}")
+        trial_index, _ = self._pending
+        self._pending = None
+        outcome = None if outcome is None else bool(outcome)
+        self.history.append({"trial_index": trial_index, "track": planned.track, "block": planned.block,
+                             "level": planned.level, "outcome": outcome})
+        self._update(planned, outcome)
+
+    @abc.abstractmethod
+    def _next(self, rng: np.random.Generator) -> PlannedLevel: ...
+
+    @abc.abstractmethod
+    def _update(self, planned: PlannedLevel, outcome: bool | None) -> None: ...
+
+    @abc.abstractmethod
+    def estimate(self) -> dict[str, float | None]:
+        """Current estimate (threshold etc.), SI."""
+
+    def state(self) -> dict[str, Any]:
+        """The exact state (``_STATE_KEYS``), JSON-ready; replay reproduces it bit for bit."""
+        return {key: _jsonable(getattr(self, "_" + key)) for key in self._STATE_KEYS}
+
+    def record_state(self) -> dict[str, Any]:
+        """The state stored with each trial row (compact; the exact state for small procedures)."""
+        return {**self.state(), "estimate": self.estimate()}
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, list):
+        return [_jsonable(v) for v in value]
+    return value
+
+
+class ConstantStimuli(Procedure):
+    """Every level ``repeats_per_block`` times per block, order shuffled per block."""
+
+    _STATE_KEYS = ("block", "order", "position")
+
+    def __init__(self, config: ConstantStimuliConfig, guess_rate: float = 0.0) -> None:
+        super().__init__(config)
+        self.guess_rate = guess_rate
+        self._block, self._order, self._position = 0, [], 0
+
+    @property
+    def n_planned(self) -> int:
+        return len(self.config.levels) * self.config.repeats_per_block * self.config.n_blocks
+
+    @property
+    def finished(self) -> bool:
+        return self.n_done >= self.n_planned
+
+    def _next(self, rng):
+        if self._position >= len(self._order):
+            # the first trial of each block draws that block's order from its own generator
+            self._block = self.n_done // (len(self.config.levels) * self.config.repeats_per_block)
+            order = np.repeat(np.arange(len(self.config.levels)), self.config.repeats_per_block)
+            self._order, self._position = rng.permutation(order).tolist(), 0
+        return PlannedLevel(float(self.config.levels[self._order[self._position]]), 0, self._block)
+
+    def _update(self, planned, outcome):
+        self._position += 1
+
+    def proportions(self) -> dict[float, tuple[int, int]]:
+        """level -> (n positive, n with an outcome)."""
+        counts: dict[float, list[int]] = {lv: [0, 0] for lv in self.config.levels}
+        for h in self.history:
+            if h["outcome"] is not None:
+                counts[h["level"]][0] += h["outcome"]
+                counts[h["level"]][1] += 1
+        return {lv: (c[0], c[1]) for lv, c in counts.items()}
+
+    def estimate(self):
+        """Level where the proportion positive crosses halfway from guess to 1 (interpolated)."""
+        pts = [(lv, k / n) for lv, (k, n) in sorted(self.proportions().items()) if n]
+        target = (1 + self.guess_rate) / 2
+        for (x0, p0), (x1, p1) in zip(pts, pts[1:]):
+            if (p0 - target) * (p1 - target) <= 0 and p0 != p1:
+                return {"threshold": x0 + (target - p0) * (x1 - x0) / (p1 - p0)}
+        return {"threshold": None}
+
+
+class Staircase(Procedure):
+    """Interleaved transformed up/down staircases (Levitt 1971); a random unfinished track per trial."""
+
+    _STATE_KEYS = ("levels", "run_positive", "run_negative", "directions", "reversals", "n_trials")
+
+    def __init__(self, config: StaircaseConfig) -> None:
+        super().__init__(config)
+        tracks = config.tracks
+        self._levels = [t.start for t in tracks]
+        self._run_positive = [0] * len(tracks)
+        self._run_negative = [0] * len(tracks)
+        self._directions = [0] * len(tracks)  # -1 last step down, +1 up, 0 none yet
+        self._reversals: list[list[float]] = [[] for _ in tracks]
+        self._n_trials = [0] * len(tracks)
+
+    @property
+    def n_planned(self) -> int:
+        return sum(t.max_trials for t in self.config.tracks)
+
+    def _track_done(self, i: int) -> bool:
+        t = self.config.tracks[i]
+        return self._n_trials[i] >= t.max_trials or (
+            t.max_reversals is not None and len(self._reversals[i]) >= t.max_reversals)
+
+    @property
+    def finished(self) -> bool:
+        return all(self._track_done(i) for i in range(len(self.config.tracks)))
+
+    def _next(self, rng):
+        open_tracks = [i for i in range(len(self.config.tracks)) if not self._track_done(i)]
+        track = open_tracks[int(rng.integers(len(open_tracks)))] if len(open_tracks) > 1 else open_tracks[0]
+        return PlannedLevel(float(self._levels[track]), track, 0)
+
+    def _update(self, planned, outcome):
+        if outcome is None:
+            return
+        i, t = planned.track, self.config.tracks[planned.track]
+        self._n_trials[i] += 1
+        if outcome:
+            self._run_positive[i], self._run_negative[i] = self._run_positive[i] + 1, 0
+            direction = -1 if self._run_positive[i] >= t.down else 0
+        else:
+            self._run_negative[i], self._run_positive[i] = self._run_negative[i] + 1, 0
+            direction = +1 if self._run_negative[i] >= t.up else 0
+        if direction == 0:
+            return
+        self._run_positive[i] = self._run_negative[i] = 0
+        if self._directions[i] != 0 and direction != self._directions[i]:
+            self._reversals[i].append(self._levels[i])
+        self._directions[i] = direction
+        step = t.step_sizes[min(len(self._reversals[i]), len(t.step_sizes) - 1)]
+        level = self._levels[i] * 10 ** (direction * step) if t.step_scale == "log" else \
+            self._levels[i] + direction * step
+        self._levels[i] = float(min(max(level, t.min_level), t.max_level))
+
+    def track_estimate(self, i: int) -> float:
+        """Mean of the last ``estimate_reversals`` reversals (geometric for log steps), else the level."""
+        t = self.config.tracks[i]
+        rev = self._reversals[i][-t.estimate_reversals:]
+        if not rev:
+            return float(self._levels[i])
+        if t.step_scale == "log":
+            return float(np.exp(np.mean(np.log(rev))))
+        return float(np.mean(rev))
+
+    def estimate(self):
+        per_track = [self.track_estimate(i) for i in range(len(self.config.tracks))]
+        return {"threshold": float(np.mean(per_track)),
+                **{f"threshold_track{i}": v for i, v in enumerate(per_track)}}
+
+
+def _weibull(x, threshold, slope):
+    return -np.expm1(-np.power(np.clip(x, 0, None) / threshold, slope))
+
+
+def _gumbel(x, threshold, slope):
+    with np.errstate(divide="ignore"):
+        z = slope * (np.log10(np.clip(x, 0, None)) - np.log10(threshold))
+    return -np.expm1(-np.power(10.0, z))
+
+
+def _logistic(x, threshold, slope):
+    return 0.5 * (1 + np.tanh(0.5 * slope * (x - threshold) / threshold))
+
+
+def _normal_cdf(x, threshold, slope):
+    return ndtr(slope * (x - threshold) / threshold)
+
+
+_CORES = {"weibull": _weibull, "gumbel": _gumbel, "logistic": _logistic, "normal_cdf": _normal_cdf}
+
+
+def psychometric(family: str, guess_rate: float) -> Likelihood:
+    """Return ``f(x, threshold, slope, lapse) = guess + (1 - guess - lapse) F(x)`` for a family.
+
+    ``F`` uses the dimensionless ratio x / threshold, so ``slope`` is dimensionless in any unit:
+    weibull ``1 - exp(-(x/t)^b)``, gumbel ``1 - exp(-10^(b log10(x/t)))``,
+    logistic ``1 / (1 + exp(-b (x - t)/t))``, normal_cdf ``Phi(b (x - t)/t)``.
+    """
+    if family not in _CORES:
+        raise ValueError(f"family: must be one of {sorted(_CORES)}, got {family!r}")
+    core = _CORES[family]
+
+    def likelihood(x, threshold, slope, lapse):
+        return guess_rate + (1 - guess_rate - lapse) * core(x, threshold, slope)
+
+    likelihood.__name__ = f"{family}_guess{guess_rate:g}"
+    return likelihood
+
+
+def resolve_likelihood(name: str) -> Likelihood:
+    """Import ``"package.module:function"`` and return the callable."""
+    module_name, _, attr = name.partition(":")
+    try:
+        func = getattr(importlib.import_module(module_name), attr)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"likelihood: cannot import {name!r} ({exc}); check the import path") from None
+    if not callable(func):
+        raise ValueError(f"likelihood: {name!r} is not callable")
+    return func
+
+
+class Psi(Procedure):
+    """Psi / QUEST+ (Kontsevich & Tyler 1999; Watson 2017) with ANY binary likelihood.
+
+    Parameters
+    ----------
+    config : PsiConfig
+        Candidate levels (SI), parameter grids, the likelihood name and ``n_trials``.
+    guess_rate : float
+        Chance rate for the named families (``config.guess_rate`` overrides it).
+    likelihood : callable, optional
+        ``f(level, **params) -> p(positive)``, ``level`` of shape (n_levels, 1) and each
+        parameter of shape (1, n_theta); overrides ``config.likelihood``. The posterior over the
+        parameter grid is updated exactly by Bayes' rule (uniform prior); each trial takes the
+        level that minimises the expected posterior entropy.
+    """
+
+    _STATE_KEYS = ("log_posterior",)
+
+    def __init__(self, config: PsiConfig, guess_rate: float = 0.0, likelihood: Likelihood | None = None):
+        super().__init__(config)
+        if likelihood is None:
+            guess = config.guess_rate if config.guess_rate is not None else guess_rate
+            likelihood = psychometric(config.likelihood, guess) if config.likelihood in _CORES \
+                else resolve_likelihood(config.likelihood)
+        if not callable(likelihood):
+            raise ValueError(f"likelihood: must be callable f(level, **params), got {likelihood!r}")
+        self.names = list(config.parameters)
+        mesh = np.meshgrid(*[np.asarray(config.parameters[k], float) for k in self.names], indexing="ij")
+        self.theta = {k: m.ravel() for k, m in zip(self.names, mesh)}
+        self.levels = np.asarray(config.levels, float)
+        with np.errstate(all="ignore"):
+            table = np.asarray(likelihood(self.levels[:, None], **{k: v[None, :] for k, v in self.theta.items()}), float)
+        expected = (self.levels.size, mesh[0].size)
+        if table.shape != expected:
+            raise ValueError(
+                f"likelihood: must return p(positive) of shape (n_levels, n_theta) = {expected}, got "
+                f"{table.shape}; broadcast level (n_levels, 1) against params (1, n_theta)"
+            )
+        if not np.all(np.isfinite(table)) or np.any((table < 0) | (table > 1)):
+            raise ValueError("likelihood: returned values outside [0, 1] or NaN; it must return probabilities")
+        eps = 1e-12
+        self._log_p1 = np.log(np.clip(table, eps, 1))
+        self._log_p0 = np.log(np.clip(1 - table, eps, 1))
+        self._log_posterior = np.full(expected[1], -math.log(expected[1]))
+
+    @property
+    def n_planned(self) -> int:
+        return self.config.n_trials
+
+    @property
+    def finished(self) -> bool:
+        return sum(h["outcome"] is not None for h in self.history) >= self.config.n_trials
+
+    def posterior(self) -> np.ndarray:
+        """Posterior probabilities over the flattened parameter grid, shape (n_theta,)."""
+        w = np.exp(self._log_posterior - self._log_posterior.max())
+        return w / w.sum()
+
+    def _next(self, rng):
+        post = self.posterior()
+        p1_theta = np.exp(self._log_p1)  # (n_levels, n_theta)
+        p1 = p1_theta @ post  # predictive probability of a positive outcome per level
+        entropies = []
+        for log_p, p in ((self._log_p1, p1), (self._log_p0, 1 - p1)):
+            w = np.exp(log_p) * post
+            w = w / np.clip(w.sum(axis=1, keepdims=True), 1e-300, None)
+            h = -np.sum(np.where(w > 0, w * np.log(np.clip(w, 1e-300, None)), 0.0), axis=1)
+            entropies.append(p * h)
+        expected_entropy = entropies[0] + entropies[1]
+        return PlannedLevel(float(self.levels[int(np.argmin(expected_entropy))]), 0, 0)
+
+    def _update(self, planned, outcome):
+        if outcome is None:
+            return
+        row = int(np.flatnonzero(self.levels == planned.level)[0])
+        self._log_posterior = self._log_posterior + (self._log_p1[row] if outcome else self._log_p0[row])
+        self._log_posterior -= self._log_posterior.max()
+
+    def estimate(self):
+        post = self.posterior()
+        out: dict[str, float | None] = {}
+        for k in self.names:
+            mean = float(post @ self.theta[k])
+            out[k] = mean
+            out[f"{k}_sd"] = float(np.sqrt(max(post @ (self.theta[k] - mean) ** 2, 0.0)))
+        return out
+
+    def record_state(self):
+        post = self.posterior()
+        entropy = float(-np.sum(post[post > 0] * np.log(post[post > 0])))
+        return {"n_trials": self.n_done, "entropy_nats": entropy, "estimate": self.estimate()}
+
+
+def make_procedure(config: Any, guess_rate: float = 0.0, likelihood: Likelihood | None = None) -> Procedure:
+    """Build the procedure that a protocol's ``procedure`` table describes."""
+    if isinstance(config, ConstantStimuliConfig):
+        return ConstantStimuli(config, guess_rate)
+    if isinstance(config, StaircaseConfig):
+        return Staircase(config)
+    if isinstance(config, PsiConfig):
+        return Psi(config, guess_rate, likelihood)
+    raise ValueError(f"config: unknown procedure configuration {type(config).__name__}")
+
+
+def replay(procedure: Procedure, history: list[dict[str, Any]], rng_for: Callable[[int], np.random.Generator]) -> Procedure:
+    """Rebuild ``procedure``'s state from a recorded history, checking every recorded level.
+
+    Parameters
+    ----------
+    procedure : Procedure
+        A fresh procedure from the same protocol.
+    history : list of dict
+        Recorded trials in order, each with ``_HISTORY_KEYS``.
+    rng_for : callable
+        ``trial_index -> procedure generator`` (the runner's derivation from the seed).
+
+    Raises
+    ------
+    ValueError
+        If a recorded level or track differs from what the procedure chooses: the log does not
+        belong to this protocol and seed.
+    """
+    if procedure.n_done:
+        raise ValueError(f"procedure: replay needs a fresh procedure, this one has {procedure.n_done} trials")
+    for entry in history:
+        planned = procedure.next_trial(entry["trial_index"], rng_for(entry["trial_index"]))
+        if planned is None or planned.level != entry["level"] or planned.track != entry["track"]:
+            raise ValueError(
+                f"history: trial {entry['trial_index']} recorded level {entry['level']!r} (track "
+                f"{entry['track']}), but the protocol and seed give {planned!r}; the log does not "
+                "match this protocol"
+            )
+        procedure.update(planned, entry["outcome"])
+    return procedure
