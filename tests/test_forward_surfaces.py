@@ -1,0 +1,140 @@
+"""Surfaces: gratings, random square waves, defects, height maps, rigid sliding-surface pressure."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tactilab.forward.surfaces import (Bump, HeightMap, RandomSquareWaveGrating, SinusoidalGrating,
+                                       SquareWaveGrating, Step, Surface, rigid_surface_pressure)
+
+
+@pytest.mark.parametrize("nu", [0.5, 0.3])
+def test_rigid_surface_pressure_sinusoid(nu):
+    """P~ = E rho H~ / (2 (1 - nu^2)) on an exactly periodic sinusoid, 1-D and 2-D."""
+    p, A, E, n = 2e-3, 20e-6, 1.5e6, 64
+    dx = p / 16
+    x = np.arange(n) * dx
+    pres = rigid_surface_pressure(SinusoidalGrating(p, A).height(x), dx, E, nu)
+    k = 2 * math.pi / p
+    np.testing.assert_allclose(pres, E * k * A / (2 * (1 - nu ** 2)) * np.sin(k * x), atol=1e-9 * E * k * A)
+    X, Y = np.meshgrid(x, x)
+    g = SinusoidalGrating(p * math.sqrt(2), A, orientation=math.pi / 4)
+    pres2 = rigid_surface_pressure(g.height(X, Y), (dx, dx), E, nu)
+    np.testing.assert_allclose(pres2, E * k / math.sqrt(2) / (2 * (1 - nu ** 2)) * g.height(X, Y),
+                               atol=1e-9 * E * k * A)
+
+
+def test_sliding_sinusoid_strain_matches_physics_4a():
+    """The pressure of a sliding sinusoid, fed to the sinusoidal-load closed forms (physics.md 3)
+    and Hooke's law (nu = 1/2, plane strain), gives the 4a strain, independent of E."""
+    p, A, Z, n = 2e-3, 10e-6, 1e-3, 128
+    dx = p / 32
+    x = np.arange(n) * dx
+    k = 2 * math.pi / p
+    for E in (0.5e6, 3e6):
+        P = rigid_surface_pressure(A * np.sin(k * x), dx, E, 0.5)
+        amp = P.max()  # p(x) = amp sin kx; phase-shifted cos closed forms
+        e = math.exp(-k * Z)
+        sxx = -amp * (1 - k * Z) * e * np.sin(k * x)
+        szz = -amp * (1 + k * Z) * e * np.sin(k * x)
+        sxz = amp * k * Z * e * np.cos(k * x)
+        nu = 0.5
+        syy = nu * (sxx + szz)
+        tr = sxx + syy + szz
+        exx = ((1 + nu) * sxx - nu * tr) / E
+        gzx = 2 * (1 + nu) * sxz / E
+        c = 4 * math.pi ** 2 * A * Z / p ** 2 * math.exp(-2 * math.pi * Z / p)
+        np.testing.assert_allclose(exx, c * np.sin(k * x), atol=1e-9 * c)
+        np.testing.assert_allclose(gzx, 2 * c * np.cos(k * x), atol=1e-9 * c)
+
+
+def test_gratings_and_random_square_wave(rng):
+    sq = SquareWaveGrating(period=1e-3, amplitude=5e-6, duty=0.25)
+    x = np.linspace(0, 10e-3, 10001)[:-1]
+    h = sq.height(x)
+    assert set(np.unique(h)) == {-5e-6, 5e-6}
+    assert np.mean(h > 0) == pytest.approx(0.25, abs=1e-3)
+    seed = int(rng.integers(1 << 30))
+    g1 = RandomSquareWaveGrating.from_rng(np.random.default_rng(seed), 1000, 0.1e-3, 2e-6)
+    g2 = RandomSquareWaveGrating.from_rng(np.random.default_rng(seed), 1000, 0.1e-3, 2e-6)
+    np.testing.assert_array_equal(g1.bits, g2.bits)
+    assert abs(g1.bits.mean()) < 0.15
+    xb = (np.arange(1000) + 0.5) * 0.1e-3
+    np.testing.assert_array_equal(g1.height(xb), 2e-6 * g1.bits)
+    np.testing.assert_array_equal(g1.height(xb + 1000 * 0.1e-3), g1.height(xb))  # periodic
+
+
+def test_defects_and_height_map():
+    b = Bump(x=5e-3, y=1e-3, size=0.4e-3, height_m=30e-6)
+    h = 1e-6
+    xs = np.arange(4.7e-3, 5.3e-3, h)
+    ys = np.arange(0.7e-3, 1.3e-3, h)
+    X, Y = np.meshgrid(xs, ys)
+    assert b.height(X, Y).sum() * h * h == pytest.approx(b.integral(), rel=1e-3)
+    assert b.height(5e-3, 1e-3) == pytest.approx(30e-6)
+    s = Step(x=2e-3, height_m=1e-5, width=0.0)
+    assert s.height(1.999e-3) == 0 and s.height(2e-3) == 1e-5
+    ramp = Step(x=2e-3, height_m=1e-5, width=1e-4)
+    assert ramp.height(2e-3) == pytest.approx(0.5e-5)
+    heights = np.add.outer(np.arange(5) * 2.0, np.arange(7) * 3.0) * 1e-6  # 3 x + 2 y (in cells)
+    hm = HeightMap(heights, spacing=1e-4, origin=(1e-3, 0.0))
+    px, py = 1e-3 + 2.3e-4, 1.7e-4
+    assert hm.height(px, py) == pytest.approx((3 * 2.3 + 2 * 1.7) * 1e-6)
+    assert hm.height(0.0, 0.0) == 0.0
+    prof = HeightMap(np.array([0.0, 1e-6, 0.0]), spacing=1e-4)
+    assert prof.height(0.5e-4, 7.0) == pytest.approx(0.5e-6)
+    surf = Surface(length=10e-3, width=4e-3, features=(b, s, hm))
+    assert surf.height(5e-3, 1e-3) == pytest.approx(30e-6 + 1e-5)
+    assert surf.height(-1e-3, 0.0) == 0.0
+    mod = surf.modulation(np.array([5e-3, 1e-3]), np.array([1e-3, 0.0]), reference_height=1e-5)
+    np.testing.assert_allclose(mod, [1 + 4.0, 1.0])
+    neg = Surface(length=1e-2, features=(Bump(5e-3, 0.0, 1e-3, -3e-5),))
+    assert neg.modulation(5e-3, 0.0, reference_height=1e-5) == 0.0
+
+
+def test_bad_input_raises():
+    with pytest.raises(ValueError, match="features\\[0\\]: Bump spans .* outside the surface"):
+        Surface(length=10e-3, features=(Bump(x=12e-3, y=0.0, size=1e-3, height_m=1e-5),))
+    with pytest.raises(ValueError, match="outside the surface"):
+        Surface(length=10e-3, width=2e-3, features=(Bump(x=5e-3, y=1.5e-3, size=1e-3, height_m=1e-5),))
+    with pytest.raises(ValueError, match="features\\[0\\]: expected a surface Feature"):
+        Surface(length=1e-2, features=("bump",))
+    with pytest.raises(ValueError, match="period: must be finite and > 0"):
+        SinusoidalGrating(period=0.0, amplitude=1e-6)
+    with pytest.raises(ValueError, match="amplitude: must be finite"):
+        SquareWaveGrating(period=1e-3, amplitude=math.nan)
+    with pytest.raises(ValueError, match="duty: the ridge fraction"):
+        SquareWaveGrating(period=1e-3, amplitude=1e-6, duty=1.0)
+    with pytest.raises(ValueError, match="bits: need a 1-D array"):
+        RandomSquareWaveGrating(bit_length=1e-4, amplitude=1e-6, bits=np.array([1.0, 0.5]))
+    with pytest.raises(ValueError, match="rng: expected a numpy.random.Generator"):
+        RandomSquareWaveGrating.from_rng(42, 10, 1e-4, 1e-6)
+    with pytest.raises(ValueError, match="n_bits: must be an integer >= 2"):
+        RandomSquareWaveGrating.from_rng(np.random.default_rng(0), 1, 1e-4, 1e-6)
+    with pytest.raises(ValueError, match="size: must be finite and > 0"):
+        Bump(0.0, 0.0, -1e-3, 1e-5)
+    with pytest.raises(ValueError, match="width: the ramp width"):
+        Step(0.0, 1e-5, width=-1.0)
+    with pytest.raises(ValueError, match="heights: the height map contains NaN"):
+        HeightMap(np.array([0.0, np.nan]), spacing=1e-4)
+    with pytest.raises(ValueError, match="heights: need shape"):
+        HeightMap(np.zeros((2, 2, 2)), spacing=1e-4)
+    with pytest.raises(ValueError, match="spacing \\(dy\\): must be finite"):
+        HeightMap(np.zeros((3, 3)), spacing=(1e-4, 0.0))
+    with pytest.raises(ValueError, match="reference_height: must be finite and > 0"):
+        Surface(length=1e-2).modulation(0.0, reference_height=0.0)
+    with pytest.raises(ValueError, match="length: must be finite"):
+        Surface(length=-1.0)
+    with pytest.raises(ValueError, match="heights: need a finite array"):
+        rigid_surface_pressure(np.array([np.nan, 0.0]), 1e-4, 1e6)
+    with pytest.raises(ValueError, match="spacing: need 2 value"):
+        rigid_surface_pressure(np.zeros((4, 4)), (1e-4, 1e-4, 1e-4), 1e6)
+    with pytest.raises(ValueError, match="spacing: must be finite and > 0"):
+        rigid_surface_pressure(np.zeros(4), -1e-4, 1e6)
+    with pytest.raises(ValueError, match="young_modulus: must be finite and > 0"):
+        rigid_surface_pressure(np.zeros(4), 1e-4, 0.0)
+    with pytest.raises(ValueError, match="poisson_ratio: must lie"):
+        rigid_surface_pressure(np.zeros(4), 1e-4, 1e6, poisson_ratio=-0.1)
