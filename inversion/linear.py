@@ -1,0 +1,286 @@
+"""One entry point for linear regularised inversion: :func:`invert_linear`.
+
+Solves ``min_m ||A m - d||^2 + lam ||L m||^2`` (Tikhonov, penalties in
+:mod:`tactilab.inversion.penalties`) or ``min_m 1/2 ||A m - d||^2 + lam ||D m||_1`` (total
+variation, :mod:`tactilab.inversion.tv`). Like ``scipy.integrate.solve_ivp`` it looks the path up
+in a registry, :data:`METHODS`, and says which it used in the result:
+
+- ``"fft"``: the operator is a :class:`~tactilab.inversion.operators.FourierDiagonal`
+  (a sensor at every node of a periodic grid, translation invariant): O(n log n) and the
+  regularisation criteria in closed form, O(n) per lam.
+- ``"dense"``: an explicit matrix (or any operator with n <= ``DENSE_MAX``): generalised SVD
+  through a Cholesky factor of ``L^T L + eps I``; criteria in closed form.
+- ``"iterative"``: any ``scipy.sparse.linalg.LinearOperator`` (irregular sensors, padded
+  grids): matrix-free conjugate gradients on the normal equations, preconditioned by the
+  circulant ``(c + lam |L(k)|^2)^-1`` with ``c`` a probe estimate of ``mean diag(A^T A)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import scipy.linalg as sla
+from scipy.sparse.linalg import LinearOperator, aslinearoperator, cg
+
+from .criteria import CRITERIA, CriteriaResult, SpectralForm, choose_lambda
+from .operators import FourierDiagonal
+from .penalties import PENALTIES, check_penalty, penalty_matrix, penalty_symbol
+
+DENSE_MAX = 1024
+PATHS = ("fft", "dense", "iterative")
+
+__all__ = ["invert_linear", "LinearInversionResult", "METHODS", "fft_form", "dense_form", "check_data"]
+
+
+@dataclass
+class LinearInversionResult:
+    """Result of :func:`invert_linear`.
+
+    Attributes
+    ----------
+    model : ndarray, shape ``dims``
+        Estimated model (load in Pa, or profile in m, as the operator maps).
+    method : str
+        Path used: ``"fft"``, ``"dense"`` or ``"iterative"``.
+    penalty : str
+        ``"identity"``, ``"gradient"``, ``"curvature"`` or ``"tv"``.
+    lam : float
+        Regularisation strength used.
+    lam_source : str
+        ``"given"`` or the criterion that chose it.
+    criteria : CriteriaResult or None
+        All criteria choices and curves (Tikhonov on the fft and dense paths).
+    residual_norm : float
+        ``||A m - d||`` in data units.
+    iterations : int
+        Solver iterations (0 for direct paths).
+    converged : bool
+        False when an iterative solver hit its iteration limit.
+    message : str
+        Human-readable account of what was done.
+    """
+
+    model: np.ndarray
+    method: str
+    penalty: str
+    lam: float
+    lam_source: str
+    criteria: CriteriaResult | None
+    residual_norm: float
+    iterations: int
+    converged: bool
+    message: str
+
+
+def check_data(data, n_expected: int, name: str = "data") -> np.ndarray:
+    """Flatten and validate data: finite reals of the expected size."""
+    arr = np.asarray(data)
+    if arr.dtype.kind not in "biuf":
+        raise ValueError(f"{name}: expected real numbers, got dtype {arr.dtype}")
+    arr = arr.astype(float).ravel()
+    if arr.size != n_expected:
+        raise ValueError(f"{name}: size mismatch, got {arr.size} values but the operator has {n_expected} outputs")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(
+            f"{name}: must be finite, found {arr[i]} at flat index {i} ({int(bad.sum())} bad values); "
+            "drop or interpolate the bad samples first"
+        )
+    return arr
+
+
+def _dims(op) -> tuple[int, ...]:
+    return tuple(getattr(op, "dims", (op.shape[1],)))
+
+
+def fft_form(op: FourierDiagonal, data: np.ndarray, penalty: str):
+    """SpectralForm of a FourierDiagonal problem, plus (D, H, L2) on the rfft half grid."""
+    axes = tuple(range(len(op.dims)))
+    n = data.size
+    d_hat = np.fft.rfftn(data.reshape(op.dims), axes=axes)
+    h = op.half_multiplier
+    l2 = penalty_symbol(penalty, op.dims, op.spacing)[..., : op.dims[-1] // 2 + 1]
+    h2 = np.abs(h) ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(l2 > 0, h2 / np.where(l2 > 0, l2, 1.0), np.where(h2 > 0, np.inf, 0.0))
+    form = SpectralForm(ratio=ratio.ravel(), coef2=(np.abs(d_hat) ** 2 / n).ravel(),
+                        weights=op.weights.ravel(), n_data=n)
+    return form, d_hat, h, l2
+
+
+def _solve_fft(op, data, penalty, lam, aux):
+    d_hat, h, l2 = aux
+    den = np.abs(h) ** 2 + lam * l2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        m_hat = np.where(den > 0, np.conj(h) * d_hat / np.where(den > 0, den, 1.0), 0.0)
+    return np.fft.irfftn(m_hat, s=op.dims, axes=tuple(range(len(op.dims)))), 0, True
+
+
+def dense_form(a: np.ndarray, data: np.ndarray, lmat: np.ndarray):
+    """SpectralForm of a dense problem via ``R^T R = L^T L + eps I`` and the SVD of ``A R^-1``."""
+    ltl = lmat.T @ lmat
+    eps = 1e-12 * max(float(np.trace(ltl)) / ltl.shape[0], 1e-300)
+    r = sla.cholesky(ltl + eps * np.eye(ltl.shape[0]), lower=False)
+    b = sla.solve_triangular(r, a.T, trans="T", lower=False).T  # A R^-1
+    u, s, vt = np.linalg.svd(b, full_matrices=False)
+    c = u.T @ data
+    resid0 = max(float(data @ data - c @ c), 0.0)
+    form = SpectralForm(ratio=s**2, coef2=c**2, weights=np.ones_like(s), n_data=data.size, resid0=resid0)
+    return form, (r, s, vt, c)
+
+
+def _solve_dense(op, data, penalty, lam, aux):
+    r, s, vt, c = aux
+    y = vt.T @ (s / (s**2 + lam) * c)
+    return sla.solve_triangular(r, y, lower=False), 0, True
+
+
+def _probe_diag_mean(op: LinearOperator, rng: np.random.Generator, n_probe: int = 8) -> float:
+    """Estimate mean(diag(A^T A)) = ||A||_F^2 / n with Rademacher probes (Hutchinson)."""
+    n = op.shape[1]
+    z = rng.choice([-1.0, 1.0], size=(n, n_probe))
+    az = np.column_stack([op.matvec(z[:, j]) for j in range(n_probe)])
+    return float(np.sum(az * az) / (n * n_probe))
+
+
+def _solve_iterative(op, data, penalty, lam, dims, spacing, rng, tol, max_iter):
+    n = op.shape[1]
+    lmat = penalty_matrix(penalty, dims, spacing, periodic=False)
+    ltl = (lmat.T @ lmat).tocsr()
+    c = _probe_diag_mean(op, rng)
+    l2 = penalty_symbol(penalty, dims, spacing)[..., : dims[-1] // 2 + 1]
+    axes = tuple(range(len(dims)))
+    pre_den = c + lam * l2
+
+    def precondition(x):
+        spec = np.fft.rfftn(np.asarray(x).reshape(dims), axes=axes) / pre_den
+        return np.fft.irfftn(spec, s=dims, axes=axes).ravel()
+
+    normal = LinearOperator((n, n), matvec=lambda x: op.rmatvec(op.matvec(x)) + lam * (ltl @ x), dtype=float)
+    m_pre = LinearOperator((n, n), matvec=precondition, dtype=float)
+    count = [0]
+
+    def callback(_):
+        count[0] += 1
+
+    x, info = cg(normal, op.rmatvec(data), rtol=tol, maxiter=max_iter, M=m_pre, callback=callback)
+    return x, count[0], info == 0
+
+
+#: path name -> callable(op, data, penalty, lam, aux) -> (model_flat, iterations, converged)
+METHODS: dict[str, Callable] = {"fft": _solve_fft, "dense": _solve_dense, "iterative": _solve_iterative}
+
+
+def _pick_path(op, method: str) -> str:
+    if method != "auto":
+        if method not in PATHS:
+            raise ValueError(f"method: unknown path {method!r}; use 'auto' or one of {', '.join(PATHS)}")
+        if method == "fft" and not isinstance(op, FourierDiagonal):
+            raise ValueError(
+                "method: 'fft' needs a FourierDiagonal operator (one sensor per node of a periodic grid); "
+                "use method='iterative' or 'dense' for this operator"
+            )
+        return method
+    if isinstance(op, FourierDiagonal):
+        return "fft"
+    if isinstance(op, np.ndarray) or op.shape[1] <= DENSE_MAX:
+        return "dense"
+    return "iterative"
+
+
+def invert_linear(
+    operator,
+    data,
+    *,
+    penalty: str = "gradient",
+    lam: float | None = None,
+    criterion: str = "gcv",
+    noise_std: float | None = None,
+    method: str = "auto",
+    spacing=None,
+    tol: float = 1e-8,
+    max_iter: int = 2000,
+    rng: np.random.Generator | None = None,
+) -> LinearInversionResult:
+    """Regularised linear inversion ``d = A m + noise`` through one of the registered paths.
+
+    Parameters
+    ----------
+    operator : FourierDiagonal, LinearOperator or ndarray, shape (n_data, n_model)
+        Forward map. Its ``dims`` (model grid shape) are used by the penalties when present.
+    data : array_like, n_data values
+        Observations, finite (data units: Pa for stress, or strain).
+    penalty : {"identity", "gradient", "curvature", "tv"}
+        Tikhonov penalty, or total variation (edges, isolated defects).
+    lam : float or None
+        Regularisation strength. ``None``: chosen by ``criterion``.
+    criterion : {"gcv", "lcurve", "discrepancy", "evidence"}
+        Used when ``lam`` is None. On the fft and dense paths all four are computed and
+        reported (and a warning is issued when they disagree by more than 10x).
+    noise_std : float or None
+        Noise standard deviation in data units (needed by the discrepancy principle; else
+        estimated by the evidence).
+    method : {"auto", "fft", "dense", "iterative"}
+        Path; ``auto`` picks fft for FourierDiagonal, dense for n_model <= 1024, else iterative.
+    spacing : float or tuple, optional
+        Grid spacing in m for the penalties (default: the operator's, else 1).
+    tol, max_iter : float, int
+        Relative tolerance and iteration limit of the iterative solvers.
+    rng : numpy.random.Generator, optional
+        For the probe vectors of the iterative preconditioner (default seed 0).
+
+    Returns
+    -------
+    LinearInversionResult
+    """
+    if penalty == "tv":
+        from .tv import invert_tv
+
+        return invert_tv(operator, data, lam=lam, noise_std=noise_std, method=method, spacing=spacing,
+                         tol=tol, max_iter=max_iter, rng=rng)
+    if penalty not in PENALTIES:
+        raise ValueError(f"penalty: unknown penalty {penalty!r}; use one of {', '.join(PENALTIES)} or 'tv'")
+    check_penalty(penalty)
+    if criterion not in CRITERIA:
+        raise ValueError(f"criterion: unknown {criterion!r}; use one of {', '.join(CRITERIA)}")
+    if lam is not None and not (np.isfinite(lam) and lam > 0):
+        raise ValueError(f"lam: regularisation strength must be finite and > 0, got {lam!r}; or None to choose it")
+    path = _pick_path(operator, method)
+    op = operator if isinstance(operator, (FourierDiagonal, np.ndarray)) else aslinearoperator(operator)
+    d = check_data(data, operator.shape[0])
+    dims = _dims(operator) if not isinstance(operator, np.ndarray) else (operator.shape[1],)
+    spacing = spacing if spacing is not None else getattr(operator, "spacing", 1.0)
+    crit = None
+    if path == "fft":
+        form, *aux = fft_form(op, d, penalty)
+    elif path == "dense":
+        a = op if isinstance(op, np.ndarray) else op.matmat(np.eye(op.shape[1]))
+        lmat = penalty_matrix(penalty, dims, spacing, periodic=False).toarray()
+        form, aux = dense_form(np.asarray(a, dtype=float), d, lmat)
+    if path in ("fft", "dense"):
+        if lam is None:
+            crit = choose_lambda(form, noise_std=noise_std)
+            lam_used, source = crit.lam[criterion], criterion
+        else:
+            lam_used, source = float(lam), "given"
+        model, iters, ok = METHODS[path](op, d, penalty, lam_used, aux)
+        model = np.asarray(model).reshape(dims)
+        resid = float(np.sqrt(form.residual2(lam_used)))
+    else:
+        if lam is None:
+            raise ValueError(
+                "lam: the iterative path needs an explicit lam (the closed-form criteria need the fft or "
+                "dense path); choose it on a FourierDiagonal approximation of the operator and pass it"
+            )
+        lam_used, source = float(lam), "given"
+        rng = rng if rng is not None else np.random.default_rng(0)
+        x, iters, ok = _solve_iterative(op, d, penalty, lam_used, dims, spacing, rng, tol, max_iter)
+        model = x.reshape(dims)
+        resid = float(np.linalg.norm(op.matvec(x) - d))
+    msg = (f"path={path}, penalty={penalty}, lam={lam_used:.4g} ({source}), residual={resid:.4g}"
+           + (f", {iters} CG iterations{'' if ok else ' (NOT converged)'}" if path == "iterative" else ""))
+    return LinearInversionResult(model=model, method=path, penalty=penalty, lam=lam_used, lam_source=source,
+                                 criteria=crit, residual_norm=resid, iterations=iters, converged=ok, message=msg)

@@ -1,0 +1,212 @@
+"""Linear operators used by the inversions: a Fourier-diagonal (circulant) operator and a dot test.
+
+The forward map from a surface load to sensors at depth is, on a periodic grid with a sensor at
+every node, a convolution: it is diagonal in Fourier space with a multiplier ``H(k)`` (the
+transfer function of physics.md section 2). :class:`FourierDiagonal` applies it in
+O(n log n) with real FFTs and carries ``dims`` / ``dimsd`` like PyLops operators.
+
+Fourier convention (physics.md section 1): ``f~(k) = sum_x f(x) exp(-i k x)``, angular
+wavenumbers ``k = 2 pi * fftfreq(n, dx)`` in rad/m. A multiplier is given on the FULL grid in
+``numpy.fft.fftfreq`` order (shape equal to the model shape); it must be Hermitian,
+``H(-k) = conj(H(k))``, so that the operator maps real arrays to real arrays.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse.linalg import LinearOperator
+
+__all__ = [
+    "FourierDiagonal",
+    "angular_wavenumbers",
+    "normal_pressure_to_szz_multiplier",
+    "dottest",
+]
+
+
+def angular_wavenumbers(shape: tuple[int, ...], spacing) -> tuple[np.ndarray, ...]:
+    """Angular wavenumbers (rad/m) of a periodic grid, one array per axis, broadcastable.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        Grid shape ``(nx,)`` or ``(ny, nx)``.
+    spacing : float or tuple of float
+        Grid spacing in m, ``dx`` or ``(dx, dy)``; for 2-D grids the order is (dx, dy) as in
+        :class:`tactilab.forward.loads.SurfaceLoad`.
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(xi,)`` of shape (nx,) in 1-D; ``(eta, xi)`` of shapes (ny, 1) and (1, nx) in 2-D,
+        in ``fftfreq`` order.
+    """
+    spacing = np.atleast_1d(np.asarray(spacing, dtype=float))
+    if spacing.size == 1:
+        spacing = np.repeat(spacing, len(shape))
+    if len(shape) == 1:
+        return (2 * np.pi * np.fft.fftfreq(shape[0], spacing[0]),)
+    if len(shape) == 2:
+        xi = 2 * np.pi * np.fft.fftfreq(shape[1], spacing[0])[None, :]
+        eta = 2 * np.pi * np.fft.fftfreq(shape[0], spacing[1])[:, None]
+        return eta, xi
+    raise ValueError(f"shape: expected a 1-D (nx,) or 2-D (ny, nx) grid, got {shape}")
+
+
+def normal_pressure_to_szz_multiplier(n: int, dx: float, depth: float) -> np.ndarray:
+    """Closed-form plane-strain multiplier from normal pressure p to sigma_zz at depth.
+
+    ``H(k) = -(1 + |k| Z) exp(-|k| Z)`` (physics.md section 3, sinusoidal loads): a pressure
+    ``P cos kx`` gives ``sigma_zz = -P (1 + kZ) e^{-kZ} cos kx``. Written as a product with
+    ``exp`` so that it underflows harmlessly to 0 for ``|k| Z > 745`` (physics.md section 5).
+
+    Parameters
+    ----------
+    n : int
+        Number of grid nodes (periodic).
+    dx : float
+        Grid spacing in m.
+    depth : float
+        Sensor depth Z in m, >= 0.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Real multiplier in ``fftfreq`` order (dimensionless: Pa of stress per Pa of pressure).
+    """
+    if not (np.isfinite(depth) and depth >= 0):
+        raise ValueError(f"depth: sensor depth must be finite and >= 0 m, got {depth!r}")
+    if not (np.isfinite(dx) and dx > 0):
+        raise ValueError(f"dx: grid spacing must be finite and > 0 m, got {dx!r}")
+    (k,) = angular_wavenumbers((int(n),), dx)
+    s = np.abs(k) * depth
+    return -(1.0 + s) * np.exp(-s)
+
+
+def _half(full: np.ndarray) -> np.ndarray:
+    """The rfftn half of a full-grid spectrum (last axis cut to n//2 + 1)."""
+    return full[..., : full.shape[-1] // 2 + 1]
+
+
+def _is_hermitian(full: np.ndarray, rtol: float = 1e-10) -> bool:
+    flipped = full
+    for axis in range(full.ndim):
+        flipped = np.roll(np.flip(flipped, axis=axis), 1, axis=axis)
+    scale = max(float(np.max(np.abs(full))), np.finfo(float).tiny)
+    return bool(np.max(np.abs(flipped - np.conj(full))) <= rtol * scale)
+
+
+class FourierDiagonal(LinearOperator):
+    """Circulant operator ``d = ifft(H * fft(m))`` on a periodic 1-D or 2-D grid.
+
+    Parameters
+    ----------
+    multiplier : ndarray, shape ``dims``
+        Transfer function ``H(k)`` on the full grid, ``fftfreq`` order, Hermitian
+        (``H(-k) = conj(H(k))``). Units: data units per model unit.
+    spacing : float or tuple of float, optional
+        Grid spacing in m (kept for wavenumbers and plots), default 1.
+
+    Attributes
+    ----------
+    dims, dimsd : tuple of int
+        Model and data shapes (equal: one sensor per grid node).
+    half_multiplier : ndarray
+        ``H`` on the rfftn half grid.
+    weights : ndarray
+        Multiplicity of each half-grid mode in the full spectrum (1 or 2), so that
+        ``sum_full f = sum_half weights * f`` for Hermitian-symmetric ``f``.
+    """
+
+    def __init__(self, multiplier, spacing=1.0):
+        full = np.asarray(multiplier)
+        if full.ndim not in (1, 2) or full.size < 1:
+            raise ValueError(
+                f"multiplier: expected a 1-D (nx,) or 2-D (ny, nx) array in fftfreq order, got shape {full.shape}"
+            )
+        if not np.all(np.isfinite(full)):
+            raise ValueError("multiplier: transfer function must be finite (no NaN or inf); check the depth and grid")
+        if not _is_hermitian(full):
+            raise ValueError(
+                "multiplier: must be Hermitian, H(-k) = conj(H(k)), so that real loads give real data; "
+                "give it on the full fftfreq grid"
+            )
+        self.dims = tuple(full.shape)
+        self.dimsd = tuple(full.shape)
+        self.spacing = spacing
+        self.multiplier = full
+        self.half_multiplier = _half(full).astype(complex)
+        self.weights = _rfft_weights(self.dims)
+        n = int(np.prod(self.dims))
+        super().__init__(dtype=np.float64, shape=(n, n))
+
+    @property
+    def wavenumbers(self) -> tuple[np.ndarray, ...]:
+        """Angular wavenumbers in rad/m on the full grid (see :func:`angular_wavenumbers`)."""
+        return angular_wavenumbers(self.dims, self.spacing)
+
+    def _apply(self, x: np.ndarray, mult: np.ndarray) -> np.ndarray:
+        cols = x.reshape(*self.dims, -1)
+        axes = tuple(range(len(self.dims)))
+        spec = np.fft.rfftn(cols, axes=axes) * mult[..., None]
+        out = np.fft.irfftn(spec, s=self.dims, axes=axes)
+        return out.reshape(x.shape)
+
+    def _matvec(self, x):
+        return self._apply(np.asarray(x, dtype=float), self.half_multiplier)
+
+    def _rmatvec(self, x):
+        return self._apply(np.asarray(x, dtype=float), np.conj(self.half_multiplier))
+
+    def _matmat(self, X):
+        return self._apply(np.asarray(X, dtype=float), self.half_multiplier)
+
+    def _rmatmat(self, X):
+        return self._apply(np.asarray(X, dtype=float), np.conj(self.half_multiplier))
+
+    def _adjoint(self):
+        return FourierDiagonal(np.conj(self.multiplier), self.spacing)
+
+    def todense(self) -> np.ndarray:
+        """Dense matrix (n, n) for small grids (oracle tests, dense path)."""
+        return self.matmat(np.eye(self.shape[1]))
+
+
+def _rfft_weights(shape: tuple[int, ...]) -> np.ndarray:
+    """Weights of rfftn modes: 2 for modes whose mirror is not stored, 1 otherwise."""
+    n_last = shape[-1]
+    half = n_last // 2 + 1
+    w = np.full(half, 2.0)
+    w[0] = 1.0
+    if n_last % 2 == 0:
+        w[-1] = 1.0
+    return np.broadcast_to(w, (*shape[:-1], half)).copy()
+
+
+def dottest(op: LinearOperator, rng: np.random.Generator, rtol: float = 1e-10) -> float:
+    """Dot test of an operator's adjoint: ``|<A x, y> - <x, A^T y>| / scale``.
+
+    Parameters
+    ----------
+    op : LinearOperator
+        Real operator with matvec and rmatvec.
+    rng : numpy.random.Generator
+        Source of the random test vectors.
+    rtol : float
+        Relative tolerance; a ValueError is raised when the mismatch exceeds it.
+
+    Returns
+    -------
+    float
+        Relative mismatch.
+    """
+    m, n = op.shape
+    x = rng.standard_normal(n)
+    y = rng.standard_normal(m)
+    lhs = float(np.dot(op.matvec(x), y))
+    rhs = float(np.dot(x, op.rmatvec(y)))
+    scale = max(abs(lhs), abs(rhs), np.finfo(float).tiny)
+    err = abs(lhs - rhs) / scale
+    if not err <= rtol:
+        raise ValueError(f"dottest: adjoint mismatch {err:.3e} exceeds rtol={rtol:g}: <Ax,y>={lhs!r}, <x,A^T y>={rhs!r}")
+    return err
