@@ -1,0 +1,136 @@
+"""Stress and strain fields: Hooke's law, deviatoric/volumetric parts, invariants, labels.
+
+Strain here is the symmetric TENSOR strain eps_ij (shear eps_xy = gamma_xy / 2). Papers that
+list ENGINEERING shear gamma_ij = 2 eps_ij in a Voigt vector (xx, yy, zz, yz, zx, xy) can be
+matched with :func:`to_engineering`. Hooke's law is written in compliance form,
+eps = ((1 + nu) sigma - nu tr(sigma) I) / E, so nu = 0.5 is exact (no 1 / (1 - 2 nu)).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import xarray as xr
+
+VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
+SHEAR_CONVENTION = "tensor shear eps_ij (engineering gamma_ij = 2 eps_ij; see to_engineering)"
+INVARIANTS = ("volumetric", "von_mises", "energy_density", "principal", "max_shear")
+_PAIRS = {"xx": (0, 0), "yy": (1, 1), "zz": (2, 2), "yz": (1, 2), "zx": (2, 0), "xy": (0, 1)}
+
+
+def check_components(components: Sequence[str] | str | None, name: str = "components") -> tuple[str, ...]:
+    """Validate component names; None means all six (Voigt order)."""
+    if components is None:
+        return VOIGT
+    if isinstance(components, str):
+        components = (components,)
+    comps = tuple(components)
+    aliases = {"xz": "zx", "zy": "yz", "yx": "xy"}
+    comps = tuple(aliases.get(c, c) for c in comps)
+    bad = [c for c in comps if c not in VOIGT]
+    if bad or not comps:
+        raise ValueError(
+            f"{name}: unknown component(s) {bad or list(components)}; use names from {VOIGT} "
+            "(e.g. components=('zz', 'zx'))"
+        )
+    if len(set(comps)) != len(comps):
+        raise ValueError(f"{name}: repeated component in {comps}; list each once")
+    return comps
+
+
+def compliance_matrix(young_modulus: float, nu: float) -> np.ndarray:
+    """(6, 6) map from Voigt stress (Pa) to Voigt TENSOR strain (dimensionless)."""
+    c = np.zeros((6, 6))
+    c[:3, :3] = -nu
+    np.fill_diagonal(c[:3, :3], 1.0)
+    c[3:, 3:] = np.eye(3) * (1.0 + nu)
+    return c / young_modulus
+
+
+def output_weights(quantity: str, components: Sequence[str], young_modulus: float, nu: float) -> np.ndarray:
+    """Rows mapping Voigt stress to the requested outputs, shape (n_out, 6)."""
+    idx = [VOIGT.index(c) for c in components]
+    if quantity == "stress":
+        return np.eye(6)[idx]
+    if quantity == "strain":
+        return compliance_matrix(young_modulus, nu)[idx]
+    raise ValueError(f"quantity: must be 'stress' or 'strain', got {quantity!r}")
+
+
+def to_engineering(strain: xr.DataArray) -> xr.DataArray:
+    """Tensor-shear strain -> engineering-shear strain (shear components doubled)."""
+    factor = xr.DataArray([2.0 if c in ("yz", "zx", "xy") else 1.0 for c in strain["component"].values],
+                          dims="component", coords={"component": strain["component"]})
+    out = strain * factor
+    out.attrs = dict(strain.attrs, shear_convention="engineering gamma_ij = 2 eps_ij")
+    return out
+
+
+def tensor(field: xr.DataArray) -> np.ndarray:
+    """Full symmetric tensors, shape (..., 3, 3), from a 6-component field (component first)."""
+    missing = [c for c in VOIGT if c not in field["component"].values]
+    if missing:
+        raise ValueError(f"field: invariants need all six components, missing {missing}; use components=None")
+    data = np.moveaxis(field.sel(component=list(VOIGT)).values, field.get_axis_num("component"), -1)
+    t = np.empty(data.shape[:-1] + (3, 3), dtype=data.dtype)
+    for k, c in enumerate(VOIGT):
+        i, j = _PAIRS[c]
+        t[..., i, j] = data[..., k]
+        t[..., j, i] = data[..., k]
+    return t
+
+
+def invariants(strain: xr.DataArray, stress: xr.DataArray | None = None) -> xr.Dataset:
+    """Receptor-model invariants of a TENSOR strain field (all six components).
+
+    Returns a Dataset with ``volumetric`` (tr eps), ``deviatoric`` (eps - tr/3 I, per
+    component), ``von_mises`` (sqrt(2/3 e:e)), ``principal`` (eigenvalues, descending, dim
+    ``order``), ``max_shear`` ((eps_1 - eps_3) / 2, tensor shear) and, when ``stress`` is
+    given, ``energy_density`` (sigma:eps / 2, J/m^3).
+    """
+    other_dims = [d for d in strain.dims if d != "component"]
+    t = tensor(strain)
+    trace = np.trace(t, axis1=-2, axis2=-1)
+    dev = t - trace[..., None, None] / 3.0 * np.eye(3)
+    vm = np.sqrt(2.0 / 3.0 * np.einsum("...ij,...ij->...", dev, dev))
+    principal = np.linalg.eigvalsh(t)[..., ::-1]
+    coords = {d: strain[d] for d in strain.coords if set(strain[d].dims) <= set(other_dims)}
+    ds = xr.Dataset(coords=coords)
+    ds["volumetric"] = (other_dims, trace, {"units": "1", "long_name": "volumetric strain tr(eps)"})
+    dev_voigt = np.stack([dev[..., _PAIRS[c][0], _PAIRS[c][1]] for c in VOIGT], axis=0)
+    ds["deviatoric"] = (["component", *other_dims], dev_voigt,
+                        {"units": "1", "shear_convention": SHEAR_CONVENTION})
+    ds = ds.assign_coords(component=list(VOIGT))
+    ds["von_mises"] = (other_dims, vm, {"units": "1", "long_name": "equivalent strain sqrt(2/3 e:e)"})
+    ds["principal"] = ([*other_dims, "order"], principal, {"units": "1", "long_name": "principal strains, descending"})
+    ds["max_shear"] = (other_dims, (principal[..., 0] - principal[..., 2]) / 2.0,
+                       {"units": "1", "long_name": "maximum TENSOR shear strain (eps1 - eps3)/2"})
+    if stress is not None:
+        s = tensor(stress)
+        ds["energy_density"] = (other_dims, 0.5 * np.einsum("...ij,...ij->...", s, t),
+                                {"units": "J/m^3", "long_name": "strain energy density sigma:eps/2"})
+    return ds
+
+
+def label(values: np.ndarray, quantity: str, components: Sequence[str], depths: np.ndarray,
+          x: np.ndarray, y: np.ndarray | None, points: np.ndarray | None) -> xr.DataArray:
+    """Wrap an array (n_depth, n_comp, *grid) or (n_depth, n_comp, n_points) with coordinates."""
+    attrs = {"units": "Pa" if quantity == "stress" else "1", "quantity": quantity}
+    if quantity == "strain":
+        attrs["shear_convention"] = SHEAR_CONVENTION
+    coords = {"depth": ("depth", np.asarray(depths, float), {"units": "m"}),
+              "component": list(components)}
+    if points is not None:
+        dims = ["depth", "component", "point"]
+        coords["x"] = ("point", points[:, 0], {"units": "m"})
+        if points.shape[1] > 1:
+            coords["y"] = ("point", points[:, 1], {"units": "m"})
+    elif y is None:
+        dims = ["depth", "component", "x"]
+        coords["x"] = ("x", x, {"units": "m"})
+    else:
+        dims = ["depth", "component", "y", "x"]
+        coords["x"] = ("x", x, {"units": "m"})
+        coords["y"] = ("y", y, {"units": "m"})
+    return xr.DataArray(values, dims=dims, coords=coords, name=quantity, attrs=attrs)

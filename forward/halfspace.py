@@ -1,0 +1,234 @@
+"""The elastic half-space facade: one entry point, a registry of methods behind it.
+
+>>> hs = HalfSpace(E=1e6, nu=0.5)                       # Pa, dimensionless
+>>> result = hs.strain(load, depth=[1e-3, 2e-3], components=("zz", "zx"))
+>>> result.method, result.error_estimate, result.data["strain"]
+
+``method="auto"`` picks, among the methods whose error estimate meets ``tol``, the one
+with the lowest cost model; a user can force one by name or class (``solve_ivp`` style).
+Only what was asked for is computed: the requested components (strain components are
+combined in Fourier space, not derived from all six), depths and points; 1-D when a
+periodic 2-D load does not vary in y; float32 when ``tol >= 1e-4``.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import xarray as xr
+
+from .fields import SHEAR_CONVENTION, check_components, compliance_matrix, invariants, label, output_weights
+from .loads import SurfaceLoad
+from .methods import METHODS, Method, Problem
+from .spectral import pressure_from_deflection
+
+FLOAT32_TOL = 1e-4
+
+
+class AccuracyWarning(UserWarning):
+    """No method meets the requested tolerance; the result says how far off it may be."""
+
+
+@dataclass(frozen=True)
+class FieldResult:
+    """A computed field with its provenance.
+
+    Attributes
+    ----------
+    data : xarray.Dataset
+        ``stress`` (Pa) and/or ``strain`` (tensor shear) with dims (depth, component, y, x),
+        (depth, component, x) in 1-D, or (depth, component, point) at sensor points; plus
+        invariants when asked.
+    method : str
+        The method that ran.
+    error_estimate : float
+        Estimated max error relative to the field's peak magnitude.
+    reason : str
+        Why this method was chosen.
+    candidates : dict
+        Per method: (error_estimate, cost) or the reason it could not run.
+    """
+
+    data: xr.Dataset
+    method: str
+    error_estimate: float
+    reason: str
+    candidates: dict = field(default_factory=dict)
+
+
+def _check_depths(depth) -> np.ndarray:
+    d = np.atleast_1d(np.asarray(depth, dtype=float))
+    if d.ndim != 1 or d.size == 0:
+        raise ValueError(f"depth: give one depth or a 1-D sequence of depths in m, got shape {d.shape}")
+    if not np.all(np.isfinite(d)) or np.any(d <= 0):
+        raise ValueError(
+            f"depth: every depth must be finite and > 0 m (z points into the skin), got {depth!r}; "
+            "give depths below the surface as positive metres"
+        )
+    return d
+
+
+def _check_points(points, load: SurfaceLoad) -> np.ndarray | None:
+    if points is None:
+        return None
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim == 1:
+        pts = pts[:, None]
+    if pts.ndim != 2 or pts.shape[1] not in (1, 2) or len(pts) == 0:
+        raise ValueError(f"points: expected shape (n, 2) of (x, y) in m (or (n,) of x for a 1-D load), got {np.shape(points)}")
+    if load.ndim == 2 and pts.shape[1] != 2:
+        raise ValueError(f"points: a 2-D load needs (x, y) per point, shape (n, 2); got {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("points: coordinates must be finite (no NaN or inf), in m")
+    return pts
+
+
+class HalfSpace:
+    """An isotropic linear elastic half-space z > 0 (the skin).
+
+    Parameters
+    ----------
+    E : float
+        Young's modulus in Pa (> 0).
+    nu : float
+        Poisson's ratio in (-1, 0.5]; 0.5 (incompressible) is exact.
+    """
+
+    def __init__(self, E: float, nu: float = 0.5):
+        if isinstance(E, bool) or not isinstance(E, (int, float, np.floating, np.integer)) or not math.isfinite(E) or E <= 0:
+            raise ValueError(f"E: Young's modulus must be a finite number > 0 Pa, got {E!r}; skin is ~1e5-4e6 Pa")
+        if isinstance(nu, bool) or not isinstance(nu, (int, float, np.floating)) or not math.isfinite(nu) or not -1 < nu <= 0.5:
+            raise ValueError(f"nu: Poisson's ratio must be in (-1, 0.5], got {nu!r}; use 0.5 for incompressible skin")
+        self.E = float(E)
+        self.nu = float(nu)
+
+    def __repr__(self) -> str:
+        return f"HalfSpace(E={self.E!r}, nu={self.nu!r})"
+
+    @classmethod
+    def from_material(cls, material) -> "HalfSpace":
+        """Build from a record with ``young_modulus_pa`` and ``poisson_ratio`` (data_schemas)."""
+        return cls(E=material.young_modulus_pa, nu=material.poisson_ratio)
+
+    # -- public entry points -------------------------------------------------------------
+    def stress(self, load: SurfaceLoad, depth, points=None, components=None, method="auto",
+               tol: float = 1e-6) -> FieldResult:
+        """Stress (Pa, tension positive) at depth.
+
+        Parameters
+        ----------
+        load : SurfaceLoad
+            Tractions on the surface (Pa); ``load.periodic`` says whether the grid repeats.
+        depth : float or sequence of float
+            Depths z > 0 in m.
+        points : ndarray, shape (n, 2), optional
+            Sensor positions (x, y) in m; (n,) of x for a 1-D load. Default: the load grid.
+        components : sequence of str, optional
+            Voigt names from ("xx", "yy", "zz", "yz", "zx", "xy"); default all six.
+        method : {"auto", "closed_form", "spectral", "dcfft"} or Method subclass
+        tol : float
+            Requested max error relative to the field's peak.
+        """
+        return self._field(load, depth, points, components, method, tol, "stress", False)
+
+    def strain(self, load: SurfaceLoad, depth, points=None, components=None, method="auto",
+               tol: float = 1e-6, invariants: bool = False) -> FieldResult:
+        """Strain (dimensionless, TENSOR shear eps_ij) at depth; same arguments as :meth:`stress`.
+
+        With ``invariants=True`` (all six components) the Dataset also holds the stress, the
+        volumetric and deviatoric parts, the von Mises equivalent strain, the strain energy
+        density, the principal strains and the maximum shear.
+        """
+        return self._field(load, depth, points, components, method, tol, "strain", invariants)
+
+    def pressure_from_deflection(self, deflection: np.ndarray, spacing) -> SurfaceLoad:
+        """Pressure (Pa) imposing a normal deflection (m) on a frictionless periodic surface."""
+        load = pressure_from_deflection(deflection, spacing, self.E, self.nu)
+        return SurfaceLoad(p=load.p, spacing=load.spacing, periodic=True)
+
+    def operator(self, shape, spacing, sensors=None, depth: float = 1e-3, components=("zz",),
+                 loads=("p",), quantity: str = "stress", periodic: bool = False):
+        """The linear load-to-sensor map as a ``scipy.sparse.linalg.LinearOperator``.
+
+        See :class:`tactilab.forward.operator.LoadToSensor` for the arguments.
+        """
+        from .operator import LoadToSensor
+
+        return LoadToSensor(self, shape, spacing, sensors=sensors, depth=depth, components=components,
+                            loads=loads, quantity=quantity, periodic=periodic)
+
+    # -- machinery -------------------------------------------------------------------------
+    def _field(self, load, depth, points, components, method, tol, quantity, want_invariants) -> FieldResult:
+        if not isinstance(load, SurfaceLoad):
+            raise ValueError(f"load: expected a SurfaceLoad, got {type(load).__name__}; build one with SurfaceLoad(p=..., spacing=...)")
+        if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not math.isfinite(tol) or tol <= 0:
+            raise ValueError(f"tol: must be a finite relative tolerance > 0, got {tol!r} (e.g. 1e-6)")
+        depths = _check_depths(depth)
+        comps = check_components(components)
+        pts = _check_points(points, load)
+        if want_invariants and comps != check_components(None):
+            raise ValueError("invariants: need all six components; call with components=None")
+        reduced = load.periodic and load.ndim == 2 and not load.varies_in_y()
+        work_load = load.row() if reduced else load
+        work_pts = pts[:, :1] if (reduced and pts is not None) else pts
+        dtype = np.dtype(np.float32 if tol >= FLOAT32_TOL else np.float64)
+        weight_quantity = "stress" if want_invariants else quantity
+        weights = output_weights(weight_quantity, comps, self.E, self.nu)
+        problem = Problem(work_load, depths, self.nu, weights, work_pts, dtype)
+        chosen, reason, candidates = self._choose(problem, method, tol)
+        if chosen.name == "closed_form" and dtype == np.float32:
+            problem = Problem(work_load, depths, self.nu, weights, work_pts, np.dtype(np.float64))
+        values = chosen.compute(problem)
+        err = chosen.error_estimate(problem)
+        if reduced and pts is None:  # broadcast the plane-strain row over y
+            values = np.broadcast_to(values[..., None, :], values.shape[:-1] + load.shape).copy()
+        da = label(values, weight_quantity, comps, depths, load.x, load.y, pts)
+        ds = xr.Dataset({weight_quantity: da})
+        if want_invariants:
+            strain_vals = np.einsum("ij,dj...->di...", compliance_matrix(self.E, self.nu), values)
+            strain = label(strain_vals, "strain", comps, depths, load.x, load.y, pts)
+            ds["strain"] = strain
+            ds = ds.merge(invariants(strain, da))
+        ds.attrs.update(method=chosen.name, error_estimate=err, reason=reason, E_pa=self.E, nu=self.nu,
+                        reduced_to_1d=int(reduced), dtype=str(problem.dtype), shear_convention=SHEAR_CONVENTION)
+        return FieldResult(ds, chosen.name, err, reason, candidates)
+
+    def _choose(self, problem: Problem, method, tol: float):
+        if isinstance(method, str) and method != "auto":
+            if method not in METHODS:
+                raise ValueError(f"method: unknown method {method!r}; use 'auto' or one of {sorted(METHODS)}")
+            method = METHODS[method]
+        if isinstance(method, type) and issubclass(method, Method):
+            method = method()
+        if isinstance(method, Method):
+            why = method.applicable(problem)
+            if why is not None:
+                raise ValueError(f"method: {method.name!r} cannot run here: {why}")
+            return method, "forced by the caller", {}
+        if method != "auto":
+            raise ValueError(f"method: expected 'auto', a method name or a Method subclass, got {method!r}")
+        candidates = {}
+        runnable = []
+        for name, cls in METHODS.items():
+            m = cls()
+            why = m.applicable(problem)
+            if why is not None:
+                candidates[name] = why
+                continue
+            err, cost = m.error_estimate(problem), m.cost(problem)
+            candidates[name] = (err, cost)
+            runnable.append((m, err, cost))
+        good = [r for r in runnable if r[1] <= tol]
+        if good:
+            m, err, cost = min(good, key=lambda r: r[2])
+            return m, f"cheapest method with error estimate {err:.1e} <= tol {tol:.0e}", candidates
+        m, err, cost = min(runnable, key=lambda r: r[1])
+        warnings.warn(
+            f"no method meets tol={tol:.0e}; using {m.name!r} with estimated relative error {err:.1e} "
+            "(refine the grid spacing below the depth, enlarge the grid, or loosen tol)",
+            AccuracyWarning, stacklevel=3)
+        return m, f"most accurate method available (error estimate {err:.1e} > tol {tol:.0e})", candidates

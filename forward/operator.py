@@ -1,0 +1,266 @@
+"""The load-to-sensor map of a half-space as a ``scipy.sparse.linalg.LinearOperator``.
+
+Model: tractions ``loads`` (a subset of p, qx, qy; Pa) on a regular grid, flattened from
+``dims = (n_load, *shape)``. Data: ``components`` of stress (Pa) or tensor strain at the
+sensors and one depth, flattened from ``dimsd = (n_comp, n_sensors)``. Batched over time
+frames through ``matmat`` (columns are frames).
+
+Paths (chosen from the sensors; the attribute ``path`` says which):
+- ``"fft-periodic"``: the grid is one period; exact spectral multipliers (physics.md s2).
+- ``"fft-padded"``: isolated load; zero-padded convolution with the point (line) kernel
+  sampled at depth (DC-FFT). Used when the sensors are the grid nodes or a subset of them.
+- ``"dense"``: sensors off the grid; the kernel matrix from the closed forms (isolated), or
+  from the periodic Green's function evaluated per sensor (periodic).
+The adjoint (``rmatvec``/``rmatmat``) is exact for every path and passes a dot test.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.fft as sfft
+from scipy.sparse.linalg import LinearOperator
+
+from .fields import check_components, output_weights
+from .kernels import line_green, point_green
+from .loads import LOAD_COMPONENTS, SurfaceLoad
+from .spectral import VOIGT, _coefficients, _Geometry, wavenumbers
+
+_DIRECTION = {"p": "z", "qx": "x", "qy": "y"}
+
+
+def _check_loads(loads) -> tuple[str, ...]:
+    loads = (loads,) if isinstance(loads, str) else tuple(loads)
+    bad = [name for name in loads if name not in LOAD_COMPONENTS]
+    if bad or not loads or len(set(loads)) != len(loads):
+        raise ValueError(f"loads: give distinct names from {LOAD_COMPONENTS}, got {loads!r}")
+    return loads
+
+
+class LoadToSensor(LinearOperator):
+    """Linear map from surface tractions to stress or strain at sensors at one depth.
+
+    Parameters
+    ----------
+    halfspace : HalfSpace
+        Material (E in Pa, nu).
+    shape : (nx,) or (ny, nx)
+        Load grid shape (1-D: plane strain).
+    spacing : float or (dx, dy)
+        Grid spacing in m.
+    sensors : ndarray, shape (n, 2) or (n,), optional
+        Sensor (x, y) positions in m (x only in 1-D); default: every grid node.
+    depth : float
+        Sensor depth in m (> 0).
+    components : sequence of str
+        Voigt components measured.
+    loads : sequence of {"p", "qx", "qy"}
+        Load components in the model.
+    quantity : {"stress", "strain"}
+        Stress in Pa, or TENSOR strain.
+    periodic : bool
+        True when the grid is one period of a repeating load.
+    """
+
+    def __init__(self, halfspace, shape, spacing, sensors=None, depth: float = 1e-3, components=("zz",),
+                 loads=("p",), quantity: str = "stress", periodic: bool = False):
+        shape = tuple(int(s) for s in np.atleast_1d(shape))
+        if len(shape) not in (1, 2) or min(shape) < 1:
+            raise ValueError(f"shape: expected (nx,) or (ny, nx) with positive sizes, got {shape}")
+        template = SurfaceLoad(p=np.zeros(shape), spacing=spacing, periodic=periodic)
+        if not np.isfinite(depth) or depth <= 0:
+            raise ValueError(f"depth: must be finite and > 0 m, got {depth!r}")
+        self.template = template
+        self.depth = float(depth)
+        self.components = check_components(components)
+        self.loads = _check_loads(loads)
+        self.quantity = quantity
+        self.weights = output_weights(quantity, self.components, halfspace.E, halfspace.nu)
+        self.nu = halfspace.nu
+        self.grid_shape = shape
+        if sensors is None:
+            self.sensor_xy = self._grid_points()
+            self._select = None
+        else:
+            pts = np.asarray(sensors, dtype=float)
+            pts = pts[:, None] if pts.ndim == 1 else pts
+            if pts.ndim != 2 or pts.shape[1] != len(shape) or len(pts) == 0 or not np.all(np.isfinite(pts)):
+                raise ValueError(
+                    f"sensors: expected finite positions of shape (n, {len(shape)}) in m for a "
+                    f"{len(shape)}-D grid, got {np.shape(sensors)}")
+            self.sensor_xy = pts
+            self._select = self._on_grid(pts)
+        self.dims = (len(self.loads), *shape)
+        self.dimsd = (len(self.components), len(self.sensor_xy))
+        if self._select is not None or sensors is None:
+            self.path = "fft-periodic" if periodic else "fft-padded"
+            self._spectra = self._periodic_multipliers() if periodic else self._padded_multipliers()
+        else:
+            self.path = "dense"
+            self._matrix = self._dense_matrix()
+        super().__init__(dtype=np.float64, shape=(int(np.prod(self.dimsd)), int(np.prod(self.dims))))
+
+    # -- geometry ----------------------------------------------------------------------------
+    def _grid_points(self) -> np.ndarray:
+        t = self.template
+        if t.ndim == 1:
+            return t.x[:, None]
+        yy, xx = np.meshgrid(t.y, t.x, indexing="ij")
+        return np.column_stack([xx.ravel(), yy.ravel()])
+
+    def _on_grid(self, pts: np.ndarray):
+        t = self.template
+        idx = [pts[:, 0] / t.dx + t.shape[-1] // 2]
+        if t.ndim == 2:
+            idx.insert(0, pts[:, 1] / t.dy + t.shape[0] // 2)
+        idx = np.array(idx)
+        r = np.rint(idx)
+        upper = np.array(t.shape)[:, None] - 1
+        if np.all(np.abs(idx - r) < 1e-9) and np.all(r >= 0) and np.all(r <= upper):
+            return np.ravel_multi_index(tuple(r.astype(int)), t.shape)
+        return None
+
+    # -- precomputation -----------------------------------------------------------------------
+    def _periodic_multipliers(self) -> np.ndarray:
+        t = self.template
+        xi, eta = wavenumbers(t.shape, t.spacing)
+        g = _Geometry(xi, eta, nyquist_x=t.shape[-1] % 2 == 0, nyquist_y=t.ndim == 2 and t.shape[0] % 2 == 0)
+        rz = g.rho * self.depth
+        e = np.exp(-rz)
+        out = np.zeros((len(self.components), len(self.loads), *g.rho.shape), dtype=complex)
+        ones = np.ones(g.rho.shape)
+        for l, name in enumerate(self.loads):
+            unit = {k: (ones if k == name else None) for k in LOAD_COMPONENTS}
+            for j, comp in enumerate(VOIGT):
+                col = self.weights[:, j]
+                if not np.any(col):
+                    continue
+                e0, e1 = _coefficients(g, self.nu, unit["p"], unit["qx"], unit["qy"], comp)
+                m = e0 * e + e1 * rz * e
+                out[:, l] += np.multiply.outer(col, m)
+        return out
+
+    def _padded_shape(self) -> tuple[int, ...]:
+        return tuple(sfft.next_fast_len(2 * n - 1, real=True) for n in self.grid_shape)
+
+    def _padded_multipliers(self) -> np.ndarray:
+        t = self.template
+        pad = self._padded_shape()
+        # offsets x_out - x_in on the circular padded grid: 0..n-1 then -(n-1)..-1
+        offs = []
+        for n, h, p in zip(t.shape, t.spacing[::-1] if t.ndim == 2 else t.spacing, pad):
+            k = np.arange(p)
+            offs.append(np.where(k < n, k, k - p) * h)
+        if t.ndim == 1:
+            (ox,) = offs
+            grids = (ox,)
+        else:
+            oy, ox = offs
+            grids = np.meshgrid(oy, ox, indexing="ij")
+        out = np.zeros((len(self.components), len(self.loads), *pad[:-1], pad[-1] // 2 + 1), dtype=complex)
+        for l, name in enumerate(self.loads):
+            kernel = np.zeros((len(self.components), *pad))
+            for j, comp in enumerate(VOIGT):
+                col = self.weights[:, j]
+                if not np.any(col):
+                    continue
+                if t.ndim == 1:
+                    g = line_green(comp, _DIRECTION[name], grids[0], self.depth, self.nu)
+                else:
+                    g = point_green(comp, _DIRECTION[name], grids[1], grids[0], self.depth, self.nu)
+                kernel += np.multiply.outer(col, g)
+            kernel *= t.cell_area  # node traction x cell area = nodal force
+            out[:, l] = sfft.rfftn(kernel, axes=tuple(range(1, t.ndim + 1)))
+        return out
+
+    def _dense_matrix(self) -> np.ndarray:
+        t = self.template
+        n_nodes = int(np.prod(t.shape))
+        mat = np.zeros((len(self.components), len(self.sensor_xy), len(self.loads), n_nodes))
+        nodes = self._grid_points()
+        if t.periodic:
+            # periodic Green's function: column for a unit load at each sensor via one FFT per sensor
+            for l in range(len(self.loads)):
+                for s, xy in enumerate(self.sensor_xy):
+                    mat[:, s, l] = self._periodic_row(l, xy)
+            return mat.reshape(int(np.prod(self.dimsd)), -1)
+        for l, name in enumerate(self.loads):
+            for j, comp in enumerate(VOIGT):
+                col = self.weights[:, j]
+                if not np.any(col):
+                    continue
+                dx = self.sensor_xy[:, 0][:, None] - nodes[:, 0][None, :]
+                if t.ndim == 1:
+                    g = line_green(comp, _DIRECTION[name], dx, self.depth, self.nu)
+                else:
+                    dy = self.sensor_xy[:, 1][:, None] - nodes[:, 1][None, :]
+                    g = point_green(comp, _DIRECTION[name], dx, dy, self.depth, self.nu)
+                mat[:, :, l] += np.multiply.outer(col, g) * t.cell_area
+        return mat.reshape(int(np.prod(self.dimsd)), -1)
+
+    def _periodic_row(self, l: int, xy: np.ndarray) -> np.ndarray:
+        t = self.template
+        mult = self._periodic_multipliers_cached()[:, l]
+        xi, eta = wavenumbers(t.shape, t.spacing)
+        phase = np.exp(1j * xi * xy[0]) if t.ndim == 1 else np.exp(1j * (xi * xy[0] + eta * xy[1]))
+        # response at xy to a unit traction at node m = (1/N) sum_k M(k) e^{ik (xy - x_m)}
+        axes = tuple(range(1, t.ndim + 1))
+        origin = np.exp(-1j * xi * t.x[0]) if t.ndim == 1 else np.exp(-1j * (xi * t.x[0] + eta * t.y[0]))
+        spec = np.conj(mult * phase * origin)
+        rows = sfft.irfftn(spec, s=t.shape, axes=axes)
+        return rows.reshape(len(self.components), -1)
+
+    def _periodic_multipliers_cached(self):
+        if not hasattr(self, "_pm"):
+            self._pm = self._periodic_multipliers()
+        return self._pm
+
+    # -- LinearOperator ------------------------------------------------------------------------
+    def _matvec(self, v):
+        return self._matmat(np.asarray(v).reshape(-1, 1)).ravel()
+
+    def _rmatvec(self, v):
+        return self._rmatmat(np.asarray(v).reshape(-1, 1)).ravel()
+
+    def _matmat(self, m):
+        m = np.asarray(m, dtype=float)
+        if self.path == "dense":
+            return self._matrix @ m
+        frames = m.shape[1]
+        t = self.template
+        model = m.T.reshape(frames, *self.dims)
+        axes = tuple(range(-t.ndim, 0))
+        if self.path == "fft-periodic":
+            spec = sfft.rfftn(model, axes=axes)  # (frames, n_load, ...)
+            data = sfft.irfftn(np.einsum("cl...,fl...->fc...", self._spectra, spec), s=t.shape, axes=axes)
+        else:
+            pad = self._padded_shape()
+            spec = sfft.rfftn(model, s=pad, axes=axes)
+            full = sfft.irfftn(np.einsum("cl...,fl...->fc...", self._spectra, spec), s=pad, axes=axes)
+            data = full[(Ellipsis, *[slice(0, n) for n in t.shape])]
+        data = data.reshape(frames, len(self.components), -1)
+        if self._select is not None:
+            data = data[:, :, self._select]
+        return data.reshape(frames, -1).T
+
+    def _rmatmat(self, d):
+        d = np.asarray(d, dtype=float)
+        if self.path == "dense":
+            return self._matrix.T @ d
+        frames = d.shape[1]
+        t = self.template
+        data = d.T.reshape(frames, len(self.components), -1)
+        if self._select is not None:
+            grid = np.zeros((frames, len(self.components), int(np.prod(t.shape))))
+            np.add.at(grid, (slice(None), slice(None), self._select), data)
+            data = grid
+        data = data.reshape(frames, len(self.components), *t.shape)
+        axes = tuple(range(-t.ndim, 0))
+        if self.path == "fft-periodic":
+            spec = sfft.rfftn(data, axes=axes)
+            model = sfft.irfftn(np.einsum("cl...,fc...->fl...", np.conj(self._spectra), spec), s=t.shape, axes=axes)
+        else:
+            pad = self._padded_shape()
+            spec = sfft.rfftn(data, s=pad, axes=axes)
+            full = sfft.irfftn(np.einsum("cl...,fc...->fl...", np.conj(self._spectra), spec), s=pad, axes=axes)
+            model = full[(Ellipsis, *[slice(0, n) for n in t.shape])]
+        return model.reshape(frames, -1).T
