@@ -19,6 +19,7 @@ message quotes, e.g. ``positive("sensors sit inside the skin")``.
 
 from __future__ import annotations
 
+import json
 import math
 import pathlib
 from typing import Annotated, Any, Self
@@ -275,9 +276,34 @@ class Record(BaseModel):
         return self.model_dump_json(indent=indent)
 
     @classmethod
-    def from_json(cls, text: str | bytes) -> Self:
-        """Build and validate a record from JSON text (as written by :meth:`to_json`)."""
-        return cls.model_validate_json(text)
+    def from_json(cls, text: str | bytes, where: str = "") -> Self:
+        """Build and validate a record from JSON text (as written by :meth:`to_json`).
+
+        SI JSON loads as is; quantities may also carry unit suffixes as in scene files
+        (``"depth": "1.25mm"``, ``"depth_mm": 1.25``), converted to SI here, once.
+
+        Raises
+        ------
+        ValueError
+            Invalid JSON, an unknown unit or an invalid field, in one line that starts with
+            ``where`` (e.g. the file name) when given.
+        """
+        from .unit_keys import convert_units  # the edge converter is only needed here
+
+        prefix = f"{where}: " if where else ""
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as err:
+            raise ValueError(f"{prefix}not valid JSON ({err}); fix the file or re-save the record") from None
+        if not isinstance(data, dict):
+            raise ValueError(f"{prefix}a {cls.__name__} must be a JSON object, got {type(data).__name__}; "
+                             "write it with Record.save")
+        try:
+            return cls.model_validate(convert_units(cls, data))
+        except ValidationError as err:
+            raise ValueError(format_validation_error(err, where or cls.__name__)) from None
+        except ValueError as err:
+            raise ValueError(f"{prefix}{err}") from None
 
     def save(self, path: str | pathlib.Path) -> pathlib.Path:
         """Write the record as JSON (SI units) to ``path`` and return the path."""
@@ -295,14 +321,11 @@ class Record(BaseModel):
             If the file cannot be read.
         ValueError
             If the file is not valid JSON for this record; the one-line message names the
-            file, each offending field and the rule it broke.
+            file, each offending field and the rule it broke. Unit suffixes are accepted as
+            in :meth:`from_json`.
         """
         path = pathlib.Path(path)
-        text = path.read_text(encoding="utf-8")
-        try:
-            return cls.model_validate_json(text)
-        except ValidationError as err:
-            raise ValueError(format_validation_error(err, f"{path} ({cls.__name__})")) from None
+        return cls.from_json(path.read_text(encoding="utf-8"), where=str(path))
 
     def replace(self, **changes: Any) -> Self:
         """Return a copy with some fields changed, validated again (unlike ``model_copy``)."""

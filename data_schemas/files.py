@@ -1,0 +1,146 @@
+"""Files at the edge: TOML scene files, JSON records and the built-in examples.
+
+Quantities in files may carry units (``depth = "1.25mm"``, ``young_modulus_kpa = 200``; see
+:mod:`.unit_keys`); they are converted to SI once, here. Errors come as ONE line that names the
+file, the table and key, the rule, the value and the fix (a ``ValueError``; a missing file is an
+``OSError``).
+
+Built-in examples (package data in ``data_schemas/examples/``):
+
+``fingertip_defect``  a fingertip (0.8 N, radius 10 mm, E = 1 MPa, nu = 0.5) sliding at
+                      20 mm/s over one 50 um bump, sensed by 10 x 10 stress sensors at 3 mm.
+``sliding_grating``   a frictionless finger sliding at 20 mm/s over a 2 mm sinusoidal grating,
+                      sensed by a line of strain sensors at 1 mm (physics brief, 4a).
+``tractor_display``   a STReSS2-like 6 x 10 tractor display rendering a virtual grating,
+                      sensed by a line of strain sensors at 1 mm.
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+import pathlib
+import tomllib
+from typing import TypeVar
+
+from pydantic import ValidationError
+
+from .base import Record, format_validation_error
+from .scene import Scene
+from .unit_keys import convert_units
+
+R = TypeVar("R", bound=Record)
+
+_EXAMPLES_PACKAGE = "tactilab.data_schemas"
+_EXAMPLES_DIR = "examples"
+
+
+def record_from_dict(model: type[R], data: dict, where: str = "") -> R:
+    """Convert a raw file table to SI and validate it as ``model``.
+
+    Parameters
+    ----------
+    model : type of Record
+        The record to build.
+    data : dict
+        The raw table, as read from TOML or JSON.
+    where : str
+        Where the table came from (file name, table path), put at the start of errors.
+
+    Raises
+    ------
+    ValueError
+        One line naming ``where``, the key, the rule, the value and the fix.
+    """
+    prefix = f"{where}: " if where else ""
+    if not isinstance(data, dict):
+        raise ValueError(f"{prefix}a {model.__name__} must be a table, got {type(data).__name__}; "
+                         "write key = value pairs")
+    try:
+        return model.model_validate(convert_units(model, data))
+    except ValidationError as err:
+        raise ValueError(format_validation_error(err, where or model.__name__)) from None
+    except ValueError as err:
+        raise ValueError(f"{prefix}{err}") from None
+
+
+def read_toml_record(path: str | pathlib.Path, model: type[R], *, table: str | None = None) -> R:
+    """Read one record from a TOML file, converting unit-suffixed quantities to SI once.
+
+    Parameters
+    ----------
+    path : str or Path
+        The TOML file.
+    model : type of Record
+        The record to build (``Scene``, ``SensorArray``, ``DisplayDescription``, ...).
+    table : str, optional
+        Dotted name of the table holding the record (``"sensors"``); default the whole file.
+
+    Raises
+    ------
+    OSError
+        If the file cannot be read.
+    ValueError
+        Invalid TOML, a missing table, an unknown unit or an invalid field, in one line.
+    """
+    path = pathlib.Path(path)
+    text = path.read_text(encoding="utf-8")
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise ValueError(f"{path}: not valid TOML ({err}); fix the syntax") from None
+    where = str(path)
+    if table:
+        for part in table.split("."):
+            if not isinstance(data, dict) or part not in data:
+                raise ValueError(f"{path}: table [{table}] is missing; add it or name another table")
+            data = data[part]
+        where = f"{path} [{table}]"
+    return record_from_dict(model, data, where)
+
+
+def read_json_record(path: str | pathlib.Path, model: type[R]) -> R:
+    """Read one record from a JSON file (SI, or with unit suffixes as in TOML files)."""
+    return model.load(path)
+
+
+def load_scene(path: str | pathlib.Path) -> Scene:
+    """Load a :class:`~.scene.Scene` from a ``.toml`` scene file or a ``.json`` record.
+
+    See ``data_schemas/examples/*.toml`` for the layout: top-level ``name`` and
+    ``description``, then tables ``[material]``, ``[surface]`` (with ``kind``), ``[contact]``,
+    ``[sensors]`` (optionally ``[sensors.grid]``), ``[scan]`` and optionally ``[display]``.
+    """
+    path = pathlib.Path(path)
+    if path.suffix.lower() == ".json":
+        return Scene.load(path)
+    if path.suffix.lower() != ".toml":
+        raise ValueError(f"{path}: a scene file must end in .toml or .json, got {path.suffix!r}; "
+                         "rename it or convert it")
+    return read_toml_record(path, Scene)
+
+
+def list_examples() -> list[str]:
+    """Names of the built-in example scenes (without the ``.toml`` extension)."""
+    folder = importlib.resources.files(_EXAMPLES_PACKAGE) / _EXAMPLES_DIR
+    return sorted(p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def example_path(name: str) -> pathlib.Path:
+    """Path of the built-in example ``name`` (``"fingertip_defect"`` or ``"fingertip_defect.toml"``).
+
+    Raises
+    ------
+    ValueError
+        If there is no such example; the message lists the available ones.
+    """
+    stem = name.removesuffix(".toml")
+    available = list_examples()
+    if stem not in available:
+        raise ValueError(f"example {name!r} does not exist; use one of {available}")
+    resource = importlib.resources.files(_EXAMPLES_PACKAGE) / _EXAMPLES_DIR / f"{stem}.toml"
+    return pathlib.Path(str(resource))
+
+
+def load_example(name: str) -> Scene:
+    """Load the built-in example scene ``name`` (see :func:`list_examples`)."""
+    return load_scene(example_path(name))
