@@ -78,10 +78,15 @@ def score(protocol: Protocol, plan: TrialPlan, response: str) -> tuple[bool | No
         raise ValueError(f"response: must be one of {labels}, got {response!r}")
     if plan.target is None:
         return None, None
-    correct = response == plan.target
-    kind = protocol.task.kind
+    return response == plan.target, outcome_of(protocol.task.kind, plan.target, response)
+
+
+def outcome_of(kind: str, target: str | None, response: str) -> bool | None:
+    """The procedure's outcome from the task kind, the correct label and the response."""
+    if target is None:
+        return None
     if kind in ("2ifc", "2afc"):
-        return correct, correct
+        return response == target
     if kind == "yes_no":
-        return correct, (response == "yes") if plan.target == "yes" else None
-    return correct, (response == "different") if plan.target == "different" else None
+        return (response == "yes") if target == "yes" else None
+    return (response == "different") if target == "different" else None

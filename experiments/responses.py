@@ -1,0 +1,254 @@
+"""Response sources: a terminal for real subjects and a simulated observer for dry runs.
+
+Both implement :class:`ResponseSource`: ``arm(plan, onset_ns)`` is called just before the
+stimulus is driven (the response clock starts at its onset, ``time.monotonic_ns``), and
+``collect(plan)`` returns the :class:`Response` after the stimulus has played.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+import os
+import select
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from typing import Callable, TextIO
+
+import numpy as np
+
+from tactilab.data_schemas.experiment import Protocol, Stimulus
+from tactilab.forward.tractors import sliding_sinusoid_strain
+
+from .tasks import TrialPlan
+
+_QUIT_KEYS = ("q", "\x03", "\x1b")  # q, Ctrl-C (raw), Esc
+
+
+@dataclass(frozen=True)
+class Response:
+    """A response label, its time from stimulus onset (s) and its monotonic time stamp (ns)."""
+
+    label: str
+    rt_s: float
+    monotonic_ns: int
+
+
+class ResponseSource(abc.ABC):
+    """Where responses come from; ``name`` is recorded with the session."""
+
+    name = "abstract"
+
+    def arm(self, plan: TrialPlan, onset_ns: int) -> None:
+        """Start listening: called right before the first stimulus of ``plan`` is driven."""
+        self._onset_ns = onset_ns
+
+    @abc.abstractmethod
+    def collect(self, plan: TrialPlan) -> Response:
+        """Return the response to ``plan`` (blocks for a real subject)."""
+
+    def close(self) -> None:
+        """Release the terminal or other resources."""
+
+
+class TerminalResponses(ResponseSource):
+    """Single keypresses on a terminal, no Enter, timed from stimulus onset.
+
+    The terminal is put in cbreak mode (``tty.setcbreak``: keys arrive one by one, unechoed;
+    Ctrl-C still raises KeyboardInterrupt so the safety layer zeroes the display). Keys typed
+    before the onset are discarded; keys during and after the stimulus are time-stamped as
+    they arrive by a reader thread, so the response time does not include playback time.
+    ``q`` or Esc ends the session (KeyboardInterrupt). Unknown keys ring the bell and are
+    ignored.
+
+    Parameters
+    ----------
+    protocol : Protocol
+        Its task gives the prompt and the key -> response mapping.
+    stdin, stdout : file objects, optional
+        A terminal (default ``sys.stdin``, ``sys.stdout``).
+    """
+
+    name = "terminal"
+
+    def __init__(self, protocol: Protocol, stdin: TextIO | None = None, stdout: TextIO | None = None):
+        import termios
+        import tty
+
+        self.task = protocol.task
+        self.stdin = stdin if stdin is not None else sys.stdin
+        self.stdout = stdout if stdout is not None else sys.stdout
+        self.fd = self.stdin.fileno()
+        if not os.isatty(self.fd):
+            raise OSError(
+                "--responses terminal: standard input is not a terminal; run in an interactive "
+                "terminal or use --responses simulated"
+            )
+        self._termios = termios
+        self._saved = termios.tcgetattr(self.fd)
+        tty.setcbreak(self.fd)
+        self._keys: list[tuple[str, int]] = []
+        self._lock = threading.Condition()
+        self._listening = threading.Event()
+        self._closed = False
+        self._thread = threading.Thread(target=self._reader, daemon=True)
+        self._thread.start()
+
+    def _reader(self) -> None:
+        while not self._closed:
+            ready, _, _ = select.select([self.fd], [], [], 0.05)
+            if not ready:
+                continue
+            stamp = time.monotonic_ns()
+            char = os.read(self.fd, 1).decode("utf-8", "replace")
+            if self._listening.is_set():
+                with self._lock:
+                    self._keys.append((char, stamp))
+                    self._lock.notify_all()
+
+    def prompt_text(self) -> str:
+        """The on-screen question with its keys."""
+        question = self.task.prompt or {
+            "2ifc": "Which interval held the stimulus?",
+            "2afc": "Which one was it?",
+            "yes_no": "Did you feel a stimulus?",
+            "same_different": "Were the two stimuli the same or different?",
+            "magnitude_estimation": "How strong was it?",
+        }[self.task.kind]
+        keys = "  ".join(f"[{k}] {label}" for k, label in self.task.key_map.items())
+        return f"{question}  {keys}  ([q] quits)"
+
+    def arm(self, plan, onset_ns):
+        super().arm(plan, onset_ns)
+        self._termios.tcflush(self.fd, self._termios.TCIFLUSH)  # drop anticipatory keys
+        with self._lock:
+            self._keys.clear()
+        self._listening.set()
+
+    def collect(self, plan):
+        self.stdout.write(self.prompt_text() + "\n")
+        self.stdout.flush()
+        key_map = self.task.key_map
+        try:
+            while True:
+                with self._lock:
+                    while not self._keys:
+                        self._lock.wait(0.1)
+                    char, stamp = self._keys.pop(0)
+                if char in _QUIT_KEYS:
+                    raise KeyboardInterrupt("the subject pressed quit")
+                if char in key_map:
+                    return Response(key_map[char], max(stamp - self._onset_ns, 0) / 1e9, stamp)
+                self.stdout.write("\a")
+                self.stdout.flush()
+        finally:
+            self._listening.clear()
+
+    def close(self):
+        self._closed = True
+        self._thread.join(timeout=1.0)
+        self._termios.tcsetattr(self.fd, self._termios.TCSADRAIN, self._saved)
+
+
+def receptor_strain(stimulus: Stimulus, depth_m: float, n_harmonics: int = 15) -> float:
+    """Root-mean-square deviatoric strain (Frobenius norm, tensor shear) at depth, over a period.
+
+    The sliding surface's strain comes from ``tactilab.forward.tractors.sliding_sinusoid_strain``
+    (nu = 1/2); a square surface is the sum of its odd sine harmonics ``4 A / (n pi)`` of pitch
+    ``p / n``. For a sinusoid the norm is constant in space and time and equals
+    ``sqrt(2) (2 pi / p)^2 A Z exp(-2 pi Z / p)`` (physics.md 4a).
+    """
+    if stimulus.amplitude_m == 0:
+        return 0.0
+    x = np.linspace(0.0, stimulus.pitch_m, 64, endpoint=False)
+    if stimulus.surface == "sinusoid":
+        parts = [(stimulus.amplitude_m, stimulus.pitch_m)]
+    else:
+        parts = [(4 * stimulus.amplitude_m / (n * math.pi), stimulus.pitch_m / n)
+                 for n in range(1, 2 * n_harmonics, 2)]
+    strain = sum(sliding_sinusoid_strain(x, depth_m, a, p) for a, p in parts)
+    eps_xx, eps_yy, eps_zz, eps_yz, eps_zx, eps_xy = np.moveaxis(strain, -1, 0)
+    mean = (eps_xx + eps_yy + eps_zz) / 3
+    frob2 = ((eps_xx - mean) ** 2 + (eps_yy - mean) ** 2 + (eps_zz - mean) ** 2
+             + 2 * (eps_yz ** 2 + eps_zx ** 2 + eps_xy ** 2))
+    return float(np.sqrt(np.mean(frob2)))
+
+
+class SimulatedObserver(ResponseSource):
+    """A model observer: strain at the receptors -> transducer -> Gaussian noise -> decision.
+
+    Each stimulus gives ``d = (s / threshold_strain) ** exponent`` in units of the internal
+    noise, where ``s`` is :func:`receptor_strain` (or ``strain_fn(stimulus)``). The observation
+    of a stimulus is the feature vector ``(d, d sign(V), frequency_acuity d_c log2(|V| / p))``
+    (``d_c = min(d, 1)``: frequency is coded once the stimulus is felt) plus unit Gaussian noise.
+    Decisions: yes/no says yes when ``d + n > criterion``; 2IFC picks the interval with the larger
+    noisy ``d``; 2AFC picks the alternative whose noise-free features lie nearest the
+    observation; same/different says different when the noisy feature distance exceeds
+    ``criterion * sqrt(2)``; magnitude estimation reports ``round(min + gain * d + n)``, clipped.
+    Response times: ``0.3 s + 0.4 s exp(-|margin|)`` times a lognormal factor (sd 0.2).
+
+    Randomness: ``np.random.default_rng([seed, trial_index, 2])``, so a repeated trial gets the
+    same answer and a resumed session matches an uninterrupted one.
+    """
+
+    name = "simulated"
+
+    def __init__(self, protocol: Protocol, *, seed: int | None = None, threshold_strain: float = 2e-3,
+                 exponent: float = 1.0, criterion: float = 1.0, frequency_acuity: float = 2.0,
+                 magnitude_gain: float = 2.0, depth_m: float = 1e-3,
+                 strain_fn: Callable[[Stimulus], float] | None = None) -> None:
+        for name, value in (("threshold_strain", threshold_strain), ("exponent", exponent),
+                            ("depth_m", depth_m)):
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name}: must be finite and > 0, got {value!r}")
+        for name, value in (("criterion", criterion), ("frequency_acuity", frequency_acuity),
+                            ("magnitude_gain", magnitude_gain)):
+            if not math.isfinite(value):
+                raise ValueError(f"{name}: must be finite, got {value!r}")
+        self.protocol = protocol
+        self.seed = protocol.seed if seed is None else int(seed)
+        self.threshold_strain, self.exponent, self.criterion = threshold_strain, exponent, criterion
+        self.frequency_acuity, self.magnitude_gain, self.depth_m = frequency_acuity, magnitude_gain, depth_m
+        self.strain_fn = strain_fn if strain_fn is not None else (lambda s: receptor_strain(s, depth_m))
+
+    def drive(self, stimulus: Stimulus) -> float:
+        """Noise-free transducer output ``d`` of a stimulus (units of the noise sd)."""
+        return (self.strain_fn(stimulus) / self.threshold_strain) ** self.exponent
+
+    def features(self, stimulus: Stimulus) -> np.ndarray:
+        """Noise-free feature vector of a stimulus, shape (3,)."""
+        d = self.drive(stimulus)
+        freq = abs(stimulus.speed_m_per_s) / stimulus.pitch_m
+        code = math.log2(freq) if freq > 0 else 0.0
+        return np.array([d, d * np.sign(stimulus.speed_m_per_s), self.frequency_acuity * min(d, 1.0) * code])
+
+    def collect(self, plan):
+        rng = np.random.default_rng([self.seed, plan.trial_index, 2])
+        task = self.protocol.task
+        obs = [self.features(s) + rng.standard_normal(3) for s in plan.stimuli]
+        if task.kind == "2ifc":
+            margin = obs[0][0] - obs[1][0]
+            label = "1" if margin > 0 else "2"
+        elif task.kind == "yes_no":
+            margin = obs[0][0] - self.criterion
+            label = "yes" if margin > 0 else "no"
+        elif task.kind == "2afc":
+            templates = {
+                lab: self.features(Stimulus.model_validate(
+                    {**self.protocol.stimulus.model_dump(), **over}).with_level(plan.parameter, plan.level))
+                for lab, over in task.alternatives.items()}
+            dist = {lab: float(np.linalg.norm(obs[0] - t)) for lab, t in templates.items()}
+            a, b = task.labels
+            margin = dist[b] - dist[a]
+            label = a if margin > 0 else b
+        elif task.kind == "same_different":
+            margin = float(np.linalg.norm(obs[1] - obs[0])) - self.criterion * math.sqrt(2)
+            label = "different" if margin > 0 else "same"
+        else:
+            value = task.magnitude_min + self.magnitude_gain * obs[0][0]
+            rating = int(min(max(round(value), task.magnitude_min), task.magnitude_max))
+            margin, label = 1.0, str(rating)
+        rt_s = (0.3 + 0.4 * math.exp(-abs(margin))) * math.exp(0.2 * rng.standard_normal())
+        return Response(label, rt_s, self._onset_ns + int(rt_s * 1e9))

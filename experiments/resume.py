@@ -1,0 +1,131 @@
+"""Resume a killed session exactly, and report a session's status.
+
+:func:`replay_session` reads the log, rebuilds the procedure by replaying the completed trials
+(checking that each recorded level is the one the protocol and seed choose), and finds the
+interrupted trial: one that was planned (and maybe presented) but never completed.
+:func:`resume_session` then runs on: the interrupted trial is repeated with the same
+parameters (its randomness comes from ``(seed, trial_index)``) and recorded with
+``attempt > 0`` and ``repeated = True``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from tactilab.data_schemas.experiment import Protocol
+from tactilab.data_schemas.experiment_records import TrialRecord
+
+from .display import Display
+from .procedures import Likelihood, Procedure, make_procedure, replay, resolve_likelihood
+from .recording import Recorder, SessionLog
+from .responses import ResponseSource
+from .runner import Runner, RunResult, trial_generators
+from .tasks import outcome_of
+
+
+@dataclass
+class Replayed:
+    """A session rebuilt from its log."""
+
+    meta: dict[str, Any]
+    protocol: Protocol
+    trials: list[TrialRecord]
+    procedure: Procedure
+    attempts: dict[int, int]  # interrupted trial index -> attempt number of its repetition
+    events: list[dict[str, Any]]
+
+
+def _likelihood(meta: dict[str, Any], likelihood: Likelihood | None) -> Likelihood | None:
+    if likelihood is not None or not meta.get("likelihood"):
+        return likelihood
+    return resolve_likelihood(meta["likelihood"])
+
+
+def replay_log(log: SessionLog, likelihood: Likelihood | None = None) -> Replayed:
+    """Rebuild a session's procedure state and find its interrupted trial."""
+    meta = log.meta()
+    protocol = Protocol.model_validate(meta["protocol"])
+    trials, events = log.trials(), log.events()
+    for expected, trial in enumerate(trials):
+        if trial.trial_index != expected:
+            raise ValueError(
+                f"session: completed trials are not contiguous (trial {expected} missing, found "
+                f"{trial.trial_index}); the log of {log.path} is damaged"
+            )
+    kind = protocol.task.kind
+    history = [{"trial_index": t.trial_index, "track": t.track, "level": t.level,
+                "outcome": outcome_of(kind, t.target, t.response)} for t in trials]
+    procedure = make_procedure(protocol.procedure, protocol.task.guess_rate, _likelihood(meta, likelihood))
+    replay(procedure, history, lambda i: trial_generators(protocol.seed, i)[0])
+    pending = [e for e in events if e["trial_index"] == len(trials) and e["attempt"] is not None]
+    attempts = {len(trials): max(e["attempt"] for e in pending) + 1} if pending else {}
+    return Replayed(meta, protocol, trials, procedure, attempts, events)
+
+
+def replay_session(path: str | Path, likelihood: Likelihood | None = None) -> Replayed:
+    """Read-only replay of a session file (no lock taken)."""
+    log = SessionLog(path)
+    try:
+        return replay_log(log, likelihood)
+    finally:
+        log.close()
+
+
+def resume_session(path: str | Path, display: Display, responses: ResponseSource, *,
+                   likelihood: Likelihood | None = None, realtime: bool = True,
+                   progress: bool = False) -> RunResult:
+    """Continue a killed or stopped session where it left off (locks it first).
+
+    Raises
+    ------
+    SessionLockedError
+        If a runner still holds the session.
+    ValueError
+        If the session is already complete, or its log does not match its protocol.
+    """
+    recorder = Recorder.open(path)
+    try:
+        log = SessionLog(path)
+        try:
+            state = replay_log(log, likelihood)
+        finally:
+            log.close()
+        if any(e["kind"] == "session_complete" for e in state.events):
+            raise ValueError(f"session: {path} is complete; nothing to resume (export it instead)")
+        recorder.log("session_resumed", payload={
+            "completed": len(state.trials), "repeating": sorted(state.attempts)})
+        runner = Runner(state.protocol, recorder, display, responses, subject=state.meta["subject"],
+                        session=state.meta["session"], procedure=state.procedure,
+                        realtime=realtime, progress=progress)
+        return runner.run(state.attempts)
+    finally:
+        recorder.close()
+
+
+def session_status(path: str | Path) -> dict[str, Any]:
+    """Summary of a session: who, what, how far, the current estimate, and whether it is running."""
+    log = SessionLog(path)
+    try:
+        state = replay_log(log)
+        kinds = [e["kind"] for e in state.events]
+        if "session_complete" in kinds:
+            status = "complete"
+        elif log.is_locked():
+            status = "running"
+        else:
+            status = "interrupted" if state.attempts or "session_stopped" not in kinds else "stopped"
+        return {
+            "path": str(Path(path)), "subject": state.meta["subject"], "session": state.meta["session"],
+            "task": state.protocol.name, "method": state.protocol.procedure.method,
+            "parameter": state.protocol.procedure.parameter, "status": status,
+            "completed": len(state.trials), "planned": state.procedure.n_planned,
+            "interrupted_trial": next(iter(state.attempts), None),
+            "repeated_trials": sum(t.repeated for t in state.trials),
+            "safety_interventions": kinds.count("safety_intervention"),
+            "estimate": state.procedure.estimate(), "seed": state.protocol.seed,
+            "display_id": state.meta["display_id"], "package_version": state.meta["package_version"],
+        }
+    finally:
+        log.close()

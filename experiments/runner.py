@@ -1,0 +1,240 @@
+"""The psychophysics runner: plan, record, present, respond, record -- one commit per step.
+
+Per trial, in this order, each event committed (fsynced) before the next step:
+
+1. ``trial_planned``: the procedure picks the level, the task builds the stimuli;
+2. ``stimulus_presented``: written BEFORE the display is driven, so a crash during the stimulus
+   still shows that it may have been felt;
+3. the display plays each interval through :class:`~tactilab.experiments.safety.SafeDisplay`
+   (which no stimulus bypasses; its interventions are logged as ``safety_intervention``);
+4. ``response``; 5. ``trial_complete`` with the full :class:`TrialRecord`.
+
+All randomness of trial ``i`` comes from ``np.random.default_rng([seed, i])``: the procedure
+uses its first spawned child, the task its second (the simulated observer uses
+``[seed, i, 2]``). A resumed session therefore repeats an uninterrupted one exactly.
+If a write fails (disk full, read-only file), the display is zeroed and the run stops with a
+:class:`RecordingError` before the next stimulus; what was committed stays intact.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+from datetime import datetime
+from importlib import metadata
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from tactilab.data_schemas.experiment import Protocol, _check_label
+from tactilab.data_schemas.experiment_records import TrialRecord
+
+from .display import Display, render_drive
+from .procedures import Likelihood, PlannedLevel, Procedure, make_procedure
+from .recording import Recorder, RecordingError
+from .responses import ResponseSource
+from .safety import SafeDisplay
+from .tasks import TrialPlan, plan_trial, score
+
+
+def package_version() -> str:
+    """The installed tactilab version (``0+unknown`` from a bare source tree)."""
+    try:
+        return metadata.version("tactilab")
+    except metadata.PackageNotFoundError:
+        return "0+unknown"
+
+
+def trial_generators(seed: int, trial_index: int) -> tuple[np.random.Generator, np.random.Generator]:
+    """(procedure, task) generators of one trial, spawned from ``default_rng([seed, trial_index])``."""
+    procedure_rng, task_rng = np.random.default_rng([seed, trial_index]).spawn(2)
+    return procedure_rng, task_rng
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """How a run ended: ``status`` is 'complete', 'interrupted' or 'failed'."""
+
+    path: Path
+    status: str
+    n_completed: int
+    estimate: dict[str, Any]
+
+
+class Runner:
+    """Drive one session: ``Runner(...).run(start_index)``.
+
+    Parameters
+    ----------
+    protocol : Protocol
+        The validated protocol.
+    recorder : Recorder
+        The session's open, locked recorder.
+    display : Display
+        Any display; the runner wraps it in ``SafeDisplay`` itself.
+    responses : ResponseSource
+        Terminal or simulated observer.
+    subject, session : str
+        Pseudonymous subject code and session label.
+    procedure : Procedure
+        Fresh, or rebuilt by replay (resume).
+    realtime : bool
+        Wait the inter-trial and inter-interval pauses (False for dry runs and tests).
+    progress : bool
+        Show a tqdm bar with the trial count and the current estimate.
+    """
+
+    def __init__(self, protocol: Protocol, recorder: Recorder, display: Display,
+                 responses: ResponseSource, *, subject: str, session: str, procedure: Procedure,
+                 realtime: bool = True, progress: bool = False,
+                 sleep: Callable[[float], None] = time.sleep) -> None:
+        self.protocol, self.recorder, self.responses = protocol, recorder, responses
+        self.subject, self.session, self.procedure = subject, session, procedure
+        self.realtime, self.progress, self.sleep = realtime, progress, sleep
+        self.display = display if isinstance(display, SafeDisplay) else SafeDisplay(display, self._on_safety)
+        self.display_id = str(display.description.display_id)
+        self._current: tuple[int | None, int | None] = (None, None)
+        self._interventions = 0
+
+    def _on_safety(self, event: dict) -> None:
+        self._interventions += 1
+        self.recorder.log("safety_intervention", *self._current, payload=event)
+
+    def run(self, attempts: dict[int, int] | None = None) -> RunResult:
+        """Run trials until the procedure is finished; ``attempts`` maps interrupted trials to their attempt."""
+        from tqdm.auto import tqdm
+
+        attempts = attempts or {}
+        bar = tqdm(total=self.procedure.n_planned, initial=self.procedure.n_done, unit="trial",
+                   disable=not self.progress, desc=f"sub-{self.subject} ses-{self.session}")
+        try:
+            while True:
+                index = self.procedure.n_done
+                procedure_rng, task_rng = trial_generators(self.protocol.seed, index)
+                planned = self.procedure.next_trial(index, procedure_rng)
+                if planned is None:
+                    break
+                self.run_trial(index, attempts.get(index, 0), planned, task_rng)
+                bar.update(1)
+                bar.set_postfix_str(_format_estimate(self.procedure.estimate(), self.protocol))
+            self.recorder.log("session_complete", payload={"estimate": self.procedure.estimate()})
+            return RunResult(self.recorder.path, "complete", self.procedure.n_done, self.procedure.estimate())
+        except KeyboardInterrupt:
+            self.display.zero()
+            try:
+                self.recorder.log("session_stopped", payload={"reason": "interrupted (Ctrl-C, q or SIGTERM)"})
+            except RecordingError:
+                pass
+            return RunResult(self.recorder.path, "interrupted", self.procedure.n_done, self.procedure.estimate())
+        except RecordingError as exc:
+            self.display.zero()
+            raise RecordingError(
+                f"{exc}. The run stopped before the next stimulus; {self.procedure.n_done} completed "
+                f"trials are safe in {self.recorder.path}"
+            ) from None
+        except BaseException:
+            self.display.zero()
+            try:
+                self.recorder.log("session_failed", payload={"reason": "unexpected error"})
+            except RecordingError:
+                pass
+            raise
+        finally:
+            bar.close()
+
+    def run_trial(self, index: int, attempt: int, planned: PlannedLevel, task_rng: np.random.Generator) -> TrialRecord:
+        """Run one trial (steps 1-5 of the module docstring) and return its record."""
+        plan = plan_trial(self.protocol, index, planned, task_rng)
+        self._current = (index, attempt)
+        commanded = [s.model_dump() for s in plan.stimuli]
+        self.recorder.log("trial_planned", index, attempt, {
+            "block": plan.block, "track": plan.track, "parameter": plan.parameter, "level": plan.level,
+            "target": plan.target, "stimuli": commanded})
+        utc_planned = _utc(self.recorder)
+        if self.realtime and index > 0:
+            self.sleep(self.protocol.iti_s)
+        self.recorder.log("stimulus_presented", index, attempt, {"stimuli": commanded})
+        utc_presented = _utc(self.recorder)
+        before = self._interventions
+        reports, onset_ns = [], time.monotonic_ns()
+        self.responses.arm(plan, onset_ns)
+        for k, stimulus in enumerate(plan.stimuli):
+            if k and self.realtime:
+                self.sleep(plan.gap_s)
+            frames = render_drive(self.display.description, **stimulus.model_dump())
+            self.display.load(frames, stimulus.frame_rate_hz)
+            reports.append(self.display.play())
+        response = self.responses.collect(plan)
+        correct, outcome = score(self.protocol, plan, response.label)
+        self.recorder.log("response", index, attempt, {
+            "response": response.label, "rt_s": response.rt_s, "monotonic_ns": response.monotonic_ns})
+        utc_response = _utc(self.recorder)
+        self.procedure.update(planned, outcome)
+        record = TrialRecord(
+            subject=self.subject, session=self.session, block=plan.block, trial_index=index,
+            attempt=attempt, repeated=attempt > 0, track=plan.track, parameter=plan.parameter,
+            level=plan.level, stimuli=list(plan.stimuli), target=plan.target,
+            procedure_state=self.procedure.record_state(), response=response.label, correct=correct,
+            rt_s=response.rt_s, utc_planned=utc_planned, utc_presented=utc_presented,
+            utc_response=utc_response, monotonic_onset_ns=onset_ns,
+            monotonic_response_ns=response.monotonic_ns, seed=self.protocol.seed,
+            package_version=package_version(), display_id=self.display_id,
+            frames_sent=sum(r.frames_sent for r in reports), frames_late=sum(r.late for r in reports),
+            frames_missing=sum(r.missing for r in reports),
+            safety_interventions=self._interventions - before)
+        self.recorder.complete_trial(record, {"outcome": outcome, "correct": correct})
+        self._current = (None, None)
+        return record
+
+
+def _utc(recorder: Recorder) -> datetime:
+    """The UTC time of the event just committed (read back, so records match the log)."""
+    row = recorder.connection.execute("SELECT utc FROM events ORDER BY id DESC LIMIT 1").fetchone()
+    return datetime.fromisoformat(row[0])
+
+
+def _format_estimate(estimate: dict[str, Any], protocol: Protocol) -> str:
+    value = estimate.get("threshold")
+    if value is None:
+        return "estimate: n/a"
+    name, scale, unit = DISPLAY_UNITS[protocol.procedure.parameter]
+    return f"{name} threshold {value * scale:.3g} {unit}"
+
+
+#: parameter -> (short name, factor from SI, unit) for progress and plots
+DISPLAY_UNITS = {"amplitude_m": ("amplitude", 1e6, "um"), "pitch_m": ("pitch", 1e3, "mm"),
+                 "speed_m_per_s": ("speed", 1e3, "mm/s"), "duration_s": ("duration", 1e3, "ms")}
+
+
+def new_session(protocol: Protocol, path: str | Path, display: Display, responses: ResponseSource, *,
+                subject: str, session: str = "01", likelihood: Likelihood | None = None,
+                realtime: bool = True, progress: bool = False) -> RunResult:
+    """Create a session file at ``path`` and run the protocol to the end (or to an interruption).
+
+    Raises
+    ------
+    FileExistsError
+        If ``path`` exists (resume it instead).
+    SessionLockedError
+        If another runner holds it.
+    RecordingError
+        If a write fails; the run stops before the next stimulus.
+    """
+    _check_label(subject, "--subject")
+    _check_label(session, "session")
+    meta = {"subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
+            "seed": protocol.seed, "package_version": package_version(),
+            "display_id": str(display.description.display_id), "responses": responses.name,
+            "likelihood": None if likelihood is None else
+            f"{getattr(likelihood, '__module__', '?')}:{getattr(likelihood, '__qualname__', '?')}"}
+    recorder = Recorder.create(path, meta)
+    try:
+        recorder.log("session_started", payload={"pid": os.getpid()})
+        procedure = make_procedure(protocol.procedure, protocol.task.guess_rate, likelihood)
+        runner = Runner(protocol, recorder, display, responses, subject=subject, session=session,
+                        procedure=procedure, realtime=realtime, progress=progress)
+        return runner.run()
+    finally:
+        recorder.close()
