@@ -1,0 +1,226 @@
+"""Oracles for the periodic spectral solver (physics.md sections 2, 3 and 5)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tactilab.forward.halfspace import HalfSpace
+from tactilab.forward.loads import SurfaceLoad
+from tactilab.forward.spectral import VOIGT, periodic_stress, pressure_from_deflection, transfer, wavenumbers
+
+I6 = np.eye(6)
+
+
+def _grid(n, h):
+    return (np.arange(n) - n // 2) * h
+
+
+def _plane_wave_expected(x, y, z, kvec, P, Q, nu):
+    """Stress of p = P cos(k.r), q = Q cos(k.r) from the 1-D closed forms of physics.md s3
+    (plus antiplane shear) in the wave's frame, rotated to (x, y). Shape (6, *x.shape)."""
+    k = np.hypot(*kvec)
+    c, s = kvec / k
+    xp = c * x + s * y
+    e = np.exp(-k * z)
+    cos, sin = np.cos(k * xp), np.sin(k * xp)
+    qpar, qperp = c * Q[0] + s * Q[1], -s * Q[0] + c * Q[1]
+    szz = -P * (1 + k * z) * e * cos - qpar * k * z * e * sin
+    sxx_ = -P * (1 - k * z) * e * cos - qpar * (2 - k * z) * e * sin
+    sxz_ = -P * k * z * e * sin - qpar * (1 - k * z) * e * cos
+    syy_ = nu * (sxx_ + szz)
+    syz_ = -qperp * e * cos
+    sxy_ = -qperp * e * sin
+    local = np.zeros((3, 3) + np.shape(x))
+    local[0, 0], local[1, 1], local[2, 2] = sxx_, syy_, szz
+    local[0, 1] = local[1, 0] = sxy_
+    local[0, 2] = local[2, 0] = sxz_
+    local[1, 2] = local[2, 1] = syz_
+    R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+    glob = np.einsum("ia,jb,ab...->ij...", R, R, local)
+    pairs = [(0, 0), (1, 1), (2, 2), (1, 2), (2, 0), (0, 1)]
+    return np.array([glob[i, j] for i, j in pairs])
+
+
+@pytest.mark.parametrize("nu", [0.5, 0.3, 0.4999999, -0.5])
+def test_oblique_plane_waves_match_rotated_closed_forms(rng, nu):
+    ny, nx, h = 24, 32, 1e-4
+    x, y = np.meshgrid(_grid(nx, h), _grid(ny, h))
+    for _ in range(3):
+        mx, my = rng.integers(1, 6), rng.integers(-5, 6)
+        kvec = 2 * np.pi * np.array([mx / (nx * h), my / (ny * h)])
+        P, Q = float(rng.normal()) * 1e3, rng.normal(size=2) * 1e3
+        phase = kvec[0] * x + kvec[1] * y
+        load = SurfaceLoad(p=P * np.cos(phase), qx=Q[0] * np.cos(phase), qy=Q[1] * np.cos(phase),
+                           spacing=h, periodic=True)
+        z = rng.uniform(0.05, 4) / np.hypot(*kvec)  # k z <= 4: the field stays above roundoff
+        got = periodic_stress(load, [z], nu, I6)[0]
+        want = _plane_wave_expected(x, y, z, kvec, P, Q, nu)
+        scale = np.abs(want).max()
+        assert np.abs(got - want).max() / scale < 1e-12
+
+
+def test_one_dimensional_sinusoids_match_physics_md(rng):
+    n, h = 64, 5e-5
+    x = _grid(n, h)
+    for _ in range(5):
+        k = 2 * np.pi * rng.integers(1, 20) / (n * h)
+        z = rng.uniform(0.05, 2) * 1e-3
+        e = np.exp(-k * z)
+        P, Q = rng.normal(size=2) * 1e4
+        s = periodic_stress(SurfaceLoad(p=P * np.cos(k * x), spacing=h, periodic=True), [z], 0.5, I6)[0]
+        ref = {"zz": -P * (1 + k * z) * e * np.cos(k * x), "xx": -P * (1 - k * z) * e * np.cos(k * x),
+               "zx": -P * k * z * e * np.sin(k * x)}
+        for comp, r in ref.items():
+            assert np.abs(s[VOIGT.index(comp)] - r).max() < 1e-12 * abs(P)
+        s = periodic_stress(SurfaceLoad(qx=Q * np.cos(k * x), spacing=h, periodic=True), [z], 0.5, I6)[0]
+        ref = {"zx": -Q * (1 - k * z) * e * np.cos(k * x), "zz": -Q * k * z * e * np.sin(k * x),
+               "xx": -Q * (2 - k * z) * e * np.sin(k * x)}
+        for comp, r in ref.items():
+            assert np.abs(s[VOIGT.index(comp)] - r).max() < 1e-12 * abs(Q)
+
+
+def test_zero_mode_carries_the_total_load():
+    """rho = 0 limits of physics.md s2: 3-D sigma_xx = sigma_yy = -(1 + 2 nu) P / 2; 1-D sigma_xx = -P."""
+    P, Qx, Qy, nu = 2e3, 300.0, -150.0, 0.3
+    load = SurfaceLoad(p=np.full((8, 8), P), qx=np.full((8, 8), Qx), qy=np.full((8, 8), Qy), spacing=1e-4,
+                       periodic=True)
+    s = periodic_stress(load, [1e-3, 5e-2], nu, I6)
+    want = [-(1 + 2 * nu) * P / 2, -(1 + 2 * nu) * P / 2, -P, -Qy, -Qx, 0.0]
+    np.testing.assert_allclose(s[..., 3, 3], np.array([want, want]), atol=1e-9 * P)
+    s1 = periodic_stress(SurfaceLoad(p=np.full(8, P), spacing=1e-4, periodic=True), [1e-3], nu, I6)[0]
+    np.testing.assert_allclose(s1[:, 0], [-P, -2 * nu * P, -P, 0, 0, 0], atol=1e-9 * P)
+
+
+def test_surface_boundary_conditions_are_met():
+    """sigma_zz(z -> 0) = -p, sigma_zx = -qx, sigma_yz = -qy for a smooth load."""
+    n, h = 64, 1e-4
+    x, y = np.meshgrid(_grid(n, h), _grid(n, h))
+    g = np.exp(-(x**2 + y**2) / (2 * (6 * h) ** 2))
+    load = SurfaceLoad(p=1e3 * g, qx=300 * g, qy=-200 * g, spacing=h, periodic=True)
+    s = periodic_stress(load, [1e-13], 0.5, I6)[0]  # the q terms of sigma_zz scale with rho z
+    np.testing.assert_allclose(s[2], -load.p, atol=1e-4)
+    np.testing.assert_allclose(s[4], -load.qx, atol=1e-4)
+    np.testing.assert_allclose(s[3], -load.qy, atol=1e-4)
+
+
+def _spectral_derivative(f, h, axis):
+    n = f.shape[axis]
+    k = 2 * np.pi * np.fft.fftfreq(n, h)
+    shape = [1] * f.ndim
+    shape[axis] = n
+    return np.fft.ifft(1j * k.reshape(shape) * np.fft.fft(f, axis=axis), axis=axis).real
+
+
+@pytest.mark.parametrize("nu", [0.5, 0.25])
+def test_equilibrium_and_compatibility(nu):
+    """div sigma = 0 (d/dx, d/dy spectrally, d/dz by central differences) and the
+    Saint-Venant compatibility of the tensor strain in the x-z plane."""
+    n, h, z, dz = 48, 1e-4, 1e-3, 1e-6
+    x, y = np.meshgrid(_grid(n, h), _grid(n, h))
+    g = np.exp(-(x**2 + 2 * y**2) / (2 * (5 * h) ** 2))
+    load = SurfaceLoad(p=1e3 * g, qx=400 * np.roll(g, 3, 1), qy=-250 * g, spacing=h, periodic=True)
+    s = periodic_stress(load, [z - dz, z, z + dz], nu, I6)
+    dzs = (s[2] - s[0]) / (2 * dz)
+    mid = s[1]
+    sxx, syy, szz, syz, szx, sxy = mid
+    d = lambda f, ax: _spectral_derivative(f, h, ax)  # noqa: E731
+    res = [d(sxx, 1) + d(sxy, 0) + dzs[4], d(sxy, 1) + d(syy, 0) + dzs[3], d(szx, 1) + d(syz, 0) + dzs[2]]
+    scale = np.abs(mid).max() / (5 * h)
+    for r in res:
+        assert np.abs(r).max() < 1e-6 * scale
+    hs = HalfSpace(1e5, nu)
+    eps = hs.strain(load, [z - dz, z, z + dz], method="spectral").data["strain"].values
+    exx, ezz, ezx = eps[1, 0], eps[1, 2], eps[1, 4]
+    d2z = lambda k: (eps[2, k] - 2 * eps[1, k] + eps[0, k]) / dz**2  # noqa: E731
+    dz1 = lambda k: (eps[2, k] - eps[0, k]) / (2 * dz)  # noqa: E731
+    lhs = d2z(0) + d(d(ezz, 1), 1)
+    rhs = 2 * d(dz1(4), 1)
+    assert np.abs(lhs - rhs).max() < 1e-4 * np.abs(rhs).max()
+    assert np.isfinite([exx, ezx]).all()
+
+
+def test_superposition_and_mirror_symmetry(rng):
+    n, h = 32, 1e-4
+    a, b = rng.normal(size=(2, n, n)) * 1e3
+    la, lb = SurfaceLoad(p=a, spacing=h, periodic=True), SurfaceLoad(p=b, spacing=h, periodic=True)
+    sab = periodic_stress(SurfaceLoad(p=a + b, spacing=h, periodic=True), [5e-4], 0.5, I6)
+    np.testing.assert_allclose(sab, periodic_stress(la, [5e-4], 0.5, I6) + periodic_stress(lb, [5e-4], 0.5, I6),
+                               atol=1e-9 * np.abs(sab).max())
+    # p mirrored in x (about node n//2): sigma_xx, zz even; sigma_zx odd.
+    sym = a + a[:, (-np.arange(n)) % n]  # even about index 0 ...
+    sym = np.roll(sym, n // 2, axis=1)   # ... moved to the centre node
+    s = periodic_stress(SurfaceLoad(p=sym, spacing=h, periodic=True), [4e-4], 0.5, I6)[0]
+    mirror = lambda f: np.roll(np.roll(f, -(n // 2), 1)[:, (-np.arange(n)) % n], n // 2, 1)  # noqa: E731
+    np.testing.assert_allclose(mirror(s[0]), s[0], atol=1e-9 * np.abs(s).max())
+    np.testing.assert_allclose(mirror(s[4]), -s[4], atol=1e-9 * np.abs(s).max())
+
+
+def test_extremes_no_overflow_and_linearity(rng):
+    n, h = 64, 1e-4
+    load = SurfaceLoad(p=rng.normal(size=(n, n)), qx=rng.normal(size=(n, n)), spacing=h, periodic=True)
+    kmax = np.pi / h
+    deep = 1e4 / kmax  # rho * Z up to 1e4 at the Nyquist wavenumber
+    s = periodic_stress(load, [deep, 1e3 * deep], 0.5, I6)
+    assert np.isfinite(s).all()
+    base = periodic_stress(load, [3e-4], 0.5, I6)
+    for amp in [1e-9, 1e-3, 1e3, 1e9]:
+        scaled = periodic_stress(load.scaled(amp), [3e-4], 0.5, I6)
+        assert np.abs(scaled / amp - base).max() <= 1e-12 * np.abs(base).max()
+    zero = periodic_stress(SurfaceLoad(p=np.zeros((8, 8)), spacing=h, periodic=True), [1e-3], 0.5, I6)
+    assert not zero.any()
+
+
+def test_nu_half_is_the_continuous_limit(rng):
+    load = SurfaceLoad(p=rng.normal(size=(16, 16)), qy=rng.normal(size=(16, 16)), spacing=1e-4, periodic=True)
+    a = HalfSpace(1e6, 0.5).strain(load, 5e-4).data["strain"].values
+    b = HalfSpace(1e6, 0.4999999).strain(load, 5e-4).data["strain"].values
+    assert np.abs(a - b).max() < 1e-6 * np.abs(a).max()
+
+
+def test_incompressible_strain_has_no_volume_change(rng):
+    load = SurfaceLoad(p=rng.normal(size=(16, 16)), qx=rng.normal(size=(16, 16)), spacing=1e-4, periodic=True)
+    ds = HalfSpace(2e5, 0.5).strain(load, [3e-4, 1e-3], invariants=True).data
+    assert np.abs(ds["volumetric"]).max() < 1e-12 * np.abs(ds["strain"]).max()
+
+
+def test_sliding_sinusoid_strain_of_physics_md_4a():
+    """H(x) = A sin(2 pi x / p) pressed frictionless into an incompressible skin gives
+    eps = C [sin, 0, -sin, 0, 2 cos (engineering), 0], C = 4 pi^2 A Z / p^2 e^{-2 pi Z / p},
+    independent of E."""
+    n, pitch, A, Z = 64, 2e-3, 20e-6, 1e-3
+    h = pitch / n * 4
+    x = _grid(n, h)
+    H = A * np.sin(2 * np.pi * x / pitch)
+    C = 4 * np.pi**2 * A * Z / pitch**2 * np.exp(-2 * np.pi * Z / pitch)
+    arg = 2 * np.pi * x / pitch
+    for E in (1e5, 3e6):
+        hs = HalfSpace(E, 0.5)
+        eps = hs.strain(hs.pressure_from_deflection(H, h), Z).data["strain"].values[0]
+        np.testing.assert_allclose(eps[0], C * np.sin(arg), atol=1e-12 * C)
+        np.testing.assert_allclose(eps[2], -C * np.sin(arg), atol=1e-12 * C)
+        np.testing.assert_allclose(2 * eps[4], 2 * C * np.cos(arg), atol=1e-12 * C)
+        np.testing.assert_allclose(eps[1], 0, atol=1e-12 * C)
+
+
+def test_transfer_matches_the_solver_and_validates(rng):
+    n, h, z = 32, 1e-4, 4e-4
+    load = SurfaceLoad(qx=rng.normal(size=n), spacing=h, periodic=True)
+    xi, _ = wavenumbers((n,), (h,))
+    T = transfer(xi, None, z, 0.5, "qx", ("zz", "zx"))
+    spec = np.fft.rfft(load.qx)
+    T[:, -1] = T[:, -1].real  # Nyquist: the solver keeps the real (mirror-averaged) part
+    want = np.fft.irfft(T * spec, n)
+    got = periodic_stress(load, [z], 0.5, np.eye(6)[[2, 4]])[0]
+    np.testing.assert_allclose(got, want, atol=1e-12 * np.abs(want).max())
+    with pytest.raises(ValueError, match="load_component"):
+        transfer(xi, None, z, 0.5, "px")
+    with pytest.raises(ValueError, match="depth"):
+        transfer(xi, None, -1.0, 0.5, "p")
+    with pytest.raises(ValueError, match="unknown stress component"):
+        transfer(xi, None, z, 0.5, "p", ("zzz",))
+
+
+def test_pressure_from_deflection_validates():
+    with pytest.raises(ValueError, match="deflection"):
+        pressure_from_deflection(np.array([0.0, np.nan]), 1e-4, 1e5, 0.5)
