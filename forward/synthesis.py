@@ -274,8 +274,9 @@ def matching_traction_amplitude(amplitude: float, pitch: float | None, depth: fl
     The matching line load of :func:`matching_line_load` spread over a tractor of contact
     width ``footprint`` (m; default ``design.d``, tractors half as wide as their pitch 2d).
     """
+    q = matching_line_load(amplitude, pitch, depth, young_modulus, design)
     c = design.d if footprint is None else _positive(footprint, "footprint", fix="give the tractor width in m")
-    return matching_line_load(amplitude, pitch, depth, young_modulus, design) / c
+    return q / c
 
 
 def max_virtual_amplitude(traction_limit: float, pitch: float | None, depth: float | None,
@@ -295,3 +296,104 @@ def max_virtual_amplitude(traction_limit: float, pitch: float | None, depth: flo
     limit = _positive(traction_limit, "traction_limit", "Pa")
     per_metre = matching_traction_amplitude(1.0, pitch, depth, young_modulus, design, footprint)
     return limit / per_metre
+
+
+@dataclass(frozen=True)
+class DepthScaling:
+    """How the optimal half spacing scales with depth.
+
+    Attributes
+    ----------
+    designs : tuple of SpacingDesign
+        One per depth.
+    ratios : ndarray
+        d / Z per depth.
+    ratio : float
+        Least-squares slope of d = c Z (through the origin).
+    prefactor, exponent : float
+        Power-law fit d = prefactor * Z**exponent (d, Z in m), least squares in log-log.
+    max_deviation : float
+        Largest relative deviation of the designs from d = ratio * Z.
+    """
+
+    designs: tuple[SpacingDesign, ...]
+    ratios: np.ndarray
+    ratio: float
+    prefactor: float
+    exponent: float
+    max_deviation: float
+
+
+def _check_list(values, name: str, unit: str, minimum: int = 1) -> list[float]:
+    items = list(np.atleast_1d(np.asarray(values, dtype=float)))
+    if len(items) < minimum:
+        need = "at least one value" if minimum == 1 else f"at least {minimum} values"
+        raise ValueError(f"{name}: give {need} in {unit}, got {values!r}")
+    return [_positive(v, name, unit) for v in items]
+
+
+def depth_scaling(depths, width: float | None = 10e-3, pairs: int = 5, *,
+                  width_over_depth: float | None = None) -> DepthScaling:
+    """Optimise the spacing at several depths and fit how d scales with Z.
+
+    Parameters
+    ----------
+    depths : sequence of float
+        Receptor depths, m (at least two).
+    width : float or None
+        Fixed comparison window, m. Give None together with ``width_over_depth``.
+    pairs : int
+        Number of tractor pairs.
+    width_over_depth : float, optional
+        Use a window proportional to depth, ``w = width_over_depth * Z``; then d / Z is
+        exactly constant (the problem has no other length scale), which tests the optimiser.
+    """
+    zs = _check_list(depths, "depths", "m", minimum=2)
+    if (width is None) == (width_over_depth is None):
+        raise ValueError("width, width_over_depth: give width or width_over_depth (exactly one), got "
+                         f"width={width!r}, width_over_depth={width_over_depth!r}")
+    if width_over_depth is not None:
+        r = _positive(width_over_depth, "width_over_depth", "1")
+        designs = tuple(optimal_half_spacing(z, r * z, pairs) for z in zs)
+    else:
+        designs = tuple(optimal_half_spacing(z, width, pairs) for z in zs)
+    z = np.array([dsg.depth for dsg in designs])
+    d = np.array([dsg.d for dsg in designs])
+    ratio = float(np.dot(z, d) / np.dot(z, z))
+    exponent, log_prefactor = np.polyfit(np.log(z), np.log(d), 1)
+    return DepthScaling(designs=designs, ratios=d / z, ratio=ratio, prefactor=float(np.exp(log_prefactor)),
+                        exponent=float(exponent), max_deviation=float(np.max(np.abs(d / (ratio * z) - 1))))
+
+
+def design_table(depths, widths, pairs_list):
+    """Optimal designs for every combination of depth, window width and number of pairs.
+
+    Parameters
+    ----------
+    depths, widths : sequence of float
+        m.
+    pairs_list : sequence of int
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per design: ``depth_m, width_m, pairs, d_m, d_over_depth, pitch_m, k2_per_m,
+        k2_prime_per_m, objective_per_m, relative_residual, n_minima``.
+    """
+    import pandas as pd
+
+    zs = _check_list(depths, "depths", "m")
+    ws = _check_list(widths, "widths", "m")
+    ns = [check_pairs(n) for n in (pairs_list if np.ndim(pairs_list) else [pairs_list])]
+    if not ns:
+        raise ValueError(f"pairs_list: give at least one number of pairs, got {pairs_list!r}")
+    rows = []
+    for z in zs:
+        for w in ws:
+            for n in ns:
+                dsg = optimal_half_spacing(z, w, n)
+                rows.append(dict(depth_m=z, width_m=w, pairs=n, d_m=dsg.d, d_over_depth=dsg.d_over_depth,
+                                 pitch_m=dsg.pitch, k2_per_m=dsg.k2, k2_prime_per_m=dsg.k2_prime,
+                                 objective_per_m=dsg.objective, relative_residual=dsg.relative_residual,
+                                 n_minima=len(dsg.minima)))
+    return pd.DataFrame(rows)
