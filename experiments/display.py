@@ -370,8 +370,12 @@ def render_drive(description, *, amplitude_m: float, pitch_m: float, speed_m_per
       at ``depth_m``, over the skin under the array and over one period of the scan, equals
       that of the real surface sliding on the skin, ``2 (2 pi)^2 A Z / p^2 exp(-2 pi Z / p)``
       squared (physics.md 4a). The array's strain is the superposition of Flamant tangential
-      line loads (nu = 1/2, plane strain); a line load is traction times the tractor
-      footprint along x. The traction is proportional to ``young_modulus_pa``.
+      loads spread over each tractor's width (nu = 1/2, plane strain,
+      :func:`tactilab.forward.tractors.tractor_row_strain`); a line load is traction times the
+      tractor width along x. The traction is proportional to ``young_modulus_pa``. At
+      ``p = 4 d`` this RMS match is the one behind the sqrt(2) of
+      :func:`tactilab.forward.synthesis.matching_line_load`, which it generalises to any
+      pitch and any array.
     - deflection displays: 1 m of lateral deflection per m of virtual height.
 
     Parameters
@@ -445,7 +449,8 @@ def render_drive(description, *, amplitude_m: float, pitch_m: float, speed_m_per
             gain = 1.0
         else:
             line_gain = strain_gain_line_load(x_columns, float(description.pitch_x_m), pitch_m=pitch,
-                                              depth_m=depth, young_modulus_pa=modulus)
+                                              depth_m=depth, young_modulus_pa=modulus,
+                                              footprint_m=float(description.tractor_width_m))
             gain = line_gain / float(description.tractor_width_m)
     envelope = np.ones(n_frames)
     n_ramp = int(round(ramp * rate))

@@ -1,9 +1,10 @@
 """A simulated laterotactile display: plays frames and computes the strain they produce.
 
 :class:`SimulatedDisplay` keeps what it played (its "outputs") and computes the strain at
-receptor depth with the plane-strain tractor model of physics brief 4a: each row of tractors is a
-row of Flamant tangential line loads on an incompressible half-space (nu = 1/2), the line load
-being the commanded traction times the tractor's contact width along x. Rows are independent
+receptor depth with the plane-strain tractor model of physics brief 4a
+(:func:`tactilab.forward.tractors.tractor_row_strain`): each row of tractors is a row of
+Flamant tangential loads, uniform over each tractor's contact width, on an incompressible
+half-space (nu = 1/2); the line load is the commanded traction times that width. Rows are independent
 plane problems (a row's strain is evaluated under that row). Strains use the TENSOR shear
 ``eps_xz`` (engineering ``gamma_zx = 2 eps_xz``); ``eps_zz = -eps_xx``.
 """
@@ -16,7 +17,7 @@ import time
 import numpy as np
 
 from .display import DEFAULT_DEPTH_M, DEFAULT_YOUNG_MODULUS_PA, Display, PlaybackReport
-from .display_strain import line_tractor_strain
+from .display_strain import row_strain
 
 __all__ = ["SimulatedDisplay"]
 
@@ -145,5 +146,5 @@ class SimulatedDisplay(Display):
             (``gamma_zx = 2 eps_xz``) at the points ``self.x_m``, dimensionless.
         """
         q = self.line_loads(frames)
-        return line_tractor_strain(self.x_m, self.description.tractor_x_m, q, self.depth_m,
-                                   self.young_modulus_pa)
+        return row_strain(self.x_m, self.description.tractor_x_m, q, self.depth_m,
+                          self.young_modulus_pa, self.description.tractor_width_m)

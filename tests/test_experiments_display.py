@@ -20,7 +20,7 @@ from tactilab.experiments.display import (
     virtual_height,
 )
 from tactilab.experiments.display_strain import (
-    line_tractor_strain,
+    row_strain,
     sliding_surface_strain_amplitude,
     strain_gain_line_load,
 )
@@ -42,27 +42,54 @@ def test_pair_of_line_tractors_matches_phi_psi_closed_form():
     """Superposed single-tractor kernels reproduce the brief's pair formulas Phi, Psi."""
     d, z, e, q = 0.6e-3, 1.0e-3, 2.0e5, 3.0
     x = np.linspace(-6e-3, 6e-3, 241)
-    eps_xx, eps_xz = line_tractor_strain(x, [-d, d], np.array([-q, q]), z, e)
+    eps_xx, eps_xz = row_strain(x, [-d, d], np.array([-q, q]), z, e)
     phi, psi = phi_psi(x, d, z)
     scale = 3 * q / (math.pi * e)
     np.testing.assert_allclose(eps_xx, scale * phi, rtol=1e-12, atol=1e-18)
     np.testing.assert_allclose(2 * eps_xz, scale * psi, rtol=1e-12, atol=1e-18)  # gamma = 2 eps
 
 
-def test_single_tractor_matches_flamant_stress_and_hooke():
-    """Flamant tangential line load (physics.md 3) + Hooke with nu = 1/2 gives the kernel."""
-    z, e, t = 0.8e-3, 1.5e5, 2.0
-    x = np.linspace(-4e-3, 4e-3, 81)
+def flamant_strain(x, z, e, t):
+    """Flamant tangential line load (physics.md 3) + plane-strain Hooke with nu = 1/2."""
     r4 = (x**2 + z**2) ** 2
     sxx, szz, sxz = -2 * t * x**3 / (math.pi * r4), -2 * t * x * z**2 / (math.pi * r4), -2 * t * x**2 * z / (math.pi * r4)
     nu = 0.5
-    syy = nu * (sxx + szz)  # plane strain
-    tr = sxx + syy + szz
-    exx = ((1 + nu) * sxx - nu * tr) / e
-    exz = (1 + nu) * sxz / e
-    eps_xx, eps_xz = line_tractor_strain(x, [0.0], np.array([t]), z, e)
+    tr = sxx + nu * (sxx + szz) + szz
+    return ((1 + nu) * sxx - nu * tr) / e, (1 + nu) * sxz / e
+
+
+def test_single_tractor_matches_flamant_stress_and_hooke():
+    z, e, t = 0.8e-3, 1.5e5, 2.0
+    x = np.linspace(-4e-3, 4e-3, 81)
+    exx, exz = flamant_strain(x, z, e, t)
+    eps_xx, eps_xz = row_strain(x, [0.0], np.array([t]), z, e)
     np.testing.assert_allclose(eps_xx, exx, rtol=1e-12, atol=1e-18)
     np.testing.assert_allclose(eps_xz, exz, rtol=1e-12, atol=1e-18)
+
+
+def test_tractor_of_finite_width_matches_quadrature_of_line_loads():
+    """A strip of width c is the average of line loads over [-c/2, c/2] (Gauss-Legendre)."""
+    z, e, t, c = 0.5e-3, 2e5, 1.0, 0.6e-3
+    x = np.linspace(-3e-3, 3e-3, 61)
+    nodes, weights = np.polynomial.legendre.leggauss(40)
+    exx = sum(w / 2 * flamant_strain(x - s * c / 2, z, e, t)[0] for s, w in zip(nodes, weights))
+    exz = sum(w / 2 * flamant_strain(x - s * c / 2, z, e, t)[1] for s, w in zip(nodes, weights))
+    eps_xx, eps_xz = row_strain(x, [0.0], np.array([t]), z, e, footprint_m=c)
+    np.testing.assert_allclose(eps_xx, exx, rtol=1e-8, atol=1e-12 * np.abs(exx).max())
+    np.testing.assert_allclose(eps_xz, exz, rtol=1e-8, atol=1e-12 * np.abs(exz).max())
+
+
+def test_rms_gain_agrees_with_the_optimal_spacing_design():
+    """At the optimal half spacing d (p = 4 d), the forward model's matching line load
+    (physics.md 4a, peak-shear match with the sqrt(2) RMS factor) and this RMS-strain gain
+    are two definitions of "the same strain"; they agree to within 10 % at Z = 1 mm."""
+    from tactilab.forward.synthesis import matching_line_load, optimal_half_spacing
+
+    design = optimal_half_spacing(1.0e-3)
+    d = design.d
+    gain = strain_gain_line_load(np.arange(-4.5, 5) * 2 * d, 2 * d, pitch_m=4 * d, depth_m=1.0e-3,
+                                 young_modulus_pa=1e6)
+    assert gain == pytest.approx(matching_line_load(1.0, None, None, 1e6, design), rel=0.1)
 
 
 def test_drive_follows_virtual_surface_at_each_tractor():
@@ -103,7 +130,7 @@ def test_default_gain_matches_sliding_surface_rms_strain():
     assert rms2 == pytest.approx(2 * c * c, rel=2e-2)
     # The traction gain is proportional to E and the line load is traction * width.
     g = strain_gain_line_load(desc.tractor_x_m, desc.pitch_x_m, pitch_m=STIM["pitch_m"], depth_m=z,
-                              young_modulus_pa=2 * e)
+                              young_modulus_pa=2 * e, footprint_m=desc.tractor_width_m)
     assert np.max(np.abs(frames)) * 2 * desc.tractor_width_m == pytest.approx(
         g * STIM["amplitude_m"], rel=1e-2)
 
