@@ -196,7 +196,7 @@ def _array_validator(ndim: int | None, last_dim: int | None, reason: str):
         if bad.any():
             index = tuple(int(i) for i in np.argwhere(bad)[0])
             raise ValueError(
-                f"{name} must be finite everywhere, got {array[index]!r} at index {index} "
+                f"{name} must be finite everywhere, got {float(array[index])!r} at index {index} "
                 f"({int(bad.sum())} non-finite entries); replace NaN/inf by measured numbers"
             )
         array.flags.writeable = False
@@ -237,7 +237,11 @@ def format_validation_error(error: ValidationError, where: str = "") -> str:
             msg = "unknown key (check its spelling and unit suffix; the record does not have it)"
         elif item["type"] == "missing":
             msg = "missing; this key is required"
-        parts.append(f"{loc}: {msg}" if loc and not msg.startswith(loc.split(".")[-1]) else msg)
+        parent, _, last = loc.rpartition(".")
+        if loc and msg.startswith(last):
+            parts.append(f"{parent}.{msg}" if parent else msg)  # the message already names the field
+        else:
+            parts.append(f"{loc}: {msg}" if loc else msg)
     prefix = f"{where}: " if where else ""
     return prefix + "; ".join(parts)
 

@@ -61,7 +61,7 @@ def _positive(value: float, name: str, unit: str) -> float:
     return value
 
 
-def _check_label(value: str, name: str) -> str:
+def check_label(value: str, name: str) -> str:
     if not _LABEL.match(value):
         raise ValueError(
             f"{name}: must be 1-32 letters or digits (a BIDS label; a pseudonymous code, never "
@@ -217,7 +217,7 @@ class Task(_Model):
                     f"got {self.alternatives!r}"
                 )
             for label, override in self.alternatives.items():
-                _check_label(label, "alternatives")
+                check_label(label, "alternatives")
                 bad = set(override) - set(Stimulus.model_fields)
                 if bad:
                     raise ValueError(f"alternatives.{label}: unknown stimulus fields {sorted(bad)}")
@@ -427,7 +427,7 @@ class Protocol(_Model):
 
     @model_validator(mode="after")
     def _check(self) -> Protocol:
-        _check_label(self.name, "name")
+        check_label(self.name, "name")
         _finite(self.iti_s, "iti_s")
         if not 0 <= self.iti_s <= 60:
             raise ValueError(f"iti_s: must lie in [0, 60] s, got {self.iti_s!r}")

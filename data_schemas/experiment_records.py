@@ -18,7 +18,7 @@ from typing import Any, Literal
 import pandas as pd
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from .experiment import Protocol, Stimulus, _check_label
+from .experiment import Protocol, Stimulus, check_label
 
 _JSON_COLUMNS = ("stimuli", "procedure_state")
 
@@ -58,8 +58,8 @@ class TrialRecord(BaseModel):
 
     @model_validator(mode="after")
     def _check(self) -> TrialRecord:
-        _check_label(self.subject, "subject")
-        _check_label(self.session, "session")
+        check_label(self.subject, "subject")
+        check_label(self.session, "session")
         if not math.isfinite(self.level):
             raise ValueError(f"level: must be finite, got {self.level!r}")
         if not math.isfinite(self.rt_s) or self.rt_s < 0:
@@ -93,8 +93,8 @@ class Session(BaseModel):
 
     @model_validator(mode="after")
     def _check(self) -> Session:
-        _check_label(self.subject, "subject")
-        _check_label(self.session, "session")
+        check_label(self.subject, "subject")
+        check_label(self.session, "session")
         indices = [t.trial_index for t in self.trials]
         if len(set(indices)) != len(indices):
             raise ValueError(f"trials: trial_index values must be unique, got {indices!r}")

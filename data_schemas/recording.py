@@ -36,6 +36,19 @@ def _si_factor(unit: str, quantity: str, field: str) -> float:
     return to_si(f"1{unit}", "pressure", name=field)
 
 
+def _order(given, found: tuple[str, ...], column: str) -> tuple[str, ...]:
+    """The axis order: ``given`` if not None (it must list exactly the names found), else ``found``."""
+    if given is None:
+        return found
+    given = tuple(str(g) for g in given)
+    if sorted(given) != sorted(found):
+        raise ValueError(
+            f"the {column} column holds {sorted(found)} but the {column} order given is {list(given)}; "
+            f"list each {column} of the data once"
+        )
+    return given
+
+
 class Recording(Record):
     """Sensor time series.
 
@@ -169,7 +182,8 @@ class Recording(Record):
         """Tidy form: one row per (time, sensor, component), columns ``TIDY_COLUMNS``.
 
         Rows are ordered by time, then sensor, then component; ``attrs`` carries
-        ``sampling_rate_hz``, ``start_time_s``, ``quantity``, ``unit`` and ``description``.
+        ``sampling_rate_hz``, ``start_time_s``, ``quantity``, ``unit``, ``description``,
+        ``sensor_ids`` and ``components`` (their order).
         """
         nt, ns, nc = self.values.shape
         df = pd.DataFrame({
@@ -179,21 +193,24 @@ class Recording(Record):
             "value": self.values.ravel().copy(),
         })
         df.attrs.update(sampling_rate_hz=self.sampling_rate_hz, start_time_s=self.start_time_s,
-                        quantity=self.quantity, unit=self.unit, description=self.description)
+                        quantity=self.quantity, unit=self.unit, description=self.description,
+                        sensor_ids=self.sensor_ids, components=self.components)
         return df
 
     @classmethod
     def from_dataframe(cls, df: pd.DataFrame, *, sampling_rate_hz: float | None = None,
                        quantity: str | None = None, unit: str | None = None,
-                       start_time_s: float | None = None, description: str | None = None) -> Recording:
+                       start_time_s: float | None = None, description: str | None = None,
+                       sensor_ids=None, components=None) -> Recording:
         """Build a recording from the tidy form written by :meth:`to_dataframe`.
 
         Arguments left as None are read from ``df.attrs``; failing that, ``sampling_rate_hz``
         and ``start_time_s`` are inferred from the ``time_s`` column (uniform sampling; the
         inferred rate is rounded to 10 significant digits), ``quantity`` defaults to
         ``"stress"`` and ``unit`` to its SI unit. Values in another unit (``unit="kPa"``)
-        are converted to SI once, here. Sensors and components keep their order of first
-        appearance.
+        are converted to SI once, here. ``sensor_ids`` and ``components`` fix the order of
+        axes 1 and 2; without them (and without ``attrs``) sensors and components keep their
+        order of first appearance.
 
         Raises
         ------
@@ -235,8 +252,11 @@ class Recording(Record):
                 f"time_s must be uniformly sampled at {rate!r} Hz from {t0!r} s, but row {bad} has "
                 f"time {times[bad]!r} s; resample the data or pass the right sampling_rate_hz"
             )
-        sensors = tuple(str(s) for s in pd.unique(df["sensor"].astype(str)))
-        components = check_components(tuple(pd.unique(df["component"].astype(str))), "component column")
+        found_s = tuple(str(s) for s in pd.unique(df["sensor"].astype(str)))
+        found_c = check_components(tuple(pd.unique(df["component"].astype(str))), "component column")
+        sensors = _order(sensor_ids if sensor_ids is not None else attrs.get("sensor_ids"), found_s, "sensor")
+        components = _order(components if components is not None else attrs.get("components"),
+                            found_c, "component")
         index_s = pd.Index(sensors).get_indexer(df["sensor"].astype(str))
         index_c = pd.Index(components).get_indexer(df["component"].astype(str))
         shape = (int(index_t.max()) + 1, len(sensors), len(components))

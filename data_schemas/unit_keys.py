@@ -164,8 +164,8 @@ def convert_units(model: type[BaseModel], data: dict, where: str = "") -> dict:
                     f"or use {target} for SI"
                 )
         else:
-            for base, (name, base_dim) in by_base.items():
-                if key.startswith(base + "_") and base != name:
+            for base, (name, base_dim) in sorted(by_base.items(), key=lambda kv: -len(kv[0])):
+                if key.startswith(base + "_"):
                     token = key[len(base) + 1:].lower()
                     units = _units_for(base_dim)
                     if token not in units:
