@@ -13,7 +13,9 @@ with ``k2 = max S_Psi`` over ``[-4d, 4d]`` (the sign and k2 corrections of physi
 applied). J -> 0 trivially as d -> 0 and has spurious minima at very small d, so the optimum is
 the lowest non-trivial local minimum: J is scanned on a geometric grid of d over a bracket
 starting at 0.2 Z, every interior local minimum is refined with a bounded scalar minimiser,
-and the one with the lowest J is returned (all of them are reported).
+and, among those that are non-trivial (relative residual J / int target^2 < 1: the array fits
+the target better than no strain at all), the one with the lowest J is returned. All minima
+are reported.
 
 Quadrature: composite 8-point Gauss-Legendre on panels no wider than ``min(Z, d) / 2`` (the
 integrand varies on the scales Z and d): relative error below 1e-10 (tests check it against
@@ -56,8 +58,9 @@ class SpacingDesign:
         J divided by the integral of the squared target (dimensionless; 0 is a perfect match).
     bracket : (float, float)
         The half spacings searched, m.
-    minima : tuple of (float, float)
-        Every interior local minimum found, as (d in m, J in 1/m), in increasing d.
+    minima : tuple of (float, float, float)
+        Every interior local minimum found, as (d in m, J in 1/m, relative residual), in
+        increasing d. Those with relative residual >= 1 (no better than zero strain) are trivial.
     grid_points : int
         Size of the scan grid.
     """
@@ -71,7 +74,7 @@ class SpacingDesign:
     objective: float
     relative_residual: float
     bracket: tuple[float, float]
-    minima: tuple[tuple[float, float], ...]
+    minima: tuple[tuple[float, float, float], ...]
     grid_points: int
 
     @property
@@ -209,14 +212,20 @@ def optimal_half_spacing(depth: float, width: float = 10e-3, pairs: int = 5, *,
             res = minimize_scalar(lambda d: spacing_objective(d, z, w, n)["objective"],
                                   bounds=(grid[i - 1], grid[i + 1]), method="bounded",
                                   options={"xatol": 1e-7 * z})
-            d_best, j_best = (float(res.x), float(res.fun)) if res.fun <= values[i] else (grid[i], values[i])
-            minima.append((float(d_best), float(j_best)))
-    if not minima:
+            d_best = float(res.x) if res.fun <= values[i] else float(grid[i])
+            parts = spacing_objective(d_best, z, w, n)
+            minima.append((d_best, parts["objective"], parts["relative_residual"]))
+    # a minimum whose array fits the target no better than zero strain (relative residual >= 1)
+    # is trivial: J is small there only because k2, and with it the target, is small
+    useful = [m for m in minima if m[2] < 1.0]
+    if not useful:
+        found = ", ".join(f"d = {m[0]:.4g} m (relative residual {m[2]:.3g})" for m in minima) or "none"
         raise ValueError(
-            f"bracket: J(d) has no interior local minimum in [{lo:.4g}, {hi:.4g}] m for depth {z:.4g} m, "
-            f"width {w:.4g} m, pairs {n}; widen the bracket"
+            f"bracket: J(d) has no non-trivial interior local minimum in [{lo:.4g}, {hi:.4g}] m for depth "
+            f"{z:.4g} m, width {w:.4g} m, pairs {n} (local minima: {found}); widen the bracket or change "
+            "the width or the number of pairs"
         )
-    d_opt, _ = min(minima, key=lambda m: m[1])
+    d_opt = min(useful, key=lambda m: m[1])[0]
     parts = spacing_objective(d_opt, z, w, n)
     centres = array_phi_psi(np.array([d_opt]), d_opt, z, n)[1]
     return SpacingDesign(depth=z, width=w, pairs=n, d=d_opt, k2=parts["k2"], k2_prime=float(centres[0]),
@@ -357,8 +366,18 @@ def depth_scaling(depths, width: float | None = 10e-3, pairs: int = 5, *,
         designs = tuple(optimal_half_spacing(z, r * z, pairs) for z in zs)
     else:
         designs = tuple(optimal_half_spacing(z, width, pairs) for z in zs)
+    return scaling_from_designs(designs)
+
+
+def scaling_from_designs(designs) -> DepthScaling:
+    """Fit d = c Z and d = a Z**b to designs made at two or more depths (see :func:`depth_scaling`)."""
+    designs = tuple(designs)
+    if len(designs) < 2 or not all(isinstance(dsg, SpacingDesign) for dsg in designs):
+        raise ValueError(f"designs: need at least two SpacingDesign objects at different depths, got {len(designs)}")
     z = np.array([dsg.depth for dsg in designs])
     d = np.array([dsg.d for dsg in designs])
+    if np.unique(z).size < 2:
+        raise ValueError("designs: all made at one depth; a scaling fit needs two depths or more")
     ratio = float(np.dot(z, d) / np.dot(z, z))
     exponent, log_prefactor = np.polyfit(np.log(z), np.log(d), 1)
     return DepthScaling(designs=designs, ratios=d / z, ratio=ratio, prefactor=float(np.exp(log_prefactor)),

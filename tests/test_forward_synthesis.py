@@ -87,7 +87,16 @@ def test_not_fooled_by_spurious_small_spacing_minima():
     # every reported minimum sits in the bracket, and the chosen one has the lowest J
     ds = [m[0] for m in design.minima]
     assert all(design.bracket[0] <= d <= design.bracket[1] for d in ds)
-    assert design.objective == pytest.approx(min(m[1] for m in design.minima), rel=1e-9)
+    assert design.objective == pytest.approx(min(m[1] for m in design.minima if m[2] < 1), rel=1e-9)
+    assert design.relative_residual < 1
+
+
+def test_trivial_minima_are_skipped():
+    """Two pairs at Z = 1.25 mm: the minimum of lowest J near 0.28 Z fits worse than zero strain."""
+    design = synthesis.optimal_half_spacing(1.25e-3, pairs=2)
+    trivial = [m for m in design.minima if m[2] >= 1]
+    assert trivial and min(m[1] for m in trivial) < design.objective
+    assert design.relative_residual < 1 and design.d > 0.5 * design.depth
 
 
 def test_scale_invariance_with_window_proportional_to_depth():
@@ -104,6 +113,8 @@ def test_depth_scaling_fit_recovers_a_proportional_law():
     assert fit.exponent == pytest.approx(1.0, abs=1e-4)
     fixed = synthesis.depth_scaling([1.25e-3, 2e-3, 3e-3], width=10e-3)
     assert len(fixed.designs) == 3 and fixed.exponent > 0
+    with pytest.raises(ValueError, match="all made at one depth"):
+        synthesis.scaling_from_designs([fixed.designs[0], fixed.designs[0]])
 
 
 def test_design_table_rows():
@@ -161,7 +172,9 @@ def test_traction_and_max_amplitude_round_trip(design_125):
     (lambda: synthesis.optimal_half_spacing(1e-3, bracket=(1e-3,)), "bracket: expected two half spacings"),
     (lambda: synthesis.optimal_half_spacing(1e-3, bracket=(2e-3, 1e-3)), "bracket: need finite 0 < low < high"),
     (lambda: synthesis.optimal_half_spacing(1e-3, grid_points=5), "grid_points: need an integer >= 20"),
-    (lambda: synthesis.optimal_half_spacing(1e-3, bracket=(2.5e-3, 2.6e-3)), "no interior local minimum"),
+    (lambda: synthesis.optimal_half_spacing(1e-3, bracket=(2.5e-3, 2.6e-3)), "no non-trivial interior"),
+    (lambda: synthesis.optimal_half_spacing(1.25e-3, pairs=2, bracket=(0.25e-3, 0.4e-3)), "relative residual 1.1"),
+    (lambda: synthesis.scaling_from_designs([]), "designs: need at least two"),
     (lambda: synthesis.spacing_objective(0.0, 1e-3), "tractor spacing must be > 0"),
     (lambda: synthesis.spacing_objective(1e-3, 1e-3, panel_fraction=0), "panel_fraction"),
     (lambda: synthesis.amplitude_factor(-1e-3, 1e-3), "half_spacing"),

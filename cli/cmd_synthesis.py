@@ -1,0 +1,161 @@
+"""``tactilab synthesis``: optimal tractor spacing for receptors at depth (physics.md 4a)."""
+
+from __future__ import annotations
+
+import argparse
+
+NAME = "synthesis"
+HELP = ("design a laterotactile display: optimal tractor half spacing d (mm) for receptors at a depth, "
+        "matching traction (kPa) and largest renderable amplitude (um), with sensitivity to width and pairs")
+
+WIDTH_FACTORS = (0.5, 0.8, 1.0, 1.2, 1.5, 2.0)
+PAIRS_SENSITIVITY = (1, 2, 3, 4, 5, 6, 7)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--depth", required=True,
+                        help="receptor depth Z, a length such as 1.25mm; a comma list (0.5mm,1mm,2mm) gives one row each")
+    parser.add_argument("--width", default="10mm", help="comparison window w, a length (default 10mm)")
+    parser.add_argument("--pairs", default="5", help="number of tractor pairs, an integer >= 1 (default 5)")
+    parser.add_argument("--amplitude", default=None,
+                        help="virtual sinusoid amplitude A, a length such as 50um (needs --young-modulus)")
+    parser.add_argument("--young-modulus", default=None, help="skin Young's modulus E, a pressure such as 200kPa")
+    parser.add_argument("--traction-limit", default=None,
+                        help="per-tractor traction limit, a pressure such as 5kPa (needs --young-modulus)")
+    parser.add_argument("--footprint", default=None,
+                        help="tractor contact width along x, a length (default: d, half the tractor pitch 2d)")
+    parser.add_argument("--sensitivity-widths", default=None,
+                        help="comma list of window widths for the sensitivity rows, lengths "
+                             "(default: 0.5, 0.8, 1, 1.2, 1.5, 2 times --width)")
+    parser.add_argument("--sensitivity-pairs", default=None,
+                        help="comma list of pair counts for the sensitivity rows (default 1,2,3,4,5,6,7)")
+    parser.add_argument("--no-sensitivity", action="store_true", help="print only the design rows")
+
+
+def _lengths(text: str, name: str) -> list[float]:
+    from tactilab.data_schemas.units import to_si
+
+    items = [t for t in str(text).split(",") if t.strip()]
+    if not items:
+        raise ValueError(f"{name}: give at least one length such as 1.25mm, got {text!r}")
+    return [to_si(t.strip(), "length", name=name) for t in items]
+
+
+def _integers(text: str, name: str) -> list[int]:
+    out = []
+    for item in str(text).split(","):
+        try:
+            value = int(item.strip())
+        except ValueError:
+            raise ValueError(f"{name}: expected integers >= 1 (e.g. 5 or 3,5,7), got {text!r}") from None
+        if value < 1:
+            raise ValueError(f"{name}: the number of tractor pairs must be >= 1, got {value}; e.g. 5")
+        out.append(value)
+    return out
+
+
+def _positive(value: float, name: str, unit: str) -> float:
+    if value <= 0:
+        raise ValueError(f"{name}: must be > 0, got {value:g} {unit}; give a positive value with a unit")
+    return value
+
+
+class _Options:
+    def __init__(self, args: argparse.Namespace) -> None:
+        from tactilab.data_schemas.units import to_si
+
+        self.depths = [_positive(z, "--depth", "m") for z in _lengths(args.depth, "--depth")]
+        self.width = _positive(to_si(args.width, "length", name="--width"), "--width", "m")
+        self.pairs = _integers(args.pairs, "--pairs")
+        if len(self.pairs) != 1:
+            raise ValueError(f"--pairs: give one number of pairs, got {args.pairs!r}; use --sensitivity-pairs for a list")
+        self.pairs = self.pairs[0]
+        self.amplitude = None if args.amplitude is None else to_si(args.amplitude, "length", name="--amplitude")
+        self.young = None if args.young_modulus is None else _positive(
+            to_si(args.young_modulus, "pressure", name="--young-modulus"), "--young-modulus", "Pa")
+        self.limit = None if args.traction_limit is None else _positive(
+            to_si(args.traction_limit, "pressure", name="--traction-limit"), "--traction-limit", "Pa")
+        self.footprint = None if args.footprint is None else _positive(
+            to_si(args.footprint, "length", name="--footprint"), "--footprint", "m")
+        if (self.amplitude is not None or self.limit is not None) and self.young is None:
+            raise ValueError("--young-modulus: needed with --amplitude or --traction-limit (the traction scales "
+                             "with E); give it as a pressure, e.g. 200kPa")
+        self.widths = ([f * self.width for f in WIDTH_FACTORS] if args.sensitivity_widths is None
+                       else [_positive(w, "--sensitivity-widths", "m")
+                             for w in _lengths(args.sensitivity_widths, "--sensitivity-widths")])
+        self.pairs_list = (list(PAIRS_SENSITIVITY) if args.sensitivity_pairs is None
+                           else _integers(args.sensitivity_pairs, "--sensitivity-pairs"))
+
+
+HEADER = (f"{'depth_mm':>8} {'width_mm':>8} {'pairs':>5} {'d_mm':>8} {'d/Z':>6} {'k2_1/mm':>8} "
+          f"{'k2p_1/mm':>8} {'J_1/m':>10} {'rel_res':>8} {'minima':>6}")
+
+
+def _row(design, opts: _Options) -> str:
+    from tactilab.forward import synthesis
+
+    text = (f"{design.depth * 1e3:8.3f} {design.width * 1e3:8.2f} {design.pairs:5d} {design.d * 1e3:8.4f} "
+            f"{design.d_over_depth:6.3f} {design.k2 * 1e-3:8.4f} {design.k2_prime * 1e-3:8.4f} "
+            f"{design.objective:10.4g} {design.relative_residual:8.4f} {len(design.minima):6d}")
+    if opts.amplitude is not None:
+        tau = synthesis.matching_traction_amplitude(opts.amplitude, None, None, opts.young, design, opts.footprint)
+        q = synthesis.matching_line_load(opts.amplitude, None, None, opts.young, design)
+        text += f" {q:10.4g} {tau * 1e-3:10.4g}"
+    if opts.limit is not None:
+        a_max = synthesis.max_virtual_amplitude(opts.limit, None, None, opts.young, design, opts.footprint)
+        text += f" {a_max * 1e6:10.4g}"
+    return text
+
+
+def _header(opts: _Options) -> str:
+    text = HEADER
+    if opts.amplitude is not None:
+        text += f" {'Q_N/m':>10} {'tau_kPa':>10}"
+    if opts.limit is not None:
+        text += f" {'Amax_um':>10}"
+    return text
+
+
+def run(args: argparse.Namespace) -> int:
+    from tactilab.forward import synthesis
+
+    opts = _Options(args)
+    footprint = "d (half the tractor pitch)" if opts.footprint is None else f"{opts.footprint * 1e3:g} mm"
+    print("tactile synthesis design (physics.md 4a; plane strain, nu = 1/2, tractors as line loads)")
+    print(f"objective J(d) over x in [-w/2, w/2]; optimum = lowest non-trivial local minimum, d in "
+          f"[0.2 Z, 5 Z]; k2 = max S_Psi, k2p = S_Psi(d)")
+    if opts.amplitude is not None:
+        print(f"matching: A = {opts.amplitude * 1e6:g} um at pitch p = 4d, E = {opts.young * 1e-3:g} kPa; "
+              f"Q = line load (N/m), tau = Q / footprint, footprint = {footprint}")
+    if opts.limit is not None:
+        print(f"max renderable amplitude Amax at traction limit {opts.limit * 1e-3:g} kPa, footprint = {footprint}")
+    print()
+    print("design")
+    print(_header(opts))
+    designs = [synthesis.optimal_half_spacing(z, opts.width, opts.pairs) for z in opts.depths]
+    for design in designs:
+        print(_row(design, opts))
+    if args.no_sensitivity:
+        return 0
+    z = opts.depths[0]
+    print()
+    print(f"sensitivity to the window width (depth {z * 1e3:g} mm, pairs {opts.pairs})")
+    print(_header(opts))
+    by_width = [synthesis.optimal_half_spacing(z, w, opts.pairs) for w in opts.widths]
+    for design in by_width:
+        print(_row(design, opts))
+    print()
+    print(f"sensitivity to the number of pairs (depth {z * 1e3:g} mm, width {opts.width * 1e3:g} mm)")
+    print(_header(opts))
+    by_pairs = [synthesis.optimal_half_spacing(z, opts.width, n) for n in opts.pairs_list]
+    for design in by_pairs:
+        print(_row(design, opts))
+    for label, group in (("width", by_width), ("pairs", by_pairs)):
+        ds = [g.d for g in group]
+        print(f"d spread over {label}: {min(ds) * 1e3:.4f} .. {max(ds) * 1e3:.4f} mm "
+              f"({(max(ds) - min(ds)) / designs[0].d * 100:.1f} % of the design d)")
+    if len(designs) >= 2:
+        fit = synthesis.scaling_from_designs(designs)
+        print(f"scaling with depth: d = {fit.ratio:.4f} Z (max deviation {fit.max_deviation * 100:.1f} %); "
+              f"power law d/mm = {fit.prefactor * 1e3 ** (1 - fit.exponent):.4g} (Z/mm)^{fit.exponent:.3f}")
+    return 0
