@@ -278,3 +278,27 @@ def test_patch_errors(args, match):
     kw.update(args)
     with pytest.raises(ValueError, match=match):
         tractor_display.patch_strain_3d(**kw)
+
+
+@pytest.mark.parametrize("method", ["closed_form", "dcfft"])
+def test_footprint_row_matches_the_halfspace_solver(method):
+    """Second method: the lead's HalfSpace on a 1-D grid of strip tractions (cell edges on the strip edges)."""
+    from tactilab.forward.halfspace import HalfSpace
+
+    width, cells = 0.6e-3, 24
+    h = width / cells
+    nx = 1024
+    grid = (np.arange(nx) - nx // 2) * h
+    centres = np.array([-36.5 * h, 36.5 * h])
+    tau = np.array([-4e3, 4e3])
+    qx = np.zeros(nx)
+    for x0, t in zip(centres, tau):
+        qx[np.abs(grid - x0) < width / 2] = t
+    assert np.count_nonzero(qx) == 2 * cells
+    points = np.linspace(-4e-3, 4e-3, 17)
+    result = HalfSpace(E, 0.5).strain(SurfaceLoad(qx=qx, spacing=h), depth=Z, points=points,
+                                      components=("xx", "zz", "zx"), method=method)
+    got = result.data["strain"].values[0].T
+    want = tractors.tractor_row_strain(points, Z, centres, tau * width, E, footprint=width)[:, [0, 2, 4]]
+    # midpoint sampling of the strip: error O((h / Z)^2)
+    np.testing.assert_allclose(got, want, atol=5e-4 * np.abs(want).max())
