@@ -114,18 +114,45 @@ class Recorder:
 
     @classmethod
     def create(cls, path: str | Path, meta: dict[str, Any]) -> Recorder:
-        """Create a new session file and record its metadata (refuses an existing file)."""
+        """Create a new session file with its metadata, atomically, and lock it.
+
+        The file is built as ``<name>.partial`` and renamed into place, so a session file
+        either exists with its full metadata or not at all (a kill during creation leaves
+        nothing to resume). An existing file is refused.
+        """
         path = Path(path)
         if path.exists():
             raise FileExistsError(
                 f"session: {path} already exists; resume it with `tactilab experiment resume "
-                f"{path}` or choose another --out / --session-label"
+                f"{path}` or choose another --out / --session"
             )
         path.parent.mkdir(parents=True, exist_ok=True)
         lock = _FileLock(lock_path(path))
-        recorder = cls(path, cls._connect(path, lock), lock)
-        recorder._write([("INSERT INTO meta VALUES (?, ?)", (k, json.dumps(v))) for k, v in meta.items()])
-        return recorder
+        partial = path.with_name(path.name + ".partial")
+        try:
+            partial.unlink(missing_ok=True)
+            connection = sqlite3.connect(partial, isolation_level=None)
+            connection.execute("PRAGMA journal_mode=WAL")
+            connection.executescript(SCHEMA)
+            connection.execute("BEGIN IMMEDIATE")
+            connection.executemany("INSERT INTO meta VALUES (?, ?)",
+                                   [(k, json.dumps(v)) for k, v in meta.items()])
+            connection.execute("COMMIT")
+            connection.close()
+            if path.exists():
+                raise FileExistsError(f"session: {path} appeared while it was being created; resume it")
+            os.replace(partial, path)
+            _fsync_folder(path.parent)
+        except sqlite3.Error as exc:
+            lock.release()
+            raise RecordingError(
+                f"session: cannot create {path} ({exc}); check that the folder is writable and "
+                "the disk has space"
+            ) from None
+        except BaseException:
+            lock.release()
+            raise
+        return cls(path, cls._connect(path, lock), lock)
 
     @classmethod
     def open(cls, path: str | Path) -> Recorder:
@@ -181,6 +208,17 @@ def _json_default(value: Any) -> Any:
     if isinstance(value, (set, tuple)):
         return list(value)
     return str(value)
+
+
+def _fsync_folder(folder: Path) -> None:
+    """Make a rename durable (POSIX: fsync the directory)."""
+    if os.name == "nt":  # pragma: no cover
+        return
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def lock_path(path: Path) -> Path:

@@ -18,6 +18,7 @@ If a write fails (disk full, read-only file), the display is zeroed and the run 
 
 from __future__ import annotations
 
+import functools
 import os
 import time
 from dataclasses import dataclass
@@ -28,7 +29,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from tactilab.data_schemas.experiment import Protocol, _check_label
+from tactilab.data_schemas.experiment import Protocol, check_label
 from tactilab.data_schemas.experiment_records import TrialRecord
 
 from .display import Display, render_drive
@@ -39,6 +40,7 @@ from .safety import SafeDisplay
 from .tasks import TrialPlan, plan_trial, score
 
 
+@functools.cache
 def package_version() -> str:
     """The installed tactilab version (``0+unknown`` from a bare source tree)."""
     try:
@@ -93,7 +95,8 @@ class Runner:
         self.protocol, self.recorder, self.responses = protocol, recorder, responses
         self.subject, self.session, self.procedure = subject, session, procedure
         self.realtime, self.progress, self.sleep = realtime, progress, sleep
-        self.display = display if isinstance(display, SafeDisplay) else SafeDisplay(display, self._on_safety)
+        # always wrapped: every stimulus passes the safety layer, and its events reach the log
+        self.display = SafeDisplay(display, self._on_safety)
         self.display_id = str(display.description.display_id)
         self._current: tuple[int | None, int | None] = (None, None)
         self._interventions = 0
@@ -104,11 +107,14 @@ class Runner:
 
     def run(self, attempts: dict[int, int] | None = None) -> RunResult:
         """Run trials until the procedure is finished; ``attempts`` maps interrupted trials to their attempt."""
-        from tqdm.auto import tqdm
-
         attempts = attempts or {}
-        bar = tqdm(total=self.procedure.n_planned, initial=self.procedure.n_done, unit="trial",
-                   disable=not self.progress, desc=f"sub-{self.subject} ses-{self.session}")
+        if self.progress:
+            from tqdm.auto import tqdm
+
+            bar = tqdm(total=self.procedure.n_planned, initial=self.procedure.n_done, unit="trial",
+                       desc=f"sub-{self.subject} ses-{self.session}")
+        else:  # no tqdm object at all: even a disabled one starts a monitor thread
+            bar = _NoBar()
         try:
             while True:
                 index = self.procedure.n_done
@@ -118,7 +124,7 @@ class Runner:
                     break
                 self.run_trial(index, attempts.get(index, 0), planned, task_rng)
                 bar.update(1)
-                bar.set_postfix_str(_format_estimate(self.procedure.estimate(), self.protocol))
+                bar.set_postfix_str(format_estimate(self.procedure.estimate(), self.protocol.procedure.parameter))
             self.recorder.log("session_complete", payload={"estimate": self.procedure.estimate()})
             return RunResult(self.recorder.path, "complete", self.procedure.n_done, self.procedure.estimate())
         except KeyboardInterrupt:
@@ -189,17 +195,29 @@ class Runner:
         return record
 
 
+class _NoBar:
+    def update(self, n: int) -> None:
+        pass
+
+    def set_postfix_str(self, text: str) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
 def _utc(recorder: Recorder) -> datetime:
     """The UTC time of the event just committed (read back, so records match the log)."""
     row = recorder.connection.execute("SELECT utc FROM events ORDER BY id DESC LIMIT 1").fetchone()
     return datetime.fromisoformat(row[0])
 
 
-def _format_estimate(estimate: dict[str, Any], protocol: Protocol) -> str:
+def format_estimate(estimate: dict[str, Any], parameter: str) -> str:
+    """One line for humans: ``amplitude threshold 2.47 um`` (``estimate: n/a`` before there is one)."""
     value = estimate.get("threshold")
     if value is None:
         return "estimate: n/a"
-    name, scale, unit = DISPLAY_UNITS[protocol.procedure.parameter]
+    name, scale, unit = DISPLAY_UNITS[parameter]
     return f"{name} threshold {value * scale:.3g} {unit}"
 
 
@@ -222,8 +240,8 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     RecordingError
         If a write fails; the run stops before the next stimulus.
     """
-    _check_label(subject, "--subject")
-    _check_label(session, "session")
+    check_label(subject, "subject")
+    check_label(session, "session")
     meta = {"subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
             "seed": protocol.seed, "package_version": package_version(),
             "display_id": str(display.description.display_id), "responses": responses.name,

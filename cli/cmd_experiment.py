@@ -1,0 +1,135 @@
+"""``tactilab experiment``: run, resume, export and inspect psychophysics sessions."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+NAME = "experiment"
+HELP = "run, resume, export or inspect a psychophysics session (SQLite log, SI units)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
+
+    run = sub.add_parser("run", help="run a protocol file (TOML; quantities take unit suffixes: 20um, 40mm/s, 500ms)")
+    run.add_argument("protocol", type=Path, help="protocol TOML file")
+    run.add_argument("--subject", required=True,
+                     help="pseudonymous subject code, letters and digits only (never a name), e.g. S01")
+    _device_args(run)
+    run.add_argument("--responses", default="terminal",
+                     help="'terminal' (single keypresses) or 'simulated' (model observer); default terminal")
+    run.add_argument("--out", type=Path, default=Path("sessions"),
+                     help="folder for the session file sub-<ID>_ses-<NN>_task-<name>.sqlite (default ./sessions)")
+    run.add_argument("--session", dest="session_label", default=None,
+                     help="session label (letters/digits); default: the next free number, 01, 02, ...")
+    _observer_args(run)
+
+    resume = sub.add_parser("resume", help="continue a killed or stopped session exactly (repeats the interrupted trial)")
+    resume.add_argument("session", type=Path, help="session .sqlite file")
+    _device_args(resume)
+    resume.add_argument("--responses", default=None,
+                        help="'terminal' or 'simulated'; default: what the session was started with")
+    _observer_args(resume)
+
+    export = sub.add_parser("export", help="export trials: BIDS-style beh TSV + JSON sidecar, CSV or Parquet (SI units)")
+    export.add_argument("session", type=Path, help="session .sqlite file")
+    export.add_argument("--format", default="bids", help="bids, csv or parquet (needs pyarrow); default bids")
+    export.add_argument("--out", type=Path, default=None, help="output folder (default: the session's folder)")
+
+    status = sub.add_parser("status", help="show progress, status and the current estimate of a session (SI -> um/mm)")
+    status.add_argument("session", type=Path, help="session .sqlite file")
+
+
+def _device_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--display", default="simulated",
+                   help="'simulated' or 'udp://HOST:PORT' (frames of tractions in Pa at the device rate, 1 kHz default)")
+    p.add_argument("--device", default="braille-row",
+                   help="display description: 'braille-row', 'stress2' or a .json description file (limits in Pa, m, 1/s)")
+    p.add_argument("--no-wait", action="store_true",
+                   help="do not wait in real time (inter-trial pauses, simulated playback): dry runs only")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _observer_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--observer-threshold", default=2e-3, type=float,
+                   help="simulated observer: RMS deviatoric strain at 1 mm depth felt at d' = 1 (strain, default 2e-3)")
+
+
+def _print_result(result, parameter: str) -> int:
+    from tactilab.experiments.runner import format_estimate
+
+    print(f"session {result.path}: {result.status} after {result.n_completed} trials; "
+          f"{format_estimate(result.estimate, parameter)}")
+    if result.status == "interrupted":
+        print(f"resume with: tactilab experiment resume {result.path}")
+        return 130
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    from tactilab.data_schemas.experiment import Protocol, check_label
+    from tactilab.experiments import factory
+
+    if args.action == "run":
+        check_label(args.subject, "--subject")
+        if args.session_label is not None:
+            check_label(args.session_label, "--session")
+        protocol = Protocol.from_toml(args.protocol)
+        description = factory.description_from_spec(args.device)
+        path, label = factory.next_session_path(args.out, args.subject, protocol.name)
+        if args.session_label is not None:
+            label = args.session_label
+            path = args.out / f"sub-{args.subject}_ses-{label}_task-{protocol.name}.sqlite"
+        display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
+        responses = factory.responses_from_spec(args.responses, protocol, threshold_strain=args.observer_threshold) \
+            if args.responses == "simulated" else factory.responses_from_spec(args.responses, protocol)
+        from tactilab.experiments.runner import new_session
+
+        print(f"session file: {path}", flush=True)
+        try:
+            result = new_session(protocol, path, display, responses, subject=args.subject, session=label,
+                                 realtime=not args.no_wait, progress=not args.quiet)
+        finally:
+            responses.close()
+            display.close()
+        return _print_result(result, protocol.procedure.parameter)
+
+    if args.action == "resume":
+        from tactilab.experiments.resume import replay_session, resume_session
+
+        state = replay_session(args.session)
+        description = factory.description_from_spec(args.device)
+        if description.display_id != state.meta["display_id"]:
+            raise ValueError(
+                f"--device: the session was recorded on display {state.meta['display_id']!r}, but "
+                f"--device gives {description.display_id!r}; resume on the same display"
+            )
+        kind = args.responses or state.meta["responses"]
+        display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
+        responses = factory.responses_from_spec(kind, state.protocol, threshold_strain=args.observer_threshold) \
+            if kind == "simulated" else factory.responses_from_spec(kind, state.protocol)
+        print(f"resuming {args.session}: {len(state.trials)} trials done"
+              + (f", repeating interrupted trial {next(iter(state.attempts))}" if state.attempts else ""), flush=True)
+        try:
+            result = resume_session(args.session, display, responses, realtime=not args.no_wait,
+                                    progress=not args.quiet)
+        finally:
+            responses.close()
+            display.close()
+        return _print_result(result, state.protocol.procedure.parameter)
+
+    if args.action == "export":
+        from tactilab.experiments.export import export_session
+
+        out = args.out if args.out is not None else args.session.parent
+        for path in export_session(args.session, out, args.format):
+            print(f"wrote {path}")
+        return 0
+
+    from tactilab.experiments.resume import session_status
+
+    info = session_status(args.session)
+    for key, value in info.items():
+        print(f"{key}: {value}")
+    return 0

@@ -1,0 +1,70 @@
+"""Build displays, response sources and session paths from the short specs the CLI takes.
+
+- display: ``"simulated"`` or ``"udp://HOST:PORT"``;
+- device description: a preset name (``"braille-row"``, ``"stress2"``) or a JSON file of a
+  :class:`~tactilab.data_schemas.display.DisplayDescription`;
+- responses: ``"terminal"`` or ``"simulated"``.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from tactilab.data_schemas.display import DisplayDescription
+from tactilab.data_schemas.experiment import Protocol
+
+from .display import Display
+from .responses import ResponseSource, SimulatedObserver, TerminalResponses
+
+DEVICE_PRESETS = {"braille-row": DisplayDescription.braille_row, "stress2": DisplayDescription.stress2}
+_UDP = re.compile(r"^udp://(?P<host>[^:/\s]+):(?P<port>\d{1,5})$")
+
+
+def description_from_spec(spec: str) -> DisplayDescription:
+    """A preset name or a JSON description file."""
+    if spec in DEVICE_PRESETS:
+        return DEVICE_PRESETS[spec]()
+    path = Path(spec)
+    if path.suffix.lower() == ".json" and path.is_file():
+        return DisplayDescription.load(path)
+    raise ValueError(
+        f"--device: must be one of {sorted(DEVICE_PRESETS)} or an existing .json display "
+        f"description, got {spec!r}"
+    )
+
+
+def display_from_spec(spec: str, description: DisplayDescription, *, realtime: bool = True) -> Display:
+    """``"simulated"`` or ``"udp://HOST:PORT"`` -> a bare display (the runner adds the safety layer)."""
+    if spec == "simulated":
+        from .simulated_display import SimulatedDisplay
+
+        return SimulatedDisplay(description, realtime=realtime)
+    match = _UDP.match(spec)
+    if match is None or not 0 < int(match["port"]) < 65536:
+        raise ValueError(
+            f"--display: must be 'simulated' or 'udp://HOST:PORT' with a port in 1..65535, got {spec!r}"
+        )
+    from . import udp
+
+    return udp.UdpDisplay(description, host=match["host"], port=int(match["port"]))
+
+
+def responses_from_spec(spec: str, protocol: Protocol, **observer) -> ResponseSource:
+    """``"terminal"`` or ``"simulated"`` (keywords go to :class:`SimulatedObserver`)."""
+    if spec == "terminal":
+        return TerminalResponses(protocol)
+    if spec == "simulated":
+        return SimulatedObserver(protocol, **observer)
+    raise ValueError(f"--responses: must be 'terminal' or 'simulated', got {spec!r}")
+
+
+def next_session_path(folder: str | Path, subject: str, task: str) -> tuple[Path, str]:
+    """The first free ``sub-<subject>_ses-<NN>_task-<task>.sqlite`` in ``folder``, and its label."""
+    folder = Path(folder)
+    for number in range(1, 1000):
+        label = f"{number:02d}"
+        path = folder / f"sub-{subject}_ses-{label}_task-{task}.sqlite"
+        if not path.exists():
+            return path, label
+    raise ValueError(f"--out: {folder} already holds 999 sessions of sub-{subject}; use another folder")
