@@ -25,6 +25,7 @@ Fourier convention: f~ = sum f exp(-i (xi x + eta y)) (numpy's forward FFT), xi 
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 
 import numpy as np
@@ -59,11 +60,19 @@ def wavenumbers(shape: tuple[int, ...], spacing: tuple[float, ...]):
     return xi[None, :], eta[:, None]
 
 
+@functools.lru_cache(maxsize=8)
+def _cached_geometry(shape: tuple, spacing: tuple, dtype_name: str) -> "_Geometry":
+    xi, eta = wavenumbers(shape, spacing)
+    return _Geometry(xi, eta, nyquist_x=shape[-1] % 2 == 0, nyquist_y=len(shape) == 2 and shape[0] % 2 == 0,
+                     dtype=np.dtype(dtype_name))
+
+
 class _Geometry:
     """Direction cosines of every mode, with the rho = 0 and Nyquist rules applied."""
 
     def __init__(self, xi: np.ndarray, eta: np.ndarray | None, nyquist_x: bool, nyquist_y: bool,
                  dtype=np.float64):
+        self.tables: dict = {}
         if eta is None:  # plane strain: n = sign(xi) e_x
             self.rho = np.abs(xi).astype(dtype)
             self.c_odd = np.sign(xi).astype(dtype)
@@ -92,31 +101,86 @@ class _Geometry:
         self.cs_odd = (c_odd * s_odd).astype(dtype)
 
 
+_TABLE_CACHE_MAX_MODES = 2**18  # cache coefficient tables only while they stay small (memory)
+
+
+def _table(g: _Geometry, nu: float, component: str):
+    """Coefficient table of one component, cached on the geometry for small grids."""
+    if g.rho.size > _TABLE_CACHE_MAX_MODES:
+        return _table_uncached(g, nu, component)
+    key = (float(nu), component)
+    if key not in g.tables:
+        g.tables[key] = _table_uncached(g, nu, component)
+    return g.tables[key]
+
+
+def _table_uncached(g: _Geometry, nu: float, component: str):
+    """The coefficient table of one stress component (physics.md s2, multiplied out).
+
+    Returns a list of ``(which, load, kind, coef)``: the component's spectrum is
+    E0 e^{-rho z} + E1 (rho z) e^{-rho z} with ``E_which = sum coef * L~`` over the load
+    components, ``kind`` saying whether ``coef`` multiplies L~ as a real or an imaginary
+    number. Each coefficient is purely real or purely imaginary, so they are stored as real
+    arrays (or scalars) and the factor 1j is applied once per sum.
+    """
+    c, s, c2, s2, cs = g.c_odd, g.s_odd, g.c2, g.s2, g.cs_odd
+    if component == "zz":  # E0 = -P, E1 = -(P - i q_par)
+        return [(0, "p", "re", -1.0), (1, "p", "re", -1.0), (1, "qx", "im", c), (1, "qy", "im", s)]
+    if component == "xx":  # E1 = c2 (P - i q_par)
+        return [(0, "p", "re", -(c2 + 2 * nu * s2)), (0, "qx", "im", 2 * c * (c2 + (1 + nu) * s2)),
+                (0, "qy", "im", 2 * nu * s * s2),
+                (1, "p", "re", c2), (1, "qx", "im", -c * c2), (1, "qy", "im", -s * c2)]
+    if component == "yy":  # E1 = s2 (P - i q_par)
+        return [(0, "p", "re", -(s2 + 2 * nu * c2)), (0, "qx", "im", 2 * nu * c * c2),
+                (0, "qy", "im", 2 * s * (s2 + (1 + nu) * c2)),
+                (1, "p", "re", s2), (1, "qx", "im", -c * s2), (1, "qy", "im", -s * s2)]
+    if component == "xy":
+        return [(0, "p", "re", (2 * nu - 1) * cs), (0, "qx", "im", s * (c2 * (1 - 2 * nu) + s2)),
+                (0, "qy", "im", c * (s2 * (1 - 2 * nu) + c2)),
+                (1, "p", "re", cs), (1, "qx", "im", -s * c2), (1, "qy", "im", -c * s2)]
+    if component == "zx":
+        return [(0, "qx", "re", -1.0), (1, "p", "im", c), (1, "qx", "re", c2), (1, "qy", "re", cs)]
+    if component == "yz":
+        return [(0, "qy", "re", -1.0), (1, "p", "im", s), (1, "qx", "re", cs), (1, "qy", "re", s2)]
+    raise ValueError(f"components: unknown stress component {component!r}; use one of {VOIGT}")
+
+
+def _combine(g: _Geometry, nu: float, spectra: dict, row: np.ndarray):
+    """(E0, E1) of the output ``row @ sigma_voigt`` for the given load spectra."""
+    coefs: dict = {}
+    for j, comp in enumerate(VOIGT):
+        if row[j] == 0.0:
+            continue
+        for which, name, kind, coef in _table(g, nu, comp):
+            if name in spectra:
+                key = (which, name, kind)
+                coefs[key] = coefs.get(key, 0.0) + row[j] * coef
+    cdt = np.result_type(g.rho.dtype, np.complex64)
+    spectra = {k: np.asarray(v, dtype=cdt) for k, v in spectra.items()}  # no copy when already complex
+    out = []
+    for which in (0, 1):
+        parts = {"re": None, "im": None}
+        for (w, name, kind), coef in coefs.items():
+            if w != which:
+                continue
+            term = spectra[name] * coef.astype(g.rho.dtype, copy=False) if np.ndim(coef) else spectra[name] * coef
+            parts[kind] = term if parts[kind] is None else np.add(parts[kind], term, out=parts[kind])
+        total = parts["re"]
+        if parts["im"] is not None:
+            parts["im"] *= 1j
+            total = parts["im"] if total is None else np.add(total, parts["im"], out=total)
+        out.append(np.zeros(g.rho.shape, cdt) if total is None else total.astype(cdt, copy=False))
+    return out[0], out[1]
+
+
 def _coefficients(g: _Geometry, nu: float, P, X, Y, component: str):
     """Depth-independent spectra (E0, E1) of one stress component; None means zero load."""
-    zero = 0
-    P = zero if P is None else P
-    X = zero if X is None else X
-    Y = zero if Y is None else Y
-    c, s, c2, s2, cs = g.c_odd, g.s_odd, g.c2, g.s2, g.cs_odd
-    qpar = c * X + s * Y
-    D = P - 1j * qpar
-    if component == "zz":
-        return -P, -D
-    if component == "xx":
-        e0 = -(c2 + 2 * nu * s2) * P + 2j * c * (c2 + (1 + nu) * s2) * X + 2j * nu * s * s2 * Y
-        return e0, c2 * D
-    if component == "yy":
-        e0 = -(s2 + 2 * nu * c2) * P + 2j * nu * c * c2 * X + 2j * s * (s2 + (1 + nu) * c2) * Y
-        return e0, s2 * D
-    if component == "xy":
-        e0 = (2 * nu - 1) * cs * P + 1j * s * (c2 * (1 - 2 * nu) + s2) * X + 1j * c * (s2 * (1 - 2 * nu) + c2) * Y
-        return e0, cs * P - 1j * s * c2 * X - 1j * c * s2 * Y
-    if component == "zx":
-        return -X, 1j * c * P + c2 * X + cs * Y
-    if component == "yz":
-        return -Y, 1j * s * P + cs * X + s2 * Y
-    raise ValueError(f"components: unknown stress component {component!r}; use one of {VOIGT}")
+    spectra = {k: v for k, v in (("p", P), ("qx", X), ("qy", Y)) if v is not None}
+    row = np.zeros(6)
+    if component not in VOIGT:
+        raise ValueError(f"components: unknown stress component {component!r}; use one of {VOIGT}")
+    row[VOIGT.index(component)] = 1.0
+    return _combine(g, nu, spectra, row)
 
 
 def output_coefficients(g: _Geometry, nu: float, spectra: dict, weights: np.ndarray):
@@ -124,17 +188,8 @@ def output_coefficients(g: _Geometry, nu: float, spectra: dict, weights: np.ndar
 
     A generator, so only one output's coefficient spectra are alive at a time.
     """
-    P, X, Y = spectra.get("p"), spectra.get("qx"), spectra.get("qy")
-    cdt = np.result_type(g.rho.dtype, np.complex64)
     for row in np.asarray(weights, dtype=float):
-        e0 = np.zeros(g.rho.shape, cdt)
-        e1 = np.zeros(g.rho.shape, cdt)
-        for j, comp in enumerate(VOIGT):
-            if row[j] != 0.0:
-                a, b = _coefficients(g, nu, P, X, Y, comp)
-                e0 += row[j] * a
-                e1 += row[j] * b
-        yield e0, e1
+        yield _combine(g, nu, spectra, row)
 
 
 def _point_phases(shape, spacing, points: np.ndarray):
@@ -195,9 +250,7 @@ def periodic_stress(load: SurfaceLoad, depths: Sequence[float], nu: float,
     cdtype = np.result_type(dtype, np.complex64)
     shape = load.shape
     axes = tuple(range(-load.ndim, 0))
-    xi, eta = wavenumbers(shape, load.spacing)
-    g = _Geometry(xi, eta, nyquist_x=shape[-1] % 2 == 0,
-                  nyquist_y=load.ndim == 2 and shape[0] % 2 == 0, dtype=dtype)
+    g = _cached_geometry(tuple(shape), tuple(load.spacing), dtype.name)
     # one forward FFT per load component, reused for every depth and output
     spectra = {k: sfft.rfftn(v.astype(dtype, copy=False), axes=axes, workers=workers).astype(cdtype, copy=False)
                for k, v in load.components.items()}
@@ -211,10 +264,11 @@ def periodic_stress(load: SurfaceLoad, depths: Sequence[float], nu: float,
         e = np.exp(-rz)  # underflows to 0 for rho z > ~745: harmless
         decay.append((e, rz * e))
     buf = np.empty(g.rho.shape, dtype=cdtype)
+    buf2 = np.empty(g.rho.shape, dtype=cdtype)
     for o, (e0, e1) in enumerate(output_coefficients(g, nu, spectra, weights)):
         for d, (e, rze) in enumerate(decay):
             np.multiply(e0, e, out=buf)
-            buf += e1 * rze
+            buf += np.multiply(e1, rze, out=buf2)
             if phases is None:
                 out[d, o] = sfft.irfftn(buf, s=shape, axes=axes, workers=workers)
             else:
