@@ -171,7 +171,7 @@ def convert_units(model: type[BaseModel], data: dict, where: str = "") -> dict:
                     if token not in units:
                         raise ValueError(
                             f"{here}: unknown unit suffix {key[len(base) + 1:]!r} for {base} (a {base_dim}); "
-                            f"use one of {', '.join(base + '_' + t for t in units)}, or {name} in SI"
+                            f"use one of {', '.join(base + '_' + t for t in units)} ({name} is SI)"
                         )
                     target, dim, default_unit = name, base_dim, units[token]
                     break
