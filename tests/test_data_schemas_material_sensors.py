@@ -146,3 +146,12 @@ def test_field_units_come_from_name_suffixes():
     assert [unit_of(n) for n in ("depth_m", "speed_m_per_s", "young_modulus_pa", "normal_force_n",
                                  "duration_s", "frame_rate_hz", "max_slew_rate_per_s", "phase_rad",
                                  "poisson_ratio")] == ["m", "m/s", "Pa", "N", "s", "Hz", "1/s", "rad", ""]
+
+
+def test_sensor_array_copies_the_callers_array():
+    positions = np.array([[0.0, 0.0], [1e-3, 0.0]])
+    s = SensorArray(positions_m=positions, depth_m=1e-3, components=["zz"])
+    positions[0, 0] = 5.0  # the caller keeps a writable array; the record does not see the change
+    assert s.positions_m[0, 0] == 0.0
+    assert s == SensorArray(positions_m=[[0, 0], [1e-3, 0]], depth_m=1e-3, components=["zz"])
+    assert s != s.replace(depth_m=2e-3) and hash(s) == hash(s.replace())

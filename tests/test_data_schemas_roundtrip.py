@@ -105,6 +105,7 @@ def test_scenes_round_trip_through_json_exactly(scene):
     back = Scene.from_json(scene.to_json())
     assert back == scene
     assert back.to_json() == scene.to_json()
+    assert hash(back) == hash(scene)
 
 
 @FAST
