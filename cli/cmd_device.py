@@ -1,0 +1,44 @@
+"""``tactilab device emulate``: a display emulator on loopback for the UDP driver."""
+
+from __future__ import annotations
+
+import argparse
+import functools
+
+from tactilab.data_schemas.units import to_si
+from tactilab.experiments.emulator import emulate
+
+NAME = "device"
+HELP = "tactile display devices: run an emulator of the UDP frame protocol on 127.0.0.1"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="device_command", metavar="ACTION", required=True)
+    emu = sub.add_parser(
+        "emulate",
+        help="acknowledge frames on udp://127.0.0.1:PORT, count late/missing ones, record them, "
+             "zero the outputs when frames stop (watchdog)",
+        description="Emulate a tactile display on loopback (127.0.0.1 only); see docs/udp-frame-format.md.",
+    )
+    emu.add_argument("--port", type=int, required=True,
+                     help="UDP port on 127.0.0.1 (0: any free port, printed at start)")
+    emu.add_argument("--watchdog", default="50ms",
+                     help="zero the outputs when no frame arrived for this long (time, e.g. 50ms; default 50ms)")
+    emu.add_argument("--record", metavar="FILE", default=None,
+                     help="write every message and event to FILE (JSON lines; values in the display's units, Pa or m)")
+    emu.add_argument("--max-seconds", default="60s",
+                     help="stop after this long (time, e.g. 30s or 30; default 60s); SIGTERM also stops it")
+    emu.add_argument("--tractors", type=int, default=None,
+                     help="expected values per frame (count); default: the count of the first frame")
+    emu.add_argument("--late-after", default="1ms",
+                     help="a frame whose transit exceeds the smallest by more than this is late (time; default 1ms)")
+
+
+def run(args: argparse.Namespace) -> int:
+    watchdog = to_si(args.watchdog, "time", name="--watchdog")
+    max_seconds = to_si(args.max_seconds, "time", name="--max-seconds", default_unit="s")
+    late_after = to_si(args.late_after, "time", name="--late-after")
+    emulate(args.port, watchdog_s=watchdog, record=args.record, max_seconds=max_seconds,
+                      n_tractors=args.tractors, late_after_s=late_after,
+                      log=functools.partial(print, flush=True))
+    return 0

@@ -1,0 +1,372 @@
+"""UDP frame format, the network driver against the device emulator on loopback, and the watchdog."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import threading
+import time
+import zlib
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from tactilab.cli.main import main as cli_main
+from tactilab.data_schemas.display import DisplayDescription
+from tactilab.experiments.display import DisplayError, limit_violations, render_drive
+from tactilab.experiments.emulator import LOOPBACK, emulate, read_record
+from tactilab.experiments.safety import SafeDisplay
+from tactilab.experiments.udp import (
+    ACK,
+    FRAME,
+    STATUS_CODE,
+    ZERO,
+    FrameFormatError,
+    UdpDisplay,
+    decode,
+    encode,
+    parse_udp_url,
+)
+
+EMULATOR = [sys.executable, "-m", "tactilab.cli.main", "device", "emulate", "--port", "0"]
+
+
+def start_emulator(tmp_path, name, *args):
+    record = tmp_path / f"{name}.jsonl"
+    proc = subprocess.Popen([*EMULATOR, "--record", str(record), *args], stdout=subprocess.PIPE, text=True)
+    line = proc.stdout.readline()
+    assert line.startswith("listening on udp://127.0.0.1:"), line
+    return proc, int(line.split(":")[2].split()[0]), record
+
+
+def stop_emulator(proc):
+    proc.send_signal(signal.SIGTERM)
+    out, _ = proc.communicate(timeout=30)
+    return out
+
+
+@pytest.fixture(scope="module")
+def emulator(tmp_path_factory):
+    proc, port, record = start_emulator(tmp_path_factory.mktemp("emu"), "shared", "--watchdog", "2s",
+                                        "--max-seconds", "120")
+    yield port, record
+    out = stop_emulator(proc)
+    assert proc.returncode == 0 and "summary:" in out
+
+
+def last_stream(record):
+    rec = read_record(record)
+    return rec["streams"][-1]["values"], rec
+
+
+def assert_record_within_limits(values, desc, rate=1000.0):
+    """The emulator's record proves it: data_schemas' check and our own, on the received float32."""
+    desc.check_commands(values.reshape(-1, desc.rows, desc.columns), "traction")
+    assert limit_violations(values, rate, desc) == []
+
+
+# ----- the frame format -----------------------------------------------------------------------
+def test_frame_layout_matches_the_documented_offsets():
+    data = encode(FRAME, 0x01020304, 0x1122334455667788, [1.5, -2.0])
+    assert data[:4] == b"TLDF" and data[4] == 1 and data[5] == FRAME
+    assert struct.unpack_from("<H", data, 6)[0] == 2
+    assert struct.unpack_from("<I", data, 8)[0] == 0x01020304
+    assert struct.unpack_from("<Q", data, 12)[0] == 0x1122334455667788
+    assert struct.unpack_from("<2f", data, 20) == (1.5, -2.0)
+    assert len(data) == 20 + 8 + 4 and struct.unpack_from("<I", data, 28)[0] == zlib.crc32(data[:28])
+    ack = encode(ACK, 7, 99, status=STATUS_CODE["applied"], flags=1, frames_applied=12)
+    assert len(ack) == 32 and struct.unpack_from("<BBHI", ack, 20) == (0, 1, 0, 12)
+    assert len(encode(ZERO, 3, 4)) == 24
+
+
+def test_roundtrip_of_each_message_type():
+    frame = decode(encode(FRAME, 2**32 + 5, 10, np.array([0.1, 2.0])))
+    assert (frame.kind, frame.seq, frame.timestamp_ns) == (FRAME, 5, 10)  # seq wraps at 2**32
+    np.testing.assert_array_equal(frame.values, np.float32([0.1, 2.0]))
+    assert decode(encode(ZERO, 1, 2)).kind == ZERO
+    ack = decode(encode(ACK, 1, 2, status=5, flags=1, frames_applied=9))
+    assert (ack.kind, ack.status, ack.flags, ack.frames_applied) == (ACK, 5, 1, 9)
+
+
+def _with_crc(body: bytes) -> bytes:
+    return body + struct.pack("<I", zlib.crc32(body))
+
+
+@pytest.mark.parametrize("data,match", [
+    (b"TLDF", "shorter than the 24-byte minimum"),
+    (_with_crc(b"XXXX" + bytes(16)), "magic: expected b'TLDF'"),
+    (encode(ZERO, 1, 2)[:-1] + b"\x00", "crc: CRC32 mismatch"),
+    (_with_crc(struct.pack("<4sBBHIQ", b"TLDF", 9, 2, 0, 1, 2)), "version: expected 1, got 9"),
+    (_with_crc(struct.pack("<4sBBHIQ", b"TLDF", 1, 1, 3, 1, 2) + bytes(4)), "count: header says 3 values"),
+    (_with_crc(struct.pack("<4sBBHIQ", b"TLDF", 1, 7, 0, 1, 2)), "type: message type 7"),
+])
+def test_decode_rejects(data, match):
+    with pytest.raises(FrameFormatError, match=match):
+        decode(data)
+
+
+def test_encode_rejects():
+    with pytest.raises(FrameFormatError, match="kind: must be FRAME"):
+        encode(9, 0, 0)
+    with pytest.raises(FrameFormatError, match="values: at most 16000 per FRAME"):
+        encode(FRAME, 0, 0, np.zeros(16001))
+    with pytest.raises(FrameFormatError, match="values: only FRAME messages carry values"):
+        encode(ZERO, 0, 0, [1.0])
+
+
+@pytest.mark.parametrize("url", ["tcp://127.0.0.1:9000", "udp://127.0.0.1", "udp://:9000", "udp://h:99999"])
+def test_parse_udp_url_rejects(url):
+    with pytest.raises(ValueError, match="--display: expected udp://HOST:PORT"):
+        parse_udp_url(url)
+
+
+@pytest.mark.parametrize("kwargs,match", [
+    ({"port": 0}, "port: must be an integer in 1..65535"),
+    ({"port": True}, "port: must be an integer in 1..65535"),
+    ({"ack_timeout_s": 0.0}, "ack_timeout_s: must be a finite number > 0"),
+    ({"busy_wait_s": -1e-3}, "busy_wait_s: must be a finite number >= 0"),
+    ({"zero_retries": 0}, "zero_retries: must be an integer >= 1"),
+])
+def test_udp_display_rejects_bad_arguments(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        UdpDisplay(DisplayDescription.braille_row(), **kwargs)
+
+
+def test_udp_display_rejects_displays_too_big_for_one_datagram():
+    with pytest.raises(ValueError, match="description: 16200 tractors exceed the 16000 values"):
+        UdpDisplay(DisplayDescription.braille_row(n_tractors=16200), port=9000)
+
+
+# ----- driver <-> emulator ------------------------------------------------------------------
+def test_safe_stream_arrives_exactly_and_within_limits(emulator):
+    port, record = emulator
+    desc = DisplayDescription.stress2()
+    events = []
+    safe = SafeDisplay(UdpDisplay.from_url(f"udp://127.0.0.1:{port}", desc), events.append)
+    frames = render_drive(desc, amplitude_m=30e-6, pitch_m=2.4e-3, speed_m_per_s=0.04, duration_s=0.15,
+                          frame_rate_hz=1000.0)
+    safe.load(frames, 1000.0)
+    report = safe.play()
+    safe.close()
+    assert report.frames_sent == 150 and report.acked + report.missing == 150
+    assert any(e["kind"] == "amplitude_clip" for e in events)  # 30 um needs more than 50 kPa
+    received, rec = last_stream(record)
+    np.testing.assert_array_equal(received, safe.frames.astype(np.float32))
+    assert np.all(np.diff(rec["streams"][-1]["seq"]) == 1)
+    assert_record_within_limits(received, desc)
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                 HealthCheck.function_scoped_fixture])
+@given(data=st.data(), slew=st.floats(20.0, 3000.0), duty=st.floats(0.1, 1.0), n_frames=st.integers(2, 30),
+       scale=st.floats(0.1, 4.0))
+def test_random_drives_through_safe_display_never_exceed_limits(emulator, data, slew, duty, n_frames, scale):
+    """Hypothesis: whatever the drive, the emulator's record stays within the limits."""
+    port, record = emulator
+    desc = DisplayDescription.braille_row(n_tractors=6, max_slew_rate_per_s=slew, max_duty_cycle=duty)
+    values = data.draw(st.lists(st.floats(-1, 1), min_size=6 * n_frames, max_size=6 * n_frames))
+    frames = scale * desc.max_traction_pa * np.array(values).reshape(n_frames, 6)
+    safe = SafeDisplay(UdpDisplay(desc, LOOPBACK, port), lambda e: None)
+    safe.load(frames, 1000.0)
+    report = safe.play()
+    safe.close()
+    received, _ = last_stream(record)
+    assert received.shape[0] == report.frames_sent == n_frames
+    assert_record_within_limits(received, desc)
+
+
+def test_stop_ends_the_stream_and_zeroes(emulator):
+    port, record = emulator
+    desc = DisplayDescription.braille_row()
+    events = []
+    safe = SafeDisplay(UdpDisplay(desc, LOOPBACK, port), events.append)
+    safe.load(np.zeros((2000, 10)), 1000.0)
+    timer = threading.Timer(0.1, safe.stop)
+    timer.start()
+    report = safe.play()
+    timer.join()
+    safe.close()
+    assert report.stopped and report.frames_sent < 2000 and events[-1]["kind"] == "zero_on_stop"
+    assert read_record(record)["events"][-1]["type"] == "zero"
+
+
+def test_no_device_is_a_clear_error():
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as silent:  # bound, never answers
+        silent.bind((LOOPBACK, 0))
+        display = UdpDisplay(DisplayDescription.braille_row(), LOOPBACK, silent.getsockname()[1],
+                             ack_timeout_s=0.01, zero_retries=2)
+        with pytest.raises(DisplayError, match="no acknowledgement of ZERO after 2 tries"):
+            display.zero()
+        display.close()
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind((LOOPBACK, 0))
+        free_port = probe.getsockname()[1]
+    display = UdpDisplay(DisplayDescription.braille_row(), LOOPBACK, free_port, ack_timeout_s=0.05)
+    with pytest.raises(DisplayError, match="is the device"):
+        display.zero()  # ICMP port unreachable (connection refused), or no answer at all
+    display.close()
+
+
+def test_wrong_tractor_count_and_watchdog_trip_raise_and_zero(tmp_path):
+    proc, port, record = start_emulator(tmp_path, "strict", "--tractors", "4", "--watchdog", "5ms",
+                                        "--max-seconds", "60")
+    try:
+        events = []
+        safe = SafeDisplay(UdpDisplay(DisplayDescription.braille_row(), LOOPBACK, port), events.append)
+        safe.load(np.zeros((5, 10)), 1000.0)
+        with pytest.raises(DisplayError, match=r"rejected frame 0 \(bad_count\).*10 tractors"):
+            safe.play()
+        assert events[-1]["kind"] == "zero_on_exception"
+        # 20 Hz frames against a 5 ms watchdog: the device trips, then refuses frames.
+        safe = SafeDisplay(UdpDisplay(DisplayDescription.braille_row(n_tractors=4), LOOPBACK, port,
+                                      ack_timeout_s=0.2), events.append)
+        safe.load(np.zeros((10, 4)), 20.0)
+        with pytest.raises(DisplayError, match="watchdog tripped during playback"):
+            safe.play()
+        assert events[-1]["kind"] == "zero_on_exception"
+    finally:
+        out = stop_emulator(proc)
+    assert "watchdog: no frame for" in out
+    summary = read_record(record)["summary"]
+    assert summary["watchdog_trips"] >= 1 and summary["rejected"] >= 2
+
+
+HOST = """
+import sys, numpy as np
+from tactilab.data_schemas.display import DisplayDescription
+from tactilab.experiments.display import render_drive
+from tactilab.experiments.safety import SafeDisplay
+from tactilab.experiments.udp import UdpDisplay
+desc = DisplayDescription.stress2()
+safe = SafeDisplay(UdpDisplay(desc, "127.0.0.1", int(sys.argv[1])), print)
+safe.load(render_drive(desc, amplitude_m=10e-6, pitch_m=2.4e-3, speed_m_per_s=0.04, duration_s=30.0,
+                       frame_rate_hz=1000.0), 1000.0)
+print("playing", flush=True)
+safe.play()
+"""
+
+
+def test_host_killed_mid_stimulus_emulator_zeroes_within_its_watchdog(tmp_path):
+    proc, port, record = start_emulator(tmp_path, "kill", "--watchdog", "100ms", "--max-seconds", "60")
+    host = subprocess.Popen([sys.executable, "-c", HOST, str(port)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert host.stdout.readline().strip() == "playing"
+        while read_record(record)["n_frames"] < 200:  # mid-stimulus: the drive is non-zero now
+            time.sleep(0.02)
+        os.kill(host.pid, signal.SIGKILL)
+        host.wait(timeout=30)
+        line = proc.stdout.readline()
+        assert line.startswith("watchdog: no frame for"), line
+    finally:
+        if host.poll() is None:
+            host.kill()
+        out = stop_emulator(proc)
+    rec = read_record(record)
+    trips = [e for e in rec["events"] if e["type"] == "watchdog"]
+    assert len(trips) == 1 and rec["summary"]["watchdog_trips"] == 1
+    trip = trips[0]
+    stream = rec["streams"][-1]
+    last_frame_ns = int(stream["arrival_ns"][-1])
+    assert np.any(stream["values"][-1] != 0)  # it was killed while driving the skin
+    assert trip["last_valid_ns"] == last_frame_ns
+    assert trip["deadline_ns"] == last_frame_ns + 100_000_000  # the watchdog time, exactly
+    assert trip["t_ns"] >= trip["deadline_ns"] and trip["late_by_ns"] == trip["t_ns"] - trip["deadline_ns"]
+    assert rec["events"][-1]["type"] == "summary" and "summary:" in out
+    assert_record_within_limits(stream["values"], DisplayDescription.stress2())
+
+
+# ----- the emulator's device logic, driven by raw datagrams ------------------------------------
+@pytest.fixture
+def thread_emulator(tmp_path):
+    stop, logs = threading.Event(), []
+    record = tmp_path / "thread.jsonl"
+    result = {}
+    thread = threading.Thread(target=lambda: result.update(summary=emulate(
+        0, watchdog_s=0.05, record=record, max_seconds=30, n_tractors=2, log=logs.append, stop=stop,
+        handle_signals=False)))
+    thread.start()
+    while not logs:
+        time.sleep(0.005)
+    port = int(logs[0].split(":")[2].split()[0])
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.settimeout(5)
+    sock.connect((LOOPBACK, port))
+
+    def ask(data):
+        sock.send(data)
+        return decode(sock.recv(1024))
+
+    def finish():
+        stop.set()
+        thread.join(timeout=10)
+        return result["summary"]
+
+    yield ask, sock, finish, record
+    finish()
+    sock.close()
+
+
+def test_emulator_statuses_gaps_and_rearming(thread_emulator):
+    ask, sock, finish, record = thread_emulator
+    assert ask(encode(ZERO, 1, 0)).status == STATUS_CODE["zeroed"]
+    assert ask(encode(FRAME, 2, time.monotonic_ns(), [1.0, 2.0])).status == STATUS_CODE["applied"]
+    assert ask(encode(FRAME, 2, time.monotonic_ns(), [1.0, 2.0])).status == STATUS_CODE["stale"]
+    assert ask(encode(FRAME, 6, time.monotonic_ns(), [1.0, 2.0])).status == STATUS_CODE["applied"]  # 3 missing
+    assert ask(encode(FRAME, 7, time.monotonic_ns(), [1.0, 2.0, 3.0])).status == STATUS_CODE["bad_count"]
+    assert ask(encode(ACK, 8, 0)).status == STATUS_CODE["bad_message"]
+    sock.send(encode(ZERO, 9, 0)[:-1] + b"\xff")  # corrupted: no answer, counted as rejected
+    time.sleep(0.2)  # > watchdog: the device zeroes and disarms
+    tripped = ask(encode(FRAME, 10, time.monotonic_ns(), [1.0, 2.0]))
+    assert tripped.status == STATUS_CODE["disarmed"] and tripped.flags == 1
+    assert ask(encode(ZERO, 11, 0)).status == STATUS_CODE["zeroed"]
+    assert ask(encode(FRAME, 12, time.monotonic_ns(), [0.5, 0.5])).status == STATUS_CODE["applied"]
+    ask(encode(ZERO, 13, 0))
+    sock.settimeout(0.05)
+    with pytest.raises(socket.timeout):
+        sock.recv(1024)  # nothing else was sent
+    summary = finish()
+    assert (summary.frames_applied, summary.stale, summary.missing, summary.rejected,
+            summary.watchdog_trips, summary.zero_commands) == (3, 1, 3, 4, 1, 3)
+    rec = read_record(record)
+    assert [e["type"] for e in rec["events"]].count("watchdog") == 1
+    assert [len(st_["seq"]) for st_ in rec["streams"]] == [2, 1]  # the watchdog ended the first
+    np.testing.assert_array_equal(np.vstack([st_["values"] for st_ in rec["streams"]]),
+                                  [[1, 2], [1, 2], [0.5, 0.5]])
+
+
+@pytest.mark.parametrize("kwargs,match", [
+    ({"port": 70000}, r"--port: must be an integer in 0..65535"),
+    ({"watchdog_s": 0.0}, "--watchdog: must be a finite number of seconds > 0"),
+    ({"max_seconds": float("inf")}, "--max-seconds: must be a finite number of seconds > 0"),
+    ({"late_after_s": -1.0}, "--late-after: must be a finite number of seconds > 0"),
+    ({"n_tractors": 0}, "--tractors: must be an integer >= 1"),
+])
+def test_emulate_rejects_bad_arguments(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        emulate(**{"port": 0, **kwargs})
+
+
+def test_cli_reports_bad_options_in_one_line(capsys):
+    assert cli_main(["device", "emulate", "--port", "0", "--watchdog", "0ms", "--max-seconds", "1"]) == 2
+    assert "--watchdog: must be a finite number of seconds > 0" in capsys.readouterr().err
+
+
+def test_cli_emulator_stops_on_its_own_after_max_seconds(tmp_path, capsys):
+    record = tmp_path / "short.jsonl"
+    assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "0.2", "--record", str(record)]) == 0
+    assert "summary: port" in capsys.readouterr().out
+    rec = read_record(record)
+    assert rec["summary"]["frames_applied"] == 0 and rec["streams"] == [] and rec["n_frames"] == 0
+
+
+def test_read_record_rejects_non_json(tmp_path):
+    path = tmp_path / "bad.jsonl"
+    path.write_text("not json\n")
+    with pytest.raises(ValueError, match="line 1 is not JSON"):
+        read_record(path)
