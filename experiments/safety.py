@@ -23,10 +23,11 @@ the process, after the display is at zero).
 
 Every intervention is reported to ``on_event`` as a dict with the keys ``kind``, ``tractor``,
 ``frame``, ``requested``, ``applied``, ``time`` (UTC, ISO 8601), ``monotonic_s``, ``limit``,
-``unit``, ``n_frames`` and ``display_id``. Limiting events are aggregated per (kind, tractor)
-and block: ``frame`` is the first frame limited, ``n_frames`` how many were, and
-``requested`` / ``applied`` are taken at the frame where they differed most
-(``worst_frame``). Zeroing events have ``tractor = None`` (all tractors), ``applied = 0.0``
+``unit``, ``n_frames`` and ``display_id``. Limiting events are aggregated per kind and block
+(each event is committed durably by the runner, so a clipped 60-tractor drive gives one
+event, not 60): ``frame`` is the first frame limited, ``n_frames`` how many were,
+``tractors`` which, and ``tractor``, ``requested`` / ``applied`` are taken at the sample where
+they differed most (``worst_frame``). Zeroing events have ``tractor = None`` (all tractors), ``applied = 0.0``
 and ``frame`` the number of frames sent so far when known.
 """
 
@@ -80,9 +81,12 @@ def limit_drive(frames: np.ndarray, frame_rate_hz: float, description, command: 
     applied : ndarray, shape (n_frames, n_tractors)
         float32-representable float64 values within every limit (module docstring).
     interventions : list of dict
-        One per (kind, tractor) limited: ``kind`` in ``"amplitude_clip"``, ``"slew_limit"``,
-        ``"end_at_rest"``, ``"duty_limit"``; ``tractor``, ``frame``, ``worst_frame``,
-        ``n_frames``, ``requested``, ``applied``, ``limit``, ``unit``.
+        One per kind of limit that acted: ``kind`` in ``"amplitude_clip"``, ``"slew_limit"``,
+        ``"end_at_rest"``, ``"duty_limit"``; ``tractor`` and ``worst_frame`` (where requested
+        and applied differ most), ``frame`` (the first frame limited), ``n_frames`` (frames
+        with any tractor limited), ``n_samples`` ((frame, tractor) pairs limited),
+        ``tractors`` (those limited), ``requested`` and ``applied`` (at the worst sample),
+        ``limit``, ``unit``.
     """
     requested, rate = check_frames(frames, frame_rate_hz, description)
     lim = limits(description, command, rate)
@@ -127,18 +131,22 @@ def limit_drive(frames: np.ndarray, frame_rate_hz: float, description, command: 
             "end_at_rest": lim["unit"], "duty_limit": "fraction of frames"}
     events = []
     for kind, mask in flags.items():
-        for tractor in np.flatnonzero(mask.any(axis=0)):
-            frames_hit = np.flatnonzero(mask[:, tractor])
-            diff = np.abs(requested[frames_hit, tractor] - applied[frames_hit, tractor])
-            worst = int(frames_hit[int(np.argmax(diff))])
-            events.append({
-                "kind": kind, "tractor": int(tractor), "frame": int(frames_hit[0]),
-                "worst_frame": worst, "n_frames": int(frames_hit.size),
-                "requested": float(requested[worst, tractor]),
-                "applied": float(applied[worst, tractor]),
-                "limit": float(limit[kind][tractor]),
-                "unit": unit[kind],
-            })
+        if not mask.any():
+            continue
+        # One event per kind and block (the runner commits each event durably): the worst
+        # (frame, tractor) sample, plus where and how often the limit acted.
+        diff = np.where(mask, np.abs(requested - applied), -1.0)
+        worst, tractor = (int(i) for i in np.unravel_index(int(np.argmax(diff)), diff.shape))
+        events.append({
+            "kind": kind, "tractor": tractor, "frame": int(np.flatnonzero(mask.any(axis=1))[0]),
+            "worst_frame": worst, "n_frames": int(np.count_nonzero(mask.any(axis=1))),
+            "n_samples": int(np.count_nonzero(mask)),
+            "tractors": [int(t) for t in np.flatnonzero(mask.any(axis=0))],
+            "requested": float(requested[worst, tractor]),
+            "applied": float(applied[worst, tractor]),
+            "limit": float(limit[kind][tractor]),
+            "unit": unit[kind],
+        })
     return applied, events
 
 

@@ -37,7 +37,7 @@ def test_drive_within_limits_passes_unchanged():
     np.testing.assert_array_equal(applied, frames)
 
 
-def test_amplitude_clip_reports_one_event_per_tractor():
+def test_amplitude_clip_reports_one_event_naming_the_tractors():
     desc = DisplayDescription.braille_row()
     frames = render_drive(desc, amplitude_m=40e-6, pitch_m=4.8e-3, speed_m_per_s=0.04, duration_s=0.2,
                           frame_rate_hz=1000.0)
@@ -47,9 +47,11 @@ def test_amplitude_clip_reports_one_event_per_tractor():
     report = safe.play()
     assert_within_limits(safe.display.played, desc)
     clips = [e for e in events if e["kind"] == "amplitude_clip"]
-    assert sorted(e["tractor"] for e in clips) == list(range(10))
+    assert len(clips) == 1 and clips[0]["tractors"] == list(range(10))
     e = clips[0]
     assert abs(e["requested"]) > desc.max_traction_pa >= abs(e["applied"]) and e["limit"] == desc.max_traction_pa
+    assert abs(e["requested"]) == pytest.approx(np.abs(frames).max())  # the worst sample
+    assert e["n_samples"] == np.count_nonzero(np.abs(frames) > desc.max_traction_pa)
     assert e["unit"] == "Pa" and e["display_id"] == "VirtualBrailleRow" and e["n_frames"] > 0
     assert set(e) >= {"kind", "tractor", "frame", "requested", "applied", "time", "monotonic_s"}
     assert report.interventions == len(events)
