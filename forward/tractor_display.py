@@ -104,6 +104,47 @@ def display_row_strain(display, x, depth: float, line_loads, young_modulus: floa
                               footprint=display.tractor_width_m)
 
 
+def render_virtual_surface(display, height: Callable[[np.ndarray], np.ndarray], speed: float, times,
+                           x, depth: float, gain: float, young_modulus: float, nu: float = 0.5,
+                           lead: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Drive a display as a travelling wave over a virtual surface; return the drive and the strain.
+
+    Every row gets the same drive (the plane model: rows uniform in y); the drive is checked
+    against ``display.max_traction_pa`` over the footprint ``display.tractor_width_m``.
+
+    Parameters
+    ----------
+    display : tactilab.data_schemas.display.DisplayDescription
+    height : callable
+        Virtual surface H(x), m.
+    speed : float
+        Scanning speed, m/s.
+    times : array_like, shape (nt,)
+        Frame times, s.
+    x : array_like, shape (nx,)
+        Receptor positions, m.
+    depth : float
+        Receptor depth, m.
+    gain : float
+        Line load per unit height, (N/m)/m.
+    young_modulus : float
+        E, Pa.
+    nu : float
+        Poisson's ratio.
+    lead : float
+        Sampling lead along x, m.
+
+    Returns
+    -------
+    line_loads : ndarray, shape (nt, columns), N/m
+    strain : ndarray, shape (nt, nx, 6), TENSOR shear
+    """
+    limit = display.max_traction_pa
+    q = travelling_wave_drive(display.tractor_x_m, height, speed, times, gain, lead, traction_limit=limit,
+                              footprint=display.tractor_width_m if limit is not None else None)
+    return q, display_row_strain(display, x, depth, q, young_modulus, nu)
+
+
 # ----- 2-D arrays of finite patches (3-D half-space) ---------------------------------------
 def _panel_rule(length: float, max_panel: float, order: int = 4) -> tuple[np.ndarray, np.ndarray]:
     """Composite Gauss-Legendre nodes and weights on [-length/2, length/2]."""

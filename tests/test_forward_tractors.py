@@ -302,3 +302,39 @@ def test_footprint_row_matches_the_halfspace_solver(method):
     want = tractors.tractor_row_strain(points, Z, centres, tau * width, E, footprint=width)[:, [0, 2, 4]]
     # midpoint sampling of the strip: error O((h / Z)^2)
     np.testing.assert_allclose(got, want, atol=5e-4 * np.abs(want).max())
+
+
+def test_patch_in_3d_matches_the_halfspace_dcfft_solver():
+    """Second method for the 3-D patch integral: the lead's HalfSpace (DC-FFT) on a 2-D grid."""
+    from tactilab.forward.halfspace import HalfSpace
+
+    depth, h, n = 1e-3, 0.05e-3, 128
+    width, length = 0.6e-3, 1.0e-3  # 12 x 20 cells; patch edges on cell boundaries
+    grid = (np.arange(n) - n // 2) * h
+    gx, gy = np.meshgrid(grid, grid)
+    centre = (0.5 * h, 0.5 * h)
+    qx = ((np.abs(gx - centre[0]) < width / 2) & (np.abs(gy - centre[1]) < length / 2)) * 3e3
+    points = np.array([[1e-3, 0.3e-3], [0.0, 0.0], [-0.7e-3, 0.8e-3]])
+    result = HalfSpace(E, 0.5).strain(SurfaceLoad(qx=qx.astype(float), spacing=h), depth=depth, points=points,
+                                      method="dcfft")
+    got = result.data["strain"].values[0].T
+    want = tractor_display.patch_strain_3d(np.column_stack([points, np.full(3, depth)]), [centre], [3e3],
+                                           width, length, E)
+    np.testing.assert_allclose(got, want, atol=2e-3 * np.abs(want).max())  # grid sampling O((h/Z)^2)
+
+
+def test_render_virtual_surface_composes_drive_and_strain():
+    display = DisplayDescription.braille_row(n_tractors=8, max_traction_pa=20e3)
+    times = np.linspace(0, 0.05, 6)
+    x = np.linspace(-4e-3, 4e-3, 21)
+
+    def height(pos):
+        return 40e-6 * np.sin(2 * np.pi * pos / 2.4e-3)
+
+    q, strain = tractor_display.render_virtual_surface(display, height, 0.02, times, x, Z, 2e5, E)
+    want_q = tractor_display.travelling_wave_drive(display.tractor_x_m, height, 0.02, times, 2e5)
+    np.testing.assert_allclose(q, want_q)
+    np.testing.assert_allclose(strain, tractors.tractor_row_strain(x, Z, display.tractor_x_m, want_q, E,
+                                                                   footprint=display.tractor_width_m))
+    with pytest.raises(ValueError, match="exceeds the display's traction_limit 2e\\+04 Pa"):
+        tractor_display.render_virtual_surface(display, height, 0.02, times, x, Z, 2e7, E)
