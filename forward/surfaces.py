@@ -54,7 +54,7 @@ class Feature(abc.ABC):
         """Height in m at surface points (x, y) in m (y defaults to 0)."""
 
     def bounds(self) -> tuple[float, float, float, float] | None:
-        """``(xmin, xmax, ymin, ymax)`` in m for an isolated feature; None if it fills the plane."""
+        """``(xmin, xmax, ymin, ymax)`` in m of an isolated defect; None for an extended texture."""
         return None
 
     def integral(self) -> float:
@@ -243,12 +243,6 @@ class HeightMap(Feature):
                    + ty * ((1 - tx) * h[iy + 1, ix] + tx * h[iy + 1, ix + 1]))
         return np.where(inside, val, 0.0)
 
-    def bounds(self):
-        ny, nx = self.heights.shape
-        x0, y0 = self.origin
-        if ny == 1:
-            return (x0, x0 + (nx - 1) * self.spacing[0], -math.inf, math.inf)
-        return (x0, x0 + (nx - 1) * self.spacing[0], y0, y0 + (ny - 1) * self.spacing[1])
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,238 @@
+"""Scanning a surface with the biomimetic finger: sensor time series as a data_schemas Recording.
+
+The surface modulates the interfacial stress (physics.md 4b): at finger position u (world x of
+the contact centre) the traction at finger node (x, y) is ``traction(x, y) * M(x + u, y)`` with
+``M = max(0, 1 + h / h_ref)`` (``h_ref`` defaults to the surface's peak |height|, so a +-A grating
+is the T = +-1 texture of the paper and a bump of height h is a load of strength = its
+footprint). The outputs are linear in M, so the whole scan is ONE matrix product:
+``outputs[t] = M_t @ W`` with the per-node weights ``W`` (:meth:`BiomimeticFinger.node_weights`)
+built once; frames are evaluated in batches.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+
+import numpy as np
+
+from tactilab.data_schemas.recording import Recording
+
+from .finger import BiomimeticFinger
+from .surfaces import Feature, Surface
+
+
+class RecordFeature(Feature):
+    """A data_schemas surface record (``height_at``) seen as a surface :class:`Feature`."""
+
+    def __init__(self, record):
+        if not hasattr(record, "height_at") or not hasattr(record, "kind"):
+            raise ValueError(f"surface: expected a data_schemas surface record (with kind and height_at), "
+                             f"got {type(record).__name__}")
+        self.record = record
+
+    def height(self, x, y=None):
+        return self.record.height_at(x, y)
+
+    def bounds(self):
+        r = self.record
+        if r.kind == "defect":
+            x0, y0 = r.position_m
+            h = r.size_m / 2
+            if r.shape == "edge_step":
+                return (x0 - h, x0 + h, -math.inf, math.inf)
+            return (x0 - h, x0 + h, y0 - h, y0 + h)
+        return None  # extended textures (gratings, height maps) may exceed the scanned strip
+
+    def peak(self) -> float:
+        """Largest |height| in m (the default reference height)."""
+        r = self.record
+        if r.kind in ("sinusoidal_grating", "square_wave_grating"):
+            return float(r.amplitude_m)
+        if r.kind == "defect":
+            return abs(float(r.height_m))
+        if r.kind == "height_map":
+            return float(np.max(np.abs(r.heights_m)))
+        return 0.0
+
+    def integral(self) -> float:
+        r = self.record
+        if r.kind == "defect" and r.shape == "bump":
+            b = r.size_m / 2
+            return r.height_m * b * b * (math.pi / 2 - 2 / math.pi)
+        if r.kind == "defect" and r.shape == "dot":
+            return r.height_m * math.pi * (r.size_m / 2) ** 2
+        return 0.0
+
+
+def feature_peak(feature: Feature) -> float:
+    """Largest |height| (m) of a feature, from its amplitude when it has one."""
+    if isinstance(feature, RecordFeature):
+        return feature.peak()
+    for name in ("amplitude", "height_m"):
+        if hasattr(feature, name):
+            return abs(float(getattr(feature, name)))
+    if hasattr(feature, "heights"):
+        return float(np.max(np.abs(feature.heights)))
+    return 0.0
+
+
+def scanned_surface(record_or_features, positions, finger: BiomimeticFinger, *,
+                    width: float | None = None) -> Surface:
+    """The strip of surface a scan touches, holding the given features; raises if a defect
+    lies outside it (the finger would never touch it).
+
+    Parameters
+    ----------
+    record_or_features : data_schemas surface record, Feature, or iterable of Features
+    positions : ndarray
+        World x of the contact centre per frame, m.
+    finger : BiomimeticFinger
+    width : float, optional
+        Strip width across the scan (m); default the finger grid's extent.
+    """
+    if isinstance(record_or_features, Feature):
+        feats = (record_or_features,)
+    elif hasattr(record_or_features, "height_at"):
+        feats = (RecordFeature(record_or_features),)
+    elif isinstance(record_or_features, Iterable):
+        feats = tuple(record_or_features)
+    else:
+        raise ValueError(f"surface: expected a surface record or Feature(s), got {type(record_or_features).__name__}")
+    x, _ = finger.grid()
+    reach = float(x[-1])
+    u = np.asarray(positions, dtype=float)
+    return Surface(length=float(u.max() - u.min()) + 2 * reach, width=2 * reach if width is None else width,
+                   features=feats, x_start=float(u.min()) - reach)
+
+
+def reference_height(surface: Surface) -> float:
+    """Default h_ref: the largest feature peak |height| (m); 1 m for a flat surface (no effect)."""
+    peaks = [feature_peak(f) for f in surface.features]
+    peak = max(peaks, default=0.0)
+    return peak if peak > 0 else 1.0
+
+
+def scan_outputs(finger: BiomimeticFinger, surface: Surface, positions, *, y_offset: float = 0.0,
+                 reference_height_m: float | None = None, batch: int = 256,
+                 weights=None, progress: bool = False) -> np.ndarray:
+    """Sensor outputs while the finger slides over ``surface``.
+
+    Parameters
+    ----------
+    finger : BiomimeticFinger
+    surface : Surface
+        Features in the world frame (see :func:`scanned_surface`).
+    positions : array_like, shape (n_frames,)
+        World x of the contact centre at each frame, m.
+    y_offset : float
+        World y of the contact centre (the scan line), m.
+    reference_height_m : float, optional
+        h_ref in m (height that doubles the interfacial stress); default the surface peak.
+    batch : int
+        Frames per matrix product (memory ~ batch x n_nodes doubles).
+    weights : tuple, optional
+        ``finger.node_weights()`` if already computed (reuse across scans).
+    progress : bool
+        Show a tqdm bar over batches.
+
+    Returns
+    -------
+    ndarray, shape (n_frames, n_sensors, n_components): Pa (stress) or strain (tensor shear).
+    """
+    u = np.atleast_1d(np.asarray(positions, dtype=float))
+    if u.ndim != 1 or u.size == 0 or not np.all(np.isfinite(u)):
+        raise ValueError(f"positions: need a non-empty finite 1-D array of finger positions in m, got shape {u.shape}")
+    if not isinstance(surface, Surface):
+        raise ValueError(f"surface: expected a forward.surfaces.Surface, got {type(surface).__name__}; "
+                         "wrap records with scanned_surface(...)")
+    if int(batch) < 1:
+        raise ValueError(f"batch: frames per product must be >= 1, got {batch!r}")
+    h_ref = reference_height(surface) if reference_height_m is None else reference_height_m
+    X, Y, W = finger.node_weights() if weights is None else weights
+    n_s, n_c = finger.sensors.n_sensors, finger.sensors.n_components
+    out = np.empty((u.size, W.shape[1]))
+    starts = range(0, u.size, int(batch))
+    if progress:
+        from tqdm import tqdm
+
+        starts = tqdm(starts, desc="scan frames", unit="batch")
+    for i0 in starts:
+        uu = u[i0:i0 + int(batch), None]
+        M = surface.modulation(X[None, :] + uu, Y[None, :] + y_offset, reference_height=h_ref)
+        out[i0:i0 + uu.shape[0]] = M @ W
+    return out.reshape(u.size, n_s, n_c)
+
+
+def check_scan(speed: float, sampling_rate: float, duration: float) -> int:
+    """Validate scan timing (SI) and return the number of frames."""
+    if not math.isfinite(speed) or speed <= 0:
+        raise ValueError(f"speed: a scan time series needs a finger speed > 0 m/s, got {speed!r}; "
+                         "give e.g. 0.05 (5 cm/s), or use receptive_field() for a static map")
+    if not math.isfinite(sampling_rate) or sampling_rate <= 0:
+        raise ValueError(f"sampling_rate: must be finite and > 0 Hz, got {sampling_rate!r}")
+    if not math.isfinite(duration) or duration <= 0:
+        raise ValueError(f"duration: must be finite and > 0 s, got {duration!r}")
+    n = int(math.floor(duration * sampling_rate + 1e-9))
+    if n < 1:
+        raise ValueError(f"duration: {duration!r} s at {sampling_rate!r} Hz gives no sample; record for longer")
+    return n
+
+
+def scan_recording(finger: BiomimeticFinger, surface, *, speed: float, sampling_rate: float,
+                   duration: float, start_position: float = 0.0, y_offset: float = 0.0,
+                   reference_height_m: float | None = None, progress: bool = False,
+                   description: str = "") -> Recording:
+    """Scan at constant ``speed`` (m/s) and return the sensors' time series as a Recording.
+
+    ``surface`` is a data_schemas surface record, a Feature or a :class:`Surface`; the contact
+    centre is at world x = ``start_position + speed * t`` (m) for ``t = i / sampling_rate`` (s),
+    ``i < duration * sampling_rate``.
+
+    Raises
+    ------
+    ValueError
+        For a speed <= 0 (no time series), a bad rate or duration, or a defect off the scanned strip.
+    """
+    n = check_scan(float(speed), float(sampling_rate), float(duration))
+    u = float(start_position) + float(speed) * np.arange(n) / float(sampling_rate)
+    surf = surface if isinstance(surface, Surface) else scanned_surface(surface, u, finger)
+    values = scan_outputs(finger, surf, u, y_offset=y_offset, reference_height_m=reference_height_m,
+                          progress=progress)
+    return Recording.from_sensors(finger.sensors, values, float(sampling_rate), description=description)
+
+
+def surface_scale(record) -> float | None:
+    """Smallest length (m) a surface record's relief varies over, or None (flat / smooth at the
+    contact scale): defect size, grating element or period / 2, height-map spacing."""
+    kind = getattr(record, "kind", None)
+    if kind == "defect":
+        return float(record.size_m)
+    if kind == "square_wave_grating":
+        return float(record.element_width_m)
+    if kind == "sinusoidal_grating":
+        return float(record.period_m) / 2
+    if kind == "height_map":
+        return float(record.spacing_x_m)
+    return None
+
+
+def scene_finger(scene, grid_spacing: float | None = None) -> BiomimeticFinger:
+    """The finger of a Scene, with a grid fine enough for its surface (scale / 6) unless given."""
+    finger = BiomimeticFinger.from_scene(scene, grid_spacing=grid_spacing)
+    scale = surface_scale(scene.surface)
+    if grid_spacing is None and scale is not None and scale / 6 < finger.spacing:
+        finger = BiomimeticFinger.from_scene(scene, grid_spacing=scale / 6)
+    return finger
+
+
+def scene_recording(scene, *, progress: bool = False, grid_spacing: float | None = None) -> Recording:
+    """Simulate a data_schemas Scene with a finger contact: the sensors' Recording.
+
+    The contact grid resolves the surface (:func:`scene_finger`) unless ``grid_spacing`` (m) is given.
+    """
+    finger = scene_finger(scene, grid_spacing)
+    s = scene.scan
+    return scan_recording(finger, scene.surface, speed=s.speed_m_per_s, sampling_rate=s.sampling_rate_hz,
+                          duration=s.duration_s, start_position=s.start_position_m, progress=progress,
+                          description=f"tactilab simulate: {scene.name or 'scene'}; {scene.description}".strip())

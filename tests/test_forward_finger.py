@@ -1,0 +1,228 @@
+"""Biomimetic finger: receptive fields, scans, fingerprints, Wiener kernels, shape invariance."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tactilab.data_schemas.recording import Recording
+from tactilab.data_schemas.sensors import SensorArray
+from tactilab.data_schemas.surface import IsolatedDefect
+from tactilab.forward.contact import HertzContact
+from tactilab.forward.exploration import (kernel_identification, linear_kernel, shape_invariance,
+                                          texture_spectrum, wiener_kernel)
+from tactilab.forward.finger import BiomimeticFinger, Fingerprint
+from tactilab.forward.halfspace import HalfSpace
+from tactilab.forward.loads import SurfaceLoad
+from tactilab.forward.scanning import scan_outputs, scan_recording, scanned_surface
+from tactilab.forward.surfaces import Bump, Surface
+
+COMPS = ("zz", "zx", "xx")
+
+
+def _finger(friction=0.5, spacing=None, components=("zz",), quantity="stress", **kw):
+    sensors = SensorArray.grid(3, 2, 1.5e-3, 3e-3, components=components, quantity=quantity)
+    return BiomimeticFinger(HertzContact(0.8), sensors, friction=friction, grid_spacing=spacing, **kw)
+
+
+@pytest.mark.parametrize("adhesion", [0.0, 0.6])
+def test_receptive_field_matches_brute_force_superposition(adhesion):
+    """RF (point defect x interfacial stress x point-load response) equals the difference of two
+    full forward solves (HalfSpace.stress of the whole contact load with and without a small
+    bump-shaped stress concentration), for stress components zz, zx, xx at 6 sensors."""
+    f = _finger(spacing=0.04e-3, components=COMPS, adhesion=adhesion)
+    x, y = f.grid()
+    X, Y = np.meshgrid(x, y)
+    h = f.spacing
+    p, q = f.traction(X, Y, cell=(h, h))
+    bump = Bump(0.0, 0.0, 0.2e-3, 1.0)
+    hs = HalfSpace(2e6, 0.5)
+    pts = f.sensors.positions_m
+    base = hs.stress(SurfaceLoad(p=p, qx=q, spacing=h), 3e-3, points=pts, components=COMPS).data["stress"]
+    for u in (-2e-3, 0.5e-3, 2.0e-3):
+        m = 1 + bump.height(X + u, Y)
+        full = hs.stress(SurfaceLoad(p=p * m, qx=q * m, spacing=h), 3e-3, points=pts, components=COMPS)
+        brute = (full.data["stress"] - base).values[0].T  # (sensor, component)
+        rf = f.receptive_field([u], 0.0, 0.0, strength=bump.integral())[0]
+        assert np.abs(brute - rf).max() < 0.02 * np.abs(rf).max()
+
+
+def test_scan_equals_receptive_field_for_a_small_defect():
+    """The batched scan (one matrix product) minus the flat-surface baseline reproduces the RF."""
+    f = _finger(spacing=0.05e-3)
+    u = np.linspace(-5e-3, 5e-3, 41)
+    bump = Bump(0.0, 0.2e-3, 0.25e-3, 30e-6)
+    surf = scanned_surface(bump, u, f)
+    flat = scanned_surface([], u, f)
+    out = scan_outputs(f, surf, u) - scan_outputs(f, flat, u, reference_height_m=30e-6)
+    rf = f.receptive_field(u, 0.0, 0.2e-3, strength=bump.integral() / 30e-6)
+    np.testing.assert_allclose(out, rf, atol=0.02 * np.abs(rf).max())
+
+
+def test_strain_sensors_follow_hooke():
+    fs = _finger(components=("xx", "yy", "zz", "yz", "zx", "xy"))
+    fe = _finger(components=("zz", "zx"), quantity="strain")
+    u = np.linspace(-3e-3, 3e-3, 7)
+    s = fs.receptive_field(u, 0.0, 0.0)
+    e = fe.receptive_field(u, 0.0, 0.0)
+    tr = s[..., :3].sum(-1)
+    np.testing.assert_allclose(e[..., 0], (1.5 * s[..., 2] - 0.5 * tr) / 2e6, rtol=1e-12, atol=1e-30)
+    np.testing.assert_allclose(e[..., 1], 1.5 * s[..., 4] / 2e6, rtol=1e-12)  # tensor shear
+
+
+def test_scan_recording_and_scene_defect_record():
+    f = _finger(spacing=0.05e-3)  # resolves the 0.3 mm defect (size / 6)
+    defect = IsolatedDefect(shape="bump", size_m=0.3e-3, height_m=50e-6, position_m=(5e-3, 0.0))
+    rec = scan_recording(f, defect, speed=0.05, sampling_rate=1000.0, duration=0.2)
+    assert isinstance(rec, Recording) and rec.values.shape == (200, 6, 1) and rec.unit == "Pa"
+    assert rec.sensor_ids == f.sensors.ids
+    u = 0.05 * np.arange(200) / 1000.0
+    strength = (0.15e-3) ** 2 * (np.pi / 2 - 2 / np.pi)  # iint h / h_ref dA of the raised-cosine bump
+    rf = f.receptive_field(u, 5e-3, 0.0, strength=strength)
+    change = rec.values - rec.values[0]  # the defect is out of reach at t = 0
+    # 5 %: the finite bump still touches the contact when its centre has just left it (edge)
+    np.testing.assert_allclose(change, rf, atol=0.05 * np.abs(rf).max())
+
+
+def test_fingerprint_puts_a_spectral_peak_at_v_over_lambda(rng):
+    """Scheibert et al., Science 323 (2009): ridges of period lambda = 0.5 mm scanned at
+    v = 10 cm/s over a random texture give a peak at v / lambda = 200 Hz; smooth skin does not."""
+    sensors = SensorArray(positions_m=[[0.0, 0.0]], depth_m=3e-3, components=("zz",))
+    seed = int(rng.integers(1 << 30))
+    spectra = {}
+    for label, fp in (("ridged", Fingerprint(0.5e-3)), ("smooth", None)):
+        f = BiomimeticFinger(HertzContact(0.8), sensors, friction=0.5, fingerprint=fp, grid_spacing=0.05e-3)
+        spectra[label] = texture_spectrum(f, np.random.default_rng(seed), speed=0.1, sampling_rate=2000.0,
+                                          duration=0.5, bit_length=0.05e-3)
+    fr, ridged = spectra["ridged"]
+    band = fr > 30
+    assert fr[band][np.argmax(ridged[band])] == pytest.approx(200.0, abs=8.0)
+    smooth = spectra["smooth"][1]
+    at = np.argmin(np.abs(fr - 200.0))
+    assert ridged[at] > 100 * smooth[at]
+    assert smooth[at] < smooth[np.argmin(np.abs(fr - 100.0))]  # smooth skin: low-pass, no peak
+
+
+def test_wiener_kernel_exact_on_a_known_linear_system(rng):
+    """Lee--Schetzen on a synthetic FIR system with an m-free random input: error shrinks ~ 1/sqrt(N)."""
+    k = np.array([0.0, 1.0, -2.0, 0.5, 0.25])
+    errs = []
+    for n in (512, 8192, 131072):
+        x = rng.choice([-1.0, 1.0], n)
+        y = 3.0 + sum(k[m + 2] * np.roll(x, -m) for m in range(-2, 3))
+        errs.append(np.linalg.norm(wiener_kernel(x, y, 2) - k) / np.linalg.norm(k))
+    assert errs[2] < errs[0] and errs[2] < 0.02
+
+
+def test_wiener_kernel_of_the_finger_improves_with_record_length(rng):
+    """Random square-wave gratings: the first-order Wiener kernel converges to the true kernel
+    g1(x) = int p(x, y) g(x - x0, y) dy (binned and continuous), mean error falling with N."""
+    sensors = SensorArray(positions_m=[[0.0, 0.0]], depth_m=3e-3, components=("zz",))
+    f = BiomimeticFinger(HertzContact(0.8), sensors, friction=0.5, grid_spacing=0.2e-3)
+    table = kernel_identification(f, rng, bit_length=0.2e-3, record_lengths=(256, 4096, 32768), repeats=4)
+    err = table["error_binned"].to_numpy()
+    assert err[0] > err[1] > err[2]
+    assert err[2] < 0.1 and err[0] > 2 * err[2]
+    assert np.all(np.abs(table["error_continuous"] - table["error_binned"]) < 0.05)
+
+
+def test_linear_kernel_is_pressure_times_point_response():
+    f = _finger(friction=0.0)
+    xi = np.array([-1e-3, 0.0, 1.3e-3])
+    g1 = linear_kernel(f, xi, sensor=2, n_eta=2001)
+    a = f.contact.contact_radius
+    eta = np.linspace(-a, a, 2001)
+    for x, g in zip(xi, g1):
+        # a unit defect at world (0, eta) seen from finger position u = -x sits at finger (x, eta)
+        rf = np.array([f.receptive_field([-x], 0.0, e, strength=1.0)[0, 2, 0] for e in eta])
+        assert g == pytest.approx(np.trapezoid(rf, eta), rel=1e-9)
+
+
+SCALE_ONLY = ("normal_force", "depth", "y_offset", "speed", "young_modulus", "poisson_ratio", "finger_radius")
+SHAPE = ("sensor_x", "friction")
+
+
+def test_shape_invariance_table():
+    """Measured split (docs/scenes.md): scale-only parameters keep corr >= 0.99 (in the finger-
+    position frame; the contact-scaled frame does at least as well for force, E and R), while the
+    sensor's position relative to the contact (corr <= 0.90) and friction (<= 0.99) change shape."""
+    table = shape_invariance()
+    by = table.groupby("parameter")
+    for name in SCALE_ONLY:
+        assert by.get_group(name)["corr_position"].min() >= 0.99, name
+    for name in ("normal_force", "young_modulus", "finger_radius"):
+        g = by.get_group(name)
+        assert np.all(g["corr_contact_scaled"] >= g["corr_position"] - 1e-12)
+    assert by.get_group("sensor_x")["corr_position"].max() <= 0.90
+    assert by.get_group("friction")["corr_position"].max() <= 0.99
+    assert by.get_group("speed")["corr_position"].min() > 0.9999
+    assert 1.3 < by.get_group("depth")["gain"].max() and by.get_group("depth")["gain"].min() < 0.8
+
+
+def test_bad_input_raises():
+    sensors = SensorArray(positions_m=[[0.0, 0.0]], depth_m=3e-3, components=("zz",))
+    with pytest.raises(ValueError, match="normal_force: must be finite and > 0"):
+        BiomimeticFinger(HertzContact(-1.0), sensors)
+    with pytest.raises(ValueError, match="friction: the friction coefficient must be finite and >= 0"):
+        BiomimeticFinger(HertzContact(1.0), sensors, friction=-0.2)
+    with pytest.raises(ValueError, match="adhesion: must lie in"):
+        BiomimeticFinger(HertzContact(1.0), sensors, adhesion=1.5)
+    with pytest.raises(ValueError, match="contact: expected a 3-D HertzContact"):
+        BiomimeticFinger(HertzContact(100.0, line=True), sensors)
+    with pytest.raises(ValueError, match="sensors: expected a data_schemas SensorArray"):
+        BiomimeticFinger(HertzContact(1.0), [[0, 0]])
+    with pytest.raises(ValueError, match="grid_spacing: must be finite"):
+        BiomimeticFinger(HertzContact(1.0), sensors, grid_spacing=0.0)
+    with pytest.raises(ValueError, match="fingerprint period"):
+        Fingerprint(period=-1.0)
+    with pytest.raises(ValueError, match="fingerprint contrast"):
+        Fingerprint(contrast=2.0)
+    f = BiomimeticFinger(HertzContact(1.0), sensors, friction=0.3)
+    with pytest.raises(ValueError, match="speed: a scan time series needs a finger speed > 0"):
+        scan_recording(f, IsolatedDefect(size_m=1e-4, height_m=1e-5), speed=0.0, sampling_rate=1e3, duration=0.1)
+    with pytest.raises(ValueError, match="sampling_rate: must be finite and > 0"):
+        scan_recording(f, IsolatedDefect(size_m=1e-4, height_m=1e-5), speed=0.1, sampling_rate=0.0, duration=0.1)
+    with pytest.raises(ValueError, match="duration: must be finite"):
+        scan_recording(f, IsolatedDefect(size_m=1e-4, height_m=1e-5), speed=0.1, sampling_rate=1e3, duration=-1)
+    with pytest.raises(ValueError, match="duration: .* gives no sample"):
+        scan_recording(f, IsolatedDefect(size_m=1e-4, height_m=1e-5), speed=0.1, sampling_rate=1.0, duration=0.5)
+    far = IsolatedDefect(size_m=1e-4, height_m=1e-5, position_m=(0.5, 0.0))
+    with pytest.raises(ValueError, match="features\\[0\\]: RecordFeature spans .* outside the surface"):
+        scan_recording(f, far, speed=0.05, sampling_rate=1e3, duration=0.1)
+    with pytest.raises(ValueError, match="surface: expected a surface record or Feature"):
+        scanned_surface(3.0, [0.0], f)
+    with pytest.raises(ValueError, match="positions: need a non-empty finite"):
+        scan_outputs(f, Surface(length=1e-2), [np.nan])
+    with pytest.raises(ValueError, match="surface: expected a forward.surfaces.Surface"):
+        scan_outputs(f, IsolatedDefect(size_m=1e-4, height_m=1e-5), [0.0])
+    with pytest.raises(ValueError, match="batch: frames per product"):
+        scan_outputs(f, Surface(length=1e-2), [0.0], batch=0)
+    with pytest.raises(ValueError, match="positions: need a finite 1-D"):
+        f.receptive_field([[0.0]], 0.0)
+    with pytest.raises(ValueError, match="strength: must be finite"):
+        f.receptive_field([0.0], 0.0, strength=np.inf)
+    with pytest.raises(ValueError, match="sensor: index must be in"):
+        linear_kernel(f, [0.0], sensor=3)
+    with pytest.raises(ValueError, match="component: index must be in"):
+        linear_kernel(f, [0.0], component=1)
+    with pytest.raises(ValueError, match="inputs, outputs: need two 1-D arrays"):
+        wiener_kernel([1.0, -1.0], [1.0], 0)
+    with pytest.raises(ValueError, match="inputs, outputs: contain NaN"):
+        wiener_kernel([1.0, np.nan], [1.0, 2.0], 0)
+    with pytest.raises(ValueError, match="max_lag: must be an integer"):
+        wiener_kernel([1.0, -1.0, 1.0, -1.0], [1.0, 2.0, 3.0, 4.0], 2)
+    with pytest.raises(ValueError, match="inputs: constant input"):
+        wiener_kernel([1.0, 1.0, 1.0, 1.0], [1.0, 2.0, 3.0, 4.0], 1)
+    rng = np.random.default_rng(0)
+    with pytest.raises(ValueError, match="rng: expected a numpy.random.Generator"):
+        kernel_identification(f, 1)
+    with pytest.raises(ValueError, match="noise_std: must be finite and >= 0"):
+        kernel_identification(f, rng, noise_std=-1.0)
+    with pytest.raises(ValueError, match="bit_length: must be a whole number of grid spacings"):
+        kernel_identification(f, rng, bit_length=1.2345e-4)
+    with pytest.raises(ValueError, match="repeats: need at least 1"):
+        kernel_identification(f, rng, bit_length=f.spacing, repeats=0)
+    with pytest.raises(ValueError, match="record_lengths: each must be an integer >"):
+        kernel_identification(f, rng, bit_length=f.spacing, record_lengths=(4,))
+    with pytest.raises(ValueError, match="variations: unknown parameter 'mass'"):
+        shape_invariance(variations={"mass": (1.0,)})
