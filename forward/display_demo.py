@@ -16,7 +16,7 @@ import numpy as np
 from tactilab.data_schemas.display import DisplayDescription
 
 from .synthesis import matching_line_load, optimal_half_spacing
-from .tractor_display import display_patch_strain_3d, display_row_strain, travelling_wave_drive
+from .tractor_display import display_patch_strain_3d, render_virtual_surface
 from .tractors import sliding_sinusoid_strain
 
 DEPTH = 1.25e-3  # m, receptor depth of the demo
@@ -71,10 +71,9 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
 
     period = pitch / SPEED
     times = np.linspace(0.0, period, 64, endpoint=False)
-    drive = travelling_wave_drive(display.tractor_x_m, height, SPEED, times, gain=q_amp / AMPLITUDE,
-                                  traction_limit=display.max_traction_pa, footprint=display.tractor_width_m)
     x = np.linspace(-8e-3, 8e-3, 401)
-    rendered = display_row_strain(display, x, DEPTH, drive, YOUNG)  # (nt, nx, 6), tensor shear
+    # drive checked against the display's traction limit; strain (nt, nx, 6), tensor shear
+    drive, rendered = render_virtual_surface(display, height, SPEED, times, x, DEPTH, q_amp / AMPLITUDE, YOUNG)
     real = sliding_sinusoid_strain(x, DEPTH, AMPLITUDE, pitch, SPEED, times)
     # at p = 4d the drive is a standing wave that peaks at t = 0; the real pattern has the same
     # shape a quarter period earlier, i.e. at t = 3/4 of the period
