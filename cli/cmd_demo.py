@@ -3,25 +3,31 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 from pathlib import Path
 
 NAME = "demo"
 HELP = "run the end-to-end demo on built-in example data and write a report folder"
 
+# Each part's demo section, in pipeline order: module with run_demo(report_dir, progress).
+SECTIONS = (
+    "tactilab.data_schemas.demo",
+    "tactilab.forward.demo",
+)
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("tactilab-report"),
-                        help="report folder to write (default: ./tactilab-report)")
+                        help="report folder to write (default: ./tactilab-report); figures use mm and kPa")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
 def run(args: argparse.Namespace) -> int:
-    from tactilab.forward.demo import run_demo as forward_demo
-
     out = args.out.resolve()
     out.mkdir(parents=True, exist_ok=True)
-    for section in (forward_demo,):
-        for line in section(out, progress=not args.quiet):
-            print(line)
+    for name in SECTIONS:
+        section = importlib.import_module(name)
+        for line in section.run_demo(out, progress=not args.quiet):
+            print(line, flush=True)
     print(f"report written to {out}")
     return 0

@@ -1,0 +1,46 @@
+"""``tactilab stress``: evaluate a load file at depths; write the field and a PNG map."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+NAME = "stress"
+HELP = "stress or strain at given depths under a load file (.npz in SI, or .toml with units)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("load", type=Path,
+                        help=".npz with p, qx, qy (Pa) and spacing (m), or .toml with unit suffixes "
+                             "(see tactilab.forward.load_files)")
+    parser.add_argument("--depth", action="append", required=True,
+                        help="receptor depth with unit, e.g. 1.25mm; repeat for several depths")
+    parser.add_argument("--quantity", choices=("stress", "strain"), default="strain",
+                        help="stress (written in Pa, plotted in kPa) or strain (dimensionless, tensor shear)")
+    parser.add_argument("--components", default="xx,yy,zz,yz,zx,xy",
+                        help="comma-separated Voigt components (default all six)")
+    parser.add_argument("--method", default="auto", choices=("auto", "spectral", "dcfft", "closed_form"),
+                        help="solution method (default: auto, chosen from the scene and --tol)")
+    parser.add_argument("--tol", type=float, default=1e-6, help="requested relative error (default 1e-6)")
+    parser.add_argument("--young-modulus", default="1MPa", help="skin Young's modulus with unit (default 1MPa)")
+    parser.add_argument("--nu", type=float, default=0.5, help="Poisson's ratio, (-1, 0.5] (default 0.5)")
+    parser.add_argument("--out", type=Path, default=Path("tactilab-stress"),
+                        help="output folder for field.nc (SI) and field.png (mm, kPa)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from tactilab.data_schemas.units import to_si
+    from tactilab.forward.halfspace import HalfSpace
+    from tactilab.forward.load_files import read_load, write_field
+
+    load = read_load(args.load)
+    depths = [to_si(d, "length", name="--depth") for d in args.depth]
+    hs = HalfSpace(E=to_si(args.young_modulus, "pressure", name="--young-modulus"), nu=args.nu)
+    components = [c.strip() for c in args.components.split(",") if c.strip()]
+    compute = hs.stress if args.quantity == "stress" else hs.strain
+    result = compute(load, depths, components=components, method=args.method, tol=args.tol)
+    paths = write_field(result, args.out)
+    print(f"method: {result.method} ({result.reason}); estimated relative error {result.error_estimate:.1e}")
+    for p in paths:
+        print(f"wrote {p}")
+    return 0
