@@ -32,8 +32,8 @@ class TrialRecord(BaseModel):
     session: str = Field(description="session label, e.g. '01'")
     block: int = Field(ge=0)
     trial_index: int = Field(ge=0, description="0-based planned-trial index")
-    attempt: int = Field(0, ge=0, description="0, or how many times it was repeated after an interruption")
-    repeated: bool = False
+    attempt: int = Field(0, ge=0, description="0, or how many earlier attempts were cut short")
+    repeated: bool = Field(False, description="an earlier attempt reached the display (may have been felt)")
     track: int = Field(0, ge=0, description="interleaved staircase track")
     parameter: str
     level: float = Field(description="commanded level of `parameter`, SI")
@@ -64,10 +64,10 @@ class TrialRecord(BaseModel):
             raise ValueError(f"level: must be finite, got {self.level!r}")
         if not math.isfinite(self.rt_s) or self.rt_s < 0:
             raise ValueError(f"rt_s: must be finite and >= 0 s, got {self.rt_s!r}")
-        if self.repeated != (self.attempt > 0):
+        if self.repeated and self.attempt == 0:
             raise ValueError(
-                f"repeated: must be True exactly when attempt > 0, got repeated={self.repeated!r}, "
-                f"attempt={self.attempt!r}"
+                f"repeated: a repeated trial has attempt > 0, got repeated=True, attempt={self.attempt!r}; "
+                "set the attempt number"
             )
         if not self.stimuli:
             raise ValueError("stimuli: a trial commands at least one stimulus, got none")

@@ -21,8 +21,8 @@ FORMATS = ("bids", "csv", "parquet")
 _BIDS_COLUMNS = {
     "trial_index": ("Trial number (0-based, in planned order)", None),
     "block": ("Block number (0-based)", None),
-    "attempt": ("0, or how many times this trial was repeated after an interruption", None),
-    "repeated": ("True when the trial was repeated after an interruption", None),
+    "attempt": ("0, or how many earlier attempts of this trial were cut short by an interruption", None),
+    "repeated": ("True when an earlier, interrupted attempt had reached the display", None),
     "track": ("Interleaved staircase track (0-based)", None),
     "parameter": ("Stimulus parameter varied by the procedure", None),
     "level": ("Commanded level of the varied parameter (SI)", "see parameter"),

@@ -8,7 +8,6 @@
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 from tactilab.data_schemas.display import DisplayDescription
@@ -18,7 +17,6 @@ from .display import Display
 from .responses import ResponseSource, SimulatedObserver, TerminalResponses
 
 DEVICE_PRESETS = {"braille-row": DisplayDescription.braille_row, "stress2": DisplayDescription.stress2}
-_UDP = re.compile(r"^udp://(?P<host>[^:/\s]+):(?P<port>\d{1,5})$")
 
 
 def description_from_spec(spec: str) -> DisplayDescription:
@@ -40,14 +38,11 @@ def display_from_spec(spec: str, description: DisplayDescription, *, realtime: b
         from .simulated_display import SimulatedDisplay
 
         return SimulatedDisplay(description, realtime=realtime)
-    match = _UDP.match(spec)
-    if match is None or not 0 < int(match["port"]) < 65536:
-        raise ValueError(
-            f"--display: must be 'simulated' or 'udp://HOST:PORT' with a port in 1..65535, got {spec!r}"
-        )
-    from . import udp
+    if not spec.startswith("udp://"):
+        raise ValueError(f"--display: must be 'simulated' or 'udp://HOST:PORT', got {spec!r}")
+    from .udp import UdpDisplay
 
-    return udp.UdpDisplay(description, host=match["host"], port=int(match["port"]))
+    return UdpDisplay.from_url(spec, description)
 
 
 def responses_from_spec(spec: str, protocol: Protocol, **observer) -> ResponseSource:

@@ -5,7 +5,8 @@
 interrupted trial: one that was planned (and maybe presented) but never completed.
 :func:`resume_session` then runs on: the interrupted trial is repeated with the same
 parameters (its randomness comes from ``(seed, trial_index)``) and recorded with
-``attempt > 0`` and ``repeated = True``.
+``attempt > 0``, and with ``repeated = True`` when an earlier attempt reached the display
+(a ``stimulus_presented`` event exists; a trial cut short before that was never felt).
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ class Replayed:
     protocol: Protocol
     trials: list[TrialRecord]
     procedure: Procedure
-    attempts: dict[int, int]  # interrupted trial index -> attempt number of its repetition
+    attempts: dict[int, tuple[int, bool]]  # interrupted trial -> (next attempt number, repeated)
     events: list[dict[str, Any]]
 
 
@@ -60,7 +61,12 @@ def replay_log(log: SessionLog, likelihood: Likelihood | None = None) -> Replaye
     procedure = make_procedure(protocol.procedure, protocol.task.guess_rate, _likelihood(meta, likelihood))
     replay(procedure, history, lambda i: trial_generators(protocol.seed, i)[0])
     pending = [e for e in events if e["trial_index"] == len(trials) and e["attempt"] is not None]
-    attempts = {len(trials): max(e["attempt"] for e in pending) + 1} if pending else {}
+    attempts = {}
+    if pending:
+        # a new attempt number keeps the events of each attempt apart; the trial counts as
+        # REPEATED only if an earlier attempt reached the display (the subject may have felt it)
+        presented = any(e["kind"] == "stimulus_presented" for e in pending)
+        attempts[len(trials)] = (max(e["attempt"] for e in pending) + 1, presented)
     return Replayed(meta, protocol, trials, procedure, attempts, events)
 
 
@@ -123,6 +129,7 @@ def session_status(path: str | Path) -> dict[str, Any]:
             "completed": len(state.trials), "planned": state.procedure.n_planned,
             "interrupted_trial": next(iter(state.attempts), None),
             "repeated_trials": sum(t.repeated for t in state.trials),
+            "interrupted_was_presented": next(iter(state.attempts.values()), (0, False))[1],
             "safety_interventions": kinds.count("safety_intervention"),
             "estimate": state.procedure.estimate(), "seed": state.protocol.seed,
             "display_id": state.meta["display_id"], "package_version": state.meta["package_version"],

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import functools
 import os
+import signal
+import threading
 import time
 from dataclasses import dataclass
 from datetime import datetime
@@ -105,9 +107,13 @@ class Runner:
         self._interventions += 1
         self.recorder.log("safety_intervention", *self._current, payload=event)
 
-    def run(self, attempts: dict[int, int] | None = None) -> RunResult:
-        """Run trials until the procedure is finished; ``attempts`` maps interrupted trials to their attempt."""
+    def run(self, attempts: dict[int, tuple[int, bool]] | None = None) -> RunResult:
+        """Run trials until the procedure is finished.
+
+        ``attempts`` maps an interrupted trial's index to ``(attempt, repeated)`` (from resume).
+        """
         attempts = attempts or {}
+        previous_sigterm = _sigterm_as_interrupt()
         if self.progress:
             from tqdm.auto import tqdm
 
@@ -122,7 +128,7 @@ class Runner:
                 planned = self.procedure.next_trial(index, procedure_rng)
                 if planned is None:
                     break
-                self.run_trial(index, attempts.get(index, 0), planned, task_rng)
+                self.run_trial(index, *attempts.get(index, (0, False)), planned, task_rng)
                 bar.update(1)
                 bar.set_postfix_str(format_estimate(self.procedure.estimate(), self.protocol.procedure.parameter))
             self.recorder.log("session_complete", payload={"estimate": self.procedure.estimate()})
@@ -149,8 +155,11 @@ class Runner:
             raise
         finally:
             bar.close()
+            if previous_sigterm is not None:
+                signal.signal(signal.SIGTERM, previous_sigterm)
 
-    def run_trial(self, index: int, attempt: int, planned: PlannedLevel, task_rng: np.random.Generator) -> TrialRecord:
+    def run_trial(self, index: int, attempt: int, repeated: bool, planned: PlannedLevel,
+                  task_rng: np.random.Generator) -> TrialRecord:
         """Run one trial (steps 1-5 of the module docstring) and return its record."""
         plan = plan_trial(self.protocol, index, planned, task_rng)
         self._current = (index, attempt)
@@ -180,7 +189,7 @@ class Runner:
         self.procedure.update(planned, outcome)
         record = TrialRecord(
             subject=self.subject, session=self.session, block=plan.block, trial_index=index,
-            attempt=attempt, repeated=attempt > 0, track=plan.track, parameter=plan.parameter,
+            attempt=attempt, repeated=repeated, track=plan.track, parameter=plan.parameter,
             level=plan.level, stimuli=list(plan.stimuli), target=plan.target,
             procedure_state=self.procedure.record_state(), response=response.label, correct=correct,
             rt_s=response.rt_s, utc_planned=utc_planned, utc_presented=utc_presented,
@@ -193,6 +202,17 @@ class Runner:
         self.recorder.complete_trial(record, {"outcome": outcome, "correct": correct})
         self._current = (None, None)
         return record
+
+
+def _sigterm_as_interrupt():
+    """While a session runs, SIGTERM stops it like Ctrl-C: display zeroed, stop logged, lock released."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def handler(signum, frame):
+        raise KeyboardInterrupt("SIGTERM")
+
+    return signal.signal(signal.SIGTERM, handler)
 
 
 class _NoBar:

@@ -73,7 +73,8 @@ PROCEDURES = [
 
 
 def protocol_for(seed: int) -> Protocol:
-    return Protocol.model_validate({"name": "kill", "seed": seed, "iti_s": 0, "task": {"kind": "2ifc"},
+    return Protocol.model_validate({"name": "kill", "seed": seed, "iti_s": 0,
+                                    "task": {"kind": "2ifc", "interval_gap_s": "100ms"},
                                     "stimulus": STIMULUS, "procedure": PROCEDURES[seed % len(PROCEDURES)]})
 
 
@@ -156,8 +157,11 @@ def test_kill_minus_9_at_random_points_loses_nothing_and_resumes_exactly(fast_di
         assert [_comparable(t) for t in final] == [_comparable(t) for t in expected]
         assert replay_session(path).procedure.estimate() == replay_session(reference).procedure.estimate()
         repeated_seen += sum(t.repeated for t in final)
-        for trial in final:  # a repeated trial is exactly one whose earlier attempt was cut short
-            assert trial.repeated == (trial.attempt > 0)
+        events = SessionLog(path).events()
+        for trial in final:  # repeated exactly when an earlier attempt reached the display
+            earlier = {e["kind"] for e in events if e["trial_index"] == trial.trial_index
+                       and e["attempt"] is not None and e["attempt"] < trial.attempt}
+            assert trial.repeated == ("stimulus_presented" in earlier)
     assert kills >= 20, f"only {kills} runs were actually killed"
     assert repeated_seen > 0, "no interrupted trial was ever repeated: the kills missed every trial"
 
@@ -165,12 +169,12 @@ def test_kill_minus_9_at_random_points_loses_nothing_and_resumes_exactly(fast_di
 def test_cli_run_killed_then_resumed(tmp_path):
     """The real command line, killed with SIGKILL mid-session, resumes to the same trials.
 
-    The first run plays in real time (2 x 40 ms per trial) so that it is still running when
+    The first run plays in real time (2 x 40 ms + 100 ms per trial) so that it is still running when
     the kill comes; the resume runs without waiting."""
     protocol = protocol_for(7)
     toml = tmp_path / "p.toml"
     toml.write_text(
-        'name = "kill"\nseed = 7\niti_s = 0\n[task]\nkind = "2ifc"\n[stimulus]\n'
+        'name = "kill"\nseed = 7\niti_s = 0\n[task]\nkind = "2ifc"\ninterval_gap_s = "100ms"\n[stimulus]\n'
         + "".join(f'{k} = "{v}"\n' for k, v in STIMULUS.items())
         + '[procedure]\nmethod = "psi"\nparameter = "amplitude_m"\n'
         'levels = { start = "0.3um", stop = "8um", n = 12, scale = "log" }\nn_trials = 8\n'

@@ -1,0 +1,212 @@
+"""The recorder and runner: event order, durability settings, full disk, read-only file, locks."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sqlite3
+
+import numpy as np
+import pytest
+
+from tactilab.cli.main import main as cli_main
+from tactilab.data_schemas.display import DisplayDescription
+from tactilab.data_schemas.experiment import Protocol
+from tactilab.experiments.display import Display, PlaybackReport
+from tactilab.experiments.procedures import make_procedure
+from tactilab.experiments.recording import Recorder, RecordingError, SessionLockedError, SessionLog
+from tactilab.experiments.responses import SimulatedObserver
+from tactilab.experiments.resume import replay_session, resume_session, session_status
+from tactilab.experiments.runner import Runner, new_session
+
+PROTOCOL = {
+    "name": "rec", "seed": 11, "iti_s": 0, "task": {"kind": "2ifc"},
+    "stimulus": {"amplitude_m": "2um", "pitch_m": "2mm", "speed_m_per_s": "40mm/s", "duration_s": "20ms",
+                 "ramp_s": "5ms"},
+    "procedure": {"method": "staircase", "parameter": "amplitude_m", "tracks": [
+        {"start": "3um", "step_sizes": [0.2, 0.1], "min_level": "0.3um", "max_level": "6um", "max_trials": 8}]},
+}
+
+
+class CheckingDisplay(Display):
+    """A fake display that, each time it is driven, reads the session with its own connection
+    and records which event of the current trial was committed last."""
+
+    def __init__(self, path, hook=None):
+        super().__init__(DisplayDescription.braille_row())
+        self.path, self.hook = path, hook
+        self.plays, self.zeros, self.last_kinds = 0, 0, []
+
+    def _play(self, frames, frame_rate_hz):
+        self.plays += 1
+        with sqlite3.connect(f"file:{self.path}?mode=ro", uri=True) as reader:
+            kind, index = reader.execute(
+                "SELECT kind, trial_index FROM events WHERE kind != 'safety_intervention' "
+                "ORDER BY id DESC LIMIT 1").fetchone()
+        self.last_kinds.append((kind, index))
+        if self.hook is not None:
+            self.hook(self)
+        return PlaybackReport(frames_sent=len(frames), late=0, missing=0, acked=len(frames))
+
+    def _zero(self):
+        self.zeros += 1
+
+
+def _runner(tmp_path, display_hook=None, protocol=None):
+    protocol = protocol or Protocol.model_validate(PROTOCOL)
+    path = tmp_path / "s.sqlite"
+    recorder = Recorder.create(path, {"subject": "S01", "session": "01", "protocol": protocol.model_dump(mode="json"),
+                                      "seed": protocol.seed, "package_version": "test", "display_id": "VirtualBrailleRow",
+                                      "responses": "simulated"})
+    display = CheckingDisplay(path, display_hook)
+    runner = Runner(protocol, recorder, display, SimulatedObserver(protocol), subject="S01", session="01",
+                    procedure=make_procedure(protocol.procedure, protocol.task.guess_rate), realtime=False)
+    return runner, recorder, display, path
+
+
+def test_stimulus_presented_is_committed_before_the_display_is_driven(tmp_path):
+    runner, recorder, display, path = _runner(tmp_path)
+    result = runner.run()
+    recorder.close()
+    assert result.status == "complete" and display.plays == 16  # 8 trials x 2 intervals
+    assert display.last_kinds == [("stimulus_presented", i // 2) for i in range(16)]
+    kinds = [e["kind"] for e in SessionLog(path).events() if e["kind"] != "safety_intervention"]
+    assert kinds == ["trial_planned", "stimulus_presented", "response", "trial_complete"] * 8 + ["session_complete"]
+
+
+def test_session_uses_wal_and_synchronous_full(tmp_path):
+    runner, recorder, _, _ = _runner(tmp_path)
+    assert recorder.connection.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+    assert recorder.connection.execute("PRAGMA synchronous").fetchone()[0] == 2  # FULL
+    recorder.close()
+
+
+@pytest.mark.parametrize("failure", ["full_disk", "read_only"])
+def test_write_failure_stops_before_the_next_stimulus_and_keeps_the_data(tmp_path, failure):
+    """Disk full (``PRAGMA max_page_count`` pinned to the current size) or a read-only database
+    (``PRAGMA query_only``), from trial 2 on: the run stops with a clear message, the display is
+    zeroed, no stimulus is driven without its committed ``stimulus_presented`` event, every
+    committed trial is intact, and the session resumes to the same end as an uninterrupted run."""
+
+    def hook(display):
+        if display.plays == 5:  # trial 2, first interval: from now on writes fail
+            connection = runner.recorder.connection
+            if failure == "full_disk":
+                pages = connection.execute("PRAGMA page_count").fetchone()[0]
+                connection.execute(f"PRAGMA max_page_count = {pages}")
+            else:
+                connection.execute("PRAGMA query_only = ON")
+
+    runner, recorder, display, path = _runner(tmp_path, hook)
+    message = "database or disk is full" if failure == "full_disk" else "readonly database"
+    with pytest.raises(RecordingError, match=f"{message}.*stopped before the next stimulus; \\d+ completed trials"):
+        runner.run()
+    recorder.close()
+    log = SessionLog(path)
+    completed = [t.trial_index for t in log.trials()]
+    presented = {e["trial_index"] for e in log.events("stimulus_presented")}
+    assert completed == list(range(len(completed))) and len(completed) >= 2
+    assert display.plays == 2 * len(presented) and display.zeros >= 1
+    assert all(kind == "stimulus_presented" for kind, _ in display.last_kinds)
+    assert log.connection.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+    if failure == "read_only":
+        assert completed == [0, 1] and display.plays == 6
+    protocol = Protocol.model_validate(PROTOCOL)
+    resumed = resume_session(path, CheckingDisplay(path), SimulatedObserver(protocol), realtime=False)
+    reference = new_session(protocol, tmp_path / "ref.sqlite", CheckingDisplay(tmp_path / "ref.sqlite"),
+                            SimulatedObserver(protocol), subject="S01", realtime=False)
+    assert resumed.status == "complete" and resumed.estimate == reference.estimate
+    trials = SessionLog(path).trials()
+    interrupted = len(completed)
+    assert [t.repeated for t in trials] == [i == interrupted and interrupted in presented for i in range(len(trials))]
+
+
+def test_a_second_runner_on_a_locked_session_is_refused(tmp_path, capsys):
+    runner, recorder, _, path = _runner(tmp_path)
+    protocol = Protocol.model_validate(PROTOCOL)
+    with pytest.raises(SessionLockedError, match="is locked by a running runner.*pid"):
+        resume_session(path, CheckingDisplay(path), SimulatedObserver(protocol), realtime=False)
+    assert session_status(path)["status"] == "running"
+    assert cli_main(["experiment", "resume", str(path), "--no-wait", "--quiet"]) == 2
+    assert "locked by a running runner" in capsys.readouterr().err
+    recorder.close()
+    assert session_status(path)["status"] == "interrupted"  # no trial yet, lock released
+
+
+def test_existing_session_file_is_not_overwritten(tmp_path):
+    path = tmp_path / "s.sqlite"
+    path.write_bytes(b"precious")
+    with pytest.raises(FileExistsError, match="already exists; resume it"):
+        Recorder.create(path, {})
+    assert path.read_bytes() == b"precious"
+
+
+def test_unknown_event_kind_and_missing_files_are_refused(tmp_path):
+    runner, recorder, _, path = _runner(tmp_path)
+    with pytest.raises(ValueError, match="kind: must be one of"):
+        recorder.log("coffee_break")
+    recorder.close()
+    with pytest.raises(FileNotFoundError, match="no session file"):
+        SessionLog(tmp_path / "nope.sqlite")
+    with pytest.raises(FileNotFoundError, match="no session file"):
+        Recorder.open(tmp_path / "nope.sqlite")
+    (tmp_path / "junk.sqlite").write_bytes(b"not a database at all" * 10)
+    with pytest.raises(ValueError, match="not a tactilab session database"):
+        SessionLog(tmp_path / "junk.sqlite")
+
+
+def test_a_log_that_does_not_match_its_protocol_is_refused(tmp_path):
+    """Replay re-derives every level; a tampered level is caught, naming the trial."""
+    runner, recorder, _, path = _runner(tmp_path)
+    runner.run()
+    record = json.loads(recorder.connection.execute("SELECT record FROM trials WHERE trial_index = 2").fetchone()[0])
+    record["level"] = 5.5e-6
+    recorder.connection.execute("UPDATE trials SET record = ? WHERE trial_index = 2", (json.dumps(record),))
+    recorder.close()
+    with pytest.raises(ValueError, match="history: trial 2 recorded level 5.5e-06.*does not match this protocol"):
+        replay_session(path)
+
+
+def test_completed_session_cannot_be_resumed(tmp_path):
+    runner, recorder, _, path = _runner(tmp_path)
+    runner.run()
+    recorder.close()
+    protocol = Protocol.model_validate(PROTOCOL)
+    with pytest.raises(ValueError, match="is complete; nothing to resume"):
+        resume_session(path, CheckingDisplay(path), SimulatedObserver(protocol), realtime=False)
+
+
+def test_sigterm_during_a_stimulus_zeroes_and_stops_cleanly(tmp_path):
+    """SIGTERM mid-stimulus: the safety layer zeroes the display, the runner logs the stop and
+    returns 'interrupted' with the lock released; resuming repeats the interrupted trial."""
+
+    def hook(display):
+        if display.plays == 3:
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    previous = signal.getsignal(signal.SIGTERM)
+    runner, recorder, display, path = _runner(tmp_path, hook)
+    result = runner.run()
+    recorder.close()
+    assert signal.getsignal(signal.SIGTERM) == previous
+    assert result.status == "interrupted" and result.n_completed == 1 and display.zeros >= 1
+    events = SessionLog(path).events()
+    assert events[-1]["kind"] == "session_stopped"
+    assert any(e["kind"] == "safety_intervention" and e["payload"]["kind"] == "zero_on_sigterm" for e in events)
+    status = session_status(path)
+    assert status["status"] == "interrupted" and status["interrupted_trial"] == 1
+
+
+def test_replay_rebuilds_the_exact_procedure_state(tmp_path):
+    """State after replaying the log equals the live state at the end of the run, bit for bit."""
+    protocol = Protocol.model_validate({**PROTOCOL, "procedure": {
+        "method": "psi", "parameter": "amplitude_m", "levels": {"start": "0.3um", "stop": "6um", "n": 9, "scale": "log"},
+        "parameters": {"threshold": {"start": "0.5um", "stop": "5um", "n": 8, "scale": "log"},
+                       "slope": [2.0, 4.0], "lapse": [0.0, 0.05]}, "n_trials": 6}})
+    runner, recorder, _, path = _runner(tmp_path, protocol=protocol)
+    runner.run()
+    recorder.close()
+    live = runner.procedure.state()
+    replayed = replay_session(path).procedure.state()
+    np.testing.assert_array_equal(replayed["log_posterior"], live["log_posterior"])
