@@ -80,7 +80,7 @@ def test_duty_limit_ramps_down_within_budget():
     assert any(e["kind"] == "duty_limit" for e in events)
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     data=st.data(),
     slew=st.one_of(st.none(), st.floats(1.0, 5000.0)),

@@ -162,7 +162,7 @@ def test_safe_stream_arrives_exactly_and_within_limits(emulator):
     assert_record_within_limits(received, desc)
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow,
                                                                  HealthCheck.function_scoped_fixture])
 @given(data=st.data(), slew=st.floats(20.0, 3000.0), duty=st.floats(0.1, 1.0), n_frames=st.integers(2, 30),
        scale=st.floats(0.1, 4.0))
@@ -370,3 +370,13 @@ def test_read_record_rejects_non_json(tmp_path):
     path.write_text("not json\n")
     with pytest.raises(ValueError, match="line 1 is not JSON"):
         read_record(path)
+
+
+def test_documented_example_bytes_match_the_encoder():
+    """docs/udp-frame-format.md's example is what encode() produces (firmware copies it)."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "udp-frame-format.md").read_text()
+    block = doc.split("FRAME, seq 5, timestamp 1 000 000 ns")[1].split("```")[1]
+    hex_bytes = " ".join(line.split("   ")[0].strip() for line in block.strip().splitlines())
+    assert bytes.fromhex(hex_bytes) == encode(FRAME, 5, 1_000_000, [1.5, -2.0])
