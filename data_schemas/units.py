@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import re
+from decimal import Decimal
 
 # unit -> (dimension, factor to SI)
 UNITS: dict[str, tuple[str, float]] = {
@@ -121,4 +122,8 @@ def to_si(value: str | float | int, dimension: str, *, name: str = "value",
         raise ValueError(f"{name}: expected a number or a string like '1.5mm', got {type(value).__name__}")
     if not math.isfinite(number):
         raise ValueError(f"{name}: must be finite, got {value!r}")
-    return number * factor(unit, dimension, name=name)
+    f = factor(unit, dimension, name=name)
+    if f == 1.0:
+        return number
+    # decimal product, so "1.25mm" gives exactly the float nearest 1.25e-3
+    return float(Decimal(repr(number)) * Decimal(repr(f)))

@@ -1,0 +1,41 @@
+"""Unit conversion at the edges (data_schemas.units)."""
+
+import math
+
+import pytest
+
+from tactilab.data_schemas.units import factor, to_si
+
+
+@pytest.mark.parametrize("text,dimension,expected", [
+    ("1.25mm", "length", 1.25e-3), ("0.1 mm", "length", 1e-4), ("50um", "length", 50e-6),
+    ("20kPa", "pressure", 2e4), ("1.5MPa", "pressure", 1.5e6), ("5ms", "time", 5e-3),
+    ("0.8N", "force", 0.8), ("5cm/s", "speed", 0.05), ("1kHz", "frequency", 1e3), ("2", "length", 2.0),
+])
+def test_to_si_is_exact(text, dimension, expected):
+    assert to_si(text, dimension) == expected
+
+
+def test_bare_numbers_take_the_default_unit():
+    assert to_si(3, "length", default_unit="mm") == 3e-3
+    assert to_si(2.5, "pressure") == 2.5
+
+
+@pytest.mark.parametrize("value,dimension,message", [
+    ("1furlong", "length", "unknown unit 'furlong'"),
+    ("1kPa", "length", "measures pressure, but a length is expected"),
+    ("abc", "length", "cannot read 'abc' as a quantity"),
+    ("nan mm", "length", "must be finite"),
+    (True, "length", "got the boolean"),
+    ([1], "length", "expected a number or a string"),
+    ("1mm", "colour", "dimension: unknown dimension"),
+])
+def test_bad_quantities_are_named(value, dimension, message):
+    with pytest.raises(ValueError, match=message):
+        to_si(value, dimension, name="--depth")
+
+
+def test_factor_names_the_argument():
+    with pytest.raises(ValueError, match="^--speed: unknown unit"):
+        factor("mph", "speed", name="--speed")
+    assert math.isclose(factor("mm/s", "speed"), 1e-3)
