@@ -21,6 +21,9 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from .experiment import Protocol, Stimulus, check_label
 
 _JSON_COLUMNS = ("stimuli", "procedure_state")
+#: Columns to read as text from CSV (labels such as session "01" must keep their zeros).
+TEXT_COLUMNS = ("subject", "session", "parameter", "target", "response", "package_version", "display_id",
+                "stimuli", "procedure_state")
 
 
 class TrialRecord(BaseModel):
@@ -134,7 +137,9 @@ def trials_from_dataframe(frame: pd.DataFrame) -> list[TrialRecord]:
         for key, value in list(row.items()):
             if isinstance(value, pd.Timestamp):
                 row[key] = value.to_pydatetime()
-            elif value is None or (isinstance(value, float) and math.isnan(value) and key in ("target", "correct")):
+            elif isinstance(value, float) and math.isnan(value) and key in ("target", "correct"):
                 row[key] = None
+            elif key == "correct" and isinstance(value, str):  # from CSV text
+                row[key] = {"True": True, "False": False}.get(value, value)
         trials.append(TrialRecord.model_validate(row))
     return trials

@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from tactilab.data_schemas.experiment_records import trials_to_dataframe
+from tactilab.data_schemas.experiment_records import (
+    TEXT_COLUMNS, TrialRecord, trials_from_dataframe, trials_to_dataframe)
 
 from .recording import SessionLog
 
@@ -39,6 +40,13 @@ _BIDS_COLUMNS = {
     "frames_missing": ("Display frames never acknowledged", None),
     "safety_interventions": ("Safety-layer interventions during the trial", None),
 }
+
+
+def read_trials_csv(path: str | Path) -> list[TrialRecord]:
+    """Read back the trials of a ``--format csv`` export (labels kept as text)."""
+    frame = pd.read_csv(path, dtype={c: str for c in TEXT_COLUMNS}, keep_default_na=False,
+                        na_values={"target": [""], "correct": [""]})
+    return trials_from_dataframe(frame)
 
 
 def session_dataframe(path: str | Path) -> pd.DataFrame:
