@@ -5,8 +5,9 @@ Starts ``tactilab device emulate`` as a separate process on 127.0.0.1, streams a
 one table: inter-frame send interval (mean, p50, p99, max, standard deviation), frames the host
 sent late (> half a period behind schedule), frames the device never acknowledged, ACK
 round-trip p50/p99, and the emulator's own late/missing counts. The baseline is the same driver
-pacing with ``time.sleep`` only (``busy_wait_s = 0``); "ratio" is the p99 jitter
-(|interval - period|) of the baseline over that of the default.
+pacing with ``select`` sleeps only (``busy_wait_s = 0``); "ratio" is the p99 jitter
+(|interval - period|) of the baseline over that of each row (> 1: better than the baseline).
+The rows are the default busy-wait of 1 ms, 0.2 ms, and the baseline.
 
 Then it kills (SIGKILL) a host process mid-stimulus and reports how long after the last frame
 the emulator zeroed its outputs (watchdog 50 ms).
@@ -122,7 +123,7 @@ def main() -> None:
             print(f"{name:<26}{r['rate']:>9.1f}{r['mean']:>9.4f}{r['p50']:>8.4f}{r['p99']:>8.4f}{r['max']:>8.3f}"
                   f"{r['std']:>8.4f}{r['late']:>6d}{r['missing']:>8d}{r['rtt50']:>9.3f}{r['rtt99']:>9.3f}"
                   f"{base / max(r['jit99'], 1e-9):>7.2f}")
-        print(f"emulator (both runs): frames applied {summary['frames_applied']}, late (> 1 ms transit) "
+        print(f"emulator (all runs): frames applied {summary['frames_applied']}, late (> 1 ms transit) "
               f"{summary['late']}, missing {summary['missing']}, stale {summary['stale']}, "
               f"rejected {summary['rejected']}")
         if not args.no_kill:

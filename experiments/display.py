@@ -211,7 +211,7 @@ def limit_violations(frames, frame_rate_hz: float, description, *, command: str 
             out.append({"kind": kind, "tractor": int(tractor), "frame": frame,
                         "value": float(values[frame, tractor]), "limit": float(limit[tractor])})
     on = np.count_nonzero(array, axis=0)
-    allowed = math.floor(lim["duty"] * array.shape[0] + 1e-9)
+    allowed = math.floor(lim["duty"] * array.shape[0] * (1 + 1e-12))
     for tractor in np.flatnonzero(on > allowed):
         out.append({"kind": "duty", "tractor": int(tractor), "frame": -1,
                     "value": float(on[tractor] / array.shape[0]), "limit": lim["duty"]})

@@ -96,7 +96,7 @@ def limit_drive(frames: np.ndarray, frame_rate_hz: float, description, command: 
     amp_in = full * (1 - MARGIN)
     step_in = np.where(np.isfinite(step), step * (1 - 1e-8) - 2 * MARGIN * full, np.inf)
     step_in = np.where(step_in > 0, step_in, step / 2)
-    allowed = math.floor(lim["duty"] * n_frames + 1e-9)
+    allowed = math.floor(lim["duty"] * n_frames * (1 + 1e-12))
 
     ideal = np.zeros(n_tractors)  # the exact (float64) track the invariants hold on
     on_count = np.zeros(n_tractors, dtype=np.int64)
@@ -181,6 +181,7 @@ class SafeDisplay(Display):
         self.display = display
         self.on_event = on_event
         self._n_interventions = 0
+        self._zeroing = False
         self._pending_signal: int | None = None
 
     # ----- events -----------------------------------------------------------------------
@@ -192,10 +193,12 @@ class SafeDisplay(Display):
         self.on_event(event)
 
     def _zero_and_report(self, kind: str, frame: int | None, detail: str = "") -> None:
+        self._zeroing = True  # a second Ctrl-C must not interrupt the zeroing itself
         try:
             self.display.stop()
             self.display.zero()
         finally:
+            self._zeroing = False
             event = {"kind": kind, "tractor": None, "frame": frame, "requested": None,
                      "applied": 0.0, "limit": None, "unit": self.display.command, "n_frames": 0}
             if detail:
@@ -243,6 +246,9 @@ class SafeDisplay(Display):
             raise
         finally:
             self._restore_handlers(installed)
+            pending, self._pending_signal = self._pending_signal, None
+            if pending is not None:  # a signal that came while zeroing: deliver it now
+                signal.raise_signal(pending)
         if report.stopped:
             self._zero_and_report("zero_on_stop", report.frames_sent)
         return report.with_interventions(self._n_interventions)
@@ -265,6 +271,9 @@ class SafeDisplay(Display):
             return {}  # Python delivers signals to the main thread only
 
         def handler(signum, _frame):
+            if self._zeroing:  # already stopping: remember it, let the zeroing finish
+                self._pending_signal = signum
+                return
             raise _SignalStop(signum)
 
         return {sig: signal.signal(sig, handler) for sig in _SIGNAL_KIND}

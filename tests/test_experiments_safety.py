@@ -178,3 +178,27 @@ def test_constructor_rejects_non_display_and_non_callable():
         SafeDisplay(object(), print)
     with pytest.raises(TypeError, match="on_event: must be callable"):
         SafeDisplay(SimulatedDisplay(DisplayDescription.braille_row()), None)
+
+
+def test_a_second_signal_during_zeroing_waits_until_the_display_is_zero():
+    """Ctrl-C twice: the first stops playback, the second arrives while zeroing and is held
+    until the display is at zero, then delivered (here to a recording handler)."""
+    seen = []
+
+    class SlowZero(_Scripted):
+        def _zero(self):
+            os.kill(os.getpid(), signal.SIGTERM)  # arrives in the middle of zeroing
+            self.zeroed += 1
+
+    previous = signal.signal(signal.SIGTERM, lambda signum, frame: seen.append(signum))
+    try:
+        events = []
+        inner = SlowZero(DisplayDescription.braille_row(), lambda d: os.kill(os.getpid(), signal.SIGTERM))
+        safe = SafeDisplay(inner, events.append)
+        safe.load(np.zeros((10, 10)), 1000.0)
+        with pytest.raises(PlaybackInterrupted, match="SIGTERM"):
+            safe.play()
+        assert inner.zeroed == 1 and [e["kind"] for e in events] == ["zero_on_sigterm"]
+        assert seen == [signal.SIGTERM, signal.SIGTERM]  # both reached the previous handler
+    finally:
+        signal.signal(signal.SIGTERM, previous)
