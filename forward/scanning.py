@@ -6,7 +6,9 @@ the contact centre) the traction at finger node (x, y) is ``traction(x, y) * M(x
 is the T = +-1 texture of the paper and a bump of height h is a load of strength = its
 footprint). The outputs are linear in M, so the whole scan is ONE matrix product:
 ``outputs[t] = M_t @ W`` with the per-node weights ``W`` (:meth:`BiomimeticFinger.node_weights`)
-built once; frames are evaluated in batches.
+built once; frames are evaluated in batches. When the frame step is a whole number of grid
+spacings (speed / rate = k h), the surface is sampled once on a world strip and each frame is a
+window of it (no per-frame surface evaluation).
 """
 
 from __future__ import annotations
@@ -157,9 +159,24 @@ def scan_outputs(finger: BiomimeticFinger, surface: Surface, positions, *, y_off
         from tqdm import tqdm
 
         starts = tqdm(starts, desc="scan frames", unit="batch")
+    h = finger.spacing
+    steps = (u - u[0]) / h
+    strip = None
+    if np.allclose(steps, np.round(steps), rtol=0.0, atol=1e-6):
+        # frames land on grid nodes: sample the surface ONCE on a world strip and slide over it
+        k = np.round(steps).astype(np.int64)
+        ix, iy = np.round(X / h).astype(np.int64), np.round(Y / h).astype(np.int64)
+        c0, r0 = ix.min() + k.min(), iy.min()
+        cols = np.arange(c0, ix.max() + k.max() + 1)
+        rows = np.arange(r0, iy.max() + 1)
+        strip = surface.modulation(u[0] + cols[None, :] * h, y_offset + rows[:, None] * h,
+                                   reference_height=h_ref)
     for i0 in starts:
         uu = u[i0:i0 + int(batch), None]
-        M = surface.modulation(X[None, :] + uu, Y[None, :] + y_offset, reference_height=h_ref)
+        if strip is None:
+            M = surface.modulation(X[None, :] + uu, Y[None, :] + y_offset, reference_height=h_ref)
+        else:
+            M = strip[iy - r0, ix[None, :] + k[i0:i0 + int(batch), None] - c0]
         out[i0:i0 + uu.shape[0]] = M @ W
     return out.reshape(u.size, n_s, n_c)
 
@@ -202,27 +219,29 @@ def scan_recording(finger: BiomimeticFinger, surface, *, speed: float, sampling_
     return Recording.from_sensors(finger.sensors, values, float(sampling_rate), description=description)
 
 
-def surface_scale(record) -> float | None:
-    """Smallest length (m) a surface record's relief varies over, or None (flat / smooth at the
-    contact scale): defect size, grating element or period / 2, height-map spacing."""
+def surface_spacing(record) -> float | None:
+    """Grid spacing (m) that resolves a surface record's relief, or None (flat): an isolated
+    defect needs size / 6 (its load is integrated node by node), a random or regular square
+    wave element / 2, a sinusoid period / 8, a height map its own spacing."""
     kind = getattr(record, "kind", None)
     if kind == "defect":
-        return float(record.size_m)
+        return float(record.size_m) / 6
     if kind == "square_wave_grating":
-        return float(record.element_width_m)
+        return float(record.element_width_m) / 2
     if kind == "sinusoidal_grating":
-        return float(record.period_m) / 2
+        return float(record.period_m) / 8
     if kind == "height_map":
         return float(record.spacing_x_m)
     return None
 
 
 def scene_finger(scene, grid_spacing: float | None = None) -> BiomimeticFinger:
-    """The finger of a Scene, with a grid fine enough for its surface (scale / 6) unless given."""
+    """The finger of a Scene, with a grid fine enough for its surface (:func:`surface_spacing`)
+    unless ``grid_spacing`` (m) is given."""
     finger = BiomimeticFinger.from_scene(scene, grid_spacing=grid_spacing)
-    scale = surface_scale(scene.surface)
-    if grid_spacing is None and scale is not None and scale / 6 < finger.spacing:
-        finger = BiomimeticFinger.from_scene(scene, grid_spacing=scale / 6)
+    need = surface_spacing(scene.surface)
+    if grid_spacing is None and need is not None and need < finger.spacing:
+        finger = BiomimeticFinger.from_scene(scene, grid_spacing=need)
     return finger
 
 

@@ -1,0 +1,179 @@
+"""Figures of biomimetic-finger scenes: stress/strain maps, receptive fields, time series.
+
+Axes in mm, stress in kPa, strain dimensionless (tensor shear, as the sensors report it).
+matplotlib is imported inside the functions with the Agg backend.
+"""
+
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+
+from tactilab.data_schemas.recording import Recording
+
+from .finger import BiomimeticFinger
+from .halfspace import HalfSpace
+from .loads import SurfaceLoad
+from .surfaces import Surface
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _unit(quantity: str) -> tuple[float, str]:
+    return (1e-3, "kPa") if quantity == "stress" else (1.0, "strain")
+
+
+def frame_load(finger: BiomimeticFinger, surface: Surface | None, position: float,
+               reference_height_m: float = 1.0, half_width: float | None = None) -> SurfaceLoad:
+    """The interfacial tractions (Pa) when the contact centre is at world x = position (m), on the
+    finger grid padded with zeros to ``half_width`` (m; default: the sensors plus one depth)."""
+    h = finger.spacing
+    if half_width is None:
+        half_width = max(finger.grid()[0][-1], np.abs(finger.sensors.positions_m).max() + finger.depth)
+    x = np.arange(-int(np.ceil(half_width / h)), int(np.ceil(half_width / h)) + 1) * h
+    X, Y = np.meshgrid(x, x)
+    p, q = finger.traction(X, Y, cell=(h, h))
+    if surface is not None:
+        m = surface.modulation(X + position, Y, reference_height=reference_height_m)
+        p, q = p * m, q * m
+    return SurfaceLoad(p=p, qx=q, spacing=h)
+
+
+def plot_field_maps(finger: BiomimeticFinger, path, *, surface: Surface | None = None, position: float = 0.0,
+                    reference_height_m: float = 1.0, title: str = "") -> tuple[pathlib.Path, str]:
+    """Interfacial pressure and the sensors' quantity (zz and zx) at the sensor depth, as maps.
+
+    Returns the PNG path and the half-space method that computed the maps.
+    """
+    plt = _pyplot()
+    load = frame_load(finger, surface, position, reference_height_m)
+    hs = HalfSpace(finger.contact.young_modulus, finger.contact.poisson_ratio)
+    quantity = finger.sensors.quantity
+    solve = hs.stress if quantity == "stress" else hs.strain
+    result = solve(load, finger.depth, components=("zz", "zx"), tol=1e-4)
+    field = result.data[quantity].isel(depth=0)
+    scale, unit = _unit(quantity)
+    ext = 1e3 * np.array([load.x[0], load.x[-1], load.y[0], load.y[-1]])
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4), constrained_layout=True)
+    panels = [(load.components["p"] * 1e-3, "interfacial pressure p (kPa)", "viridis")]
+    for comp in ("zz", "zx"):
+        panels.append((field.sel(component=comp).values * scale,
+                       f"{quantity} {comp} at depth {finger.depth * 1e3:.2f} mm ({unit})", "RdBu_r"))
+    pos = finger.sensors.positions_m * 1e3
+    for ax, (img, label, cmap) in zip(axes, panels):
+        lim = np.abs(img).max() or 1.0
+        vmin = 0.0 if cmap == "viridis" else -lim
+        im = ax.imshow(img, origin="lower", extent=ext, cmap=cmap, vmin=vmin, vmax=lim)
+        ax.plot(pos[:, 0], pos[:, 1], "k.", ms=3)
+        ax.set(title=label, xlabel="x, finger frame (mm)", ylabel="y (mm)")
+        fig.colorbar(im, ax=ax, shrink=0.85)
+    fig.suptitle(title or f"contact centre at x = {position * 1e3:.2f} mm; maps by {result.method}")
+    path = pathlib.Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path, result.method
+
+
+def receptive_field_maps(finger: BiomimeticFinger, sensors, strength: float = 1e-8, n: int = 81):
+    """2-D exploratory receptive fields: output of each chosen sensor for a defect of strength
+    S_d (m^2) at finger-frame (xi, eta) over the contact, shape (len(sensors), n, n, n_components)."""
+    a = finger.contact.contact_radius
+    xi = np.linspace(-a, a, int(n))
+    XI, ETA = np.meshgrid(xi, xi)
+    p, q = finger.traction(XI, ETA)
+    resp = finger.point_response(XI, ETA, strength * q, strength * p)  # (n, n, n_sensors, n_comp)
+    return xi, np.moveaxis(resp[:, :, list(sensors), :], 2, 0)
+
+
+def plot_receptive_fields(finger: BiomimeticFinger, path, *, strength: float = 1e-8, max_sensors: int = 4,
+                          component: int = 0) -> pathlib.Path:
+    """Receptive-field maps of up to ``max_sensors`` sensors spread over the array (PNG)."""
+    plt = _pyplot()
+    ns = finger.sensors.n_sensors
+    chosen = sorted(set(np.linspace(0, ns - 1, min(max_sensors, ns)).round().astype(int).tolist()))
+    xi, rf = receptive_field_maps(finger, chosen, strength)
+    scale, unit = _unit(finger.sensors.quantity)
+    comp = finger.sensors.components[component]
+    fig, axes = plt.subplots(1, len(chosen), figsize=(3.6 * len(chosen), 3.6), constrained_layout=True,
+                             squeeze=False)
+    ext = 1e3 * np.array([xi[0], xi[-1], xi[0], xi[-1]])
+    for ax, k, img in zip(axes[0], chosen, rf[..., component] * scale):
+        lim = np.abs(img).max() or 1.0
+        im = ax.imshow(img, origin="lower", extent=ext, cmap="RdBu_r", vmin=-lim, vmax=lim)
+        sx, sy = finger.sensors.positions_m[k] * 1e3
+        ax.plot([sx], [sy], "k+", ms=10)
+        ax.set(title=f"{finger.sensors.ids[k]} {comp} ({unit})", xlabel="defect x, finger frame (mm)",
+               ylabel="defect y (mm)")
+        fig.colorbar(im, ax=ax, shrink=0.8)
+    fig.suptitle(f"exploratory receptive fields, defect strength S_d = {strength * 1e6:.3g} mm^2, "
+                 f"depth {finger.depth * 1e3:.2f} mm (+: sensor)")
+    path = pathlib.Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_time_series(recording: Recording, path, *, max_lines: int = 8, positions=None) -> pathlib.Path:
+    """Sensor time series: a few sensors as lines and all sensors as an image (PNG).
+
+    ``positions`` (m, world x of the contact centre per sample) adds a finger-position axis.
+    """
+    plt = _pyplot()
+    scale, unit = _unit(recording.quantity)
+    t = recording.times_s
+    nc = recording.n_components
+    fig, axes = plt.subplots(2, nc, figsize=(6 * nc, 6.5), constrained_layout=True, squeeze=False)
+    chosen = np.unique(np.linspace(0, recording.n_sensors - 1, min(max_lines, recording.n_sensors)).round().astype(int))
+    for c, comp in enumerate(recording.components):
+        values = recording.values[:, :, c] * scale
+        for k in chosen:
+            axes[0, c].plot(t, values[:, k], lw=1, label=recording.sensor_ids[k])
+        axes[0, c].set(title=f"{recording.quantity} {comp} ({unit})", xlabel="time (s)", ylabel=f"{comp} ({unit})")
+        axes[0, c].legend(fontsize=7, ncol=2)
+        lim = np.abs(values - values.mean(axis=0)).max() or 1.0
+        im = axes[1, c].imshow((values - values.mean(axis=0)).T, aspect="auto", origin="lower", cmap="RdBu_r",
+                               vmin=-lim, vmax=lim, extent=[t[0], t[-1], -0.5, recording.n_sensors - 0.5])
+        axes[1, c].set(title=f"{comp} minus its time mean, all sensors ({unit})", xlabel="time (s)",
+                       ylabel="sensor index")
+        fig.colorbar(im, ax=axes[1, c])
+        if positions is not None:
+            top = axes[0, c].secondary_xaxis("top", functions=(
+                lambda s, t0=t[0], u=positions: 1e3 * np.interp(s, t, u),
+                lambda mm, u=positions: np.interp(np.asarray(mm) * 1e-3, u, t)))
+            top.set_xlabel("contact centre x (mm)")
+    path = pathlib.Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_spectrum(recording: Recording, path, *, max_lines: int = 8) -> pathlib.Path:
+    """Welch power spectra of a few sensors' outputs, (kPa^2 or strain^2) per Hz vs Hz (PNG)."""
+    from scipy import signal
+
+    plt = _pyplot()
+    scale, unit = _unit(recording.quantity)
+    nc = recording.n_components
+    fig, axes = plt.subplots(1, nc, figsize=(6 * nc, 4), constrained_layout=True, squeeze=False)
+    chosen = np.unique(np.linspace(0, recording.n_sensors - 1, min(max_lines, recording.n_sensors)).round().astype(int))
+    nper = max(16, recording.n_times // 4)
+    for c, comp in enumerate(recording.components):
+        for k in chosen:
+            y = recording.values[:, k, c] * scale
+            f, p = signal.welch(y - y.mean(), fs=recording.sampling_rate_hz, nperseg=nper)
+            axes[0, c].semilogy(f[1:], p[1:], lw=1, label=recording.sensor_ids[k])
+        axes[0, c].set(title=f"power spectrum of {comp} ({unit}^2/Hz)", xlabel="frequency (Hz)",
+                       ylabel=f"PSD ({unit}^2/Hz)")
+        axes[0, c].legend(fontsize=7)
+    path = pathlib.Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,141 @@
+"""Simulate a finger scene to files: the sensors' recording (netCDF or Parquet) and PNG plots.
+
+Used by ``tactilab simulate SCENE.toml``; everything is SI inside, the figures use mm / kPa.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import pathlib
+import time
+
+import numpy as np
+import xarray as xr
+
+from tactilab.data_schemas.recording import Recording
+
+from .finger import BiomimeticFinger
+from .finger_plots import plot_field_maps, plot_receptive_fields, plot_spectrum, plot_time_series
+from .scanning import (RecordFeature, check_scan, reference_height, scan_outputs, scanned_surface,
+                       scene_finger)
+
+FORMATS = ("netcdf", "parquet")
+
+
+def recording_dataset(recording: Recording, finger: BiomimeticFinger | None = None, positions=None) -> xr.Dataset:
+    """The recording as an xarray Dataset: ``values`` (time, sensor, component) with SI coords/attrs."""
+    ds = xr.Dataset(
+        {"values": (("time", "sensor", "component"), recording.values)},
+        coords={"time": ("time", recording.times_s, {"units": "s"}),
+                "sensor": list(recording.sensor_ids), "component": list(recording.components)},
+        attrs=dict(quantity=recording.quantity, unit=recording.unit, sampling_rate_hz=recording.sampling_rate_hz,
+                   start_time_s=recording.start_time_s, description=recording.description,
+                   shear_convention="tensor shear eps_ij (engineering gamma = 2 eps)"),
+    )
+    ds["values"].attrs["units"] = recording.unit
+    if finger is not None:
+        pos = finger.sensors.positions_m
+        ds = ds.assign_coords(sensor_x=("sensor", pos[:, 0], {"units": "m", "frame": "finger"}),
+                              sensor_y=("sensor", pos[:, 1], {"units": "m", "frame": "finger"}))
+        ds.attrs.update(depth_m=finger.depth, contact_radius_m=finger.contact.contact_radius,
+                        normal_force_n=finger.contact.normal_force, friction=finger.friction,
+                        adhesion=finger.adhesion, grid_spacing_m=finger.spacing)
+    if positions is not None:
+        ds = ds.assign_coords(contact_x=("time", np.asarray(positions, float), {"units": "m", "frame": "world"}))
+    return ds
+
+
+def write_recording(recording: Recording, out_dir, fmt: str = "netcdf", *, finger=None, positions=None) -> pathlib.Path:
+    """Write ``recording.nc`` (netCDF4 via h5netcdf) or ``recording.parquet`` (tidy form) into out_dir."""
+    if fmt not in FORMATS:
+        raise ValueError(f"format: must be one of {FORMATS}, got {fmt!r}")
+    out_dir = pathlib.Path(out_dir)
+    if fmt == "parquet":
+        if importlib.util.find_spec("pyarrow") is None:
+            raise ValueError("format: 'parquet' needs the optional package pyarrow (pip install pyarrow); "
+                             "or use --format netcdf")
+        path = out_dir / "recording.parquet"
+        df = recording.to_dataframe()
+        df.to_parquet(path)
+        return path
+    path = out_dir / "recording.nc"
+    recording_dataset(recording, finger, positions).to_netcdf(path, engine="h5netcdf")
+    return path
+
+
+def simulate_scene(scene, out_dir, *, fmt: str = "netcdf", rng: np.random.Generator | None = None,
+                   progress: bool = False, grid_spacing: float | None = None, plots: bool = True) -> list[str]:
+    """Scan a finger scene and write its recording and figures; return lines describing what was done.
+
+    Parameters
+    ----------
+    scene : data_schemas Scene
+        With a ``contact`` (finger) and a scan speed > 0.
+    out_dir : path
+        Created if missing.
+    fmt : {"netcdf", "parquet"}
+    rng : numpy Generator, optional
+        If given and the sensors have ``noise_std > 0``, white measurement noise is added.
+    progress : bool
+        tqdm bar over frame batches.
+    grid_spacing : float, optional
+        Contact-grid spacing in m (default: resolves the contact, depth and the surface relief).
+    plots : bool
+        Write the PNG figures.
+    """
+    if scene.display is not None:
+        raise ValueError("scene.display: this scene drives the skin with a tractor display; tactilab simulate "
+                         "models a finger touching a surface: remove [display] (the display's strain is "
+                         "computed by tactilab.forward.tractor_display.render_virtual_surface)")
+    if fmt not in FORMATS:
+        raise ValueError(f"format: must be one of {FORMATS}, got {fmt!r}")
+    s = scene.scan
+    n = check_scan(s.speed_m_per_s, s.sampling_rate_hz, s.duration_s)
+    finger = scene_finger(scene, grid_spacing)
+    u = s.start_position_m + s.speed_m_per_s * np.arange(n) / s.sampling_rate_hz
+    surface = scanned_surface(scene.surface, u, finger)
+    h_ref = reference_height(surface)
+    t0 = time.perf_counter()
+    weights = finger.node_weights()
+    values = scan_outputs(finger, surface, u, reference_height_m=h_ref, weights=weights, progress=progress)
+    elapsed = time.perf_counter() - t0
+    noise = float(scene.sensors.noise_std)
+    if rng is not None and noise > 0:
+        values = values + noise * rng.standard_normal(values.shape)
+    rec = Recording.from_sensors(finger.sensors, values, s.sampling_rate_hz,
+                                 description=f"tactilab simulate: {scene.name or 'scene'}. {scene.description}")
+    out = pathlib.Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    path = write_recording(rec, out, fmt, finger=finger, positions=u)
+    c = finger.contact
+    scale = 1e-3 if rec.quantity == "stress" else 1.0
+    unit = "kPa" if rec.quantity == "stress" else "strain"
+    lines = [
+        f"scene {scene.name or '(unnamed)'}: Hertz contact a = {c.contact_radius * 1e3:.2f} mm, "
+        f"p0 = {c.peak_pressure * 1e-3:.1f} kPa at {c.normal_force:g} N; mu = {finger.friction:g}, "
+        f"adhesion = {finger.adhesion:g}",
+        f"scan: {n} frames at {s.sampling_rate_hz:g} Hz, {s.speed_m_per_s * 1e3:g} mm/s, contact centre "
+        f"{u[0] * 1e3:.2f} -> {u[-1] * 1e3:.2f} mm; {finger.sensors.n_sensors} sensors x "
+        f"{finger.sensors.n_components} components at {finger.depth * 1e3:.2f} mm depth",
+        f"method: precomputed node-weight matrix ({weights[0].size} loaded nodes, grid {finger.spacing * 1e6:.0f} um), "
+        f"batched frames: {elapsed:.3f} s ({1e3 * elapsed / n:.3f} ms per frame)",
+        f"output range: {values.min() * scale:.4g} .. {values.max() * scale:.4g} {unit}"
+        + (f" (noise std {noise * scale:.3g} {unit} added)" if rng is not None and noise > 0 else ""),
+        f"recording: {path}",
+    ]
+    if plots:
+        defect = next((f for f in surface.features if isinstance(f, RecordFeature) and f.record.kind == "defect"), None)
+        at = u[int(np.argmin(np.abs(u - defect.record.position_m[0])))] if defect is not None else u[n // 2]
+        maps, method = plot_field_maps(finger, out / "field_maps.png", surface=surface, position=at,
+                                       reference_height_m=h_ref)
+        strength = 1e-8
+        if defect is not None and math.isfinite(defect.integral()) and defect.integral() != 0:
+            strength = defect.integral() / h_ref
+        rf = plot_receptive_fields(finger, out / "receptive_fields.png", strength=strength)
+        ts = plot_time_series(rec, out / "time_series.png", positions=u)
+        files = [str(maps), str(rf), str(ts)]
+        if n >= 64:
+            files.append(str(plot_spectrum(rec, out / "spectrum.png")))
+        lines.append(f"plots (maps by {method}): " + ", ".join(files))
+    return lines
