@@ -42,7 +42,8 @@ from datetime import UTC, datetime
 
 import numpy as np
 
-from .display import Display, PlaybackReport, check_frames, limits
+from .display import Display, PlaybackReport
+from .display_limits import check_frames, limits
 
 __all__ = ["SafeDisplay", "PlaybackInterrupted", "limit_drive", "MARGIN"]
 

@@ -9,16 +9,8 @@ import numpy as np
 import pytest
 
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.display import (
-    Display,
-    DisplayError,
-    check_frames,
-    limit_violations,
-    limits,
-    render_drive,
-    resolve_command,
-    virtual_height,
-)
+from tactilab.experiments.display import Display, DisplayError, render_drive, virtual_height
+from tactilab.experiments.display_limits import check_frames, limit_violations, limits, resolve_command
 from tactilab.experiments.display_strain import (
     row_strain,
     sliding_surface_strain_amplitude,

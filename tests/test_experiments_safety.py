@@ -11,7 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.display import Display, PlaybackReport, limit_violations, limits, render_drive
+from tactilab.experiments.display import Display, PlaybackReport, render_drive
+from tactilab.experiments.display_limits import limit_violations, limits
 from tactilab.experiments.safety import PlaybackInterrupted, SafeDisplay, limit_drive
 from tactilab.experiments.simulated_display import SimulatedDisplay
 

@@ -19,7 +19,8 @@ from hypothesis import strategies as st
 
 from tactilab.cli.main import main as cli_main
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.display import DisplayError, limit_violations, render_drive
+from tactilab.experiments.display import DisplayError, render_drive
+from tactilab.experiments.display_limits import limit_violations
 from tactilab.experiments.emulator import LOOPBACK, emulate, read_record
 from tactilab.experiments.safety import SafeDisplay
 from tactilab.experiments.udp import (
@@ -208,8 +209,8 @@ def test_no_device_is_a_clear_error():
         probe.bind((LOOPBACK, 0))
         free_port = probe.getsockname()[1]
     display = UdpDisplay(DisplayDescription.braille_row(), LOOPBACK, free_port, ack_timeout_s=0.05)
-    with pytest.raises(DisplayError, match="is the device"):
-        display.zero()  # ICMP port unreachable (connection refused), or no answer at all
+    with pytest.raises(DisplayError, match="connection refused; is the device"):
+        display.zero()  # nobody listens: loopback answers with ICMP port unreachable
     display.close()
 
 
