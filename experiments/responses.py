@@ -212,10 +212,13 @@ class SimulatedObserver(ResponseSource):
         self.threshold_strain, self.exponent, self.criterion = threshold_strain, exponent, criterion
         self.frequency_acuity, self.magnitude_gain, self.depth_m = frequency_acuity, magnitude_gain, depth_m
         self.strain_fn = strain_fn if strain_fn is not None else (lambda s: receptor_strain(s, depth_m))
+        self._drives: dict[Stimulus, float] = {}
 
     def drive(self, stimulus: Stimulus) -> float:
         """Noise-free transducer output ``d`` of a stimulus (units of the noise sd)."""
-        return (self.strain_fn(stimulus) / self.threshold_strain) ** self.exponent
+        if stimulus not in self._drives:  # stimuli are frozen (hashable); levels repeat a lot
+            self._drives[stimulus] = (self.strain_fn(stimulus) / self.threshold_strain) ** self.exponent
+        return self._drives[stimulus]
 
     def features(self, stimulus: Stimulus) -> np.ndarray:
         """Noise-free feature vector of a stimulus, shape (3,)."""
