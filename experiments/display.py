@@ -63,9 +63,10 @@ class PlaybackReport:
     late : int
         Frames sent more than half a frame period after their scheduled time.
     missing : int
-        Frames never acknowledged by the device (0 for displays without acknowledgements).
+        Frames the device did not acknowledge as applied (no ACK, or an ACK with another
+        status); 0 for a simulation.
     acked : int
-        Frames acknowledged by the device (equal to ``frames_sent`` for a simulation).
+        Frames acknowledged as applied (equal to ``frames_sent`` for a simulation).
     interventions : int
         Safety interventions (events) during load and play; 0 for a bare driver.
     stopped : bool
@@ -186,6 +187,16 @@ class Display(abc.ABC):
 
     def close(self) -> None:
         """Release resources (sockets, files). The base class holds none."""
+
+    def __enter__(self) -> Display:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        """Leave a ``with`` block: zero the outputs (best effort), then close."""
+        try:
+            self.zero()
+        finally:
+            self.close()
 
     def _load(self, frames: np.ndarray, frame_rate_hz: float) -> None:
         """Hook for subclasses that prepare a loaded block (default: nothing)."""

@@ -258,3 +258,16 @@ def test_simulated_display_deflection_needs_stiffness():
 def test_simulated_display_rejects_bad_arguments(kwargs, match):
     with pytest.raises(ValueError, match=match):
         SimulatedDisplay(DisplayDescription.braille_row(), **kwargs)
+
+
+def test_with_block_zeroes_and_closes():
+    closed = []
+
+    class Closing(_Recorder):
+        def close(self):
+            closed.append(True)
+
+    with Closing(DisplayDescription.braille_row()) as display:
+        display.load(np.zeros((2, 10)), 1000.0)
+        display.play()
+    assert display.zeroed == 1 and closed == [True]
