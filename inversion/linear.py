@@ -201,8 +201,8 @@ def invert_linear(
     noise_std: float | None = None,
     method: str = "auto",
     spacing=None,
-    tol: float = 1e-8,
-    max_iter: int = 2000,
+    tol: float | None = None,
+    max_iter: int | None = None,
     rng: np.random.Generator | None = None,
 ) -> LinearInversionResult:
     """Regularised linear inversion ``d = A m + noise`` through one of the registered paths.
@@ -227,8 +227,9 @@ def invert_linear(
         Path; ``auto`` picks fft for FourierDiagonal, dense for n_model <= 1024, else iterative.
     spacing : float or tuple, optional
         Grid spacing in m for the penalties (default: the operator's, else 1).
-    tol, max_iter : float, int
-        Relative tolerance and iteration limit of the iterative solvers.
+    tol, max_iter : float, int, optional
+        Relative tolerance and iteration limit: CG (default 1e-8, 2000) or ADMM for TV
+        (default 1e-4, 3000).
     rng : numpy.random.Generator, optional
         For the probe vectors of the iterative preconditioner (default seed 0).
 
@@ -240,7 +241,7 @@ def invert_linear(
         from .tv import invert_tv
 
         return invert_tv(operator, data, lam=lam, noise_std=noise_std, method=method, spacing=spacing,
-                         tol=tol, max_iter=max_iter, rng=rng)
+                         tol=tol, max_iter=3000 if max_iter is None else max_iter, rng=rng)
     if penalty not in PENALTIES:
         raise ValueError(f"penalty: unknown penalty {penalty!r}; use one of {', '.join(PENALTIES)} or 'tv'")
     check_penalty(penalty)
@@ -277,6 +278,8 @@ def invert_linear(
             )
         lam_used, source = float(lam), "given"
         rng = rng if rng is not None else np.random.default_rng(0)
+        tol = 1e-8 if tol is None else tol
+        max_iter = 2000 if max_iter is None else max_iter
         x, iters, ok = _solve_iterative(op, d, penalty, lam_used, dims, spacing, rng, tol, max_iter)
         model = x.reshape(dims)
         resid = float(np.linalg.norm(op.matvec(x) - d))

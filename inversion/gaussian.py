@@ -1,0 +1,386 @@
+"""Exact linear-Gaussian posterior: prior ``m ~ N(m0, C)``, data ``d = A m + e``, ``e ~ N(0, sigma^2 I)``.
+
+The prior is stationary on the periodic model grid: its covariance ``C`` is circulant with
+eigenvalues ``lambda_k`` (the prior spectrum, in model units squared), built from a spectral density
+(:class:`StationaryPrior`) or given directly (e.g. the Tikhonov prior
+``lambda_k = sigma^2 / (lam |L(k)|^2)``, see :func:`tikhonov_prior_spectrum`).
+
+Paths (as in :mod:`tactilab.inversion.linear`):
+- ``"fft"`` (FourierDiagonal operator): everything is per mode, O(n log n):
+  posterior variance ``v_k = lambda_k sigma^2 / (sigma^2 + |H_k|^2 lambda_k)``, mean
+  ``m0 + lambda_k conj(H_k) (D_k - H_k M0_k) / (|H_k|^2 lambda_k + sigma^2)``, pointwise variance
+  ``mean_k v_k`` (the same at every node), log evidence a sum over modes.
+- ``"dense"``: data-space formulas ``K = A C A^T + sigma^2 I`` with a Cholesky factor (no
+  inverse of C, which may be numerically singular).
+- ``"iterative"``: prior-whitened conjugate gradients ``m = m0 + C^{1/2} z`` for the mean;
+  pointwise std from exact posterior samples by perturbation-optimisation (Monte Carlo).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+from scipy.sparse.linalg import LinearOperator, aslinearoperator, cg
+
+from .linear import DENSE_MAX, check_data
+from .operators import FourierDiagonal, angular_wavenumbers
+from .penalties import penalty_symbol
+
+KINDS = ("matern32", "matern52", "squared_exponential", "white")
+
+__all__ = ["StationaryPrior", "GaussianPosterior", "gaussian_posterior", "tikhonov_prior_spectrum", "KINDS"]
+
+
+@dataclass(frozen=True)
+class StationaryPrior:
+    """Stationary Gaussian prior on a periodic grid, defined by its spectral density.
+
+    Parameters
+    ----------
+    variance : float
+        Pointwise prior variance, model units squared (Pa^2 for a pressure).
+    correlation_length : float
+        Correlation length ell in m (ignored for ``"white"``).
+    kind : {"matern32", "matern52", "squared_exponential", "white"}
+        Spectral density shape: Matern ``(2 nu / ell^2 + k^2)^-(nu + d/2)``, squared exponential
+        ``exp(-k^2 ell^2 / 2)``, or flat.
+    mean : float
+        Prior mean (uniform), model units.
+    """
+
+    variance: float
+    correlation_length: float = 1e-3
+    kind: str = "matern32"
+    mean: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.variance) and self.variance > 0):
+            raise ValueError(f"variance: prior variance must be finite and > 0, got {self.variance!r}")
+        if not (np.isfinite(self.correlation_length) and self.correlation_length > 0):
+            raise ValueError(f"correlation_length: must be finite and > 0 m, got {self.correlation_length!r}")
+        if self.kind not in KINDS:
+            raise ValueError(f"kind: unknown prior kind {self.kind!r}; use one of {', '.join(KINDS)}")
+        if not np.isfinite(self.mean):
+            raise ValueError(f"mean: prior mean must be finite, got {self.mean!r}")
+
+    def spectrum(self, shape: tuple[int, ...], spacing) -> np.ndarray:
+        """Eigenvalues of the circulant prior covariance, full grid, ``fftfreq`` order.
+
+        Normalised so that the pointwise variance ``mean(lambda_k)`` equals ``variance``.
+        """
+        ks = angular_wavenumbers(tuple(shape), spacing)
+        k2 = sum(k**2 for k in ks) * np.ones(shape)
+        ell, d = self.correlation_length, len(shape)
+        if self.kind == "white":
+            dens = np.ones(shape)
+        elif self.kind == "squared_exponential":
+            dens = np.exp(-0.5 * k2 * ell**2)
+        else:
+            nu = 1.5 if self.kind == "matern32" else 2.5
+            dens = (2 * nu / ell**2 + k2) ** (-(nu + d / 2)) * (2 * nu / ell**2) ** (nu + d / 2)
+        return self.variance * dens.size * dens / dens.sum()
+
+
+def tikhonov_prior_spectrum(lam: float, penalty: str, noise_std: float, shape, spacing) -> np.ndarray:
+    """Prior spectrum equivalent to Tikhonov ``lam ||L m||^2``: ``sigma^2 / (lam |L(k)|^2)``.
+
+    Modes in the null space of ``L`` get ``inf`` (a flat, improper prior).
+    """
+    l2 = penalty_symbol(penalty, shape, spacing)
+    with np.errstate(divide="ignore"):
+        return np.where(l2 > 0, noise_std**2 / (lam * np.where(l2 > 0, l2, 1.0)), np.inf)
+
+
+@dataclass
+class GaussianPosterior:
+    """Posterior of a linear-Gaussian problem (see module docstring).
+
+    Attributes
+    ----------
+    mean, std : ndarray, shape ``dims``
+        Posterior mean and pointwise standard deviation (model units).
+    log_evidence : float
+        ``log p(d)``; NaN when the prior is improper (some ``lambda_k = inf``).
+    method : str
+        ``"fft"``, ``"dense"`` or ``"iterative"``.
+    noise_std : float
+        Noise standard deviation used (data units).
+    note : str
+        How the std was obtained (exact, or Monte Carlo with its sample count).
+    """
+
+    mean: np.ndarray
+    std: np.ndarray
+    log_evidence: float
+    method: str
+    noise_std: float
+    note: str
+    dims: tuple
+    spacing: object
+    _aux: dict = field(repr=False, default_factory=dict)
+
+    def sample(self, n_samples: int, rng: np.random.Generator) -> np.ndarray:
+        """Exact posterior draws, shape ``(n_samples, *dims)``."""
+        if int(n_samples) < 1:
+            raise ValueError(f"n_samples: need at least 1 sample, got {n_samples!r}")
+        n_samples = int(n_samples)
+        if self.method == "fft":
+            axes = tuple(range(1, len(self.dims) + 1))
+            w = rng.standard_normal((n_samples, *self.dims))
+            spec = np.fft.rfftn(w, axes=axes) * np.sqrt(self._aux["post_var"])
+            return self.mean + np.fft.irfftn(spec, s=self.dims, axes=axes)
+        if self.method == "dense":
+            root = self._aux["cov_root"]
+            return self.mean + (root @ rng.standard_normal((root.shape[1], n_samples))).T.reshape(n_samples, *self.dims)
+        return self._aux["sampler"](n_samples, rng)
+
+    def covariance(self) -> np.ndarray:
+        """Dense posterior covariance (n, n); dense path, or fft path with n <= DENSE_MAX."""
+        if self.method == "dense":
+            return self._aux["cov"]
+        n = int(np.prod(self.dims))
+        if self.method == "fft" and n <= DENSE_MAX:
+            axes = tuple(range(1, len(self.dims) + 1))
+            eye = np.eye(n).reshape(n, *self.dims)
+            out = np.fft.irfftn(np.fft.rfftn(eye, axes=axes) * self._aux["post_var"], s=self.dims, axes=axes)
+            return out.reshape(n, n)
+        raise ValueError(f"covariance: a dense covariance needs the dense path or n <= {DENSE_MAX}, got n={n} "
+                         f"on the {self.method} path; use std or sample() instead")
+
+    def variance_ratio(self) -> tuple[np.ndarray, np.ndarray]:
+        """Posterior / prior variance per Fourier mode against |k| (rad/m), fft path (or dense 1-D)."""
+        ks = angular_wavenumbers(self.dims, self.spacing)
+        kabs = np.sqrt(sum(k**2 for k in ks) * np.ones(self.dims))
+        if self.method == "fft":
+            half = kabs[..., : self.dims[-1] // 2 + 1]
+            ratio = self._aux["post_var"] / self._aux["prior_half"]
+            return half.ravel(), ratio.ravel()
+        if self.method == "dense" and len(self.dims) == 1:
+            cov = self._aux["cov"]
+            post = np.real(np.diag(np.fft.ifft(np.fft.fft(cov, axis=0), axis=1)))
+            return kabs, post / self._aux["prior_full"]
+        raise ValueError("variance_ratio: needs the fft path or a 1-D dense problem; "
+                         f"this posterior used the {self.method} path")
+
+    def resolvable_band(self, threshold: float = 0.5, depth: float | None = None) -> dict:
+        """Wavenumbers where the posterior variance is below ``threshold`` x prior variance.
+
+        Parameters
+        ----------
+        threshold : float in (0, 1)
+            Variance-reduction level that counts as resolved.
+        depth : float, optional
+            Sensor depth Z in m, for the rough estimate ``k_c ~ ln(SNR) / Z`` with
+            ``SNR = prior std / noise std``. (For a white prior and the normal-pressure kernel
+            the exact edge solves ``k Z - ln(1 + k Z) = ln(SNR)``, so ``k_c`` underestimates it.)
+
+        Returns
+        -------
+        dict
+            ``k_max`` (rad/m, largest resolved |k|, 0 if none), ``wavelength_min`` (m),
+            ``fraction`` (share of modes resolved), ``k_c_estimate`` (rad/m or None).
+        """
+        if not (0 < threshold < 1):
+            raise ValueError(f"threshold: must be in (0, 1), got {threshold!r}")
+        kabs, ratio = self.variance_ratio()
+        resolved = ratio < threshold
+        k_max = float(kabs[resolved].max()) if resolved.any() else 0.0
+        out = {"k_max": k_max, "wavelength_min": 2 * np.pi / k_max if k_max > 0 else np.inf,
+               "fraction": float(resolved.mean()), "k_c_estimate": None}
+        if depth is not None:
+            snr = np.sqrt(self._aux["prior_pointwise_var"]) / self.noise_std
+            out["k_c_estimate"] = float(np.log(snr) / depth) if snr > 1 else 0.0
+        return out
+
+    def resolution_kernel(self, index) -> np.ndarray:
+        """Posterior-mean response to a unit impulse at grid node ``index`` (a column of R).
+
+        ``R = C A^T (A C A^T + sigma^2 I)^-1 A``; a perfect resolution gives a delta.
+        """
+        flat = int(np.ravel_multi_index(np.atleast_1d(index), self.dims))
+        if self.method == "fft":
+            e = np.zeros(self.dims)
+            e.flat[flat] = 1.0
+            axes = tuple(range(len(self.dims)))
+            return np.fft.irfftn(np.fft.rfftn(e, axes=axes) * self._aux["filter"], s=self.dims, axes=axes)
+        if self.method == "dense":
+            return self._aux["resolution"][:, flat].reshape(self.dims)
+        raise ValueError("resolution_kernel: needs the fft or dense path; the iterative path has no explicit R")
+
+
+def _prior_spectrum(prior, dims, spacing) -> np.ndarray:
+    if isinstance(prior, StationaryPrior):
+        return prior.spectrum(dims, spacing)
+    lam = np.asarray(prior, dtype=float)
+    if lam.shape != tuple(dims):
+        raise ValueError(f"prior: spectrum shape {lam.shape} does not match the model grid {tuple(dims)}")
+    if np.any(np.isnan(lam)) or np.any(lam <= 0):
+        raise ValueError("prior: spectrum eigenvalues must be > 0 (inf allowed for flat modes), no NaN")
+    return lam
+
+
+def _fft_posterior(op: FourierDiagonal, d, lam_full, m0, sigma):
+    dims = op.dims
+    axes = tuple(range(len(dims)))
+    n = d.size
+    half = lam_full[..., : dims[-1] // 2 + 1]
+    h = op.half_multiplier
+    h2 = np.abs(h) ** 2
+    s2 = sigma**2
+    finite = np.isfinite(half)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        post_var = np.where(finite, half * s2 / (s2 + h2 * half), s2 / h2)
+        gain = np.where(finite, half * np.conj(h) / (h2 * half + s2), 1.0 / h)  # Kalman gain per mode
+        filt = np.where(finite, h2 * half / (h2 * half + s2), 1.0)
+    if not np.all(np.isfinite(post_var)):
+        raise ValueError("prior: a flat (infinite-variance) mode is not seen by the operator (H = 0 there); "
+                         "give it a finite prior variance")
+    resid_hat = np.fft.rfftn(d.reshape(dims) - op.matvec(np.full(n, m0)).reshape(dims), axes=axes)
+    mean = m0 + np.fft.irfftn(gain * resid_hat, s=dims, axes=axes)
+    w = op.weights
+    pointwise = float(np.sum(w * post_var) / n)
+    if np.all(finite):
+        v = h2 * half + s2
+        log_ev = float(-0.5 * np.sum(w * (np.abs(resid_hat) ** 2 / (n * v) + np.log(2 * np.pi * v))))
+    else:
+        log_ev = float("nan")
+    prior_pw = float(np.sum(w * np.where(finite, half, 0)) / n)
+    aux = {"post_var": post_var, "filter": filt, "prior_half": half, "prior_pointwise_var": prior_pw}
+    return mean, np.full(dims, np.sqrt(pointwise)), log_ev, aux, "exact (closed form per Fourier mode)"
+
+
+def _circulant(lam_full, dims) -> np.ndarray:
+    n = int(np.prod(dims))
+    axes = tuple(range(1, len(dims) + 1))
+    eye = np.eye(n).reshape(n, *dims)
+    return np.fft.ifftn(np.fft.fftn(eye, axes=axes) * lam_full, axes=axes).real.reshape(n, n)
+
+
+def _dense_posterior(a, d, lam_full, m0, sigma, dims):
+    if not np.all(np.isfinite(lam_full)):
+        raise ValueError("prior: the dense path needs a proper prior (finite spectrum); use the fft path "
+                         "for flat modes")
+    c = _circulant(lam_full, dims)
+    ca_t = c @ a.T
+    k = a @ ca_t + sigma**2 * np.eye(a.shape[0])
+    chol = sla.cho_factor(k, lower=True)
+    r = d - a @ np.full(a.shape[1], m0)
+    alpha = sla.cho_solve(chol, r)
+    mean = m0 + ca_t @ alpha
+    cov = c - ca_t @ sla.cho_solve(chol, ca_t.T)
+    cov = 0.5 * (cov + cov.T)
+    evals, evecs = np.linalg.eigh(cov)
+    root = evecs * np.sqrt(np.clip(evals, 0, None))
+    logdet = 2 * np.sum(np.log(np.diag(chol[0])))
+    log_ev = float(-0.5 * (r @ alpha + logdet + r.size * np.log(2 * np.pi)))
+    aux = {"cov": cov, "cov_root": root, "resolution": ca_t @ sla.cho_solve(chol, a), "prior_full": lam_full,
+           "prior_pointwise_var": float(np.mean(lam_full))}
+    std = np.sqrt(np.clip(np.diag(cov), 0, None)).reshape(dims)
+    return mean.reshape(dims), std, log_ev, aux, "exact (dense Cholesky)"
+
+
+def _iterative_posterior(op, d, lam_full, m0, sigma, dims, rng, n_samples, tol, max_iter):
+    if not np.all(np.isfinite(lam_full)):
+        raise ValueError("prior: the iterative path needs a proper prior (finite spectrum)")
+    n = op.shape[1]
+    axes = tuple(range(len(dims)))
+    root_half = np.sqrt(lam_full[..., : dims[-1] // 2 + 1])
+
+    def c_half(x):  # C^{1/2} x by FFT (symmetric)
+        return np.fft.irfftn(np.fft.rfftn(x.reshape(dims), axes=axes) * root_half, s=dims, axes=axes).ravel()
+
+    def normal(z):
+        return c_half(op.rmatvec(op.matvec(c_half(z)))) / sigma**2 + z
+
+    sys_op = LinearOperator((n, n), matvec=normal, dtype=float)
+    r0 = d - op.matvec(np.full(n, m0))
+    def solve(rhs):
+        z, info = cg(sys_op, rhs, rtol=tol, maxiter=max_iter)
+        if info != 0:
+            raise ValueError(f"max_iter: CG did not converge in {max_iter} iterations; raise max_iter or use the fft path")
+        return m0 + c_half(z)
+
+    mean = solve(c_half(op.rmatvec(r0)) / sigma**2)
+
+    def sampler(k, rng_):
+        out = np.empty((k, n))
+        for i in range(k):
+            eps = sigma * rng_.standard_normal(d.size)
+            xi = rng_.standard_normal(n)
+            out[i] = solve(c_half(op.rmatvec(r0 + eps)) / sigma**2 + xi)
+        return out.reshape(k, *dims)
+
+    draws = sampler(n_samples, rng)
+    std = draws.std(axis=0, ddof=1)
+    aux = {"sampler": sampler, "prior_pointwise_var": float(np.mean(lam_full))}
+    note = f"std by Monte Carlo from {n_samples} perturbation-optimisation samples (relative error ~{1 / np.sqrt(2 * (n_samples - 1)):.2g})"
+    return mean.reshape(dims), std, float("nan"), aux, note
+
+
+def gaussian_posterior(
+    operator,
+    data,
+    prior,
+    noise_std: float,
+    *,
+    method: str = "auto",
+    spacing=None,
+    rng: np.random.Generator | None = None,
+    n_samples: int = 64,
+    tol: float = 1e-10,
+    max_iter: int = 5000,
+) -> GaussianPosterior:
+    """Exact Gaussian posterior of ``d = A m + e``.
+
+    Parameters
+    ----------
+    operator : FourierDiagonal, LinearOperator or ndarray (n_data, n_model)
+        Forward map; ``dims`` (model grid) taken from it when present.
+    data : array_like, n_data values
+        Finite observations (data units).
+    prior : StationaryPrior or ndarray, shape ``dims``
+        Prior, or the circulant prior spectrum (eigenvalues, ``inf`` = flat mode; fft path only).
+    noise_std : float
+        Noise standard deviation, data units, > 0.
+    method : {"auto", "fft", "dense", "iterative"}
+    spacing : float or tuple, optional
+        Grid spacing in m (default: the operator's, else 1).
+    rng : numpy.random.Generator, optional
+        Needed by the iterative path (Monte Carlo std).
+    n_samples : int
+        Samples for the iterative path's std.
+
+    Returns
+    -------
+    GaussianPosterior
+    """
+    if not (np.isfinite(noise_std) and noise_std > 0):
+        raise ValueError(f"noise_std: must be finite and > 0 (data units), got {noise_std!r}")
+    if method not in ("auto", "fft", "dense", "iterative"):
+        raise ValueError(f"method: unknown path {method!r}; use auto, fft, dense or iterative")
+    is_matrix = isinstance(operator, np.ndarray)
+    dims = (operator.shape[1],) if is_matrix else tuple(getattr(operator, "dims", (operator.shape[1],)))
+    spacing = spacing if spacing is not None else getattr(operator, "spacing", 1.0)
+    d = check_data(data, operator.shape[0])
+    lam_full = _prior_spectrum(prior, dims, spacing)
+    m0 = prior.mean if isinstance(prior, StationaryPrior) else 0.0
+    if method == "auto":
+        method = "fft" if isinstance(operator, FourierDiagonal) else (
+            "dense" if is_matrix or operator.shape[1] <= DENSE_MAX else "iterative")
+    if method == "fft":
+        if not isinstance(operator, FourierDiagonal):
+            raise ValueError("method: 'fft' needs a FourierDiagonal operator; use 'dense' or 'iterative'")
+        out = _fft_posterior(operator, d, lam_full, m0, noise_std)
+    elif method == "dense":
+        a = operator if is_matrix else aslinearoperator(operator).matmat(np.eye(operator.shape[1]))
+        out = _dense_posterior(np.asarray(a, dtype=float), d, lam_full, m0, noise_std, dims)
+    else:
+        if rng is None:
+            raise ValueError("rng: the iterative path draws samples for the std; pass rng=np.random.default_rng(seed)")
+        op = aslinearoperator(operator) if not is_matrix else aslinearoperator(operator)
+        out = _iterative_posterior(op, d, lam_full, m0, noise_std, dims, rng, int(n_samples), tol, max_iter)
+    mean, std, log_ev, aux, note = out
+    return GaussianPosterior(mean=mean, std=std, log_evidence=log_ev, method=method, noise_std=float(noise_std),
+                             note=note, dims=dims, spacing=spacing, _aux=aux)
