@@ -80,8 +80,11 @@ class TerminalResponses(ResponseSource):
         self.task = protocol.task
         self.stdin = stdin if stdin is not None else sys.stdin
         self.stdout = stdout if stdout is not None else sys.stdout
-        self.fd = self.stdin.fileno()
-        if not os.isatty(self.fd):
+        try:
+            self.fd = self.stdin.fileno()
+        except (OSError, ValueError):  # e.g. a pseudo-file under a test runner
+            self.fd = -1
+        if self.fd < 0 or not os.isatty(self.fd):
             raise OSError(
                 "--responses terminal: standard input is not a terminal; run in an interactive "
                 "terminal or use --responses simulated"

@@ -1,0 +1,177 @@
+"""`tactilab experiment` run / resume / export / status, export formats, factory specs."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from tactilab.cli.main import main as cli_main
+from tactilab.data_schemas.display import DisplayDescription
+from tactilab.experiments import factory
+from tactilab.experiments.export import export_session, read_trials_csv, session_dataframe
+from tactilab.experiments.recording import Recorder, RecordingError, SessionLog, _FileLock
+from tactilab.experiments.resume import replay_session
+
+PROTOCOL = """
+name = "cli"
+seed = 21
+iti_s = 0
+[task]
+kind = "yes_no"
+catch_rate = 0.3
+[stimulus]
+amplitude_m = "2um"
+pitch_m = "2mm"
+speed_m_per_s = "40mm/s"
+duration_s = "20ms"
+ramp_s = "5ms"
+[procedure]
+method = "staircase"
+parameter = "amplitude_m"
+[[procedure.tracks]]
+start = "3um"
+step_sizes = [0.2]
+min_level = "0.3um"
+max_level = "6um"
+max_trials = 6
+"""
+
+
+@pytest.fixture
+def session(tmp_path, capsys):
+    toml = tmp_path / "p.toml"
+    toml.write_text(PROTOCOL)
+    code = cli_main(["experiment", "run", str(toml), "--subject", "S01", "--responses", "simulated",
+                     "--no-wait", "--quiet", "--out", str(tmp_path / "sessions")])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    path = tmp_path / "sessions" / "sub-S01_ses-01_task-cli.sqlite"
+    assert f"session file: {path}" in out and "complete after" in out and "amplitude threshold" in out
+    return path
+
+
+def test_run_status_and_second_session_numbering(session, tmp_path, capsys):
+    assert cli_main(["experiment", "status", str(session)]) == 0
+    out = capsys.readouterr().out
+    assert "status: complete" in out and "subject: S01" in out and "display_id: VirtualBrailleRow" in out
+    assert factory.next_session_path(session.parent, "S01", "cli") == (
+        session.parent / "sub-S01_ses-02_task-cli.sqlite", "02")
+
+
+def test_bids_export_with_sidecar(session, capsys):
+    assert cli_main(["experiment", "export", str(session), "--format", "bids"]) == 0
+    folder = session.parent / "sub-S01" / "ses-01" / "beh"
+    tsv, sidecar = folder / "sub-S01_ses-01_task-cli_beh.tsv", folder / "sub-S01_ses-01_task-cli_beh.json"
+    assert f"wrote {tsv}" in capsys.readouterr().out
+    table = pd.read_csv(tsv, sep="\t", keep_default_na=False)
+    meta = json.loads(sidecar.read_text())
+    assert set(table.columns) <= set(meta) and meta["response_time"]["Units"] == "s"
+    assert meta["TaskName"] == "cli" and meta["Seed"] == 21 and meta["SoftwareName"] == "tactilab"
+    trials = SessionLog(session).trials()
+    assert list(table["trial_index"]) == [t.trial_index for t in trials]
+    assert list(table["response_time"].astype(float)) == pytest.approx([t.rt_s for t in trials])
+    assert all(str(v) in ("True", "False", "n/a") for v in table["correct"])
+
+
+def test_csv_parquet_and_dataframe_round_trip(session, tmp_path):
+    trials = SessionLog(session).trials()
+    (csv,) = export_session(session, tmp_path / "out", "csv")
+    assert read_trials_csv(csv) == trials
+    pytest.importorskip("pyarrow", reason="parquet round trip needs the optional pyarrow")
+    (parquet,) = export_session(session, tmp_path / "out", "parquet")
+    from tactilab.data_schemas.experiment_records import trials_from_dataframe
+
+    assert trials_from_dataframe(pd.read_parquet(parquet)) == trials
+    assert len(session_dataframe(session)) == len(trials)
+
+
+def test_parquet_without_pyarrow_names_the_missing_dependency(session, tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "pyarrow", None)  # makes `import pyarrow` fail
+    with pytest.raises(ValueError, match="--format parquet: needs the optional dependency pyarrow"):
+        export_session(session, tmp_path, "parquet")
+    assert cli_main(["experiment", "export", str(session), "--format", "parquet"]) == 2
+    assert "pip install pyarrow" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="--format: must be one of"):
+        export_session(session, tmp_path, "xlsx")
+
+
+def test_user_mistakes_give_one_line_and_exit_2(session, tmp_path, capsys):
+    toml = tmp_path / "p.toml"
+    cases = [
+        (["run", str(toml), "--subject", "Jane Doe"], "--subject: must be 1-32 letters or digits"),
+        (["run", str(toml), "--subject", "S01", "--session", "1 2"], "--session: must be 1-32 letters"),
+        (["run", str(toml), "--subject", "S02", "--device", "hologram"], "--device: must be one of"),
+        (["run", str(toml), "--subject", "S02", "--display", "tcp://x:1"], "--display: must be 'simulated'"),
+        (["run", str(toml), "--subject", "S02", "--responses", "telepathy"], "--responses: must be 'terminal'"),
+        (["run", str(toml), "--subject", "S02", "--responses", "terminal"], "standard input is not a terminal"),
+        (["run", str(tmp_path / "missing.toml"), "--subject", "S02"], "No such file"),
+        (["run", str(toml), "--subject", "S01", "--session", "01", "--out", str(session.parent),
+          "--responses", "simulated", "--no-wait"], "already exists; resume it"),
+        (["resume", str(session), "--device", "stress2"], "--device: the session was recorded on display"),
+        (["resume", str(session), "--no-wait"], "is complete; nothing to resume"),
+        (["status", str(tmp_path / "nope.sqlite")], "no session file"),
+    ]
+    for args, message in cases:
+        assert cli_main(["experiment", *args]) == 2, args
+        err = capsys.readouterr().err
+        assert message in err and err.count("\n") == 1 and "Traceback" not in err, (args, err)
+
+
+def test_resume_and_status_of_an_interrupted_session(session, tmp_path, capsys):
+    """Cut the log back to 3 completed trials plus a planned 4th; resume repeats nothing felt."""
+    connection = sqlite3.connect(session)
+    last = connection.execute("SELECT min(id) FROM events WHERE kind = 'stimulus_presented' AND trial_index = 3"
+                              ).fetchone()[0]
+    connection.execute("DELETE FROM events WHERE id >= ?", (last,))
+    connection.execute("DELETE FROM trials WHERE trial_index >= 3")
+    connection.commit()
+    connection.close()
+    assert cli_main(["experiment", "status", str(session)]) == 0
+    out = capsys.readouterr().out
+    assert "status: interrupted" in out and "completed: 3" in out and "interrupted_trial: 3" in out
+    assert "interrupted_was_presented: False" in out
+    assert cli_main(["experiment", "resume", str(session), "--no-wait", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "3 trials done, repeating interrupted trial 3" in out and "complete after" in out
+    trial3 = SessionLog(session).trials()[3]
+    assert trial3.attempt == 1 and not trial3.repeated  # planned, never presented: not felt
+
+
+def test_damaged_logs_are_refused(session):
+    connection = sqlite3.connect(session)
+    connection.execute("DELETE FROM trials WHERE trial_index = 1")
+    connection.commit()
+    connection.close()
+    with pytest.raises(ValueError, match="completed trials are not contiguous \\(trial 1 missing"):
+        replay_session(session)
+
+
+def test_factory_specs(tmp_path):
+    assert factory.description_from_spec("stress2").display_id == "STReSS2"
+    path = DisplayDescription.braille_row().save(tmp_path / "d.json")
+    assert factory.description_from_spec(str(path)) == DisplayDescription.braille_row()
+    for n in range(1, 1000):
+        (tmp_path / f"sub-S9_ses-{n:02d}_task-t.sqlite").touch()
+    with pytest.raises(ValueError, match="--out: .* already holds 999 sessions"):
+        factory.next_session_path(tmp_path, "S9", "t")
+
+
+def test_recorder_open_failures_are_recording_errors(tmp_path, monkeypatch):
+    lock = _FileLock(tmp_path / "m.lock")
+    with pytest.raises(RecordingError, match="cannot use WAL journaling"):
+        Recorder._connect(Path(":memory:"), lock)
+
+    def broken(*args, **kwargs):
+        raise sqlite3.OperationalError("disk I/O error")
+
+    monkeypatch.setattr(sqlite3, "connect", broken)
+    with pytest.raises(RecordingError, match="cannot create .*disk I/O error"):
+        Recorder.create(tmp_path / "a.sqlite", {})
+    (tmp_path / "b.sqlite").touch()
+    with pytest.raises(RecordingError, match="cannot open .* for writing \\(disk I/O error\\)"):
+        Recorder.open(tmp_path / "b.sqlite")
