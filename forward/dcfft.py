@@ -6,7 +6,9 @@ closed-form point kernel (Boussinesq/Cerruti; the line kernel, Flamant/antiplane
 plane-strain load) sampled on the ``(2 ny - 1) x (2 nx - 1)`` grid of node offsets at depth Z.
 The convolution is computed with real FFTs on a zero-padded grid of at least ``2 n - 1``
 points per axis, so there are no periodic images: the result equals the direct sum over nodes
-(``tactilab.forward.kernels.direct_stress``) to rounding.
+(``tactilab.forward.kernels.direct_stress``) to rounding. Each kernel is even or odd in x and
+in y, so its spectrum is a real cosine/sine transform (DCT-I/DST-I) of the quadrant of
+non-negative offsets: a quarter of the data of a full FFT.
 
 What the sampling costs: a load that is smooth on the grid scale is integrated against the
 kernel with the trapezoid rule. By Poisson summation its error is the kernel spectrum at the
@@ -15,9 +17,9 @@ alias wavenumbers ``2 pi m / h``, which decays like ``exp(-2 pi Z / h)``; see
 resolved and the estimate says so (it exceeds 1e-2 for ``h / Z > 1``).
 
 Memory: the load FFTs (one per non-zero load component) are computed once and reused for all
-depths and components; one kernel buffer, one kernel spectrum and one accumulator are reused
-across the (depth, component) loop, so the peak is about
-``output + (n_load + 3) x padded grid`` (measured in docs/forward_methods.md).
+depths and components; one quadrant buffer and one accumulator are reused
+across the (depth, component) loop, and the kernel geometry at the quadrant of offsets is computed once per depth,
+so the peak is about ``output + (n_load + 3)`` padded spectra (measured in docs/forward_methods.md).
 """
 
 from __future__ import annotations
@@ -47,8 +49,17 @@ _ROW_BLOCK = 1 << 16  # kernel samples evaluated per block: bounds the formula's
 
 
 def padded_shape(shape: Sequence[int]) -> tuple[int, ...]:
-    """FFT grid of the linear convolution: ``next_fast_len(2 n - 1)`` per axis."""
-    return tuple(sfft.next_fast_len(2 * n - 1, real=True) for n in shape)
+    """FFT grid of the linear convolution: the smallest even fast length >= 2 n - 1 per axis.
+
+    Even, so that the kernel's reflection symmetry maps onto real cosine and sine transforms.
+    """
+    out = []
+    for n in shape:
+        m = sfft.next_fast_len(max(2 * n - 1, 4), real=True)
+        while m % 2:
+            m = sfft.next_fast_len(m + 1, real=True)
+        out.append(m)
+    return tuple(out)
 
 
 def _check_depths(depths) -> np.ndarray:
@@ -79,41 +90,133 @@ def _check_dtype(dtype) -> np.dtype:
     return value
 
 
-def _parity(comp: str, direction: str, axis: str) -> float:
-    """Sign of the Green's function under reflection of one surface axis.
+def _is_odd(comp: str, direction: str, axis: str) -> bool:
+    """Whether the Green's function changes sign under reflection of one surface axis.
 
     Each index equal to ``axis`` in the stress component, and a force along it, flip the sign.
     """
-    return -1.0 if (comp.count(axis) + (direction == axis)) % 2 else 1.0
+    return bool((comp.count(axis) + (direction == axis)) % 2)
 
 
-def _sample_kernel(buf: np.ndarray, comp: str, direction: str, depth: float,
-                   spacing: tuple[float, ...], shape: tuple[int, ...], nu: float) -> None:
-    """Write the kernel times the cell area on the node-offset grid into ``buf``'s corner.
-
-    Offset ``(i - (n - 1)) h`` sits at index ``i`` (natural order); only the quadrant of
-    non-negative offsets is evaluated, the rest follows from the kernel's parity.
-    """
-    area = float(np.prod(spacing))
-    nx = shape[-1]
-    x = np.arange(nx) * spacing[0]
-    sign_x = _parity(comp, direction, "x")
+def _quadrant_geometry(shape: tuple[int, ...], spacing: tuple[float, ...], depth: float) -> tuple[np.ndarray, ...]:
+    """Direction cosines and 1/(2 pi R^2) (point) or 1/(pi r) (line) at the non-negative
+    node offsets, computed once per depth and shared by every (component, direction) kernel."""
+    x = np.arange(shape[-1]) * spacing[0]
     if len(shape) == 1:
-        quad = _line_unit(comp, direction, *_line_geometry(x, depth), nu) * area
-        buf[nx - 1:2 * nx - 1] = quad
-        np.multiply(quad[:0:-1], sign_x, out=buf[:nx - 1])
+        return _line_geometry(x, depth)
+    geometry = tuple(np.empty(shape) for _ in range(4))
+    block = max(1, _ROW_BLOCK // shape[-1])
+    for j0 in range(0, shape[0], block):
+        y = np.arange(j0, min(shape[0], j0 + block))[:, None] * spacing[1]
+        for target, values in zip(geometry, _point_geometry(x, y, depth)):
+            target[j0:j0 + y.shape[0]] = values
+    return geometry
+
+
+def _sample_quadrant(quad: np.ndarray, geometry: tuple[np.ndarray, ...], comp: str, direction: str,
+                     area: float, nu: float) -> None:
+    """Kernel times cell area at the non-negative node offsets into the first columns of
+    ``quad`` (the columns past the grid stay zero), in row blocks to bound temporaries."""
+    n = geometry[0].shape[-1]
+    if quad.ndim == 1:
+        np.multiply(_line_unit(comp, direction, *geometry, nu), area, out=quad[:n])
         return
-    ny = shape[0]
-    block = max(1, _ROW_BLOCK // nx)
-    for j0 in range(0, ny, block):
-        y = np.arange(j0, min(ny, j0 + block))[:, None] * spacing[1]
-        quad = _point_unit(comp, direction, *_point_geometry(x, y, depth), nu)
-        quad *= area
-        rows = slice(ny - 1 + j0, ny - 1 + j0 + quad.shape[0])
-        buf[rows, nx - 1:2 * nx - 1] = quad
-        np.multiply(quad[:, :0:-1], _parity(comp, direction, "x"), out=buf[rows, :nx - 1])
-    np.multiply(buf[2 * ny - 2:ny - 1:-1, :2 * nx - 1], _parity(comp, direction, "y"),
-                out=buf[:ny - 1, :2 * nx - 1])
+    block = max(1, _ROW_BLOCK // n)
+    for j0 in range(0, quad.shape[0], block):
+        rows = slice(j0, j0 + block)
+        values = _point_unit(comp, direction, *(g[rows] for g in geometry), nu)
+        np.multiply(values, area, out=quad[rows, :n])
+
+
+def _symmetric_spectrum(quad: np.ndarray, odd: Sequence[bool], rows: np.ndarray | None,
+                        n_rows: int, workers) -> tuple[np.ndarray, tuple[int, ...]]:
+    """Real factor R of the kernel's DFT on the padded grid, non-negative frequencies.
+
+    On the full padded grid (wrap-around order, period M per axis) the kernel is even or odd
+    along each axis, so its DFT there is ``(-i)^(number of odd axes) * R`` with R real: a
+    DCT-I (even axis, frequencies 0..M/2) or DST-I (odd axis: the kernel vanishes at offsets 0
+    and M/2, frequencies 1..M/2-1) of the quadrant of non-negative offsets, a quarter of the
+    data of a full complex FFT. Returns R and, per axis, the first frequency it covers.
+
+    ``quad`` holds the quadrant in its first ``n_rows`` rows and zeros beyond ``nx`` columns
+    (shape ``(n_rows, Mx/2 + 1)``); ``rows`` is a zero-padded ``(My/2 + 1, Mx/2 + 1)`` buffer
+    whose rows past ``n_rows`` stay zero.
+    """
+    if odd[-1]:
+        spec = sfft.dst(quad[..., 1:-1], type=1, axis=-1, workers=workers)
+    else:
+        spec = sfft.dct(quad, type=1, axis=-1, workers=workers)
+    if quad.ndim == 1:
+        return spec, (int(odd[-1]),)
+    width = spec.shape[1]
+    rows[:n_rows, :width] = spec
+    if odd[0]:
+        spec = sfft.dst(rows[1:-1, :width], type=1, axis=0, workers=workers)
+    else:
+        spec = sfft.dct(rows[:, :width], type=1, axis=0, workers=workers)
+    return spec, (int(odd[0]), int(odd[-1]))
+
+
+def _accumulate(acc: np.ndarray, load_hat: np.ndarray, real: np.ndarray, phase: complex, first: bool) -> None:
+    """acc (+)= phase * load_hat * real, in row blocks so the temporary stays small."""
+    if first:
+        np.multiply(load_hat, real, out=acc)
+        if phase != 1:
+            np.multiply(acc, phase, out=acc)  # exact: phase is +-1 or +-i
+        return
+    rows = max(1, _ROW_BLOCK // max(1, acc.shape[-1])) if acc.ndim == 2 else acc.shape[0]
+    for i in range(0, acc.shape[0], rows):
+        block = load_hat[i:i + rows] * real[i:i + rows]
+        if phase != 1:
+            block *= phase
+        acc[i:i + rows] += block
+
+
+def _add_kernel_product(acc: np.ndarray, load_hat: np.ndarray, real: np.ndarray,
+                        start: tuple[int, ...], odd: Sequence[bool], first: bool) -> None:
+    """acc (+)= kernel spectrum * load spectrum, the kernel given by R and its phase.
+
+    Frequencies outside R (0 and M/2 along an odd axis) carry no kernel: zeroed when
+    ``first``. In 2-D the rfft layout holds all ky: rows ky > My/2 are the reflection
+    -ky = My - ky of R's rows, where an odd-in-y kernel flips sign.
+    """
+    phase = (-1j) ** sum(odd)
+    c0 = start[-1]
+    cols = slice(c0, c0 + real.shape[-1])
+    if acc.ndim == 1:
+        if first and c0:
+            acc[[0, -1]] = 0.0
+        _accumulate(acc[cols], load_hat[cols], real, phase, first)
+        return
+    r0 = start[0]
+    half = acc.shape[0] // 2 + 1  # My/2 + 1 rows: ky = 0..My/2 (My is even)
+    if first and c0:
+        acc[:, [0, -1]] = 0.0
+    if first and r0:
+        acc[[0, half - 1], :] = 0.0
+    top = slice(r0, r0 + real.shape[0])
+    _accumulate(acc[top, cols], load_hat[top, cols], real, phase, first)
+    mirrored = real[half - 2 - r0::-1][:acc.shape[0] - half]  # R at j = My - ky, ky >= My/2 + 1
+    _accumulate(acc[half:, cols], load_hat[half:, cols], mirrored, -phase if odd[0] else phase, first)
+
+
+def _load_spectrum(values: np.ndarray, padded: tuple[int, ...], workers) -> np.ndarray:
+    """rfft of the zero-padded load; in 2-D the x transforms run on the loaded rows only."""
+    spectrum = sfft.rfft(values, n=padded[-1], axis=-1, workers=workers)
+    if values.ndim == 2:
+        spectrum = sfft.fft(spectrum, n=padded[0], axis=0, workers=workers, overwrite_x=True)
+    return spectrum
+
+
+def _inverse_crop(acc: np.ndarray, padded: tuple[int, ...], shape: tuple[int, ...], workers) -> np.ndarray:
+    """Inverse rfft of ``acc`` cropped to the load grid; overwrites ``acc`` (rebuilt each time).
+
+    In 2-D the y transform runs in place and the x transforms only on the rows kept.
+    """
+    if acc.ndim == 2:
+        columns = sfft.ifft(acc, axis=0, workers=workers, overwrite_x=True)
+        return sfft.irfft(columns[:shape[0]], n=padded[-1], axis=-1, workers=workers)[:, :shape[1]]
+    return sfft.irfft(acc, n=padded[-1], workers=workers)[:shape[0]]
 
 
 def dcfft_stress(load: SurfaceLoad, depths: Sequence[float], nu: float = 0.5,
@@ -146,6 +249,9 @@ def dcfft_stress(load: SurfaceLoad, depths: Sequence[float], nu: float = 0.5,
     -----
     Accuracy against the continuous load is :func:`dcfft_error_estimate`; against the sum of
     point forces over the nodes it is exact to rounding (about 1e-15 relative in float64).
+    The kernel's spectrum comes from real cosine/sine transforms of its quadrant of
+    non-negative offsets (the kernel is even or odd in x and in y), the load spectra from one
+    real FFT each, computed once for all depths and components.
     """
     if not isinstance(load, SurfaceLoad):
         raise ValueError(f"load: expected a SurfaceLoad, got {type(load).__name__}; build one with SurfaceLoad(p=..., spacing=...)")
@@ -159,31 +265,31 @@ def dcfft_stress(load: SurfaceLoad, depths: Sequence[float], nu: float = 0.5,
     if not arrays:
         return out
     padded = padded_shape(shape)
-    axes = tuple(range(-len(shape), 0))
     # Load spectra: once per non-zero load component, reused for every depth and component.
-    spectra = {_LOAD_DIRECTION[name]: sfft.rfftn(a.astype(dtype), s=padded, axes=axes, workers=workers)
+    spectra = {_LOAD_DIRECTION[name]: _load_spectrum(a.astype(dtype), padded, workers)
                for name, a in arrays.items()}
     pairs = active_pairs(components, list(spectra), load.ndim)
-    buf = np.zeros(padded, dtype=dtype)  # kernel samples; the zero padding stays zero
-    acc = np.empty(next(iter(spectra.values())).shape, dtype=np.result_type(dtype, np.complex64))
-    crop = tuple(slice(n - 1, 2 * n - 1) for n in shape)
+    spectrum_shape = next(iter(spectra.values())).shape
+    # Reused real buffers: the kernel quadrant (zero-padded along x) and, in 2-D, the
+    # zero-padded rows for the y transform.
+    quad = np.zeros(shape[:-1] + (padded[-1] // 2 + 1,), dtype=dtype)
+    rows = np.zeros((padded[0] // 2 + 1, padded[1] // 2 + 1), dtype=dtype) if load.ndim == 2 else None
+    acc = np.empty(spectrum_shape, dtype=np.result_type(dtype, np.complex64))
+    axis_names = ("y", "x") if load.ndim == 2 else ("x",)
+    area = load.cell_area
     for d, depth in enumerate(depth_values):
+        geometry = _quadrant_geometry(shape, load.spacing, float(depth))
         for c, comp in enumerate(components):
             directions = [direction for cc, direction in pairs if cc == comp]
             for k, direction in enumerate(directions):
-                _sample_kernel(buf, comp, direction, float(depth), load.spacing, shape, nu)
-                kernel_hat = sfft.rfftn(buf, axes=axes, workers=workers)
-                if k == 0:
-                    np.multiply(kernel_hat, spectra[direction], out=acc)
-                else:
-                    kernel_hat *= spectra[direction]
-                    acc += kernel_hat
-                del kernel_hat
+                _sample_quadrant(quad, geometry, comp, direction, area, nu)
+                odd = [_is_odd(comp, direction, name) for name in axis_names]
+                real, start = _symmetric_spectrum(quad, odd, rows, shape[0], workers)
+                _add_kernel_product(acc, spectra[direction], real, start, odd, k == 0)
+                del real
             if directions:
-                # acc is rebuilt from scratch next time, so the inverse may overwrite it.
-                field = sfft.irfftn(acc, s=padded, axes=axes, workers=workers, overwrite_x=True)
-                out[d, c] = field[crop]
-                del field
+                out[d, c] = _inverse_crop(acc, padded, shape, workers)
+        del geometry
     return out
 
 

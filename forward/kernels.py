@@ -21,8 +21,9 @@ Limits (documented, and tested):
 * On the surface away from the force (z = 0, R > 0) the formulas are finite and
   traction-free (``sigma_zz = sigma_zx = sigma_yz = 0``); at the force itself (R = 0) the stress
   is singular and the functions raise ``ValueError``.
-* Far away, values decay like 1/R**2 (point) or 1/r (line) without overflow: distances are
-  formed with ``hypot`` and the formulas never raise a coordinate to a power above 1.
+* Far away, values decay like 1/R**2 (point) or 1/r (line) without overflow: distances fall
+  back to ``hypot`` when squares would overflow, and the formulas only ever raise direction
+  cosines (bounded by 1) to powers. The stress overflows only within R < 1e-154 m of the force.
 """
 
 from __future__ import annotations
@@ -103,12 +104,21 @@ def _check_force(name: str, value) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- point forces
+def _radius(*coords):
+    """Euclidean norm; sqrt of squares (fast) unless they under- or overflow, then hypot."""
+    with np.errstate(over="ignore", under="ignore"):
+        radius = np.sqrt(sum(c * c for c in coords))
+    if not np.all((radius > 1e-150) & (radius < 1e150)):
+        radius = coords[0]
+        for c in coords[1:]:
+            radius = np.hypot(radius, c)
+    return radius
+
+
 def _point_geometry(x, y, z):
     """Direction cosines and 1/(2 pi R^2); R = 0 must be excluded by the caller."""
-    radius = np.hypot(np.hypot(x, y), z)
-    l, m, n = x / radius, y / radius, z / radius
-    g = 1.0 / (2.0 * np.pi * radius) / radius  # two steps: no overflow of R**2 far away
-    return l, m, n, g
+    inv = 1.0 / _radius(x, y, z)
+    return x * inv, y * inv, z * inv, (0.5 / np.pi) * inv * inv
 
 
 def _boussinesq(comp: str, l, m, n, g, nu: float):
@@ -245,8 +255,8 @@ def point_load_stress(x, y, z, fx=0.0, fy=0.0, fz=0.0, nu: float = 0.5) -> np.nd
 
 # ----------------------------------------------------------------------------- line forces
 def _line_geometry(x, z):
-    radius = np.hypot(x, z)
-    return x / radius, z / radius, 1.0 / (np.pi * radius)
+    inv = 1.0 / _radius(x, z)
+    return x * inv, z * inv, inv / np.pi
 
 
 def _line_unit(comp: str, direction: str, l, n, g, nu: float):
