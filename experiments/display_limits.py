@@ -34,17 +34,18 @@ def resolve_command(description, command: str | None = None) -> str:
     return command
 
 
-def limits(description, command: str | None = None, frame_rate_hz: float | None = None) -> dict:
+def limits(description, command: str | None = None) -> dict:
     """Per-tractor limits of a display, arrays of shape (n_tractors,).
 
     Returns a dict with ``amplitude`` (full scale, Pa or m), ``step`` (largest change per frame
-    at ``frame_rate_hz``, default the description's rate; ``inf`` without a slew limit),
+    at the display's own refresh rate ``description.frame_rate_hz``, whatever rate a block is
+    played at, so slower blocks are limited at least as tightly; ``inf`` without a slew limit),
     ``duty`` (largest fraction of non-zero frames in one block), ``unit`` and ``command``.
     """
     command = resolve_command(description, command)
     n = int(description.n_tractors)
     full = float(description.full_scale(command))
-    rate = float(frame_rate_hz if frame_rate_hz is not None else description.frame_rate_hz)
+    rate = float(description.frame_rate_hz)
     slew = description.max_slew_rate_per_s
     step = np.inf if slew is None else float(slew) * full / rate
     return {
@@ -63,12 +64,19 @@ def check_frames(frames, frame_rate_hz, description, *, name: str = "frames") ->
     ------
     ValueError
         If ``frames`` is not a finite 2-D array with one column per tractor and at least one
-        row, or ``frame_rate_hz`` is not a finite positive number.
+        row, or ``frame_rate_hz`` is not a finite positive number no higher than the display's
+        refresh rate ``description.frame_rate_hz``.
     """
     rate = float(frame_rate_hz) if not isinstance(frame_rate_hz, bool) else math.nan
     if not (math.isfinite(rate) and rate > 0):
         raise ValueError(
             f"frame_rate_hz: must be a finite number > 0 Hz, got {frame_rate_hz!r}; give e.g. 1000.0"
+        )
+    if rate > float(description.frame_rate_hz) * (1 + 1e-12):
+        raise ValueError(
+            f"frame_rate_hz: {rate!r} Hz exceeds the refresh rate of display "
+            f"{description.display_id!r}, {description.frame_rate_hz!r} Hz (it could not apply the "
+            "frames); render the stimulus at that rate or lower"
         )
     array = np.array(frames, dtype=float)
     n = int(description.n_tractors)
@@ -97,8 +105,9 @@ def limit_violations(frames, frame_rate_hz: float, description, *, command: str 
     frames : array_like, shape (n_frames, n_tractors)
         Commanded values (Pa or m, per ``command``).
     frame_rate_hz : float
-        Frame rate, Hz; the slew limit per frame is ``max_slew_rate_per_s * full_scale /
-        frame_rate_hz``.
+        Frame rate of the block, Hz (at most the display's). The slew limit per frame is
+        ``max_slew_rate_per_s * full_scale / description.frame_rate_hz``, as in
+        ``DisplayDescription.check_commands``.
     description : DisplayDescription
         The display and its limits.
     command : {"traction", "deflection"}, optional
@@ -117,7 +126,7 @@ def limit_violations(frames, frame_rate_hz: float, description, *, command: str 
         and ``limit``. Empty when the block is within limits.
     """
     array, rate = check_frames(frames, frame_rate_hz, description)
-    lim = limits(description, command, rate)
+    lim = limits(description, command)
     start = np.zeros(array.shape[1]) if initial is None else np.asarray(initial, dtype=float)
     slack = tolerance * lim["amplitude"]
     out = []

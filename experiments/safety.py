@@ -5,7 +5,8 @@ Every block of frames it is given is *limited* before the wrapped display ever s
 
 1. **amplitude**: ``|command| <= full scale`` (``max_traction_pa`` or ``max_deflection_m``);
 2. **slew rate**: ``|command[k] - command[k-1]| <= max_slew_rate_per_s * full_scale /
-   frame_rate_hz``, starting from rest (a block starts at zero);
+   description.frame_rate_hz`` (the display's refresh rate; a block may be played at that rate
+   or slower), starting from rest (a block starts at zero);
 3. **rest at the end**: the block ends at zero (the last frame is 0, reached within the slew
    limit), so the display is at rest between blocks;
 4. **duty**: at most ``floor(max_duty_cycle * n_frames)`` frames of a block are non-zero per
@@ -89,8 +90,8 @@ def limit_drive(frames: np.ndarray, frame_rate_hz: float, description, command: 
         ``tractors`` (those limited), ``requested`` and ``applied`` (at the worst sample),
         ``limit``, ``unit``.
     """
-    requested, rate = check_frames(frames, frame_rate_hz, description)
-    lim = limits(description, command, rate)
+    requested, _ = check_frames(frames, frame_rate_hz, description)
+    lim = limits(description, command)
     n_frames, n_tractors = requested.shape
     full, step = lim["amplitude"], lim["step"]
     # Internal limits sit a margin inside the true ones (see MARGIN).
@@ -126,7 +127,7 @@ def limit_drive(frames: np.ndarray, frame_rate_hz: float, description, command: 
         ideal = c
         on_count += c != 0
         applied[k] = c.astype(np.float32)
-    limit = {"amplitude_clip": full, "slew_limit": step * rate,
+    limit = {"amplitude_clip": full, "slew_limit": step * float(description.frame_rate_hz),
              "end_at_rest": np.zeros(n_tractors), "duty_limit": np.full(n_tractors, lim["duty"])}
     unit = {"amplitude_clip": lim["unit"], "slew_limit": lim["unit"] + "/s",
             "end_at_rest": lim["unit"], "duty_limit": "fraction of frames"}

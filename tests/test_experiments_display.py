@@ -164,6 +164,8 @@ def test_command_without_a_limit_is_rejected():
     (np.full((4, 10), np.nan), 1000.0, "frames: must be finite, got nan at frame 0, tractor 0"),
     (np.zeros((4, 10)), 0.0, "frame_rate_hz: must be a finite number > 0"),
     (np.zeros((4, 10)), True, "frame_rate_hz: must be a finite number > 0"),
+    (np.zeros((4, 10)), 2000.0, "frame_rate_hz: 2000.0 Hz exceeds the refresh rate of display "
+                                "'VirtualBrailleRow', 1000.0 Hz"),
 ])
 def test_check_frames_rejects(frames, rate, match):
     with pytest.raises(ValueError, match=match):
@@ -172,7 +174,7 @@ def test_check_frames_rejects(frames, rate, match):
 
 def test_limit_violations_finds_each_kind():
     desc = DisplayDescription.braille_row(max_duty_cycle=0.5, max_slew_rate_per_s=100.0)
-    lim = limits(desc, frame_rate_hz=1000.0)
+    lim = limits(desc)
     assert lim["step"][0] == pytest.approx(0.1 * desc.max_traction_pa)
     frames = np.zeros((10, 10))
     frames[1:9, 0] = 0.5 * lim["step"][0]  # within amplitude and slew, but on in 8 of 10 frames
