@@ -202,7 +202,8 @@ class SafeDisplay(Display):
         finally:
             self._zeroing = False
             event = {"kind": kind, "tractor": None, "frame": frame, "requested": None,
-                     "applied": 0.0, "limit": None, "unit": self.display.command, "n_frames": 0}
+                     "applied": 0.0, "limit": None, "unit": "m" if self.display.command == "deflection" else "Pa",
+                     "n_frames": 0}
             if detail:
                 event["detail"] = detail
             self._emit(event)
@@ -214,8 +215,8 @@ class SafeDisplay(Display):
         Raises
         ------
         ValueError
-            If the frames are not a finite (n_frames, n_tractors) block or the rate is not
-            positive; the display is zeroed first.
+            If the frames are not a finite (n_frames, n_tractors) block, or the rate is not
+            positive or exceeds the display's refresh rate; the display is zeroed first.
         """
         self._n_interventions = 0
         try:
