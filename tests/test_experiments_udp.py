@@ -381,3 +381,10 @@ def test_documented_example_bytes_match_the_encoder():
     block = doc.split("FRAME, seq 5, timestamp 1 000 000 ns")[1].split("```")[1]
     hex_bytes = " ".join(line.split("   ")[0].strip() for line in block.strip().splitlines())
     assert bytes.fromhex(hex_bytes) == encode(FRAME, 5, 1_000_000, [1.5, -2.0])
+
+
+def test_emulator_can_only_listen_on_loopback():
+    import inspect
+
+    assert LOOPBACK == "127.0.0.1"
+    assert not {"host", "address", "bind"} & set(inspect.signature(emulate).parameters)
