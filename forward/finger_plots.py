@@ -135,13 +135,17 @@ def plot_time_series(recording: Recording, path, *, max_lines: int = 8, position
     for c, comp in enumerate(recording.components):
         values = recording.values[:, :, c] * scale
         for k in chosen:
-            axes[0, c].plot(t, values[:, k], lw=1, label=recording.sensor_ids[k])
-        axes[0, c].set(title=f"{recording.quantity} {comp} ({unit})", xlabel="time (s)", ylabel=f"{comp} ({unit})")
+            # the texture's signal rides on a large static contact stress: show the change
+            axes[0, c].plot(t, values[:, k] - np.median(values[:, k]), lw=1,
+                            label=f"{recording.sensor_ids[k]} ({np.median(values[:, k]):.3g})")
+        axes[0, c].set(title=f"{recording.quantity} {comp} minus its median (in legend) ({unit})",
+                       xlabel="time (s)", ylabel=f"{comp} change ({unit})")
         axes[0, c].legend(fontsize=7, ncol=2)
-        lim = np.abs(values - values.mean(axis=0)).max() or 1.0
-        im = axes[1, c].imshow((values - values.mean(axis=0)).T, aspect="auto", origin="lower", cmap="RdBu_r",
+        change = values - np.median(values, axis=0)
+        lim = np.abs(change).max() or 1.0
+        im = axes[1, c].imshow(change.T, aspect="auto", origin="lower", cmap="RdBu_r",
                                vmin=-lim, vmax=lim, extent=[t[0], t[-1], -0.5, recording.n_sensors - 0.5])
-        axes[1, c].set(title=f"{comp} minus its time mean, all sensors ({unit})", xlabel="time (s)",
+        axes[1, c].set(title=f"{comp} minus its median, all sensors ({unit})", xlabel="time (s)",
                        ylabel="sensor index")
         fig.colorbar(im, ax=axes[1, c])
         if positions is not None:

@@ -226,3 +226,34 @@ def test_bad_input_raises():
         kernel_identification(f, rng, bit_length=f.spacing, record_lengths=(4,))
     with pytest.raises(ValueError, match="variations: unknown parameter 'mass'"):
         shape_invariance(variations={"mass": (1.0,)})
+
+
+def test_scan_maps_fft_equals_matrix_scan_and_strip_path():
+    """Batched DC-FFT maps (kernel FFT once) read at on-node sensors equal the matrix scan; the
+    world-strip path (frame step = whole grid spacings) equals the per-frame surface evaluation."""
+    from tactilab.forward.scan_maps import ScanMaps
+
+    h = 0.1e-3
+    sensors = SensorArray(positions_m=[[0.0, 0.0], [0.5e-3, -0.3e-3], [-1.2e-3, 0.8e-3]], depth_m=2e-3,
+                          components=("zz", "zx"))
+    f = BiomimeticFinger(HertzContact(0.8), sensors, friction=0.4, adhesion=0.3, grid_spacing=h)
+    surface = Surface(length=20e-3, width=20e-3, x_start=-10e-3,
+                      features=(Bump(0.3e-3, 0.2e-3, 0.8e-3, 1e-5), Bump(-1e-3, -0.5e-3, 1.2e-3, -5e-6)))
+    u = np.arange(-30, 31, 3) * h  # on the grid: strip path
+    ref = scan_outputs(f, surface, u)
+    sm = ScanMaps(f)
+    fft = sm.sensor_values(sm.maps(surface, u, reference_height_m=1e-5))
+    np.testing.assert_allclose(fft, ref, atol=1e-9 * np.abs(ref).max())
+    off = scan_outputs(f, surface, u + 1e-5 * h)  # off the grid: per-frame evaluation
+    np.testing.assert_allclose(off, ref, atol=1e-4 * np.abs(ref).max())
+    with pytest.raises(ValueError, match="finger: expected a BiomimeticFinger"):
+        ScanMaps("finger")
+    with pytest.raises(ValueError, match="positions: need a finite 1-D"):
+        sm.maps(surface, [np.nan])
+    with pytest.raises(ValueError, match="batch: frames per FFT"):
+        sm.maps(surface, [0.0], batch=0)
+    far = BiomimeticFinger(HertzContact(0.8), SensorArray(positions_m=[[9e-3, 0.0]], depth_m=2e-3,
+                                                          components=("zz",)), grid_spacing=h)
+    sm_far = ScanMaps(far)
+    with pytest.raises(ValueError, match="sensors: some sensors lie outside the contact grid"):
+        sm_far.sensor_values(sm_far.maps(surface, [0.0]))

@@ -1,0 +1,114 @@
+"""``tactilab simulate``: scene file -> recording file and plots; user mistakes -> one line, exit 2."""
+
+from __future__ import annotations
+
+import importlib.util
+import pathlib
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from tactilab.cli.main import main
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+SCENE = """
+name = "tiny"
+description = "small finger scan for the CLI test"
+[material]
+young_modulus = "2MPa"
+[surface]
+kind = "defect"
+shape = "bump"
+size = "0.6mm"
+height = "20um"
+position = ["0mm", "0.5mm"]
+[contact]
+normal_force = "0.8N"
+finger_radius = "100mm"
+friction_coefficient = 0.5
+[sensors]
+quantity = "{quantity}"
+components = ["zz", "zx"]
+depth = "3mm"
+noise_std = {noise}
+[sensors.grid]
+nx = 3
+ny = 2
+spacing_x = "1mm"
+[scan]
+speed = "{speed}"
+duration = "0.1s"
+sampling_rate = "500Hz"
+start_position = "-2mm"
+"""
+
+
+def _scene(tmp_path, speed="20mm/s", quantity="stress", noise="1.0", defect_x="0mm"):
+    path = tmp_path / "scene.toml"
+    path.write_text(SCENE.format(speed=speed, quantity=quantity, noise=noise).replace(
+        'position = ["0mm"', f'position = ["{defect_x}"'))
+    return path
+
+
+def test_simulate_writes_netcdf_and_plots(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["simulate", str(_scene(tmp_path)), "--out", str(out), "--quiet", "--seed", "3"]) == 0
+    text = capsys.readouterr().out
+    assert "Hertz contact a = 2.82 mm" in text and "recording:" in text
+    ds = xr.open_dataset(out / "recording.nc", engine="h5netcdf")
+    assert ds["values"].shape == (50, 6, 2) and ds.attrs["unit"] == "Pa"
+    assert np.all(np.isfinite(ds["values"].values))
+    np.testing.assert_allclose(np.diff(ds["contact_x"].values), 20e-3 / 500)
+    ds.close()
+    for name in ("field_maps.png", "receptive_fields.png", "time_series.png"):
+        assert (out / name).stat().st_size > 10_000
+
+
+@pytest.mark.skipif(importlib.util.find_spec("pyarrow") is None, reason="Parquet needs the optional pyarrow")
+def test_simulate_parquet_strain(tmp_path):
+    import pandas as pd
+
+    out = tmp_path / "pq"
+    scene = _scene(tmp_path, quantity="strain", noise="0.0")
+    assert main(["simulate", str(scene), "--out", str(out), "--quiet", "--format", "parquet", "--no-plots",
+                 "--grid-spacing", "100um"]) == 0
+    df = pd.read_parquet(out / "recording.parquet")
+    assert len(df) == 50 * 6 * 2 and set(df["component"]) == {"zz", "zx"}
+    assert df["value"].abs().max() < 0.1  # strain, dimensionless
+
+
+def test_example_scene_runs(tmp_path):
+    out = tmp_path / "ex"
+    assert main(["simulate", str(ROOT / "examples" / "biomimetic_finger_defect.toml"), "--out", str(out),
+                 "--quiet", "--no-plots", "--grid-spacing", "0.2mm"]) == 0
+    assert (out / "recording.nc").exists()
+
+
+def test_simulate_user_mistakes_exit_2(tmp_path, capsys):
+    assert main(["simulate", str(_scene(tmp_path, speed="0mm/s")), "--out", str(tmp_path / "a"), "--quiet"]) == 2
+    assert "speed: a scan time series needs a finger speed > 0" in capsys.readouterr().err
+    assert main(["simulate", str(_scene(tmp_path, defect_x="40mm")), "--out", str(tmp_path / "b"), "--quiet"]) == 2
+    assert "outside the surface" in capsys.readouterr().err
+    assert main(["simulate", str(_scene(tmp_path)), "--grid-spacing=-1mm", "--quiet"]) == 2
+    assert "--grid-spacing: must be > 0" in capsys.readouterr().err
+    assert main(["simulate", str(_scene(tmp_path)), "--grid-spacing", "1kPa", "--quiet"]) == 2
+    assert "--grid-spacing" in capsys.readouterr().err
+    display = ROOT / "data_schemas" / "examples" / "tractor_display.toml"
+    assert main(["simulate", str(display), "--out", str(tmp_path / "c"), "--quiet"]) == 2
+    assert "scene.display: this scene drives the skin with a tractor display" in capsys.readouterr().err
+    assert main(["simulate", str(tmp_path / "missing.toml"), "--quiet"]) == 2
+
+
+def test_write_recording_rejects_unknown_format(tmp_path):
+    from tactilab.data_schemas.recording import Recording
+    from tactilab.forward.scene_simulation import simulate_scene, write_recording
+
+    rec = Recording(values=np.zeros((2, 1, 1)), sampling_rate_hz=10.0, sensor_ids=("s0",), components=("zz",))
+    with pytest.raises(ValueError, match="format: must be one of"):
+        write_recording(rec, tmp_path, "csv")
+    from tactilab.data_schemas.files import load_scene
+
+    with pytest.raises(ValueError, match="format: must be one of"):
+        simulate_scene(load_scene(_scene(tmp_path)), tmp_path, fmt="xlsx")
