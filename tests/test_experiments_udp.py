@@ -259,6 +259,7 @@ def test_host_killed_mid_stimulus_emulator_zeroes_within_its_watchdog(tmp_path):
     try:
         assert host.stdout.readline().strip() == "playing"
         while read_record(record)["n_frames"] < 200:  # mid-stimulus: the drive is non-zero now
+            assert host.poll() is None, "the host ended before streaming 200 frames"
             time.sleep(0.02)
         os.kill(host.pid, signal.SIGKILL)
         host.wait(timeout=30)
@@ -293,6 +294,7 @@ def thread_emulator(tmp_path):
         handle_signals=False)))
     thread.start()
     while not logs:
+        assert thread.is_alive(), "the emulator thread ended before listening"
         time.sleep(0.005)
     port = int(logs[0].split(":")[2].split()[0])
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
