@@ -128,5 +128,5 @@ def test_an_absurd_amplitude_is_limited_and_every_intervention_logged(emulator, 
     assert 0 < peak <= DESCRIPTION.max_traction_pa  # the slew and duty limits bind before full scale
     log = SessionLog(tmp_path / "s.sqlite")
     kinds = {e["payload"]["kind"] for e in log.events("safety_intervention")}
-    assert {"amplitude", "slew", "duty"} <= kinds, kinds
+    assert {"amplitude_clip", "slew_limit", "duty_limit"} <= kinds, kinds
     assert all(t.safety_interventions > 0 for t in log.trials())
