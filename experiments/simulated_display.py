@@ -7,6 +7,10 @@ Flamant tangential loads, uniform over each tractor's contact width, on an incom
 half-space (nu = 1/2); the line load is the commanded traction times that width. Rows are independent
 plane problems (a row's strain is evaluated under that row). Strains use the TENSOR shear
 ``eps_xz`` (engineering ``gamma_zx = 2 eps_xz``); ``eps_zz = -eps_xx``.
+
+For 2-D arrays of short tractors, :meth:`SimulatedDisplay.strain_3d` gives the full 3-D answer:
+each tractor a rectangular patch of uniform traction on a half-space, the Cerruti point-force
+solution integrated over it (:func:`tactilab.forward.tractor_display.display_patch_strain_3d`).
 """
 
 from __future__ import annotations
@@ -17,6 +21,8 @@ import time
 import numpy as np
 
 from .display import DEFAULT_DEPTH_M, DEFAULT_YOUNG_MODULUS_PA, Display, PlaybackReport
+from tactilab.forward.tractor_display import display_patch_strain_3d
+
 from .display_strain import row_strain
 
 __all__ = ["SimulatedDisplay"]
@@ -148,3 +154,28 @@ class SimulatedDisplay(Display):
         q = self.line_loads(frames)
         return row_strain(self.x_m, self.description.tractor_x_m, q, self.depth_m,
                           self.young_modulus_pa, self.description.tractor_width_m)
+
+    def strain_3d(self, frames=None, points_m=None) -> np.ndarray:
+        """Strain in the 3-D half-space under the tractor patches (Cerruti, nu = 1/2).
+
+        Parameters
+        ----------
+        frames : ndarray, shape (n_frames, n_tractors), optional
+            Default: the frames played last.
+        points_m : ndarray, shape (n_points, 3), optional
+            Points (x, y, z) in m, z > 0. Default: ``x_m`` under each row's centre line at
+            ``depth_m``, row by row (``rows * len(x_m)`` points).
+
+        Returns
+        -------
+        ndarray, shape (n_frames, n_points, 6)
+            Voigt strain (xx, yy, zz, yz, zx, xy) with TENSOR shear.
+        """
+        if points_m is None:
+            x, y = np.meshgrid(self.x_m, self.description.tractor_y_m)
+            points_m = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, self.depth_m)])
+        f = self.played if frames is None else np.asarray(frames, dtype=float)
+        traction = f if self.command == "traction" else f * self.tractor_stiffness_pa_per_m
+        rows, columns = self.description.rows, self.description.columns
+        return display_patch_strain_3d(self.description, points_m, traction.reshape(-1, rows, columns),
+                                       self.young_modulus_pa, 0.5)

@@ -273,3 +273,17 @@ def test_with_block_zeroes_and_closes():
         display.load(np.zeros((2, 10)), 1000.0)
         display.play()
     assert display.zeroed == 1 and closed == [True]
+
+
+def test_3d_patches_of_long_tractors_approach_the_plane_model():
+    """Two independent models: Cerruti patches integrated in 3-D (forward.tractor_display) and
+    the plane-strain strip closed form agree under long tractors (40 mm >> Z = 0.5 mm)."""
+    desc = DisplayDescription.braille_row(n_tractors=4, tractor_length_m=40e-3)
+    sim = SimulatedDisplay(desc, depth_m=0.5e-3, young_modulus_pa=2e5)
+    frames = np.array([[1e3, -2e3, 5e2, 3e3]])
+    voigt = sim.strain_3d(frames)
+    eps_xx, eps_xz = sim.strain(frames)
+    assert voigt.shape == (1, sim.x_m.size, 6)
+    np.testing.assert_allclose(voigt[0, :, 0], eps_xx[0, 0], atol=0.01 * np.abs(eps_xx).max())
+    np.testing.assert_allclose(voigt[0, :, 4], eps_xz[0, 0], atol=1e-3 * np.abs(eps_xz).max())
+    np.testing.assert_allclose(voigt[0, :, 2], -eps_xx[0, 0], atol=0.02 * np.abs(eps_xx).max())  # nu = 1/2
