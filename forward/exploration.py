@@ -201,11 +201,12 @@ VARIATIONS = dict(normal_force=(0.5, 1.0), depth=(2.5e-3, 3.5e-3), y_offset=(0.5
 """Tested values per parameter (SI); speeds in m/s, positions in m."""
 
 
-def _defect_response(params: dict, u: np.ndarray, sampling_rate: float = 1000.0) -> np.ndarray:
+def _defect_response(params: dict, u: np.ndarray, component: str = "zz",
+                     sampling_rate: float = 1000.0) -> tuple[np.ndarray, float]:
     contact = HertzContact(params["normal_force"], params["finger_radius"], params["young_modulus"],
                            params["poisson_ratio"])
     sensors = SensorArray(positions_m=[[params["sensor_x"], params["y_offset"]]], depth_m=params["depth"],
-                          components=("zz",))
+                          components=(component,))
     finger = BiomimeticFinger(contact, sensors, friction=params["friction"])
     # sample the scan in time (speed v, rate fs), then express it against finger position u = v t
     t = np.arange(0, (u[-1] - u[0]) / params["speed"] + 0.5 / sampling_rate, 1.0 / sampling_rate)
@@ -220,11 +221,12 @@ def _corr(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def shape_invariance(baseline: dict | None = None, variations: dict | None = None, *,
-                     window: float = 8e-3, n: int = 801) -> pd.DataFrame:
+                     component: str = "zz", window: float = 8e-3, n: int = 801) -> pd.DataFrame:
     """Normalised correlation between a sensor's defect response at baseline and with one
     exploration parameter changed.
 
-    The response is the receptive field (physics.md 4b) of one sigma_zz sensor for a point defect
+    The response is the receptive field (physics.md 4b) of one stress sensor (``component``,
+    ``"zz"`` or ``"zx"``; Pa) for a point defect
     at the origin, against finger position u in [-window, window] (m). ``corr_position`` compares
     the two curves against u; ``corr_contact_scaled`` against u / a (a = contact radius), the frame
     in which a contact that grows or shrinks would keep its shape. ``gain`` is the ratio of peak
@@ -237,20 +239,22 @@ def shape_invariance(baseline: dict | None = None, variations: dict | None = Non
     """
     base = dict(BASELINE if baseline is None else baseline)
     vary = dict(VARIATIONS if variations is None else variations)
+    if component not in ("zz", "zx"):
+        raise ValueError(f"component: the study reads a 'zz' or 'zx' stress sensor, got {component!r}")
     for key in vary:
         if key not in BASELINE:
             raise ValueError(f"variations: unknown parameter {key!r}; use one of {sorted(BASELINE)}")
     u = np.linspace(-window, window, int(n))
-    ref, a_ref = _defect_response(base, u)
+    ref, a_ref = _defect_response(base, u, component)
     s = np.linspace(-window / a_ref, window / a_ref, int(n))
     ref_s = np.interp(s * a_ref, u, ref)
     rows = []
     for key, values in vary.items():
         for value in values:
             params = dict(base, **{key: value})
-            resp, a = _defect_response(params, u)
-            resp_s = _defect_response(params, s * a)[0]
-            rows.append(dict(parameter=key, baseline=base[key], value=value,
+            resp, a = _defect_response(params, u, component)
+            resp_s = _defect_response(params, s * a, component)[0]
+            rows.append(dict(parameter=key, component=component, baseline=base[key], value=value,
                              corr_position=_corr(ref, resp), corr_contact_scaled=_corr(ref_s, resp_s),
                              gain=float(np.abs(resp).max() / np.abs(ref).max())))
     return pd.DataFrame(rows)

@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .spectral import pressure_from_deflection
+
 
 def _pos(value, name: str, unit: str = "m") -> float:
     value = float(value)
@@ -338,9 +340,6 @@ def rigid_surface_pressure(heights, spacing, young_modulus: float, poisson_ratio
         raise ValueError(f"spacing: need {h.ndim} value(s) in m for heights of shape {h.shape}, got {spacing!r}")
     for v in sp:
         _pos(v, "spacing")
-    k = [2 * math.pi * np.fft.fftfreq(n, d) for n, d in zip(h.shape[::-1], sp)]
-    if h.ndim == 1:
-        rho = np.abs(k[0])
-    else:
-        rho = np.hypot(k[0][None, :], k[1][:, None])
-    return np.real(np.fft.ifftn(E * rho * np.fft.fftn(h) / (2.0 * (1.0 - nu * nu))))
+    # the spectral module owns the transfer function (and its rho = 0 and Nyquist rules)
+    return pressure_from_deflection(h, tuple(float(v) for v in sp) if h.ndim == 2 else float(sp[0]),
+                                    E, nu).p

@@ -27,6 +27,17 @@ def test_rigid_surface_pressure_sinusoid(nu):
                                atol=1e-9 * E * k * A)
 
 
+def test_rigid_surface_pressure_anisotropic_spacing():
+    """A grating along y on a grid with dx != dy: the pressure uses the y wavenumber."""
+    p, A, E = 2e-3, 5e-6, 1e6
+    dx, dy = p / 10, p / 16
+    y = np.arange(32) * dy
+    H = np.broadcast_to((A * np.sin(2 * math.pi * y / p))[:, None], (32, 20))
+    pres = rigid_surface_pressure(H, (dx, dy), E, 0.5)
+    k = 2 * math.pi / p
+    np.testing.assert_allclose(pres, E * k / 1.5 * H, atol=1e-9 * E * k * A)
+
+
 def test_sliding_sinusoid_strain_matches_physics_4a():
     """The pressure of a sliding sinusoid, fed to the sinusoidal-load closed forms (physics.md 3)
     and Hooke's law (nu = 1/2, plane strain), gives the 4a strain, independent of E."""
