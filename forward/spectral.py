@@ -183,6 +183,68 @@ def _coefficients(g: _Geometry, nu: float, P, X, Y, component: str):
     return _combine(g, nu, spectra, row)
 
 
+def _real_coefficients(g: _Geometry, nu: float, spectra: dict, row: np.ndarray) -> dict:
+    """{(load, kind): [a0, a1]}: real coefficient arrays (or scalars) of one output row.
+
+    Each load's contribution to a stress component is either real (even in the wavenumber)
+    or imaginary (odd) in both E0 and E1, so its multiplier at depth z,
+    a0 e^{-rho z} + a1 rho z e^{-rho z}, is formed with real arithmetic.
+    """
+    nonzero = np.flatnonzero(row)
+    coefs: dict = {}
+    for j in nonzero:
+        for which, name, kind, coef in _table(g, nu, VOIGT[j]):
+            if name not in spectra:
+                continue
+            pair = coefs.setdefault((name, kind), [0.0, 0.0])
+            scaled = coef if row[j] == 1.0 else row[j] * coef  # unit rows reuse the cached table
+            pair[which] = scaled if np.ndim(pair[which]) == 0 and pair[which] == 0.0 else pair[which] + scaled
+    return coefs
+
+
+class _Buffers:
+    """Preallocated work arrays: fresh large temporaries cost page faults on every call."""
+
+    def __init__(self, shape, dtype, cdtype):
+        self.mult = np.empty(shape, dtype)
+        self.tmp = np.empty(shape, dtype)
+        self.acc = {"re": np.empty(shape, cdtype), "im": np.empty(shape, cdtype)}
+        self.term = np.empty(shape, cdtype)
+
+
+def _multiplier(a0, a1, e, rze, buf: _Buffers) -> np.ndarray:
+    """a0 e + a1 rze into buf.mult (a0, a1 arrays or scalars)."""
+    np.multiply(e, a0, out=buf.mult)
+    if np.ndim(a1) or a1 != 0.0:
+        np.multiply(rze, a1, out=buf.tmp)
+        buf.mult += buf.tmp
+    return buf.mult
+
+
+def _apply(coefs: dict, spectra: dict, e: np.ndarray, rze: np.ndarray, buf: _Buffers) -> np.ndarray:
+    """Spectrum of one output at one depth: sum over loads of (real multiplier) x L~."""
+    used = {"re": False, "im": False}
+    for (name, kind), (a0, a1) in coefs.items():
+        mult = _multiplier(a0, a1, e, rze, buf)
+        if used[kind]:
+            np.multiply(spectra[name], mult, out=buf.term)
+            buf.acc[kind] += buf.term
+        else:
+            np.multiply(spectra[name], mult, out=buf.acc[kind])
+            used[kind] = True
+    re, im = buf.acc["re"], buf.acc["im"]
+    if used["im"]:
+        im *= 1j
+        if used["re"]:
+            re += im
+            return re
+        return im
+    if used["re"]:
+        return re
+    re.fill(0)
+    return re
+
+
 def output_coefficients(g: _Geometry, nu: float, spectra: dict, weights: np.ndarray):
     """Yield (E0, E1) for each output row of ``weights`` (n_out, 6) applied to Voigt stress.
 
@@ -258,21 +320,21 @@ def periodic_stress(load: SurfaceLoad, depths: Sequence[float], nu: float,
     out_shape = shape if points is None else (len(points),)
     out = np.empty((len(depths), weights.shape[0], *out_shape), dtype=dtype)
     phases = None if points is None else _point_phases(shape, load.spacing, np.asarray(points, float))
-    decay = []
-    for z in depths:
+    cache = {}
+    buf = _Buffers(g.rho.shape, dtype, cdtype)
+    for d, z in enumerate(depths):
         rz = g.rho * dtype.type(z)
         e = np.exp(-rz)  # underflows to 0 for rho z > ~745: harmless
-        decay.append((e, rz * e))
-    buf = np.empty(g.rho.shape, dtype=cdtype)
-    buf2 = np.empty(g.rho.shape, dtype=cdtype)
-    for o, (e0, e1) in enumerate(output_coefficients(g, nu, spectra, weights)):
-        for d, (e, rze) in enumerate(decay):
-            np.multiply(e0, e, out=buf)
-            buf += np.multiply(e1, rze, out=buf2)
+        rze = rz * e
+        for o, row in enumerate(weights):
+            key = row.tobytes()
+            if key not in cache:
+                cache[key] = _real_coefficients(g, nu, spectra, row)
+            spectrum = _apply(cache[key], spectra, e, rze, buf)
             if phases is None:
-                out[d, o] = sfft.irfftn(buf, s=shape, axes=axes, workers=workers)
+                out[d, o] = sfft.irfftn(spectrum, s=shape, axes=axes, workers=workers)
             else:
-                out[d, o] = _eval_points(buf, phases, int(np.prod(shape)))
+                out[d, o] = _eval_points(spectrum, phases, int(np.prod(shape)))
     return out
 
 
