@@ -1,0 +1,210 @@
+"""Priors for scene parameters and the defect-localisation model (physics.md section 4b).
+
+A small isolated defect at world ``(x0, y0)`` under a Hertz fingertip contact that scans along
++x adds a concentrated load ``S_d (q_x, 0, p)`` (``S_d`` in m^2, the defect's effective area, times
+the local interfacial traction) at the defect. A sensor at finger-frame ``(xs, ys)`` and depth Z
+sees, when the contact centre is at world x = u,
+
+    sigma_c(u) = S_d [ p(x0 - u, y0) g_c^z(xs - (x0 - u), ys - y0, Z)
+                       + mu p(x0 - u, y0) g_c^x(xs - (x0 - u), ys - y0, Z) ]
+
+with ``g`` the Boussinesq (normal) and Cerruti (tangential) point-load Green's functions
+(:func:`tactilab.forward.kernels.point_green`, Pa per N) and ``p`` the Hertz pressure of
+:class:`tactilab.forward.contact.HertzContact`. The tangential traction is ``+mu p`` along +x
+(sign fixed by the sliding direction; negate the signal for the opposite one).
+
+``S_d`` enters linearly: :mod:`tactilab.inversion.mcmc` integrates it out exactly under a
+Gaussian prior. The nonlinear parameters are ``x0, y0`` (m), ``friction`` (mu_d), ``depth`` (m),
+``young_modulus`` (Pa) and ``normal_force`` (N); each is either fixed (a float) or sampled
+(a prior object).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tactilab.forward.kernels import point_green
+
+NONLINEAR = ("x0", "y0", "friction", "depth", "young_modulus", "normal_force")
+
+__all__ = ["Uniform", "Normal", "LogNormal", "DefectScanModel", "NONLINEAR", "check_prior"]
+
+
+@dataclass(frozen=True)
+class Uniform:
+    """Uniform prior on ``[low, high]`` (parameter units)."""
+
+    low: float
+    high: float
+
+    def __post_init__(self):
+        if not (np.isfinite(self.low) and np.isfinite(self.high) and self.high > self.low):
+            raise ValueError(f"Uniform: need finite low < high, got low={self.low!r}, high={self.high!r}")
+
+    def logpdf(self, x):
+        x = np.asarray(x, dtype=float)
+        inside = (x >= self.low) & (x <= self.high)
+        return np.where(inside, -np.log(self.high - self.low), -np.inf)
+
+    def sample(self, rng, size):
+        return rng.uniform(self.low, self.high, size)
+
+    @property
+    def std(self) -> float:
+        return (self.high - self.low) / np.sqrt(12.0)
+
+
+@dataclass(frozen=True)
+class Normal:
+    """Normal prior ``N(mean, sd^2)`` (parameter units)."""
+
+    mean: float
+    sd: float
+
+    def __post_init__(self):
+        if not (np.isfinite(self.mean) and np.isfinite(self.sd) and self.sd > 0):
+            raise ValueError(f"Normal: need a finite mean and sd > 0, got mean={self.mean!r}, sd={self.sd!r}")
+
+    def logpdf(self, x):
+        z = (np.asarray(x, dtype=float) - self.mean) / self.sd
+        return -0.5 * z * z - np.log(self.sd * np.sqrt(2 * np.pi))
+
+    def sample(self, rng, size):
+        return rng.normal(self.mean, self.sd, size)
+
+    @property
+    def std(self) -> float:
+        return self.sd
+
+
+@dataclass(frozen=True)
+class LogNormal:
+    """Log-normal prior: ``log(x) ~ N(log(median), sigma_log^2)``, for positive parameters."""
+
+    median: float
+    sigma_log: float
+
+    def __post_init__(self):
+        if not (np.isfinite(self.median) and self.median > 0 and np.isfinite(self.sigma_log) and self.sigma_log > 0):
+            raise ValueError(f"LogNormal: need median > 0 and sigma_log > 0, got {self.median!r}, {self.sigma_log!r}")
+
+    def logpdf(self, x):
+        x = np.asarray(x, dtype=float)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lx = np.log(np.where(x > 0, x, 1.0))
+            z = (lx - np.log(self.median)) / self.sigma_log
+            val = -0.5 * z * z - lx - np.log(self.sigma_log * np.sqrt(2 * np.pi))
+        return np.where(x > 0, val, -np.inf)
+
+    def sample(self, rng, size):
+        return self.median * np.exp(self.sigma_log * rng.standard_normal(size))
+
+    @property
+    def std(self) -> float:
+        s2 = self.sigma_log**2
+        return float(self.median * np.sqrt((np.exp(s2) - 1) * np.exp(s2)))
+
+
+PRIORS = (Uniform, Normal, LogNormal)
+
+
+def check_prior(name: str, value):
+    """A prior object or a finite float (fixed parameter)."""
+    if isinstance(value, PRIORS):
+        return value
+    if isinstance(value, (int, float, np.floating)) and np.isfinite(value):
+        return float(value)
+    raise ValueError(f"{name}: expected a prior (Uniform, Normal, LogNormal) or a finite fixed value, got {value!r}")
+
+
+class DefectScanModel:
+    """Signal of a point defect scanned under a Hertz contact, per unit defect area.
+
+    Parameters
+    ----------
+    scan_positions : array_like, shape (n_times,)
+        World x of the contact centre at each sample, m.
+    sensors : array_like, shape (n_sensors, 2)
+        Finger-frame sensor positions (x, y), m.
+    components : sequence of str
+        Stress components observed (Voigt names, e.g. ``("zz",)`` or ``("zx", "zz")``).
+    finger_radius : float
+        Fingertip radius of curvature, m.
+    poisson_ratio : float
+        Skin nu in [0, 0.5].
+
+    Notes
+    -----
+    :meth:`design` returns ``g(theta)``, shape ``(n_walkers, n_times * n_sensors * n_components)``
+    in Pa per m^2 of defect area, ordered (time, sensor, component) like a Recording's values.
+    """
+
+    def __init__(self, scan_positions, sensors, components=("zz",), finger_radius: float = 0.01,
+                 poisson_ratio: float = 0.5):
+        u = np.asarray(scan_positions, dtype=float).ravel()
+        if u.size < 1 or not np.all(np.isfinite(u)):
+            raise ValueError(f"scan_positions: need at least one finite position in m, got {scan_positions!r}")
+        s = np.asarray(sensors, dtype=float)
+        if s.ndim != 2 or s.shape[1] != 2 or s.shape[0] < 1 or not np.all(np.isfinite(s)):
+            raise ValueError(f"sensors: expected finite (x, y) positions in m with shape (n_sensors, 2), got shape {s.shape}")
+        comps = tuple(components)
+        valid = ("xx", "yy", "zz", "yz", "zx", "xy")
+        if not comps or any(c not in valid for c in comps):
+            raise ValueError(f"components: expected Voigt names from {valid}, got {components!r}")
+        if not (np.isfinite(finger_radius) and finger_radius > 0):
+            raise ValueError(f"finger_radius: must be > 0 m, got {finger_radius!r}")
+        if not (0.0 <= poisson_ratio <= 0.5):
+            raise ValueError(f"poisson_ratio: must lie in [0, 0.5], got {poisson_ratio!r}")
+        self.scan_positions = u
+        self.sensors = s
+        self.components = comps
+        self.finger_radius = float(finger_radius)
+        self.poisson_ratio = float(poisson_ratio)
+
+    @property
+    def n_data(self) -> int:
+        return self.scan_positions.size * self.sensors.shape[0] * len(self.components)
+
+    @property
+    def data_shape(self) -> tuple[int, int, int]:
+        return (self.scan_positions.size, self.sensors.shape[0], len(self.components))
+
+    def design(self, params: dict) -> np.ndarray:
+        """Signal per unit defect area, vectorised over walkers.
+
+        Parameters
+        ----------
+        params : dict
+            Every name of ``NONLINEAR`` -> ndarray shape (n_walkers,) (or scalar).
+
+        Returns
+        -------
+        ndarray, shape (n_walkers, n_data), Pa per m^2
+        """
+        p = {k: np.atleast_1d(np.asarray(params[k], dtype=float)) for k in NONLINEAR}
+        w = np.broadcast_shapes(*(v.shape for v in p.values()))[0]
+        p = {k: np.broadcast_to(v, (w,))[:, None, None] for k, v in p.items()}
+        nu = self.poisson_ratio
+        e_star = p["young_modulus"] / (1.0 - nu * nu)
+        radius = (3.0 * p["normal_force"] * self.finger_radius / (4.0 * e_star)) ** (1.0 / 3.0)
+        p0 = 3.0 * p["normal_force"] / (2.0 * np.pi * radius * radius)
+        # defect in the finger frame at each time: (x0 - u, y0); shapes (W, T, 1)
+        xd = p["x0"] - self.scan_positions[None, :, None]
+        yd = p["y0"]
+        pressure = p0 * np.sqrt(np.clip(1.0 - (xd * xd + yd * yd) / (radius * radius), 0.0, None))
+        dx = self.sensors[None, None, :, 0] - xd
+        dy = self.sensors[None, None, :, 1] - yd
+        z = np.broadcast_to(p["depth"], dx.shape)
+        out = []
+        for comp in self.components:
+            gz = point_green(comp, "z", dx, dy, z, nu)
+            gx = point_green(comp, "x", dx, dy, z, nu)
+            out.append(pressure * (gz + p["friction"] * gx))
+        sig = np.stack(out, axis=-1)  # (W, T, S, C)
+        return sig.reshape(w, -1)
+
+    def simulate(self, params: dict, area: float) -> np.ndarray:
+        """Noise-free signal for one parameter set, shape ``data_shape`` (Pa)."""
+        return (area * self.design(params)[0]).reshape(self.data_shape)
