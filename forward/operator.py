@@ -23,7 +23,7 @@ from scipy.sparse.linalg import LinearOperator
 from .fields import check_components, output_weights
 from .kernels import line_green, point_green
 from .loads import LOAD_COMPONENTS, SurfaceLoad
-from .spectral import VOIGT, _coefficients, _Geometry, wavenumbers
+from .spectral import VOIGT, _Geometry, multiplier, wavenumbers
 
 _DIRECTION = {"p": "z", "qx": "x", "qy": "y"}
 
@@ -124,20 +124,8 @@ class LoadToSensor(LinearOperator):
         t = self.template
         xi, eta = wavenumbers(t.shape, t.spacing)
         g = _Geometry(xi, eta, nyquist_x=t.shape[-1] % 2 == 0, nyquist_y=t.ndim == 2 and t.shape[0] % 2 == 0)
-        rz = g.rho * self.depth
-        e = np.exp(-rz)
-        out = np.zeros((len(self.components), len(self.loads), *g.rho.shape), dtype=complex)
-        ones = np.ones(g.rho.shape)
-        for l, name in enumerate(self.loads):
-            unit = {k: (ones if k == name else None) for k in LOAD_COMPONENTS}
-            for j, comp in enumerate(VOIGT):
-                col = self.weights[:, j]
-                if not np.any(col):
-                    continue
-                e0, e1 = _coefficients(g, self.nu, unit["p"], unit["qx"], unit["qy"], comp)
-                m = e0 * e + e1 * rz * e
-                out[:, l] += np.multiply.outer(col, m)
-        return out
+        return np.array([[multiplier(g, self.nu, name, row, self.depth) for name in self.loads]
+                         for row in self.weights])
 
     def _padded_shape(self) -> tuple[int, ...]:
         return tuple(sfft.next_fast_len(2 * n - 1, real=True) for n in self.grid_shape)

@@ -6,7 +6,7 @@ For each Fourier mode of the surface tractions the stress at depth z is
 
 where the depth-independent coefficient spectra ``E0`` and ``E1`` are linear in the load
 spectra (P~, Qx~, Qy~) and depend only on the direction (c, s) = (xi, eta)/rho and nu.
-They are written out per Voigt component in :func:`_coefficients`; the rotated-frame
+They are written out per Voigt component in :func:`_table_uncached`; the rotated-frame
 formulas of physics.md were multiplied out once, so no per-mode rotation is done.
 
 Numerical care:
@@ -145,44 +145,6 @@ def _table_uncached(g: _Geometry, nu: float, component: str):
     raise ValueError(f"components: unknown stress component {component!r}; use one of {VOIGT}")
 
 
-def _combine(g: _Geometry, nu: float, spectra: dict, row: np.ndarray):
-    """(E0, E1) of the output ``row @ sigma_voigt`` for the given load spectra."""
-    coefs: dict = {}
-    for j, comp in enumerate(VOIGT):
-        if row[j] == 0.0:
-            continue
-        for which, name, kind, coef in _table(g, nu, comp):
-            if name in spectra:
-                key = (which, name, kind)
-                coefs[key] = coefs.get(key, 0.0) + row[j] * coef
-    cdt = np.result_type(g.rho.dtype, np.complex64)
-    spectra = {k: np.asarray(v, dtype=cdt) for k, v in spectra.items()}  # no copy when already complex
-    out = []
-    for which in (0, 1):
-        parts = {"re": None, "im": None}
-        for (w, name, kind), coef in coefs.items():
-            if w != which:
-                continue
-            term = spectra[name] * coef.astype(g.rho.dtype, copy=False) if np.ndim(coef) else spectra[name] * coef
-            parts[kind] = term if parts[kind] is None else np.add(parts[kind], term, out=parts[kind])
-        total = parts["re"]
-        if parts["im"] is not None:
-            parts["im"] *= 1j
-            total = parts["im"] if total is None else np.add(total, parts["im"], out=total)
-        out.append(np.zeros(g.rho.shape, cdt) if total is None else total.astype(cdt, copy=False))
-    return out[0], out[1]
-
-
-def _coefficients(g: _Geometry, nu: float, P, X, Y, component: str):
-    """Depth-independent spectra (E0, E1) of one stress component; None means zero load."""
-    spectra = {k: v for k, v in (("p", P), ("qx", X), ("qy", Y)) if v is not None}
-    row = np.zeros(6)
-    if component not in VOIGT:
-        raise ValueError(f"components: unknown stress component {component!r}; use one of {VOIGT}")
-    row[VOIGT.index(component)] = 1.0
-    return _combine(g, nu, spectra, row)
-
-
 def _real_coefficients(g: _Geometry, nu: float, spectra: dict, row: np.ndarray) -> dict:
     """{(load, kind): [a0, a1]}: real coefficient arrays (or scalars) of one output row.
 
@@ -245,13 +207,19 @@ def _apply(coefs: dict, spectra: dict, e: np.ndarray, rze: np.ndarray, buf: _Buf
     return re
 
 
-def output_coefficients(g: _Geometry, nu: float, spectra: dict, weights: np.ndarray):
-    """Yield (E0, E1) for each output row of ``weights`` (n_out, 6) applied to Voigt stress.
+def multiplier(g: _Geometry, nu: float, load_component: str, row: np.ndarray, depth: float) -> np.ndarray:
+    """Exact complex multiplier from one load component to the output ``row @ sigma_voigt``.
 
-    A generator, so only one output's coefficient spectra are alive at a time.
+    The same coefficient table as :func:`periodic_stress`, for operators and transfer functions.
     """
-    for row in np.asarray(weights, dtype=float):
-        yield _combine(g, nu, spectra, row)
+    rz = g.rho * depth
+    e = np.exp(-rz)
+    rze = rz * e
+    out = np.zeros(g.rho.shape, dtype=np.result_type(g.rho.dtype, np.complex64))
+    for (_, kind), (a0, a1) in _real_coefficients(g, nu, {load_component}, np.asarray(row, float)).items():
+        m = a0 * e + a1 * rze
+        out += m if kind == "re" else 1j * m
+    return out
 
 
 def _point_phases(shape, spacing, points: np.ndarray):
@@ -370,14 +338,11 @@ def transfer(xi: np.ndarray, eta: np.ndarray | None, depth: float, nu: float,
     if eta is not None:
         xi, eta = np.broadcast_arrays(xi, np.asarray(eta, dtype=float))
     g = _Geometry(xi, eta, nyquist_x=False, nyquist_y=False)
-    unit = {"p": None, "qx": None, "qy": None}
-    unit[load_component] = np.ones(g.rho.shape)
-    rz = g.rho * depth
-    e = np.exp(-rz)
     out = []
     for comp in components:
-        e0, e1 = _coefficients(g, nu, unit["p"], unit["qx"], unit["qy"], comp)
-        out.append(np.broadcast_to(e0 * e + e1 * rz * e, g.rho.shape))
+        if comp not in VOIGT:
+            raise ValueError(f"components: unknown stress component {comp!r}; use one of {VOIGT}")
+        out.append(multiplier(g, nu, load_component, np.eye(6)[VOIGT.index(comp)], depth))
     return np.asarray(out, dtype=complex)
 
 
