@@ -1,6 +1,6 @@
 """Benchmark: DC-FFT (method 3) time, FFT floor, peak memory and error, 128^2 to 1024^2.
 
-Run: ``python benchmarks/bench_forward_dcfft.py [--sizes 128 256 512 1024] [--repeats 2]``
+Run: ``python benchmarks/bench_forward_dcfft.py [--sizes 128 256 512 1024] [--repeats 2] [--estimate]``
 
 Scene: a fingertip-like Gaussian contact (p, qx, qy all non-zero) on an n x n grid with
 0.1 mm spacing; six stress components at one depth (1 mm) or three (0.5, 1, 2 mm); nu = 0.5.
@@ -16,6 +16,14 @@ Columns
 - peak: tracemalloc peak during one call (numpy buffers, output included), MiB.
 - err: max |DC-FFT - direct node sum| / max |stress| at 16 random nodes (method 1 oracle).
 - f32 err: the same for ``dtype=float32`` against float64.
+
+``--direct`` adds a table for method 1 (closed forms summed directly): time against the
+number of sensors (10 to 10^4) for 10 point forces and for a 32 x 32 loaded patch, with the
+DC-FFT time of the same patch (on its grid nodes) for comparison.
+
+``--estimate`` adds a second table: the sampling error of DC-FFT against a 3x refined grid
+(a converged reference: its own error is about the cube of the coarse one) on isolated
+Gaussian loads, for h/Z from 0.05 to 2, next to ``dcfft_error_estimate``.
 """
 
 from __future__ import annotations
@@ -93,10 +101,69 @@ def accuracy(load: SurfaceLoad, depths, rng) -> tuple[float, float]:
     return err, err32
 
 
+def gaussian_load(ndim: int, h: float, width: float, amps: dict, refine: int = 1) -> SurfaceLoad:
+    n = 2 * int(round(8 * width / h)) * refine + 1
+    x = (np.arange(n) - n // 2) * h / refine
+    if ndim == 1:
+        r2 = (x - 0.13 * width) ** 2
+    else:
+        xx, yy = np.meshgrid(x, x)
+        r2 = (xx - 0.13 * width) ** 2 + (yy + 0.21 * width) ** 2
+    g = np.exp(-r2 / (2 * width**2))
+    return SurfaceLoad(**{k: a * g for k, a in amps.items()}, spacing=(h / refine,) * ndim)
+
+
+def estimate_table() -> None:
+    depth = 1e-3
+    cases = [(1, {"p": 1.0, "qx": 0.6}, 1.0), (1, {"p": 1.0}, 0.3), (1, {"qy": 1.0}, 1.0),
+             (2, {"p": 1.0, "qx": 0.6, "qy": -0.4}, 1.0), (2, {"p": 1.0}, 0.3), (2, {"qx": 1.0}, 1.0),
+             (2, {"p": 1.0, "qx": 0.5}, 3.0)]
+    print("\nSampling error vs dcfft_error_estimate (Gaussian load of width w, Z = 1 mm, nu = 0.4);")
+    print("measured = max|coarse - 3x refined| / peak(|p| + |qx| + |qy|); rel. stress = same / max|stress|")
+    header = f"{'dim':>3} {'load':>10} {'w/Z':>4} {'h/Z':>5} {'measured':>9} {'rel.stress':>10} {'estimate':>9} {'est/meas':>8}"
+    print(header)
+    print("-" * len(header))
+    for ndim, amps, wf in cases:
+        for ratio in (2.0, 1.0, 0.5, 0.35, 0.25, 0.15, 0.1, 0.05):
+            h, width = ratio * depth, wf * depth
+            if ndim == 2 and 16 * width / h * 3 > 1000:
+                continue  # reference grid too large for a quick run
+            coarse = gaussian_load(ndim, h, width, amps)
+            fine = gaussian_load(ndim, h, width, amps, refine=3)
+            a = dcfft_stress(coarse, [depth], nu=0.4)[0]
+            b = dcfft_stress(fine, [depth], nu=0.4)[0][(slice(None),) + (slice(None, None, 3),) * ndim]
+            measured = np.abs(a - b).max() / sum(abs(v) for v in amps.values())
+            rel_stress = np.abs(a - b).max() / np.abs(b).max()
+            est = dcfft_error_estimate(coarse.spacing, depth, load_width=width)
+            print(f"{ndim:>3} {'+'.join(amps):>10} {wf:4.1f} {ratio:5.2f} {measured:9.1e} {rel_stress:10.1e} "
+                  f"{est:9.1e} {est / measured:8.2f}")
+
+
+def direct_table(repeats: int) -> None:
+    from tactilab.forward.kernels import direct_stress_from_forces
+
+    rng = np.random.default_rng(1)
+    forces = rng.normal(size=(10, 3))
+    positions = rng.uniform(-2e-3, 2e-3, (10, 2))
+    patch = contact_load(32)
+    t_patch_dcfft = best_time(lambda: dcfft_stress(patch, [1e-3]), repeats)
+    print("\nMethod 1 (direct sum of closed forms), 6 components, one depth")
+    header = f"{'sensors':>8} {'10 forces s':>12} {'32x32 patch s':>14} {'pairs/s':>9} {'DC-FFT patch s':>15}"
+    print(header)
+    print("-" * len(header))
+    for n in (10, 100, 1000, 10000):
+        pts = np.column_stack([rng.uniform(-3e-3, 3e-3, (n, 2)), np.full(n, 1e-3)])
+        t_forces = best_time(lambda: direct_stress_from_forces(forces, positions, pts), repeats)
+        t_patch = best_time(lambda: direct_stress(patch, pts), repeats)
+        print(f"{n:>8} {t_forces:12.4f} {t_patch:14.4f} {n * patch.p.size / t_patch:9.1e} {t_patch_dcfft:15.4f}")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[128, 256, 512, 1024])
     parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--estimate", action="store_true", help="also verify dcfft_error_estimate")
+    parser.add_argument("--direct", action="store_true", help="also time method 1 against the sensor count")
     args = parser.parse_args(argv)
     rng = np.random.default_rng(20261122)
     print(f"DC-FFT, 6 components, p+qx+qy Gaussian contact, spacing {SPACING * 1e3} mm, nu = 0.5, scipy.fft 1 thread")
@@ -119,6 +186,10 @@ def main(argv=None) -> int:
             print(f"{n:>4}x{n:<4} {len(depths):>6} {pad:>10} {t:8.3f} {floor:8.3f} {t / floor:6.2f} {io:8.3f} "
                   f"{peak / 2**20:9.1f} {out.nbytes / 2**20:8.1f} {err:9.1e} {err32:9.1e} {estimate:9.1e}")
             del out
+    if args.direct:
+        direct_table(args.repeats)
+    if args.estimate:
+        estimate_table()
     return 0
 
 

@@ -39,11 +39,13 @@ def _gaussian_load(ndim, spacing, half_width, width, amps, centre=(0.0, 0.0), re
 
 
 # ----------------------------------------------------------------------------- exactness
-@pytest.mark.parametrize("shape, spacing", [((6, 9), (1e-4, 1.5e-4)), ((13,), (1e-4,))])
+@pytest.mark.parametrize("shape, spacing", [((6, 9), (1e-4, 1.5e-4)), ((13,), (1e-4,)), ((1, 5), (1e-4, 1e-4)),
+                                            ((4, 1), (2e-4, 1e-4)), ((1,), (1e-4,))])
 def test_dcfft_equals_direct_node_sum(rng, shape, spacing):
     """Same sum two ways, including depths below the spacing and loads touching the edges."""
     p, qx, qy = rng.normal(size=(3,) + shape) * 1e4
     load = SurfaceLoad(p=p, qx=qx, qy=qy, spacing=spacing)
+    assert all(m % 2 == 0 and m >= 2 * n - 1 for m, n in zip(padded_shape(shape), shape))
     depths = [0.3e-4, 2e-4, 1e-3]
     nu = rng.uniform(-0.5, 0.5)
     comps = tuple(rng.permutation(COMPONENTS)[:4])
