@@ -8,7 +8,7 @@ Methods, all in one run, all on the same sampled load:
            independent of the sensor count.
 - naive  : baseline, per-frame recomputation: a SurfaceLoad per frame through HalfSpace.stress at the
            sensor points (kernels rebuilt every frame); timed on a subset of frames, per frame.
-Errors are max |difference| relative to the matrix method's peak |output|. Timings: best of 3.
+Errors are max |difference| relative to the matrix method's peak |output|. Timings: best of 5.
 
 Run:  python benchmarks/bench_forward_scan.py            (full table)
       python benchmarks/bench_forward_scan.py --quick    (smaller growth sweeps)
@@ -52,7 +52,7 @@ def make(n_side: int, spacing: float) -> tuple[BiomimeticFinger, Surface, np.nda
     return finger, surface, u
 
 
-REPEATS = 3  # best of 3: the machine is shared, the minimum is the least disturbed run
+REPEATS = 5  # best of 5: the machine is shared, the minimum is the least disturbed run
 
 
 def run_matrix(finger, surface, u):
