@@ -20,6 +20,7 @@ __all__ = [
     "FourierDiagonal",
     "angular_wavenumbers",
     "normal_pressure_to_szz_multiplier",
+    "halfspace_fourier_operator",
     "dottest",
 ]
 
@@ -81,6 +82,48 @@ def normal_pressure_to_szz_multiplier(n: int, dx: float, depth: float) -> np.nda
     (k,) = angular_wavenumbers((int(n),), dx)
     s = np.abs(k) * depth
     return -(1.0 + s) * np.exp(-s)
+
+
+def halfspace_fourier_operator(shape, spacing, depth: float, nu: float = 0.5, load: str = "p",
+                               component: str = "zz") -> "FourierDiagonal":
+    """FourierDiagonal map from one load component to one stress component at ``depth``.
+
+    Uses the exact multiplier :func:`tactilab.forward.spectral.transfer` (physics.md section 2)
+    on the periodic grid, one sensor per node. At the Nyquist wavenumber of an even grid the
+    sign of ``k`` is ambiguous; the odd (imaginary) part is dropped there so that the operator
+    stays real (Hermitian multiplier).
+
+    Parameters
+    ----------
+    shape : tuple of int
+        ``(nx,)`` (plane strain) or ``(ny, nx)``.
+    spacing : float or (float, float)
+        Grid spacing in m, ``dx`` or ``(dx, dy)``.
+    depth : float
+        Sensor depth in m.
+    nu : float
+        Poisson's ratio.
+    load : {"p", "qx", "qy"}
+        Load component (Pa) the model holds.
+    component : str
+        Stress component (Voigt name) the sensors measure, Pa.
+    """
+    from tactilab.forward.spectral import transfer
+
+    shape = tuple(int(v) for v in shape)
+    ks = angular_wavenumbers(shape, spacing)
+    if len(shape) == 1:
+        full = transfer(ks[0], None, depth, nu, load, (component,))[0]
+    else:
+        eta, xi = np.broadcast_arrays(*ks)
+        full = transfer(xi, eta, depth, nu, load, (component,))[0]
+    full = np.array(full, dtype=complex)
+    for axis, n in enumerate(shape):
+        if n % 2 == 0:
+            idx = [slice(None)] * len(shape)
+            idx[axis] = n // 2
+            full[tuple(idx)] = full[tuple(idx)].real
+    return FourierDiagonal(full, spacing)
 
 
 def _half(full: np.ndarray) -> np.ndarray:

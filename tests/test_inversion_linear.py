@@ -291,3 +291,25 @@ def test_tv_dense_path_and_validation(rng):
         invert_linear(op, data, penalty="tv", lam=1.0, method="x")
     with pytest.raises(ValueError, match="method: 'fft' needs"):
         invert_linear(op.todense(), data, penalty="tv", lam=1.0, method="fft")
+
+
+def test_lead_transfer_and_halfspace_operator(rng):
+    """The forward model's exact multiplier equals the closed form; its LinearOperator inverts on
+    the iterative path like the fft path on the same periodic problem."""
+    from tactilab.forward.halfspace import HalfSpace
+    from tactilab.inversion.operators import halfspace_fourier_operator
+
+    n = 64
+    op = halfspace_fourier_operator((n,), DX, DEPTH)
+    np.testing.assert_allclose(op.multiplier.real, normal_pressure_to_szz_multiplier(n, DX, DEPTH), atol=1e-14)
+    shear = halfspace_fourier_operator((n,), DX, DEPTH, load="qx", component="zz")
+    assert dottest(shear, rng) < 1e-12
+    op2 = halfspace_fourier_operator((8, 10), DX, DEPTH, load="qy", component="yz")
+    assert dottest(op2, rng) < 1e-12
+    lead = HalfSpace(1e6, 0.5).operator((n,), DX, depth=DEPTH, periodic=True)
+    truth = 1e3 * np.exp(-((np.arange(n) - n // 2) * DX) ** 2 / (2 * (0.5e-3) ** 2))
+    np.testing.assert_allclose(lead.matvec(truth), op.matvec(truth), atol=1e-6 * 1e3)
+    data = op.matvec(truth) + rng.normal(0, 1.0, n)
+    fft = invert_linear(op, data, penalty="identity", lam=1e-2)
+    it = invert_linear(lead, data, penalty="identity", lam=1e-2, method="iterative", tol=1e-12, rng=rng)
+    np.testing.assert_allclose(it.model.ravel(), fft.model, atol=1e-6 * np.abs(fft.model).max())
