@@ -29,16 +29,8 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.fft as sfft
 
-from .kernels import (
-    COMPONENTS,
-    _line_geometry,
-    _line_unit,
-    _point_geometry,
-    _point_unit,
-    active_pairs,
-    check_components,
-    check_nu,
-)
+from .kernel_formulas import line_geometry, line_unit, point_geometry, point_unit
+from .kernels import COMPONENTS, active_pairs, check_components, check_nu
 from .loads import SurfaceLoad
 
 __all__ = ["dcfft_stress", "dcfft_error_estimate", "padded_shape"]
@@ -103,12 +95,12 @@ def _quadrant_geometry(shape: tuple[int, ...], spacing: tuple[float, ...], depth
     node offsets, computed once per depth and shared by every (component, direction) kernel."""
     x = np.arange(shape[-1]) * spacing[0]
     if len(shape) == 1:
-        return _line_geometry(x, depth)
+        return line_geometry(x, depth)
     geometry = tuple(np.empty(shape) for _ in range(4))
     block = max(1, _ROW_BLOCK // shape[-1])
     for j0 in range(0, shape[0], block):
         y = np.arange(j0, min(shape[0], j0 + block))[:, None] * spacing[1]
-        for target, values in zip(geometry, _point_geometry(x, y, depth)):
+        for target, values in zip(geometry, point_geometry(x, y, depth)):
             target[j0:j0 + y.shape[0]] = values
     return geometry
 
@@ -119,12 +111,12 @@ def _sample_quadrant(quad: np.ndarray, geometry: tuple[np.ndarray, ...], comp: s
     ``quad`` (the columns past the grid stay zero), in row blocks to bound temporaries."""
     n = geometry[0].shape[-1]
     if quad.ndim == 1:
-        np.multiply(_line_unit(comp, direction, *geometry, nu), area, out=quad[:n])
+        np.multiply(line_unit(comp, direction, *geometry, nu), area, out=quad[:n])
         return
     block = max(1, _ROW_BLOCK // n)
     for j0 in range(0, quad.shape[0], block):
         rows = slice(j0, j0 + block)
-        values = _point_unit(comp, direction, *(g[rows] for g in geometry), nu)
+        values = point_unit(comp, direction, *(g[rows] for g in geometry), nu)
         np.multiply(values, area, out=quad[rows, :n])
 
 

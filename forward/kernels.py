@@ -13,6 +13,9 @@ exact). Line forces (N/m along y, plane strain): Flamant (normal, tangential, wi
 ``sigma_yy = nu (sigma_xx + sigma_zz)``) and the antiplane line force ``fy`` (``sigma_yz``,
 ``sigma_xy`` only), written with ``l, n = x/r, z/r`` as ``F/r`` times a bounded function.
 
+The formulas themselves live in :mod:`tactilab.forward.kernel_formulas`; this module adds
+input checks, the full-tensor functions, and method 1 (direct summation over load nodes).
+
 Limits (documented, and tested):
 
 * On the axis below a point force (r -> 0), the Boussinesq polar forms have removable 0/0
@@ -32,6 +35,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .kernel_formulas import line_geometry, line_unit, point_geometry, point_unit
 from .loads import SurfaceLoad
 
 COMPONENTS = ("xx", "yy", "zz", "yz", "zx", "xy")
@@ -48,6 +52,7 @@ __all__ = [
     "line_green",
     "check_components",
     "check_nu",
+    "active_pairs",
 ]
 
 
@@ -104,75 +109,6 @@ def _check_force(name: str, value) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- point forces
-def _radius(*coords):
-    """Euclidean norm; sqrt of squares (fast) unless they under- or overflow, then hypot."""
-    with np.errstate(over="ignore", under="ignore"):
-        radius = np.sqrt(sum(c * c for c in coords))
-    if not np.all((radius > 1e-150) & (radius < 1e150)):
-        radius = coords[0]
-        for c in coords[1:]:
-            radius = np.hypot(radius, c)
-    return radius
-
-
-def _point_geometry(x, y, z):
-    """Direction cosines and 1/(2 pi R^2); R = 0 must be excluded by the caller."""
-    inv = 1.0 / _radius(x, y, z)
-    return x * inv, y * inv, z * inv, (0.5 / np.pi) * inv * inv
-
-
-def _boussinesq(comp: str, l, m, n, g, nu: float):
-    """Stress per unit normal force (N) pushing into the skin; Johnson eq. 3.18."""
-    if comp == "zz":
-        return -3.0 * n**3 * g
-    if comp == "zx":
-        return -3.0 * l * n * n * g
-    if comp == "yz":
-        return -3.0 * m * n * n * g
-    # In-plane: sigma_r and sigma_theta of physics.md section 3 with the removable r -> 0
-    # singularity resolved: (1 - z/R)/r^2 = 1/(R (R + z)) and (sigma_r - sigma_theta)/r^2 =
-    # [(1 - 2 nu)(2R + z)/(R^3 (R + z)^2) - 3 z/R^5] / (2 pi) per unit force.
-    one_n = 1.0 + n
-    dev = (1.0 - 2.0 * nu) * (2.0 + n) / (one_n * one_n) - 3.0 * n
-    if comp == "xy":
-        return l * m * dev * g
-    mean = (1.0 - 2.0 * nu) * n - 3.0 * n * (1.0 - n * n)
-    sign = 1.0 if comp == "xx" else -1.0  # yy
-    return 0.5 * g * (mean + sign * (l * l - m * m) * dev)
-
-
-def _cerruti_x(comp: str, l, m, n, g, nu: float):
-    """Stress per unit tangential force (N) along +x; Johnson eq. 3.19."""
-    if comp == "zz":
-        return -3.0 * l * n * n * g
-    if comp == "zx":
-        return -3.0 * l * l * n * g
-    if comp == "yz":
-        return -3.0 * l * m * n * g
-    a = 1.0 / (1.0 + n)
-    a2 = a * a
-    a3 = a2 * a
-    c = 1.0 - 2.0 * nu
-    if comp == "xx":
-        return g * (-3.0 * l**3 + c * (l - 3.0 * l * a2 + l**3 * a2 + 2.0 * l**3 * a3))
-    if comp == "yy":
-        return g * (-3.0 * l * m * m + c * (l - l * a2 + l * m * m * a2 + 2.0 * l * m * m * a3))
-    # xy
-    return g * (-3.0 * l * l * m + c * (-m * a2 + l * l * m * a2 + 2.0 * l * l * m * a3))
-
-
-_SWAP_XY = {"xx": "yy", "yy": "xx", "zz": "zz", "yz": "zx", "zx": "yz", "xy": "xy"}
-
-
-def _point_unit(comp: str, direction: str, l, m, n, g, nu: float):
-    if direction == "z":
-        return _boussinesq(comp, l, m, n, g, nu)
-    if direction == "x":
-        return _cerruti_x(comp, l, m, n, g, nu)
-    # A force along +y is the +x solution with the roles of x and y exchanged.
-    return _cerruti_x(_SWAP_XY[comp], m, l, n, g, nu)
-
-
 def _check_point_coordinates(x, y, z):
     x = _check_coordinate("x", x)
     y = _check_coordinate("y", y)
@@ -213,7 +149,7 @@ def point_green(component: str, direction: str, x, y, z, nu: float = 0.5) -> np.
         raise ValueError(f"direction: force direction must be one of {DIRECTIONS}, got {direction!r}")
     nu = check_nu(nu)
     x, y, z = _check_point_coordinates(x, y, z)
-    return _point_unit(component, direction, *_point_geometry(x, y, z), nu)
+    return point_unit(component, direction, *point_geometry(x, y, z), nu)
 
 
 def point_load_stress(x, y, z, fx=0.0, fy=0.0, fz=0.0, nu: float = 0.5) -> np.ndarray:
@@ -243,41 +179,17 @@ def point_load_stress(x, y, z, fx=0.0, fy=0.0, fz=0.0, nu: float = 0.5) -> np.nd
     x, y, z = _check_point_coordinates(x, y, z)
     forces = {"x": _check_force("fx", fx), "y": _check_force("fy", fy), "z": _check_force("fz", fz)}
     shape = np.broadcast_shapes(x.shape, y.shape, z.shape, *(f.shape for f in forces.values()))
-    geometry = _point_geometry(x, y, z)
+    geometry = point_geometry(x, y, z)
     out = np.zeros(shape + (6,))
     for direction, force in forces.items():
         if not np.any(force):
             continue
         for k, comp in enumerate(COMPONENTS):
-            out[..., k] += force * _point_unit(comp, direction, *geometry, nu)
+            out[..., k] += force * point_unit(comp, direction, *geometry, nu)
     return out
 
 
 # ----------------------------------------------------------------------------- line forces
-def _line_geometry(x, z):
-    inv = 1.0 / _radius(x, z)
-    return x * inv, z * inv, inv / np.pi
-
-
-def _line_unit(comp: str, direction: str, l, n, g, nu: float):
-    """Stress per unit line force (N/m) along y at x = 0; Flamant and antiplane shear."""
-    zero = np.zeros(np.broadcast_shapes(np.shape(l), np.shape(g)))
-    if direction == "y":  # antiplane: u_y = -(F / (pi mu)) ln r
-        if comp == "yz":
-            return -n * g
-        if comp == "xy":
-            return -l * g
-        return zero
-    if comp in ("yz", "xy"):
-        return zero
-    if direction == "z":  # Flamant, normal force pushing in
-        table = {"xx": l * l * n, "zz": n**3, "zx": l * n * n, "yy": nu * n}
-    else:  # Flamant, tangential force along +x
-        table = {"xx": l**3, "zz": l * n * n, "zx": l * l * n, "yy": nu * l}
-    # sigma_yy = nu (sigma_xx + sigma_zz) uses l^2 + n^2 = 1 (plane strain).
-    return -2.0 * table[comp] * g
-
-
 def _check_line_coordinates(x, z):
     x = _check_coordinate("x", x)
     z = _check_coordinate("z", z)
@@ -301,7 +213,7 @@ def line_green(component: str, direction: str, x, z, nu: float = 0.5) -> np.ndar
         raise ValueError(f"direction: force direction must be one of {DIRECTIONS}, got {direction!r}")
     nu = check_nu(nu)
     x, z = _check_line_coordinates(x, z)
-    return _line_unit(component, direction, *_line_geometry(x, z), nu)
+    return line_unit(component, direction, *line_geometry(x, z), nu)
 
 
 def line_load_stress(x, z, fx=0.0, fy=0.0, fz=0.0, nu: float = 0.5) -> np.ndarray:
@@ -325,13 +237,13 @@ def line_load_stress(x, z, fx=0.0, fy=0.0, fz=0.0, nu: float = 0.5) -> np.ndarra
     x, z = _check_line_coordinates(x, z)
     forces = {"x": _check_force("fx", fx), "y": _check_force("fy", fy), "z": _check_force("fz", fz)}
     shape = np.broadcast_shapes(x.shape, z.shape, *(f.shape for f in forces.values()))
-    geometry = _line_geometry(x, z)
+    geometry = line_geometry(x, z)
     out = np.zeros(shape + (6,))
     for direction, force in forces.items():
         if not np.any(force):
             continue
         for k, comp in enumerate(COMPONENTS):
-            out[..., k] += force * _line_unit(comp, direction, *geometry, nu)
+            out[..., k] += force * line_unit(comp, direction, *geometry, nu)
     return out
 
 
@@ -408,11 +320,11 @@ def direct_stress_from_forces(forces, positions, points, nu: float = 0.5,
             p = pts[i0:i0 + n_block]
             dx = p[:, :1] - src[:, 0]
             if ndim == 2:
-                geometry = _point_geometry(dx, p[:, 1:2] - src[:, 1], p[:, 2:3])
-                unit = _point_unit
+                geometry = point_geometry(dx, p[:, 1:2] - src[:, 1], p[:, 2:3])
+                unit = point_unit
             else:
-                geometry = _line_geometry(dx, p[:, 1:2])
-                unit = _line_unit
+                geometry = line_geometry(dx, p[:, 1:2])
+                unit = line_unit
             for comp, d in pairs:
                 # A matrix-vector product sums over forces without another (n, m) temporary.
                 out[i0:i0 + n_block, components.index(comp)] += unit(comp, d, *geometry, nu) @ f[:, col[d]]
