@@ -105,6 +105,20 @@ def test_dcfft_zero_loads_and_inactive_components():
     assert not anti[0, [0, 1, 2, 4]].any() and anti[0, [3, 5]].any()
 
 
+def test_dcfft_extreme_depths_stay_finite(rng):
+    """Depth from 1e-8 to 1e7 grid spacings: finite values, and an estimate that flags the shallow end."""
+    load = SurfaceLoad(p=rng.normal(size=(6, 6)), qx=rng.normal(size=(6, 6)), spacing=1e-4)
+    out = dcfft_stress(load, [1e-12, 1e-8, 1e-4, 1.0, 1e3])
+    assert np.all(np.isfinite(out))
+    # at the shallowest depth the node under each force sees -3 F / (2 pi Z^2) (Boussinesq)
+    expected = -3 * load.p * 1e-8 / (2 * np.pi * 1e-24)
+    np.testing.assert_allclose(out[0, 2], expected, rtol=1e-6)
+    assert dcfft_error_estimate(load.spacing, 1e-12) > 1e3
+    assert dcfft_error_estimate(load.spacing, 1e3) == pytest.approx(30 * np.finfo(float).eps)
+    line = SurfaceLoad(p=rng.normal(size=7), qy=rng.normal(size=7), spacing=1e-4)
+    assert np.all(np.isfinite(dcfft_stress(line, [1e-12, 1e3])))
+
+
 def test_dcfft_float32(rng):
     load = SurfaceLoad(p=rng.normal(size=(16, 20)) * 1e4, qx=rng.normal(size=(16, 20)) * 1e4, spacing=1e-4)
     ref = dcfft_stress(load, [2e-4, 1e-3])
