@@ -242,6 +242,13 @@ class Staircase(Procedure):
             return float(np.exp(np.mean(np.log(rev))))
         return float(np.mean(rev))
 
+    def record_state(self):
+        """The state per trial row, with only the reversals the estimate uses (rows stay small)."""
+        state = self.state()
+        state["n_reversals"] = [len(r) for r in self._reversals]
+        state["reversals"] = [r[-t.estimate_reversals:] for r, t in zip(self._reversals, self.config.tracks)]
+        return {**state, "estimate": self.estimate()}
+
     def estimate(self):
         per_track = [self.track_estimate(i) for i in range(len(self.config.tracks))]
         return {"threshold": float(np.mean(per_track)),
@@ -315,7 +322,7 @@ class Psi(Procedure):
         level that minimises the expected posterior entropy.
     """
 
-    _STATE_KEYS = ("log_posterior",)
+    _STATE_KEYS = ("log_posterior", "n_informative")
 
     def __init__(self, config: PsiConfig, guess_rate: float = 0.0, likelihood: Likelihood | None = None):
         super().__init__(config)
@@ -343,6 +350,7 @@ class Psi(Procedure):
         self._log_p1 = np.log(np.clip(table, eps, 1))
         self._log_p0 = np.log(np.clip(1 - table, eps, 1))
         self._log_posterior = np.full(expected[1], -math.log(expected[1]))
+        self._n_informative = 0  # trials with an outcome (catch trials do not count)
 
     @property
     def n_planned(self) -> int:
@@ -350,7 +358,7 @@ class Psi(Procedure):
 
     @property
     def finished(self) -> bool:
-        return sum(h["outcome"] is not None for h in self.history) >= self.config.n_trials
+        return self._n_informative >= self.config.n_trials
 
     def posterior(self) -> np.ndarray:
         """Posterior probabilities over the flattened parameter grid, shape (n_theta,)."""
@@ -373,6 +381,7 @@ class Psi(Procedure):
     def _update(self, planned, outcome):
         if outcome is None:
             return
+        self._n_informative += 1
         row = int(np.flatnonzero(self.levels == planned.level)[0])
         self._log_posterior = self._log_posterior + (self._log_p1[row] if outcome else self._log_p0[row])
         self._log_posterior -= self._log_posterior.max()

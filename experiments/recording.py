@@ -139,9 +139,8 @@ class Recorder:
                                    [(k, json.dumps(v)) for k, v in meta.items()])
             connection.execute("COMMIT")
             connection.close()
-            if path.exists():
-                raise FileExistsError(f"session: {path} appeared while it was being created; resume it")
-            os.replace(partial, path)
+            os.link(partial, path)  # atomic, and never replaces a file that appeared meanwhile
+            partial.unlink()
             _fsync_folder(path.parent)
         except sqlite3.Error as exc:
             lock.release()

@@ -61,6 +61,13 @@ def test_example_protocol_files_load(tmp_path):
     assert len(psi.procedure.levels) == 30
 
 
+def test_staircase_track_built_directly_refuses_nan():
+    from tactilab.data_schemas.experiment import StaircaseTrack
+
+    with pytest.raises(ValueError, match="start: must be finite, got nan"):
+        StaircaseTrack(start=math.nan, step_sizes=[0.1], min_level=1e-6, max_level=1e-5)
+
+
 def test_linear_staircase_steps_take_units():
     data = with_("procedure.tracks.0.step_scale", "linear")
     data["procedure"]["tracks"][0]["step_sizes"] = ["2um", "1um"]
