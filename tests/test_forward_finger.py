@@ -264,3 +264,22 @@ def test_scan_maps_fft_equals_matrix_scan_and_strip_path():
     sm_far = ScanMaps(far)
     with pytest.raises(ValueError, match="sensors: some sensors lie outside the contact grid"):
         sm_far.sensor_values(sm_far.maps(surface, [0.0]))
+
+
+def test_scene_and_record_guards(monkeypatch, tmp_path):
+    from types import SimpleNamespace
+
+    from tactilab.data_schemas.recording import Recording
+    from tactilab.forward import scene_simulation
+    from tactilab.forward.scanning import RecordFeature
+
+    with pytest.raises(ValueError, match="scene.contact: the scene has no finger contact"):
+        BiomimeticFinger.from_scene(SimpleNamespace(contact=None))
+    with pytest.raises(ValueError, match="surface: expected a data_schemas surface record"):
+        RecordFeature(object())
+    with pytest.raises(ValueError, match="defect_x: must be finite"):
+        _finger().receptive_field([0.0], np.nan)
+    monkeypatch.setattr(scene_simulation.importlib.util, "find_spec", lambda name: None)
+    rec = Recording(values=np.zeros((2, 1, 1)), sampling_rate_hz=10.0, sensor_ids=("s0",), components=("zz",))
+    with pytest.raises(ValueError, match="format: 'parquet' needs the optional package pyarrow"):
+        scene_simulation.write_recording(rec, tmp_path, "parquet")
