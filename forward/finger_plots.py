@@ -181,3 +181,25 @@ def plot_spectrum(recording: Recording, path, *, max_lines: int = 8) -> pathlib.
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def plot_rendered_vs_real(sensors, rendered: np.ndarray, real: np.ndarray, path) -> pathlib.Path:
+    """Strain profiles at the first frame and the central sensor's time course, display vs real (PNG)."""
+    plt = _pyplot()
+    x = sensors.positions_m[:, 0] * 1e3
+    order = np.argsort(x)
+    nc = len(sensors.components)
+    fig, axes = plt.subplots(2, nc, figsize=(5 * nc, 6.5), constrained_layout=True, squeeze=False)
+    centre = int(np.argmin(np.abs(sensors.positions_m[:, 0])))
+    for c, comp in enumerate(sensors.components):
+        axes[0, c].plot(x[order], rendered[0, order, c], label="display")
+        axes[0, c].plot(x[order], real[0, order, c], "--", label="real sliding grating")
+        axes[0, c].set(title=f"strain {comp} (tensor) at t = 0", xlabel="x (mm)", ylabel=f"{comp} (strain)")
+        axes[0, c].legend(fontsize=8)
+        axes[1, c].plot(rendered[:, centre, c], label="display")
+        axes[1, c].plot(real[:, centre, c], "--", label="real")
+        axes[1, c].set(title=f"{comp} at x = {x[centre]:.2f} mm (strain)", xlabel="frame", ylabel=f"{comp} (strain)")
+    path = pathlib.Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -84,12 +84,10 @@ def simulate_scene(scene, out_dir, *, fmt: str = "netcdf", rng: np.random.Genera
     plots : bool
         Write the PNG figures.
     """
-    if scene.display is not None:
-        raise ValueError("scene.display: this scene drives the skin with a tractor display; tactilab simulate "
-                         "models a finger touching a surface: remove [display] (the display's strain is "
-                         "computed by tactilab.forward.tractor_display.render_virtual_surface)")
     if fmt not in FORMATS:
         raise ValueError(f"format: must be one of {FORMATS}, got {fmt!r}")
+    if scene.display is not None:
+        return _simulate_display(scene, pathlib.Path(out_dir), fmt, rng, plots)
     s = scene.scan
     n = check_scan(s.speed_m_per_s, s.sampling_rate_hz, s.duration_s)
     finger = scene_finger(scene, grid_spacing)
@@ -138,4 +136,49 @@ def simulate_scene(scene, out_dir, *, fmt: str = "netcdf", rng: np.random.Genera
         if n >= 64:
             files.append(str(plot_spectrum(rec, out / "spectrum.png")))
         lines.append(f"plots (maps by {method}): " + ", ".join(files))
+    return lines
+
+
+def _simulate_display(scene, out: pathlib.Path, fmt: str, rng, plots: bool) -> list[str]:
+    """A display scene: the display renders ``scene.surface`` (module :mod:`.display_scene`)."""
+    from .display_scene import display_scene_outputs
+    from .finger_plots import plot_rendered_vs_real
+
+    s = scene.scan
+    check_scan(s.speed_m_per_s, s.sampling_rate_hz, s.duration_s)
+    values, loads, info = display_scene_outputs(scene)
+    noise = float(scene.sensors.noise_std)
+    clean = values
+    if rng is not None and noise > 0:
+        values = values + noise * rng.standard_normal(values.shape)
+    rec = Recording.from_sensors(scene.sensors, values, s.sampling_rate_hz,
+                                 description=f"tactilab simulate (display): {scene.name or 'scene'}. {scene.description}")
+    out.mkdir(parents=True, exist_ok=True)
+    path = write_recording(rec, out, fmt, positions=s.positions_m)
+    d = scene.display
+    limit = d.max_traction_pa
+    lines = [
+        f"scene {scene.name or '(unnamed)'}: display {d.display_id} ({d.rows} x {d.columns} tractors, pitch "
+        f"{d.pitch_x_m * 1e3:g} mm) renders {scene.surface.kind} at {s.speed_m_per_s * 1e3:g} mm/s "
+        "(plane model: rows uniform in y)",
+        f"drive: gain {info['gain']:.4g} (N/m)/m (strain-matched at the rendered pitch "
+        f"{info['rendered_pitch'] * 1e3:.3g} mm, depth {scene.sensors.depth_m * 1e3:g} mm); peak traction "
+        f"{info['peak_traction'] / 1e3:.3g} kPa" + (f" (limit {limit / 1e3:g} kPa)" if limit is not None else ""),
+        f"recording: {path}",
+    ]
+    if "real" in info:
+        real = info["real"]
+        for c, comp in enumerate(scene.sensors.components):
+            a, b = clean[..., c].ravel(), real[..., c].ravel()
+            corr = float(a @ b / math.sqrt((a @ a) * (b @ b))) if a.any() and b.any() else float("nan")
+            ratio = float(np.abs(a).max() / np.abs(b).max()) if b.any() else float("nan")
+            lines.append(f"rendered vs real sliding grating, {comp}: normalised correlation {corr:.3f}, "
+                         f"peak ratio {ratio:.3f}")
+    if plots:
+        files = [plot_time_series(rec, out / "time_series.png", positions=s.positions_m)]
+        if rec.n_times >= 64:
+            files.append(plot_spectrum(rec, out / "spectrum.png"))
+        if "real" in info:
+            files.append(plot_rendered_vs_real(scene.sensors, clean, info["real"], out / "rendered_vs_real.png"))
+        lines.append("plots: " + ", ".join(str(f) for f in files))
     return lines

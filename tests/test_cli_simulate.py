@@ -95,9 +95,16 @@ def test_simulate_user_mistakes_exit_2(tmp_path, capsys):
     assert "--grid-spacing: must be > 0" in capsys.readouterr().err
     assert main(["simulate", str(_scene(tmp_path)), "--grid-spacing", "1kPa", "--quiet"]) == 2
     assert "--grid-spacing" in capsys.readouterr().err
-    display = ROOT / "data_schemas" / "examples" / "tractor_display.toml"
-    assert main(["simulate", str(display), "--out", str(tmp_path / "c"), "--quiet"]) == 2
-    assert "scene.display: this scene drives the skin with a tractor display" in capsys.readouterr().err
+    display = (ROOT / "data_schemas" / "examples" / "tractor_display.toml").read_text()
+    strong = tmp_path / "strong.toml"
+    strong.write_text(display.replace('amplitude = "10um"', 'amplitude = "100um"'))
+    assert main(["simulate", str(strong), "--out", str(tmp_path / "c"), "--quiet", "--no-plots"]) == 2
+    assert "exceeds the display's traction_limit" in capsys.readouterr().err
+    fine = tmp_path / "fine.toml"
+    fine.write_text(display.replace('pitch_x = "1.2mm"', 'pitch_x = "0.2mm"').replace(
+        'tractor_width = "0.6mm"', 'tractor_width = "0.1mm"'))
+    assert main(["simulate", str(fine), "--out", str(tmp_path / "d"), "--quiet", "--no-plots"]) == 2
+    assert "is not positive, so no drive renders a grating" in capsys.readouterr().err
     assert main(["simulate", str(tmp_path / "missing.toml"), "--quiet"]) == 2
 
 
@@ -112,3 +119,34 @@ def test_write_recording_rejects_unknown_format(tmp_path):
 
     with pytest.raises(ValueError, match="format: must be one of"):
         simulate_scene(load_scene(_scene(tmp_path)), tmp_path, fmt="xlsx")
+
+
+def test_simulate_display_scene_matches_tractor_display_module(tmp_path, capsys):
+    """Display scenes: the recording equals the strain of tractor_display.render_virtual_surface
+    (an independent path: display_row_strain) for the same drive; the CLI reports the match
+    with the real sliding grating (standing wave: correlation ~ 1/sqrt(2))."""
+    from tactilab.data_schemas.files import load_scene
+    from tactilab.forward.display_scene import display_gain, display_scene_outputs
+    from tactilab.forward.tractor_display import render_virtual_surface
+
+    path = ROOT / "data_schemas" / "examples" / "tractor_display.toml"
+    scene = load_scene(path)
+    values, loads, info = display_scene_outputs(scene)
+    s, sens = scene.scan, scene.sensors
+    gain, _ = display_gain(scene.display, sens.depth_m, scene.material.young_modulus_pa)
+    q, strain = render_virtual_surface(scene.display, scene.surface.height_at, s.speed_m_per_s, s.times_s,
+                                       sens.positions_m[:, 0], sens.depth_m, gain, scene.material.young_modulus_pa,
+                                       lead=s.start_position_m + scene.surface.period_m / 4)
+    np.testing.assert_allclose(loads, q)
+    idx = [("xx", "yy", "zz", "yz", "zx", "xy").index(c) for c in sens.components]
+    np.testing.assert_allclose(values, strain[..., idx], atol=1e-9 * np.abs(strain).max())
+    with pytest.raises(ValueError, match="scene.display: the scene has no display"):
+        display_scene_outputs(scene.model_copy(update={"display": None}))
+    with pytest.raises(ValueError, match="speed: a rendered scan needs a speed > 0"):
+        display_scene_outputs(scene.model_copy(update={"scan": s.model_copy(update={"speed_m_per_s": 0.0})}))
+    out = tmp_path / "disp"
+    assert main(["simulate", str(path), "--out", str(out), "--quiet", "--no-plots"]) == 0
+    text = capsys.readouterr().out
+    corr = float(text.split("xx: normalised correlation ")[1].split(",")[0])
+    assert 0.6 < corr < 0.72
+    assert xr.open_dataset(out / "recording.nc", engine="h5netcdf")["values"].shape == (values.shape)
