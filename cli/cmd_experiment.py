@@ -52,8 +52,22 @@ def _device_args(p: argparse.ArgumentParser) -> None:
 
 
 def _observer_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--observer-threshold", default=2e-3, type=float,
-                   help="simulated observer: RMS deviatoric strain at 1 mm depth felt at d' = 1 (strain, default 2e-3)")
+    p.add_argument("--observer-threshold", default=None,
+                   help="simulated observer: RMS deviatoric strain at 1 mm depth felt at d' = 1 (strain, "
+                        "dimensionless; default 2e-3, or on resume the session's own observer)")
+
+
+def _observer(args, recorded: dict | None = None) -> dict:
+    """Simulated-observer keywords: the recorded ones (resume), then --observer-threshold."""
+    from tactilab.data_schemas.units import to_si
+
+    config = dict(recorded or {})
+    if args.observer_threshold is not None:
+        value = to_si(args.observer_threshold, "dimensionless", name="--observer-threshold")
+        if value <= 0:
+            raise ValueError(f"--observer-threshold: must be a strain > 0, got {args.observer_threshold!r}; e.g. 2e-3")
+        config["threshold_strain"] = value
+    return config
 
 
 def _print_result(result, parameter: str) -> int:
@@ -82,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
             label = args.session_label
             path = args.out / f"sub-{args.subject}_ses-{label}_task-{protocol.name}.sqlite"
         display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
-        responses = factory.responses_from_spec(args.responses, protocol, threshold_strain=args.observer_threshold) \
+        responses = factory.responses_from_spec(args.responses, protocol, **_observer(args)) \
             if args.responses == "simulated" else factory.responses_from_spec(args.responses, protocol)
         from tactilab.experiments.runner import new_session
 
@@ -107,7 +121,8 @@ def run(args: argparse.Namespace) -> int:
             )
         kind = args.responses or state.meta["responses"]
         display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
-        responses = factory.responses_from_spec(kind, state.protocol, threshold_strain=args.observer_threshold) \
+        recorded = state.meta.get("responses_config") if kind == state.meta["responses"] else None
+        responses = factory.responses_from_spec(kind, state.protocol, **_observer(args, recorded)) \
             if kind == "simulated" else factory.responses_from_spec(kind, state.protocol)
         print(f"resuming {args.session}: {len(state.trials)} trials done"
               + (f", repeating interrupted trial {next(iter(state.attempts))}" if state.attempts else ""), flush=True)

@@ -40,6 +40,7 @@ class ResponseSource(abc.ABC):
     """Where responses come from; ``name`` is recorded with the session."""
 
     name = "abstract"
+    config: dict = {}
 
     def arm(self, plan: TrialPlan, onset_ns: int) -> None:
         """Start listening: called right before the first stimulus of ``plan`` is driven."""
@@ -216,6 +217,13 @@ class SimulatedObserver(ResponseSource):
         self.frequency_acuity, self.magnitude_gain, self.depth_m = frequency_acuity, magnitude_gain, depth_m
         self.strain_fn = strain_fn if strain_fn is not None else (lambda s: receptor_strain(s, depth_m))
         self._drives: dict[Stimulus, float] = {}
+
+    @property
+    def config(self) -> dict[str, float]:
+        """The observer's parameters (recorded with the session so a resume uses the same observer)."""
+        return {"seed": self.seed, "threshold_strain": self.threshold_strain, "exponent": self.exponent,
+                "criterion": self.criterion, "frequency_acuity": self.frequency_acuity,
+                "magnitude_gain": self.magnitude_gain, "depth_m": self.depth_m}
 
     def drive(self, stimulus: Stimulus) -> float:
         """Noise-free transducer output ``d`` of a stimulus (units of the noise sd)."""

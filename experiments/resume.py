@@ -100,6 +100,12 @@ def resume_session(path: str | Path, display: Display, responses: ResponseSource
             log.close()
         if any(e["kind"] == "session_complete" for e in state.events):
             raise ValueError(f"session: {path} is complete; nothing to resume (export it instead)")
+        recorded = state.meta.get("responses_config")
+        if responses.name == state.meta.get("responses") and recorded and dict(responses.config) != recorded:
+            raise ValueError(
+                f"responses: the session was recorded with {responses.name} responses configured as "
+                f"{recorded}, got {dict(responses.config)}; resume with the same configuration"
+            )
         recorder.log("session_resumed", payload={
             "completed": len(state.trials), "repeating": sorted(state.attempts)})
         runner = Runner(state.protocol, recorder, display, responses, subject=state.meta["subject"],

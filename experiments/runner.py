@@ -265,6 +265,7 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     meta = {"subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
             "seed": protocol.seed, "package_version": package_version(),
             "display_id": str(display.description.display_id), "responses": responses.name,
+            "responses_config": dict(responses.config),
             "likelihood": None if likelihood is None else
             f"{getattr(likelihood, '__module__', '?')}:{getattr(likelihood, '__qualname__', '?')}"}
     recorder = Recorder.create(path, meta)

@@ -110,6 +110,10 @@ def test_user_mistakes_give_one_line_and_exit_2(session, tmp_path, capsys):
         (["run", str(toml), "--subject", "S02", "--responses", "telepathy"], "--responses: must be 'terminal'"),
         (["run", str(toml), "--subject", "S02", "--responses", "terminal"], "standard input is not a terminal"),
         (["run", str(tmp_path / "missing.toml"), "--subject", "S02"], "No such file"),
+        (["run", str(toml), "--subject", "S02", "--responses", "simulated", "--observer-threshold", "-1"],
+         "--observer-threshold: must be a strain > 0"),
+        (["run", str(toml), "--subject", "S02", "--responses", "simulated", "--observer-threshold", "2mm"],
+         "--observer-threshold: unit 'mm' measures length"),
         (["run", str(toml), "--subject", "S01", "--session", "01", "--out", str(session.parent),
           "--responses", "simulated", "--no-wait"], "already exists; resume it"),
         (["resume", str(session), "--device", "stress2"], "--device: the session was recorded on display"),
@@ -140,6 +144,34 @@ def test_resume_and_status_of_an_interrupted_session(session, tmp_path, capsys):
     assert "3 trials done, repeating interrupted trial 3" in out and "complete after" in out
     trial3 = SessionLog(session).trials()[3]
     assert trial3.attempt == 1 and not trial3.repeated  # planned, never presented: not felt
+
+
+def test_resume_uses_the_recorded_observer(tmp_path, capsys):
+    """A session started with --observer-threshold resumes with the same observer (same answers)."""
+    toml = tmp_path / "p.toml"
+    toml.write_text(PROTOCOL)
+    args = ["--subject", "S05", "--responses", "simulated", "--no-wait", "--quiet", "--observer-threshold", "5e-4"]
+    assert cli_main(["experiment", "run", str(toml), *args, "--out", str(tmp_path / "a")]) == 0
+    full = tmp_path / "a" / "sub-S05_ses-01_task-cli.sqlite"
+    assert SessionLog(full).meta()["responses_config"]["threshold_strain"] == 5e-4
+    assert cli_main(["experiment", "run", str(toml), *args, "--out", str(tmp_path / "b")]) == 0
+    cut = tmp_path / "b" / "sub-S05_ses-01_task-cli.sqlite"
+    connection = sqlite3.connect(cut)
+    connection.execute("DELETE FROM events WHERE trial_index >= 2 OR kind = 'session_complete'")
+    connection.execute("DELETE FROM trials WHERE trial_index >= 2")
+    connection.commit()
+    connection.close()
+    assert cli_main(["experiment", "resume", str(cut), "--no-wait", "--quiet"]) == 0
+    capsys.readouterr()
+    assert [(t.level, t.response) for t in SessionLog(cut).trials()] == \
+        [(t.level, t.response) for t in SessionLog(full).trials()]
+    connection = sqlite3.connect(cut)  # cut again, then try to resume with another observer
+    connection.execute("DELETE FROM events WHERE trial_index >= 2 OR kind = 'session_complete'")
+    connection.execute("DELETE FROM trials WHERE trial_index >= 2")
+    connection.commit()
+    connection.close()
+    assert cli_main(["experiment", "resume", str(cut), "--no-wait", "--observer-threshold", "1e-3"]) == 2
+    assert "responses: the session was recorded with simulated responses configured as" in capsys.readouterr().err
 
 
 def test_damaged_logs_are_refused(session):
