@@ -13,7 +13,8 @@ with ``G`` the Cerruti (tangential) and Boussinesq (normal) point-load stress at
 Interface. While sliding, ``qx = mu p`` (local Amontons law; the traction is applied TO the skin
 along +x). ``adhesion`` in [0, 1] blends this with the fully adhesive (no-slip, Mindlin)
 distribution carrying the same total tangential force ``mu F``: ``qx = (1 - a) mu p + a mu F s(x, y)``
-with ``s`` the unit Mindlin traction (:mod:`.contact`). A fingerprint (square-wave ridges of
+with ``s`` the unit Mindlin traction (:mod:`.contact`); or, with ``slip_ratio``, the
+Cattaneo--Mindlin partial-slip traction of tangential force ``slip_ratio mu F``. A fingerprint (square-wave ridges of
 period lambda, contrast c) multiplies both by ``1 + c T(x)``, T = +-1 (force preserved on average).
 """
 
@@ -26,7 +27,7 @@ import numpy as np
 
 from tactilab.data_schemas.sensors import SensorArray
 
-from .contact import HertzContact, _stuck_shape
+from .contact import HertzContact, _stuck_shape, interfacial_traction
 from .fields import output_weights
 from .kernels import COMPONENTS, point_green
 
@@ -74,6 +75,10 @@ class BiomimeticFinger:
         Ridges on the skin, or None for smooth skin.
     grid_spacing : float or None
         Node spacing (m) of the contact grid; default ``min(a / 25, Z / 5, lambda / 10)``.
+    slip_ratio : float or None
+        If given, use the Cattaneo--Mindlin partial-slip traction instead of the adhesion blend:
+        tangential force ``Q = slip_ratio mu F`` with slip_ratio in [0, 1] (0: no tangential
+        load, 1: gross sliding); needs ``adhesion = 0``.
     """
 
     contact: HertzContact
@@ -82,6 +87,7 @@ class BiomimeticFinger:
     adhesion: float = 0.0
     fingerprint: Fingerprint | None = None
     grid_spacing: float | None = None
+    slip_ratio: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.contact, HertzContact) or self.contact.line:
@@ -95,6 +101,12 @@ class BiomimeticFinger:
                              "use 0 for a frictionless contact (adhesion=1 for a stuck one)")
         if not 0.0 <= float(self.adhesion) <= 1.0:
             raise ValueError(f"adhesion: must lie in [0, 1] (0 sliding, 1 fully adhesive), got {self.adhesion!r}")
+        if self.slip_ratio is not None:
+            if not 0.0 <= float(self.slip_ratio) <= 1.0:
+                raise ValueError(f"slip_ratio: Q / (mu F) must lie in [0, 1] (1 = gross sliding), got {self.slip_ratio!r}")
+            if self.adhesion != 0:
+                raise ValueError(f"slip_ratio: partial slip (Cattaneo--Mindlin) replaces the adhesion blend; "
+                                 f"give adhesion=0, got adhesion={self.adhesion!r}")
         if self.grid_spacing is not None and (not math.isfinite(self.grid_spacing) or self.grid_spacing <= 0):
             raise ValueError(f"grid_spacing: must be finite and > 0 m (or None for automatic), got {self.grid_spacing!r}")
 
@@ -146,6 +158,13 @@ class BiomimeticFinger:
         adhesive part is then cell-averaged so that its total is exactly ``adhesion mu F``.
         """
         x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+        if self.slip_ratio is not None:
+            p, q = interfacial_traction(self.contact, x, y, friction=self.friction, condition="partial",
+                                        tangential_force=self.slip_ratio * self.tangential_force)
+            if self.fingerprint is not None:
+                f = self.fingerprint.factor(x)
+                p, q = p * f, q * f
+            return p, q
         p = self.contact.pressure(x, y)
         q = (1.0 - self.adhesion) * self.friction * p
         if self.adhesion > 0 and self.friction > 0:

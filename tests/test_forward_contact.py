@@ -133,3 +133,25 @@ def test_bad_input_raises():
     with pytest.raises(ValueError, match="cell: the grid"):
         interfacial_traction(c, np.array([1.0]), np.array([1.0]), condition="stuck", tangential_force=0.1,
                              cell=(1e-4, 1e-4))
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=30, deadline=None)
+@given(force=st.floats(0.05, 5.0), radius=st.floats(0.005, 0.3), modulus=st.floats(1e5, 5e6),
+       nu=st.floats(0.0, 0.5), mu=st.floats(0.0, 2.0), ratio=st.floats(0.0, 1.0))
+def test_force_balance_property(force, radius, modulus, nu, mu, ratio):
+    """For any contact: the Hertz pressure integrates to F (polar quadrature) and the
+    Cattaneo--Mindlin traction to Q = ratio mu F (with the analytic stick-zone integral)."""
+    c = HertzContact(force, radius, modulus, nu)
+    a = c.contact_radius
+    total, _ = integrate.quad(lambda r: c.pressure(r, 0.0) * 2 * math.pi * r, 0, a)
+    assert total == pytest.approx(force, rel=1e-8)
+    Q = ratio * mu * force
+    q_total, _ = integrate.quad(
+        lambda r: interfacial_traction(c, r, 0.0, friction=mu, condition="partial", tangential_force=Q)[1]
+        * 2 * math.pi * r, 0, a, points=[stick_radius(c, mu, Q)] if 0 < stick_radius(c, mu, Q) < a else None,
+        limit=200)
+    assert q_total == pytest.approx(Q, rel=1e-6, abs=1e-12 * force)

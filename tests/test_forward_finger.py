@@ -283,3 +283,23 @@ def test_scene_and_record_guards(monkeypatch, tmp_path):
     rec = Recording(values=np.zeros((2, 1, 1)), sampling_rate_hz=10.0, sensor_ids=("s0",), components=("zz",))
     with pytest.raises(ValueError, match="format: 'parquet' needs the optional package pyarrow"):
         scene_simulation.write_recording(rec, tmp_path, "parquet")
+
+
+def test_partial_slip_finger_spans_no_load_to_sliding():
+    """slip_ratio: total tangential force = ratio mu F on the node grid; 1 equals sliding."""
+    sensors = SensorArray(positions_m=[[0.0, 0.0]], depth_m=3e-3, components=("zx",))
+    slide = BiomimeticFinger(HertzContact(0.8), sensors, friction=0.5, grid_spacing=0.05e-3)
+    x, y = slide.grid()
+    X, Y = np.meshgrid(x, y)
+    h = slide.spacing
+    for ratio in (0.0, 0.4, 1.0):
+        f = BiomimeticFinger(HertzContact(0.8), sensors, friction=0.5, grid_spacing=h, slip_ratio=ratio)
+        p, q = f.traction(X, Y)
+        assert q.sum() * h * h == pytest.approx(ratio * 0.4, rel=2e-3, abs=1e-9)
+        assert p.sum() * h * h == pytest.approx(0.8, rel=2e-3)
+    u = np.linspace(-4e-3, 4e-3, 17)
+    np.testing.assert_allclose(f.receptive_field(u, 0.0), slide.receptive_field(u, 0.0), rtol=1e-12, atol=1e-20)
+    with pytest.raises(ValueError, match="slip_ratio: Q / \\(mu F\\) must lie in"):
+        BiomimeticFinger(HertzContact(0.8), sensors, friction=0.5, slip_ratio=1.5)
+    with pytest.raises(ValueError, match="slip_ratio: partial slip .* give adhesion=0"):
+        BiomimeticFinger(HertzContact(0.8), sensors, friction=0.5, adhesion=0.5, slip_ratio=0.5)
