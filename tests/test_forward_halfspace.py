@@ -253,3 +253,23 @@ def test_spectral_error_estimate_for_periodic_is_rounding():
     assert Spectral().error_estimate(
         __import__("tactilab.forward.methods", fromlist=["Problem"]).Problem(
             load, np.array([1e-3]), 0.5, np.eye(6), None, np.dtype(float))) < 1e-13
+
+
+@pytest.mark.parametrize("depth_over_h", [0.5, 0.7, 1.0, 1.5, 2.0])
+def test_reported_estimate_bounds_the_error_relative_to_the_field(depth_over_h):
+    """DC-FFT's reported estimate (rescaled to the field's peak) bounds the error against a
+    3x refined grid of the same smooth load, measured relative to the field's peak."""
+    h, width = 1e-4, 2e-4
+    z = depth_over_h * h
+
+    def field(spacing, n):
+        x = (np.arange(n) - n // 2) * spacing
+        xx, yy = np.meshgrid(x, x)
+        g = 1e4 * np.exp(-(xx**2 + yy**2) / (2 * width**2))
+        r = HS.stress(SurfaceLoad(p=g, qx=0.5 * g, spacing=spacing), z, method="dcfft")
+        return r, r.data["stress"].values[0]
+
+    coarse, a = field(h, 33)
+    _, fine = field(h / 3, 97)  # node 3k of the fine grid sits on node k of the coarse one
+    err = np.abs(a - fine[:, ::3, ::3]).max() / np.abs(fine).max()
+    assert err <= coarse.error_estimate
