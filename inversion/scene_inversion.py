@@ -1,0 +1,168 @@
+"""Invert a Recording of a defect scene: the defect's position by emcee, and the load profile
+along the scan line by the exact linear-Gaussian posterior.
+
+Data preparation (:func:`defect_problem`): the recording must match the scene's sensors (ids,
+components, quantity "stress") and scan (number of samples); the contact's own stress is constant
+in the finger frame, so it is removed by subtracting each channel's median over time (the
+defect passes in a small share of the scan); the sensors with the largest signal are kept and
+the time axis is decimated to keep at most ``max_data`` values.
+
+Profile (:func:`defect_profile`): the baseline-free signal is linear in an irregularity load
+density ``s(x)`` (m^2 of effective defect area per m of scan line, at y = 0): column j of the
+operator is :class:`DefectScanModel` with the defect at ``x_j``. Its regularisation strength is
+chosen by the four criteria, and the credible band comes from the equivalent Gaussian prior.
+"""
+
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+
+from tactilab.data_schemas.recording import Recording
+
+from .criteria import CriteriaResult
+from .gaussian import GaussianPosterior, gaussian_posterior
+from .linear import invert_linear
+from .mcmc import MCMCResult, sample_scene_posterior
+from .scene_params import DefectScanModel, Normal, Uniform
+
+__all__ = ["read_recording", "defect_problem", "invert_defect_position", "defect_profile"]
+
+
+def read_recording(path) -> Recording:
+    """Read a Recording from ``recording.nc`` (written by ``tactilab simulate``) or a JSON record."""
+    path = pathlib.Path(path)
+    if not path.exists():
+        raise OSError(f"RECORDING: file {str(path)!r} not found; give the recording.nc or .json written by "
+                      "tactilab simulate")
+    if path.suffix == ".json":
+        return Recording.load(path)
+    if path.suffix != ".nc":
+        raise ValueError(f"RECORDING: unsupported file type {path.suffix!r} ({path}); use .nc or .json")
+    import xarray as xr
+
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        if "values" not in ds:
+            raise ValueError(f"RECORDING: {path} has no 'values' variable (time, sensor, component); "
+                             "write it with tactilab simulate")
+        return Recording(values=ds["values"].values, sampling_rate_hz=float(ds.attrs["sampling_rate_hz"]),
+                         sensor_ids=tuple(str(s) for s in ds["sensor"].values),
+                         components=tuple(str(c) for c in ds["component"].values),
+                         quantity=str(ds.attrs.get("quantity", "stress")), unit=str(ds.attrs.get("unit", "Pa")),
+                         start_time_s=float(ds.attrs.get("start_time_s", 0.0)))
+
+
+def defect_problem(scene, recording: Recording, max_data: int = 1500, max_sensors: int = 6):
+    """Check scene and recording against each other and build the defect model and data.
+
+    Returns
+    -------
+    model : DefectScanModel
+    data : ndarray, shape (model.n_data,), Pa (baseline removed)
+    info : dict
+        ``sensor_ids`` kept, ``time_stride``, ``noise_std`` (Pa), ``truth`` (the scene's defect
+        position, for reports), ``contact_radius`` (m).
+    """
+    if scene.contact is None:
+        raise ValueError("scene.contact: the defect inversion needs a finger contact (Hertz); this scene has none")
+    if getattr(scene.surface, "kind", None) != "defect":
+        raise ValueError(f"scene.surface: the defect inversion needs an isolated defect surface, got kind "
+                         f"{getattr(scene.surface, 'kind', None)!r}")
+    recording.check_matches(scene.sensors)
+    if recording.quantity != "stress":
+        raise ValueError(f"recording.quantity: the defect model predicts stress (Pa), got {recording.quantity!r}; "
+                         "record stress sensors")
+    n = scene.scan.n_samples
+    if recording.n_times != n:
+        raise ValueError(f"recording: {recording.n_times} samples, but the scene's scan has {n} "
+                         "(duration x sampling rate); pair the recording with the scene that produced it")
+    values = np.asarray(recording.values, dtype=float)
+    bad = ~np.isfinite(values)
+    if bad.any():
+        idx = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise ValueError(f"recording.values: must be finite, found {values[idx]} at (time, sensor, component) "
+                         f"{idx}; drop or interpolate bad samples")
+    noise = float(scene.sensors.noise_std)
+    if noise <= 0:
+        raise ValueError("scene.sensors.noise_std: the likelihood needs the noise level (Pa) > 0, got 0; "
+                         "set noise_std in the scene's [sensors] table")
+    signal = values - np.median(values, axis=0, keepdims=True)
+    energy = np.sqrt(np.mean(signal**2, axis=(0, 2)))
+    keep = np.sort(np.argsort(energy)[::-1][:max_sensors])
+    per_time = keep.size * recording.n_components
+    stride = max(1, int(np.ceil(n * per_time / max_data)))
+    u = scene.scan.positions_m[::stride]
+    c = scene.contact
+    model = DefectScanModel(u, scene.sensors.positions_m[keep], recording.components,
+                            finger_radius=c.finger_radius_m, poisson_ratio=scene.material.poisson_ratio)
+    from tactilab.forward.contact import HertzContact
+
+    hertz = HertzContact(normal_force=c.normal_force_n, finger_radius=c.finger_radius_m,
+                         young_modulus=scene.material.young_modulus_pa, poisson_ratio=scene.material.poisson_ratio)
+    info = {"sensor_ids": [recording.sensor_ids[i] for i in keep], "time_stride": stride, "noise_std": noise,
+            "truth": tuple(scene.surface.position_m), "contact_radius": hertz.contact_radius}
+    return model, signal[::stride][:, keep, :].ravel(), info
+
+
+def _fixed(scene) -> dict:
+    return dict(friction=float(scene.contact.friction_coefficient), depth=float(scene.sensors.depth_m),
+                young_modulus=float(scene.material.young_modulus_pa), normal_force=float(scene.contact.normal_force_n))
+
+
+def _amplitude_scale(model, data, fixed, x_grid) -> float:
+    g = model.design(dict(fixed, x0=x_grid, y0=np.zeros_like(x_grid)))
+    return 10.0 * float(np.max(np.abs(data))) / max(float(np.max(np.abs(g))), 1e-300)
+
+
+def invert_defect_position(scene, recording: Recording, rng: np.random.Generator, *, sample_friction: bool = False,
+                           max_data: int = 1500, progress: bool = False, **sampler_options) -> tuple[MCMCResult, dict]:
+    """Posterior of the defect position (x0, y0) (and optionally mu) by emcee.
+
+    Priors: x0 uniform over the scanned range (contact centre path widened by the contact
+    radius), y0 uniform over +-1 contact radius, mu uniform on [0, 1] when sampled; the rest
+    fixed at the scene's values; the defect area ``S_d`` integrated out under N(0, s^2) with s
+    ten times the amplitude that explains the largest datum.
+    """
+    model, data, info = defect_problem(scene, recording, max_data=max_data)
+    a = info["contact_radius"]
+    u = model.scan_positions
+    fixed = _fixed(scene)
+    priors = dict(fixed, x0=Uniform(float(u.min() - a), float(u.max() + a)), y0=Uniform(-a, a))
+    if sample_friction:
+        priors["friction"] = Uniform(0.0, 1.0)
+    scale = _amplitude_scale(model, data, fixed, np.linspace(u.min(), u.max(), 64))
+    result = sample_scene_posterior(model, data, info["noise_std"], priors, Normal(0.0, scale), rng=rng,
+                                    progress=progress, **sampler_options)
+    return result, info
+
+
+def defect_profile(scene, recording: Recording, *, n_grid: int = 200, criterion: str = "evidence",
+                   max_data: int = 1500) -> tuple[GaussianPosterior, CriteriaResult, np.ndarray]:
+    """Load-density profile s(x) along the scan line with its Gaussian credible band.
+
+    Returns
+    -------
+    posterior : GaussianPosterior
+        Mean and pointwise std of s(x), m^2 per m (dense path).
+    criteria : CriteriaResult
+        The four criteria for the identity penalty; ``criterion`` picks lam.
+    x : ndarray, shape (n_grid,)
+        World x of the profile nodes, m.
+    """
+    model, data, info = defect_problem(scene, recording, max_data=max_data)
+    u = model.scan_positions
+    a = info["contact_radius"]
+    x = np.linspace(u.min() - a, u.max() + a, int(n_grid))
+    dx = float(x[1] - x[0])
+    g = model.design(dict(_fixed(scene), x0=x, y0=np.zeros_like(x))).T * dx  # (n_data, n_grid)
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UserWarning)
+        lin = invert_linear(g, data, penalty="identity", criterion=criterion, noise_std=info["noise_std"], spacing=dx)
+    for w in caught:  # surface the disagreement warning at the caller
+        warnings.warn(str(w.message), UserWarning, stacklevel=2)
+    prior = np.full(x.size, info["noise_std"] ** 2 / lin.lam)  # Tikhonov identity prior, white
+    post = gaussian_posterior(g, data, prior, info["noise_std"], spacing=dx)
+    return post, lin.criteria, x
