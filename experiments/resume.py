@@ -19,7 +19,8 @@ from tactilab.data_schemas.experiment import Protocol
 from tactilab.data_schemas.experiment_records import TrialRecord
 
 from .display import Display
-from .procedures import Likelihood, Procedure, make_procedure, replay, resolve_likelihood
+from .procedures import Likelihood, Procedure, make_procedure, replay
+from .psi import resolve_likelihood
 from .recording import Recorder, SessionLog
 from .responses import ResponseSource
 from .runner import Runner, RunResult, trial_generators

@@ -11,8 +11,8 @@ from scipy.optimize import brentq
 
 from tactilab.data_schemas.experiment import (
     ConstantStimuliConfig, Protocol, PsiConfig, StaircaseConfig)
-from tactilab.experiments.procedures import (
-    ConstantStimuli, PlannedLevel, Psi, Staircase, make_procedure, psychometric, replay, resolve_likelihood)
+from tactilab.experiments.procedures import ConstantStimuli, PlannedLevel, Staircase, make_procedure, replay
+from tactilab.experiments.psi import Psi, psychometric, resolve_likelihood
 from tactilab.experiments.tasks import outcome_of, plan_trial, score
 
 

@@ -1,0 +1,264 @@
+"""Procedure configurations of a protocol, and the validated field helpers they share.
+
+A protocol's ``[procedure]`` table is one of :class:`ConstantStimuliConfig`,
+:class:`StaircaseConfig` or :class:`PsiConfig` (``method`` picks it). Levels are read in the
+unit of the varied stimulus ``parameter`` (``"20um"`` for ``amplitude_m``), converted to SI once
+with :func:`tactilab.data_schemas.units.to_si`; grids are lists or ``{start, stop, n, scale}``
+tables. :mod:`tactilab.data_schemas.experiment` builds the protocol from these.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Annotated, Any, Literal, Union
+
+import numpy as np
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationInfo, model_validator
+
+from .units import to_si
+
+# The stimulus parameters a procedure may vary, with the dimension of their values.
+PARAMETERS: dict[str, str] = {
+    "amplitude_m": "length",
+    "pitch_m": "length",
+    "speed_m_per_s": "speed",
+    "duration_s": "time",
+}
+TASKS = ("2afc", "2ifc", "yes_no", "same_different", "magnitude_estimation")
+LIKELIHOOD_FAMILIES = ("weibull", "logistic", "normal_cdf", "gumbel")
+_LABEL = re.compile(r"^[A-Za-z0-9]{1,32}$")
+_IMPORT_PATH = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
+
+
+def _quantity(dimension: str):
+    """Before-validator: a number (SI) or a string with a unit suffix, converted to SI."""
+
+    def convert(value: Any, info: ValidationInfo) -> Any:
+        if isinstance(value, (str, int, float)):  # bools too: to_si refuses them
+            return to_si(value, dimension, name=info.field_name or "value")
+        return value
+
+    return BeforeValidator(convert)
+
+
+def _finite(value: float, name: str) -> float:
+    if not math.isfinite(value):
+        raise ValueError(f"{name}: must be finite, got {value!r}; give a number")
+    return value
+
+
+def _positive(value: float, name: str, unit: str) -> float:
+    _finite(value, name)
+    if value <= 0:
+        raise ValueError(f"{name}: must be > 0 {unit}, got {value!r}; give a positive value")
+    return value
+
+
+def check_label(value: str, name: str) -> str:
+    if not _LABEL.match(value):
+        raise ValueError(
+            f"{name}: must be 1-32 letters or digits (a BIDS label; a pseudonymous code, never "
+            f"a name), got {value!r}; use e.g. 'S01'"
+        )
+    return value
+
+
+Length = Annotated[float, _quantity("length")]
+Speed = Annotated[float, _quantity("speed")]
+Time = Annotated[float, _quantity("time")]
+Frequency = Annotated[float, _quantity("frequency")]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+
+def _grid(raw: Any, dimension: str, name: str) -> list[float]:
+    """Read a list of values or a ``{start, stop, n, scale}`` table, each value with units."""
+    if isinstance(raw, dict):
+        unknown = set(raw) - {"start", "stop", "n", "scale"}
+        if unknown or not {"start", "stop", "n"} <= set(raw):
+            raise ValueError(
+                f"{name}: a grid table needs exactly start, stop, n and optional scale "
+                f"('linear' or 'log'), got keys {sorted(raw)}; e.g. {{start='5um', stop='200um', n=20}}"
+            )
+        start = to_si(raw["start"], dimension, name=f"{name}.start")
+        stop = to_si(raw["stop"], dimension, name=f"{name}.stop")
+        n, scale = raw["n"], raw.get("scale", "linear")
+        if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= 10_000:
+            raise ValueError(f"{name}.n: must be an integer in [2, 10000], got {n!r}")
+        if scale not in ("linear", "log"):
+            raise ValueError(f"{name}.scale: must be 'linear' or 'log', got {scale!r}")
+        if scale == "log" and (start <= 0 or stop <= 0):
+            raise ValueError(f"{name}: a log grid needs start and stop > 0, got {start!r}, {stop!r}")
+        if stop <= start:
+            raise ValueError(f"{name}: stop must exceed start, got start={start!r}, stop={stop!r}")
+        values = np.geomspace(start, stop, n) if scale == "log" else np.linspace(start, stop, n)
+        return [float(v) for v in values]
+    if isinstance(raw, (list, tuple)):
+        if not raw:
+            raise ValueError(f"{name}: needs at least one value, got an empty list")
+        return [to_si(v, dimension, name=f"{name}[{i}]") for i, v in enumerate(raw)]
+    raise ValueError(f"{name}: expected a list of values or a {{start, stop, n}} table, got {raw!r}")
+
+
+def _convert_levels(data: Any, fields: tuple[str, ...], grids: tuple[str, ...] = ()) -> Any:
+    """Convert level-valued fields with the dimension of the varied ``parameter``."""
+    if not isinstance(data, dict):
+        return data
+    parameter = data.get("parameter")
+    if parameter not in PARAMETERS:
+        raise ValueError(
+            f"parameter: must be one of {sorted(PARAMETERS)}, got {parameter!r}; name the "
+            "stimulus field the procedure varies"
+        )
+    dimension, out = PARAMETERS[parameter], dict(data)
+    for key in fields:
+        if key in out and out[key] is not None:
+            out[key] = to_si(out[key], dimension, name=key)
+    for key in grids:
+        if key in out:
+            out[key] = _grid(out[key], dimension, key)
+    return out
+
+
+class ConstantStimuliConfig(_Model):
+    """Method of constant stimuli: every level ``repeats_per_block`` times per block, shuffled."""
+
+    method: Literal["constant_stimuli"]
+    parameter: str
+    levels: list[float]
+    repeats_per_block: int = Field(5, ge=1, le=1000)
+    n_blocks: int = Field(4, ge=1, le=1000)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _units(cls, data: Any) -> Any:
+        return _convert_levels(data, (), ("levels",))
+
+
+class StaircaseTrack(_Model):
+    """One transformed up/down staircase: ``down`` positives in a row step down, ``up`` negatives step up.
+
+    1-up-2-down converges on 70.7 % positive outcomes, 1-up-3-down on 79.4 % (Levitt 1971).
+    ``step_sizes[k]`` applies after k reversals (the last one thereafter); in the parameter's
+    unit for ``step_scale = 'linear'``, in log10 units for ``'log'`` (0.1 = x1.26).
+    """
+
+    start: float
+    up: int = Field(1, ge=1, le=10)
+    down: int = Field(2, ge=1, le=10)
+    step_sizes: list[float]
+    step_scale: Literal["linear", "log"] = "log"
+    min_level: float
+    max_level: float
+    max_trials: int = Field(40, ge=1, le=10_000)
+    max_reversals: int | None = Field(None, ge=1)
+    estimate_reversals: int = Field(6, ge=1, description="mean of the last k reversal levels")
+
+    @model_validator(mode="after")
+    def _check(self) -> StaircaseTrack:
+        for name in ("start", "min_level", "max_level"):
+            _finite(getattr(self, name), name)
+        if not self.step_sizes or any(not math.isfinite(s) or s <= 0 for s in self.step_sizes):
+            raise ValueError(f"step_sizes: need at least one finite step > 0, got {self.step_sizes!r}")
+        if not self.min_level <= self.start <= self.max_level or self.min_level >= self.max_level:
+            raise ValueError(
+                f"start: must lie in [min_level, max_level] with min < max, got start={self.start!r}, "
+                f"min_level={self.min_level!r}, max_level={self.max_level!r}"
+            )
+        if self.step_scale == "log" and self.min_level <= 0:
+            raise ValueError(f"min_level: a log staircase needs min_level > 0, got {self.min_level!r}")
+        return self
+
+
+class StaircaseConfig(_Model):
+    """One or several interleaved staircases; each trial runs a track drawn at random."""
+
+    method: Literal["staircase"]
+    parameter: str
+    tracks: list[StaircaseTrack] = Field(min_length=1, max_length=16)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _units(cls, data: Any) -> Any:
+        data = _convert_levels(data, ())
+        if isinstance(data, dict) and isinstance(data.get("tracks"), list):
+            linear_steps = lambda t: isinstance(t, dict) and t.get("step_scale", "log") == "linear"
+            dim = PARAMETERS[data["parameter"]]
+            tracks = []
+            for i, t in enumerate(data["tracks"]):
+                if isinstance(t, dict):
+                    t = dict(t)
+                    for key in ("start", "min_level", "max_level"):
+                        if key in t:
+                            t[key] = to_si(t[key], dim, name=f"tracks[{i}].{key}")
+                    if linear_steps(t) and isinstance(t.get("step_sizes"), list):
+                        t["step_sizes"] = [to_si(s, dim, name=f"tracks[{i}].step_sizes") for s in t["step_sizes"]]
+                tracks.append(t)
+            data["tracks"] = tracks
+        return data
+
+
+class PsiConfig(_Model):
+    """Bayesian adaptive method (psi / QUEST+): pick the level that minimises expected entropy.
+
+    ``likelihood`` is a named family (``weibull``, ``logistic``, ``normal_cdf``, ``gumbel``;
+    parameters ``threshold`` in the varied parameter's unit, ``slope``, ``lapse``) or an import
+    path ``"package.module:function"`` to ANY callable ``f(level, **params) -> p(positive)``
+    broadcasting ``level`` of shape (n_levels, 1) against parameter grids of shape (1, n_theta).
+    The library API also takes the callable itself. ``parameters`` maps each parameter to its
+    grid; a grid named ``threshold`` is read in the varied parameter's unit.
+    """
+
+    method: Literal["psi"]
+    parameter: str
+    levels: list[float]
+    likelihood: str = "weibull"
+    parameters: dict[str, list[float]]
+    guess_rate: float | None = Field(None, description="defaults to the task's chance rate")
+    n_trials: int = Field(40, ge=1, le=10_000)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _units(cls, data: Any) -> Any:
+        data = _convert_levels(data, (), ("levels",))
+        if isinstance(data, dict) and isinstance(data.get("parameters"), dict):
+            dim = PARAMETERS[data["parameter"]]
+            data["parameters"] = {
+                k: _grid(v, dim if k == "threshold" else "dimensionless", f"parameters.{k}")
+                for k, v in data["parameters"].items()
+            }
+        return data
+
+    @model_validator(mode="after")
+    def _check(self) -> PsiConfig:
+        if self.likelihood not in LIKELIHOOD_FAMILIES and not _IMPORT_PATH.match(self.likelihood):
+            raise ValueError(
+                f"likelihood: must be one of {list(LIKELIHOOD_FAMILIES)} or an import path "
+                f"'package.module:function', got {self.likelihood!r}"
+            )
+        if self.likelihood in LIKELIHOOD_FAMILIES and set(self.parameters) != {"threshold", "slope", "lapse"}:
+            raise ValueError(
+                f"parameters: the {self.likelihood!r} family needs grids for exactly threshold, slope "
+                f"and lapse, got {sorted(self.parameters)}"
+            )
+        if "lapse" in self.parameters and any(not 0 <= v < 0.5 for v in self.parameters["lapse"]):
+            raise ValueError(f"parameters.lapse: values must lie in [0, 0.5), got {self.parameters['lapse']!r}")
+        if "slope" in self.parameters and any(v <= 0 for v in self.parameters["slope"]):
+            raise ValueError(f"parameters.slope: values must be > 0, got {self.parameters['slope']!r}")
+        if self.guess_rate is not None and not 0 <= self.guess_rate < 1:
+            raise ValueError(f"guess_rate: must lie in [0, 1), got {self.guess_rate!r}")
+        n_theta = math.prod(len(g) for g in self.parameters.values())
+        if n_theta * len(self.levels) > 5_000_000:
+            raise ValueError(
+                f"parameters: the grid has {n_theta} points x {len(self.levels)} levels, above "
+                "5e6; use coarser grids"
+            )
+        return self
+
+
+ProcedureConfig = Annotated[
+    Union[ConstantStimuliConfig, StaircaseConfig, PsiConfig], Field(discriminator="method")
+]
