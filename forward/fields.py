@@ -13,30 +13,22 @@ from collections.abc import Sequence
 import numpy as np
 import xarray as xr
 
-VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
+from .kernels import COMPONENTS as VOIGT
+from .kernels import check_components as kernel_check_components
+
 SHEAR_CONVENTION = "tensor shear eps_ij (engineering gamma_ij = 2 eps_ij; see to_engineering)"
 INVARIANTS = ("volumetric", "von_mises", "energy_density", "principal", "max_shear")
 _PAIRS = {"xx": (0, 0), "yy": (1, 1), "zz": (2, 2), "yz": (1, 2), "zx": (2, 0), "xy": (0, 1)}
 
 
 def check_components(components: Sequence[str] | str | None, name: str = "components") -> tuple[str, ...]:
-    """Validate component names; None means all six (Voigt order)."""
+    """Validate component names; None means all six (Voigt order); 'xz' etc. are accepted."""
     if components is None:
         return VOIGT
     if isinstance(components, str):
         components = (components,)
-    comps = tuple(components)
     aliases = {"xz": "zx", "zy": "yz", "yx": "xy"}
-    comps = tuple(aliases.get(c, c) for c in comps)
-    bad = [c for c in comps if c not in VOIGT]
-    if bad or not comps:
-        raise ValueError(
-            f"{name}: unknown component(s) {bad or list(components)}; use names from {VOIGT} "
-            "(e.g. components=('zz', 'zx'))"
-        )
-    if len(set(comps)) != len(comps):
-        raise ValueError(f"{name}: repeated component in {comps}; list each once")
-    return comps
+    return kernel_check_components(tuple(aliases.get(c, c) for c in components))
 
 
 def compliance_matrix(young_modulus: float, nu: float) -> np.ndarray:

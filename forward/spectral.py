@@ -31,9 +31,8 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.fft as sfft
 
+from .kernels import COMPONENTS as VOIGT
 from .loads import SurfaceLoad
-
-VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
 
 
 def wavenumbers(shape: tuple[int, ...], spacing: tuple[float, ...]):

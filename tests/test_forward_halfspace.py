@@ -175,9 +175,9 @@ def test_bad_input_names_the_argument():
         HS.stress(load, -1e-3)
     with pytest.raises(ValueError, match="depth: give one depth"):
         HS.stress(load, [])
-    with pytest.raises(ValueError, match="components: unknown component"):
+    with pytest.raises(ValueError, match="components: unknown stress component"):
         HS.stress(load, 1e-3, components=("zz", "qq"))
-    with pytest.raises(ValueError, match="components: repeated"):
+    with pytest.raises(ValueError, match="components: names repeat"):
         HS.stress(load, 1e-3, components=("zz", "zz"))
     with pytest.raises(ValueError, match="tol: must be a finite"):
         HS.stress(load, 1e-3, tol=0)
