@@ -262,3 +262,16 @@ class BiomimeticFinger:
         X, Y, p, q = X[keep], Y[keep], p[keep], q[keep]
         W = self.point_response(X, Y, q * h * h, p * h * h)
         return X, Y, W.reshape(X.size, -1)
+
+    def operator(self):
+        """The scan as a linear operator: surface modulation at the loaded nodes -> sensor outputs.
+
+        Returns a ``scipy.sparse.linalg.LinearOperator`` of shape (n_sensors * n_components,
+        n_nodes) (nodes as in :meth:`node_weights`), with its adjoint; outputs in Pa or strain
+        per unit modulation.
+        """
+        from scipy.sparse.linalg import LinearOperator
+
+        _, _, W = self.node_weights()
+        return LinearOperator(shape=(W.shape[1], W.shape[0]), dtype=float,
+                              matvec=lambda m: W.T @ np.ravel(m), rmatvec=lambda y: W @ np.ravel(y))

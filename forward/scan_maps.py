@@ -79,6 +79,30 @@ class ScanMaps:
             out[i0:i0 + uu.shape[0]] = np.fft.irfft2(spec, s=(s, s))[..., :n, :n]
         return out
 
+    def apply(self, modulation: np.ndarray) -> np.ndarray:
+        """Maps (n_components, ny, nx) for one modulation field (ny, nx) on the finger grid."""
+        s, n = self.size, self.n
+        fz = np.fft.rfft2(modulation * self.force_z, s=(s, s))
+        fx = np.fft.rfft2(modulation * self.force_x, s=(s, s))
+        return np.fft.irfft2(fz * self.kernel_z + fx * self.kernel_x, s=(s, s))[..., :n, :n]
+
+    def adjoint(self, maps: np.ndarray) -> np.ndarray:
+        """Adjoint of :meth:`apply`: (n_components, ny, nx) -> (ny, nx) (correlation with the kernels)."""
+        s, n = self.size, self.n
+        spec = np.fft.rfft2(maps, s=(s, s))
+        back_z = np.fft.irfft2((spec * np.conj(self.kernel_z)).sum(axis=0), s=(s, s))[:n, :n]
+        back_x = np.fft.irfft2((spec * np.conj(self.kernel_x)).sum(axis=0), s=(s, s))[:n, :n]
+        return self.force_z * back_z + self.force_x * back_x
+
+    def operator(self):
+        """:meth:`apply` as a ``scipy.sparse.linalg.LinearOperator`` (flattened), with its adjoint."""
+        from scipy.sparse.linalg import LinearOperator
+
+        n, nc = self.n, self.kernel_z.shape[0]
+        return LinearOperator(shape=(nc * n * n, n * n), dtype=float,
+                              matvec=lambda m: self.apply(np.reshape(m, (n, n))).ravel(),
+                              rmatvec=lambda y: self.adjoint(np.reshape(y, (nc, n, n))).ravel())
+
     def sensor_values(self, maps: np.ndarray) -> np.ndarray:
         """Bilinear read-out of maps at the sensor positions: (n_frames, n_sensors, n_components)."""
         from scipy.ndimage import map_coordinates

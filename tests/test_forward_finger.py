@@ -303,3 +303,21 @@ def test_partial_slip_finger_spans_no_load_to_sliding():
         BiomimeticFinger(HertzContact(0.8), sensors, friction=0.5, slip_ratio=1.5)
     with pytest.raises(ValueError, match="slip_ratio: partial slip .* give adhesion=0"):
         BiomimeticFinger(HertzContact(0.8), sensors, friction=0.5, adhesion=0.5, slip_ratio=0.5)
+
+
+def test_scan_operators_pass_the_dot_test(rng):
+    """<A m, y> = <m, A^T y> for the node-weight operator and the DC-FFT map operator; the map
+    operator applied to the unmodulated contact equals the scan's flat-surface outputs."""
+    from tactilab.forward.scan_maps import ScanMaps
+
+    sensors = SensorArray.grid(3, 3, 1e-3, 2e-3, components=("zz", "zx"))
+    f = BiomimeticFinger(HertzContact(0.8), sensors, friction=0.5, adhesion=0.3, grid_spacing=0.2e-3)
+    for A in (f.operator(), ScanMaps(f).operator()):
+        m = rng.standard_normal(A.shape[1])
+        y = rng.standard_normal(A.shape[0])
+        lhs, rhs = (A @ m) @ y, m @ (A.H @ y)
+        assert lhs == pytest.approx(rhs, rel=1e-10)
+    sm = ScanMaps(f)
+    maps = sm.apply(np.ones((sm.n, sm.n)))
+    flat = f.operator() @ np.ones(f.operator().shape[1])
+    np.testing.assert_allclose(sm.sensor_values(maps[None])[0].ravel(), flat, rtol=1e-9)
