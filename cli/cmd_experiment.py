@@ -34,7 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     export = sub.add_parser("export", help="export trials: BIDS-style beh TSV + JSON sidecar, CSV or Parquet (SI units)")
     export.add_argument("session", type=Path, help="session .sqlite file")
-    export.add_argument("--format", default="bids", help="bids, csv or parquet (needs pyarrow); default bids")
+    export.add_argument("--format", default="bids",
+                        help="bids, csv, parquet (needs pyarrow) or json (the whole session); default bids")
     export.add_argument("--out", type=Path, default=None, help="output folder (default: the session's folder)")
 
     status = sub.add_parser("status", help="show progress, status and the current estimate of a session (SI -> um/mm)")

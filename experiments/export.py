@@ -13,11 +13,11 @@ from pathlib import Path
 import pandas as pd
 
 from tactilab.data_schemas.experiment_records import (
-    TEXT_COLUMNS, TrialRecord, trials_from_dataframe, trials_to_dataframe)
+    TEXT_COLUMNS, Session, TrialRecord, trials_from_dataframe, trials_to_dataframe)
 
 from .recording import SessionLog
 
-FORMATS = ("bids", "csv", "parquet")
+FORMATS = ("bids", "csv", "parquet", "json")
 
 _BIDS_COLUMNS = {
     "trial_index": ("Trial number (0-based, in planned order)", None),
@@ -49,6 +49,22 @@ def read_trials_csv(path: str | Path) -> list[TrialRecord]:
     return trials_from_dataframe(frame)
 
 
+def session_record(path: str | Path) -> Session:
+    """The whole session as a validated :class:`Session` (protocol, provenance, trials)."""
+    from .resume import session_status
+
+    log = SessionLog(path)
+    try:
+        meta, trials = log.meta(), log.trials()
+    finally:
+        log.close()
+    status = session_status(path)["status"]
+    return Session(session_id=meta["session_id"], subject=meta["subject"], session=meta["session"],
+                   protocol=meta["protocol"], seed=meta["seed"], package_version=meta["package_version"],
+                   display_id=meta["display_id"], responses=meta["responses"], created_utc=meta["created_utc"],
+                   status=status, trials=trials)
+
+
 def session_dataframe(path: str | Path) -> pd.DataFrame:
     """All completed trials of a session as a DataFrame (see ``trials_to_dataframe``)."""
     log = SessionLog(path)
@@ -67,8 +83,9 @@ def export_session(path: str | Path, out: str | Path, format: str = "bids") -> l
         The session's .sqlite file.
     out : path
         Output folder (created if needed).
-    format : {"bids", "csv", "parquet"}
-        BIDS-style TSV + JSON sidecar, a CSV of every field, or Parquet (needs pyarrow).
+    format : {"bids", "csv", "parquet", "json"}
+        BIDS-style TSV + JSON sidecar, a CSV of every field, Parquet (needs pyarrow), or the
+        whole :class:`Session` as JSON.
 
     Raises
     ------
@@ -93,6 +110,10 @@ def export_session(path: str | Path, out: str | Path, format: str = "bids") -> l
     frame = trials_to_dataframe(trials)
     out = Path(out)
     stem = f"sub-{meta['subject']}_ses-{meta['session']}_task-{meta['protocol']['name']}"
+    if format == "json":
+        out.mkdir(parents=True, exist_ok=True)
+        (out / f"{stem}_session.json").write_text(session_record(path).model_dump_json(indent=1))
+        return [out / f"{stem}_session.json"]
     if format == "csv":
         out.mkdir(parents=True, exist_ok=True)
         frame.to_csv(out / f"{stem}_trials.csv", index=False)

@@ -123,16 +123,20 @@ def session_status(path: str | Path) -> dict[str, Any]:
     try:
         state = replay_log(log)
         kinds = [e["kind"] for e in state.events]
+        ends = [k for k in kinds if k in ("session_complete", "session_failed", "session_resumed", "session_started")]
         if "session_complete" in kinds:
             status = "complete"
         elif log.is_locked():
             status = "running"
+        elif ends and ends[-1] == "session_failed":
+            status = "failed"  # an unexpected error; resuming is still possible
         else:
-            status = "interrupted" if state.attempts or "session_stopped" not in kinds else "stopped"
+            status = "interrupted"  # killed, stopped by the subject or a signal, or a write failed
         return {
             "path": str(Path(path)), "subject": state.meta["subject"], "session": state.meta["session"],
             "task": state.protocol.name, "method": state.protocol.procedure.method,
             "parameter": state.protocol.procedure.parameter, "status": status,
+            "stopped_cleanly": bool(kinds) and kinds[-1] == "session_stopped",
             "completed": len(state.trials), "planned": state.procedure.n_planned,
             "interrupted_trial": next(iter(state.attempts), None),
             "repeated_trials": sum(t.repeated for t in state.trials),

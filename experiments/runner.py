@@ -23,6 +23,7 @@ import os
 import signal
 import threading
 import time
+import uuid
 from dataclasses import dataclass
 from datetime import datetime
 from importlib import metadata
@@ -36,7 +37,7 @@ from tactilab.data_schemas.experiment_records import TrialRecord
 
 from .display import Display, render_drive
 from .procedures import Likelihood, PlannedLevel, Procedure, make_procedure
-from .recording import Recorder, RecordingError
+from .recording import Recorder, RecordingError, utc_now
 from .responses import ResponseSource
 from .safety import SafeDisplay
 from .tasks import TrialPlan, plan_trial, score
@@ -131,6 +132,7 @@ class Runner:
                 self.run_trial(index, *attempts.get(index, (0, False)), planned, task_rng)
                 bar.update(1)
                 bar.set_postfix_str(format_estimate(self.procedure.estimate(), self.protocol.procedure.parameter))
+            self.display.zero()
             self.recorder.log("session_complete", payload={"estimate": self.procedure.estimate()})
             return RunResult(self.recorder.path, "complete", self.procedure.n_done, self.procedure.estimate())
         except KeyboardInterrupt:
@@ -173,13 +175,15 @@ class Runner:
         self.recorder.log("stimulus_presented", index, attempt, {"stimuli": commanded})
         utc_presented = _utc(self.recorder)
         before = self._interventions
-        reports, onset_ns = [], time.monotonic_ns()
-        self.responses.arm(plan, onset_ns)
+        reports, onset_ns = [], 0
         for k, stimulus in enumerate(plan.stimuli):
             if k and self.realtime:
                 self.sleep(plan.gap_s)
             frames = render_drive(self.display.description, **stimulus.model_dump())
             self.display.load(frames, stimulus.frame_rate_hz)
+            if k == 0:  # the response clock starts at the first stimulus onset
+                onset_ns = time.monotonic_ns()
+                self.responses.arm(plan, onset_ns)
             reports.append(self.display.play())
         response = self.responses.collect(plan)
         correct, outcome = score(self.protocol, plan, response.label)
@@ -262,7 +266,8 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     """
     check_label(subject, "subject")
     check_label(session, "session")
-    meta = {"subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
+    meta = {"session_id": uuid.uuid4().hex, "created_utc": utc_now(),
+            "subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
             "seed": protocol.seed, "package_version": package_version(),
             "display_id": str(display.description.display_id), "responses": responses.name,
             "responses_config": dict(responses.config),

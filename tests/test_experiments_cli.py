@@ -90,6 +90,15 @@ def test_csv_parquet_and_dataframe_round_trip(session, tmp_path):
     assert len(session_dataframe(session)) == len(trials)
 
 
+def test_json_export_is_the_whole_session(session, tmp_path):
+    from tactilab.data_schemas.experiment_records import Session
+
+    (path,) = export_session(session, tmp_path / "out", "json")
+    record = Session.model_validate_json(path.read_text())
+    assert record.status == "complete" and record.trials == SessionLog(session).trials()
+    assert record.protocol.name == "cli" and len(record.session_id) == 32
+
+
 def test_parquet_without_pyarrow_names_the_missing_dependency(session, tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "pyarrow", None)  # makes `import pyarrow` fail
     with pytest.raises(ValueError, match="--format parquet: needs the optional dependency pyarrow"):

@@ -195,7 +195,7 @@ def test_sigterm_during_a_stimulus_zeroes_and_stops_cleanly(tmp_path):
     assert events[-1]["kind"] == "session_stopped"
     assert any(e["kind"] == "safety_intervention" and e["payload"]["kind"] == "zero_on_sigterm" for e in events)
     status = session_status(path)
-    assert status["status"] == "interrupted" and status["interrupted_trial"] == 1
+    assert status["status"] == "interrupted" and status["interrupted_trial"] == 1 and status["stopped_cleanly"]
 
 
 def test_replay_rebuilds_the_exact_procedure_state(tmp_path):
@@ -210,3 +210,20 @@ def test_replay_rebuilds_the_exact_procedure_state(tmp_path):
     live = runner.procedure.state()
     replayed = replay_session(path).procedure.state()
     np.testing.assert_array_equal(replayed["log_posterior"], live["log_posterior"])
+
+
+def test_an_unexpected_display_error_zeroes_logs_and_is_reported_as_failed(tmp_path):
+    def hook(display):
+        if display.plays == 3:
+            raise RuntimeError("amplifier fault")
+
+    runner, recorder, display, path = _runner(tmp_path, hook)
+    with pytest.raises(RuntimeError, match="amplifier fault"):
+        runner.run()
+    recorder.close()
+    assert display.zeros >= 1
+    status = session_status(path)
+    assert status["status"] == "failed" and status["completed"] == 1 and not status["stopped_cleanly"]
+    protocol = Protocol.model_validate(PROTOCOL)
+    assert resume_session(path, CheckingDisplay(path), SimulatedObserver(protocol), realtime=False).status == "complete"
+    assert session_status(path)["status"] == "complete"
