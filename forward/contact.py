@@ -111,6 +111,8 @@ class HertzContact:
 
     def _rho2(self, x, y) -> np.ndarray:
         x = np.asarray(x, dtype=float)
+        if not np.all(np.isfinite(x)) or (y is not None and not np.all(np.isfinite(np.asarray(y, float)))):
+            raise ValueError("x, y: contact points must be finite (no NaN or inf), in m")
         if self.line:
             if y is not None:
                 raise ValueError("y: a line contact (line=True) is independent of y; call pressure(x) only")

@@ -290,6 +290,8 @@ class Surface:
     def height(self, x, y=None) -> np.ndarray:
         """Total height in m at surface points (x, y) in m; 0 off the surface."""
         x, y = _xy(x, y)
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+            raise ValueError("x, y: surface points must be finite (no NaN or inf), in m")
         total = np.zeros(x.shape)
         for f in self.features:
             total = total + f.height(x, y)

@@ -126,6 +126,10 @@ def test_bad_input_raises():
         interfacial_traction(c, 0.0, 0.0, friction=math.inf)
     with pytest.raises(ValueError, match="condition='partial' needs a finite friction"):
         interfacial_traction(c, 0.0, 0.0, friction=math.inf, condition="partial", tangential_force=0.1)
+    with pytest.raises(ValueError, match="x, y: contact points must be finite"):
+        c.pressure(np.nan, 0.0)
+    with pytest.raises(ValueError, match="x, y: contact points must be finite"):
+        interfacial_traction(c, 0.0, np.inf, friction=0.5)
     with pytest.raises(ValueError, match="y: a 3-D contact needs both"):
         c.pressure(0.0)
     with pytest.raises(ValueError, match="y: a line contact"):

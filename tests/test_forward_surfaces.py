@@ -137,6 +137,8 @@ def test_bad_input_raises():
         HeightMap(np.zeros((3, 3)), spacing=(1e-4, 0.0))
     with pytest.raises(ValueError, match="reference_height: must be finite and > 0"):
         Surface(length=1e-2).modulation(0.0, reference_height=0.0)
+    with pytest.raises(ValueError, match="x, y: surface points must be finite"):
+        Surface(length=1e-2).height(np.array([np.nan]))
     with pytest.raises(ValueError, match="length: must be finite"):
         Surface(length=-1.0)
     with pytest.raises(ValueError, match="heights: need a finite array"):
