@@ -142,9 +142,15 @@ def test_kill_minus_9_at_random_points_loses_nothing_and_resumes_exactly(fast_di
         duration = time.perf_counter() - t0
         path = fast_dir / f"kill{s}.sqlite"
         acked_all: set[int] = set()
+        n_total = len(SessionLog(reference).trials())
         for attempt in range(int(rng.integers(1, 4))):
             resume = path.exists()
-            status, acked = run_killed(path, protocol, float(rng.uniform(0, 1.2 * duration)), resume)
+            done = len(SessionLog(path).trials()) if resume else 0
+            if done == n_total:
+                break
+            # a random point within the (remaining) run: the first kill always lands mid-session
+            delay = float(rng.uniform(0, 0.8 * duration * (n_total - done) / n_total))
+            status, acked = run_killed(path, protocol, delay, resume)
             kills += os.WIFSIGNALED(status)
             acked_all |= acked
             if path.exists():
@@ -162,6 +168,7 @@ def test_kill_minus_9_at_random_points_loses_nothing_and_resumes_exactly(fast_di
             earlier = {e["kind"] for e in events if e["trial_index"] == trial.trial_index
                        and e["attempt"] is not None and e["attempt"] < trial.attempt}
             assert trial.repeated == ("stimulus_presented" in earlier)
+    print(f"{kills} kills over {n_sessions} sessions, {repeated_seen} repeated trials")
     assert kills >= 20, f"only {kills} runs were actually killed"
     assert repeated_seen > 0, "no interrupted trial was ever repeated: the kills missed every trial"
 
