@@ -60,7 +60,7 @@ def trial_generators(seed: int, trial_index: int) -> tuple[np.random.Generator, 
 
 @dataclass(frozen=True)
 class RunResult:
-    """How a run ended: ``status`` is 'complete', 'interrupted' or 'failed'."""
+    """How a run ended: ``status`` is 'complete' or 'interrupted' (other failures raise)."""
 
     path: Path
     status: str
@@ -69,7 +69,7 @@ class RunResult:
 
 
 class Runner:
-    """Drive one session: ``Runner(...).run(start_index)``.
+    """Drive one session: ``Runner(...).run()``.
 
     Parameters
     ----------
@@ -103,6 +103,7 @@ class Runner:
         self.display_id = str(display.description.display_id)
         self._current: tuple[int | None, int | None] = (None, None)
         self._interventions = 0
+        self.log_failed = False  # True when even the stop could not be logged
 
     def _on_safety(self, event: dict) -> None:
         self._interventions += 1
@@ -136,29 +137,33 @@ class Runner:
             self.recorder.log("session_complete", payload={"estimate": self.procedure.estimate()})
             return RunResult(self.recorder.path, "complete", self.procedure.n_done, self.procedure.estimate())
         except KeyboardInterrupt:
-            self.display.zero()
-            try:
-                self.recorder.log("session_stopped", payload={"reason": "interrupted (Ctrl-C, q or SIGTERM)"})
-            except RecordingError:
-                pass
+            self._stop("session_stopped", "interrupted (Ctrl-C, q or SIGTERM)")
             return RunResult(self.recorder.path, "interrupted", self.procedure.n_done, self.procedure.estimate())
         except RecordingError as exc:
-            self.display.zero()
+            self._stop(None, "")
             raise RecordingError(
                 f"{exc}. The run stopped before the next stimulus; {self.procedure.n_done} completed "
                 f"trials are safe in {self.recorder.path}"
             ) from None
-        except BaseException:
-            self.display.zero()
-            try:
-                self.recorder.log("session_failed", payload={"reason": "unexpected error"})
-            except RecordingError:
-                pass
+        except BaseException as exc:
+            self._stop("session_failed", f"{type(exc).__name__}: {exc}")
             raise
         finally:
             bar.close()
             if previous_sigterm is not None:
                 signal.signal(signal.SIGTERM, previous_sigterm)
+
+    def _stop(self, kind: str | None, reason: str) -> None:
+        """Zero the display, then log why the run stopped (when the log itself still works)."""
+        try:
+            self.display.zero()
+        finally:
+            if kind is not None:
+                try:
+                    self.recorder.log(kind, payload={"reason": reason})
+                except RecordingError:
+                    # the log may be what failed; the caller still learns why the run stopped
+                    self.log_failed = True
 
     def run_trial(self, index: int, attempt: int, repeated: bool, planned: PlannedLevel,
                   task_rng: np.random.Generator) -> TrialRecord:
