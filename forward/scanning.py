@@ -32,6 +32,8 @@ class RecordFeature(Feature):
             raise ValueError(f"surface: expected a data_schemas surface record (with kind and height_at), "
                              f"got {type(record).__name__}")
         self.record = record
+        shape = getattr(record, "shape", None)
+        self.label = f"{record.kind} {shape}" if isinstance(shape, str) else str(record.kind)
 
     def height(self, x, y=None):
         return self.record.height_at(x, y)
@@ -104,8 +106,21 @@ def scanned_surface(record_or_features, positions, finger: BiomimeticFinger, *,
     x, _ = finger.grid()
     reach = float(x[-1])
     u = np.asarray(positions, dtype=float)
-    return Surface(length=float(u.max() - u.min()) + 2 * reach, width=2 * reach if width is None else width,
-                   features=feats, x_start=float(u.min()) - reach)
+    x0, x1, half = float(u.min()) - reach, float(u.max()) + reach, (reach if width is None else width / 2)
+    for f in feats:
+        b = f.bounds() if isinstance(f, Feature) else None
+        if b is None:
+            continue
+        ylo, yhi = (b[2] if math.isfinite(b[2]) else -half), (b[3] if math.isfinite(b[3]) else half)
+        if b[0] < x0 or b[1] > x1 or ylo < -half or yhi > half:
+            raise ValueError(
+                f"surface: the {getattr(f, 'label', type(f).__name__)} at x in [{b[0]:.6g}, {b[1]:.6g}] m, "
+                f"y in [{b[2]:.6g}, {b[3]:.6g}] m lies outside the surface strip the scan touches "
+                f"(x in [{x0:.6g}, {x1:.6g}] m, |y| <= {half:.4g} m: the contact centre moves from {u.min():.6g} "
+                f"to {u.max():.6g} m along y = 0 and reaches {reach:.4g} m around it); move the defect into "
+                "the strip or change the scan's start position, speed or duration"
+            )
+    return Surface(length=x1 - x0, width=2 * half, features=feats, x_start=x0)
 
 
 def reference_height(surface: Surface) -> float:

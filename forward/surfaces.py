@@ -281,7 +281,7 @@ class Surface:
             yhi = b[3] if math.isfinite(b[3]) else half
             if b[0] < x0 - tol or b[1] > x1 + tol or ylo < -half - tol or yhi > half + tol:
                 raise ValueError(
-                    f"features[{i}]: {type(f).__name__} spans x in [{b[0]:.6g}, {b[1]:.6g}] m, "
+                    f"features[{i}]: {getattr(f, 'label', type(f).__name__)} spans x in [{b[0]:.6g}, {b[1]:.6g}] m, "
                     f"y in [{b[2]:.6g}, {b[3]:.6g}] m, outside the surface x in [{x0:.6g}, {x1:.6g}] m, "
                     f"|y| <= {self.width / 2:.6g} m; move the defect onto the surface or enlarge length/width"
                 )

@@ -192,7 +192,7 @@ def test_bad_input_raises():
     with pytest.raises(ValueError, match="duration: .* gives no sample"):
         scan_recording(f, IsolatedDefect(size_m=1e-4, height_m=1e-5), speed=0.1, sampling_rate=1.0, duration=0.5)
     far = IsolatedDefect(size_m=1e-4, height_m=1e-5, position_m=(0.5, 0.0))
-    with pytest.raises(ValueError, match="features\\[0\\]: RecordFeature spans .* outside the surface"):
+    with pytest.raises(ValueError, match="surface: the defect bump at x in .* lies outside the surface strip the scan touches"):
         scan_recording(f, far, speed=0.05, sampling_rate=1e3, duration=0.1)
     with pytest.raises(ValueError, match="surface: expected a surface record or Feature"):
         scanned_surface(3.0, [0.0], f)
