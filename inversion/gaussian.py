@@ -173,8 +173,9 @@ class GaussianPosterior:
             Variance-reduction level that counts as resolved.
         depth : float, optional
             Sensor depth Z in m, for the rough estimate ``k_c ~ ln(SNR) / Z`` with
-            ``SNR = prior std / noise std``. (For a white prior and the normal-pressure kernel
-            the exact edge solves ``k Z - ln(1 + k Z) = ln(SNR)``, so ``k_c`` underestimates it.)
+            ``SNR = prior std x max|H| / noise std`` (max|H|: the operator's largest gain).
+            (For a white prior and the normal-pressure kernel the exact edge solves
+            ``k Z - ln(1 + k Z) = ln(SNR)``, so ``k_c`` underestimates it.)
 
         Returns
         -------
@@ -190,7 +191,7 @@ class GaussianPosterior:
         out = {"k_max": k_max, "wavelength_min": 2 * np.pi / k_max if k_max > 0 else np.inf,
                "fraction": float(resolved.mean()), "k_c_estimate": None}
         if depth is not None:
-            snr = np.sqrt(self._aux["prior_pointwise_var"]) / self.noise_std
+            snr = np.sqrt(self._aux["prior_pointwise_var"]) * self._aux["gain"] / self.noise_std
             out["k_c_estimate"] = float(np.log(snr) / depth) if snr > 1 else 0.0
         return out
 
@@ -247,7 +248,8 @@ def _fft_posterior(op: FourierDiagonal, d, lam_full, m0, sigma):
     else:
         log_ev = float("nan")
     prior_pw = float(np.sum(w * np.where(finite, half, 0)) / n)
-    aux = {"post_var": post_var, "filter": filt, "prior_half": half, "prior_pointwise_var": prior_pw}
+    aux = {"post_var": post_var, "filter": filt, "prior_half": half, "prior_pointwise_var": prior_pw,
+           "gain": float(np.max(np.abs(h)))}
     return mean, np.full(dims, np.sqrt(pointwise)), log_ev, aux, "exact (closed form per Fourier mode)"
 
 
@@ -276,7 +278,7 @@ def _dense_posterior(a, d, lam_full, m0, sigma, dims):
     logdet = 2 * np.sum(np.log(np.diag(chol[0])))
     log_ev = float(-0.5 * (r @ alpha + logdet + r.size * np.log(2 * np.pi)))
     aux = {"cov": cov, "cov_root": root, "resolution": ca_t @ sla.cho_solve(chol, a), "prior_full": lam_full,
-           "prior_pointwise_var": float(np.mean(lam_full))}
+           "prior_pointwise_var": float(np.mean(lam_full)), "gain": float(np.linalg.norm(a, 2))}
     std = np.sqrt(np.clip(np.diag(cov), 0, None)).reshape(dims)
     return mean.reshape(dims), std, log_ev, aux, "exact (dense Cholesky)"
 
