@@ -10,11 +10,13 @@ with ``G`` the Cerruti (tangential) and Boussinesq (normal) point-load stress at
 (:func:`tactilab.forward.kernels.point_green`, Pa per N). Strain sensors apply Hooke's law
 (tensor shear eps_ij; engineering gamma = 2 eps).
 
-Interface. While sliding, ``qx = mu p`` (local Amontons law; the traction is applied TO the skin
-along +x). ``adhesion`` in [0, 1] blends this with the fully adhesive (no-slip, Mindlin)
-distribution carrying the same total tangential force ``mu F``: ``qx = (1 - a) mu p + a mu F s(x, y)``
-with ``s`` the unit Mindlin traction (:mod:`.contact`); or, with ``slip_ratio``, the
-Cattaneo--Mindlin partial-slip traction of tangential force ``slip_ratio mu F``. A fingerprint (square-wave ridges of
+Interface. While sliding, ``|qx| = mu p`` (local Amontons law). The traction is applied TO the
+skin and opposes the finger's motion, which is along +x in every scan (data_schemas Scene
+convention): ``qx = -mu p`` (physics.md 4b writes the magnitude, p_x = mu_d p_z).
+``adhesion`` in [0, 1] blends this with the fully adhesive (no-slip, Mindlin) distribution carrying
+the same total tangential force: ``qx = -[(1 - a) mu p + a mu F s(x, y)]`` with ``s`` the unit
+Mindlin traction (:mod:`.contact`); or, with ``slip_ratio``, the Cattaneo--Mindlin partial-slip
+traction of tangential force ``-slip_ratio mu F``. A fingerprint (square-wave ridges of
 period lambda, contrast c) multiplies both by ``1 + c T(x)``, T = +-1 (force preserved on average).
 """
 
@@ -30,6 +32,10 @@ from tactilab.data_schemas.sensors import SensorArray
 from .contact import HertzContact, _stuck_shape, interfacial_traction
 from .fields import output_weights
 from .kernels import COMPONENTS, point_green
+
+MOTION_FRICTION_SIGN = -1.0
+"""Sign of the friction traction on the skin: scans move the finger along +x, so the surface
+drags the skin along -x."""
 
 
 @dataclass(frozen=True)
@@ -69,7 +75,7 @@ class BiomimeticFinger:
     friction : float
         Sliding friction coefficient mu_d >= 0.
     adhesion : float
-        0 = sliding (qx = mu p), 1 = fully adhesive (Mindlin no-slip), in between a blend with
+        0 = sliding (qx = -mu p), 1 = fully adhesive (Mindlin no-slip), in between a blend with
         the same total tangential force mu F.
     fingerprint : Fingerprint or None
         Ridges on the skin, or None for smooth skin.
@@ -130,7 +136,7 @@ class BiomimeticFinger:
 
     @property
     def tangential_force(self) -> float:
-        """Total tangential force mu F in N."""
+        """Magnitude of the total tangential force, mu F in N (it acts along -x on the skin)."""
         return self.friction * self.contact.normal_force
 
     @property
@@ -161,15 +167,14 @@ class BiomimeticFinger:
         if self.slip_ratio is not None:
             p, q = interfacial_traction(self.contact, x, y, friction=self.friction, condition="partial",
                                         tangential_force=self.slip_ratio * self.tangential_force)
-            if self.fingerprint is not None:
-                f = self.fingerprint.factor(x)
-                p, q = p * f, q * f
-            return p, q
-        p = self.contact.pressure(x, y)
-        q = (1.0 - self.adhesion) * self.friction * p
-        if self.adhesion > 0 and self.friction > 0:
-            q = q + self.adhesion * self.tangential_force * _stuck_shape(
-                self.contact, x, y, x * x + y * y, cell)
+        else:
+            p = self.contact.pressure(x, y)
+            q = (1.0 - self.adhesion) * self.friction * p
+            if self.adhesion > 0 and self.friction > 0:
+                q = q + self.adhesion * self.tangential_force * _stuck_shape(
+                    self.contact, x, y, x * x + y * y, cell)
+        # the surface drags the skin against the finger's motion, which is along +x in scans
+        q = MOTION_FRICTION_SIGN * q
         if self.fingerprint is not None:
             f = self.fingerprint.factor(x)
             p, q = p * f, q * f
