@@ -56,19 +56,10 @@ def _observer_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--observer-threshold", default=None,
                    help="simulated observer: RMS deviatoric strain at 1 mm depth felt at d' = 1 (strain, "
                         "dimensionless; default 2e-3, or on resume the session's own observer)")
-
-
-def _observer(args, recorded: dict | None = None) -> dict:
-    """Simulated-observer keywords: the recorded ones (resume), then --observer-threshold."""
-    from tactilab.data_schemas.units import to_si
-
-    config = dict(recorded or {})
-    if args.observer_threshold is not None:
-        value = to_si(args.observer_threshold, "dimensionless", name="--observer-threshold")
-        if value <= 0:
-            raise ValueError(f"--observer-threshold: must be a strain > 0, got {args.observer_threshold!r}; e.g. 2e-3")
-        config["threshold_strain"] = value
-    return config
+    p.add_argument("--observer-strain", default=None,
+                   help="simulated observer feels 'surface' (the ideal virtual surface's strain at 1 mm depth) "
+                        "or 'display' (the simulated display's strain after the safety limits); default "
+                        "surface, or on resume the session's own")
 
 
 def _print_result(result, parameter: str) -> int:
@@ -97,8 +88,12 @@ def run(args: argparse.Namespace) -> int:
             label = args.session_label
             path = args.out / f"sub-{args.subject}_ses-{label}_task-{protocol.name}.sqlite"
         display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
-        responses = factory.responses_from_spec(args.responses, protocol, **_observer(args)) \
-            if args.responses == "simulated" else factory.responses_from_spec(args.responses, protocol)
+        try:
+            responses = factory.make_responses(args.responses, protocol, display,
+                                               threshold=args.observer_threshold, strain=args.observer_strain)
+        except BaseException:
+            display.close()
+            raise
         from tactilab.experiments.runner import new_session
 
         print(f"session file: {path}", flush=True)
@@ -123,8 +118,12 @@ def run(args: argparse.Namespace) -> int:
         kind = args.responses or state.meta["responses"]
         display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
         recorded = state.meta.get("responses_config") if kind == state.meta["responses"] else None
-        responses = factory.responses_from_spec(kind, state.protocol, **_observer(args, recorded)) \
-            if kind == "simulated" else factory.responses_from_spec(kind, state.protocol)
+        try:
+            responses = factory.make_responses(kind, state.protocol, display, threshold=args.observer_threshold,
+                                               strain=args.observer_strain, recorded=recorded)
+        except BaseException:
+            display.close()
+            raise
         print(f"resuming {args.session}: {len(state.trials)} trials done"
               + (f", repeating interrupted trial {next(iter(state.attempts))}" if state.attempts else ""), flush=True)
         try:

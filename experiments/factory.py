@@ -54,6 +54,50 @@ def responses_from_spec(spec: str, protocol: Protocol, **observer) -> ResponseSo
     raise ValueError(f"--responses: must be 'terminal' or 'simulated', got {spec!r}")
 
 
+def make_responses(kind: str, protocol: Protocol, display: Display, *, threshold: str | float | None = None,
+                   strain: str | None = None, recorded: dict | None = None) -> ResponseSource:
+    """A response source from CLI-style options.
+
+    Parameters
+    ----------
+    kind : {"terminal", "simulated"}
+    protocol : Protocol
+    display : Display
+        The (bare) display of the session; a simulated observer feeling the display's strain
+        needs a :class:`~tactilab.experiments.simulated_display.SimulatedDisplay`.
+    threshold : str or float, optional
+        ``--observer-threshold``: strain felt at d' = 1 (dimensionless, > 0).
+    strain : {"surface", "display"}, optional
+        ``--observer-strain``: what the observer feels (default: recorded, else surface).
+    recorded : dict, optional
+        The observer configuration recorded with the session (resume); options override it.
+    """
+    if kind != "simulated":
+        return responses_from_spec(kind, protocol)
+    from tactilab.data_schemas.units import to_si
+
+    config = dict(recorded or {})
+    source = strain if strain is not None else config.pop("strain", "surface")
+    config.pop("strain", None)
+    if threshold is not None:
+        value = to_si(threshold, "dimensionless", name="--observer-threshold")
+        if value <= 0:
+            raise ValueError(f"--observer-threshold: must be a strain > 0, got {threshold!r}; e.g. 2e-3")
+        config["threshold_strain"] = value
+    if source == "display":
+        if not callable(getattr(display, "strain", None)):
+            raise ValueError("--observer-strain display: needs --display simulated (a display whose strain "
+                             "is computed); use --observer-strain surface with a real display")
+        config["display"] = display
+    elif source != "surface":
+        raise ValueError(
+            f"--observer-strain: must be 'surface' or 'display', got {source!r}"
+            + ("; the session's observer used a custom strain function: resume it from Python"
+               if source == "custom" else "")
+        )
+    return responses_from_spec(kind, protocol, **config)
+
+
 def next_session_path(folder: str | Path, subject: str, task: str) -> tuple[Path, str]:
     """The first free ``sub-<subject>_ses-<NN>_task-<task>.sqlite`` in ``folder``, and its label."""
     folder = Path(folder)

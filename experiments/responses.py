@@ -180,11 +180,43 @@ def receptor_strain(stimulus: Stimulus, depth_m: float, n_harmonics: int = 15) -
     return float(np.sqrt(np.mean(frob2)))
 
 
+def rendered_strain(stimulus: Stimulus, display) -> float:
+    """RMS deviatoric strain that a simulated display ACTUALLY produces for a stimulus, at its depth.
+
+    The drive is rendered (``render_drive``) and limited exactly as the runner's safety layer
+    limits it (``limit_drive``), then the display's tractor model gives the strain at
+    ``display.depth_m`` (Flamant line loads, nu = 1/2, tensor shear; ``eps_zz = -eps_xx``, so
+    the deviatoric Frobenius norm squared is ``2 eps_xx^2 + 2 eps_xz^2``). The RMS is taken over
+    the display's points and the frames between the onset and offset ramps. For a stimulus
+    within the display's limits it matches :func:`receptor_strain` (the drive's gain is chosen
+    for that); where the safety layer limits the drive it is smaller.
+
+    Parameters
+    ----------
+    stimulus : Stimulus
+        What is commanded (SI).
+    display : SimulatedDisplay
+        Supplies the description, depth, modulus and strain model.
+    """
+    from .display import render_drive
+    from .safety import limit_drive
+
+    frames = render_drive(display.description, **stimulus.model_dump(), depth_m=display.depth_m,
+                          young_modulus_pa=display.young_modulus_pa)
+    applied, _ = limit_drive(frames, stimulus.frame_rate_hz, display.description, display.command)
+    ramp = int(round(stimulus.ramp_s * stimulus.frame_rate_hz))
+    steady = applied[ramp:len(applied) - ramp] if len(applied) > 2 * ramp else applied
+    eps_xx, eps_xz = display.strain(steady)
+    return float(np.sqrt(np.mean(2 * eps_xx ** 2 + 2 * eps_xz ** 2)))
+
+
 class SimulatedObserver(ResponseSource):
     """A model observer: strain at the receptors -> transducer -> Gaussian noise -> decision.
 
     Each stimulus gives ``d = (s / threshold_strain) ** exponent`` in units of the internal
-    noise, where ``s`` is :func:`receptor_strain` (or ``strain_fn(stimulus)``). The observation
+    noise, where ``s`` is :func:`receptor_strain` (the ideal virtual surface), or with
+    ``display=`` a simulated display, :func:`rendered_strain` (what that display really produces
+    after the safety limits), or ``strain_fn(stimulus)``. The observation
     of a stimulus is the feature vector ``(d, d sign(V), frequency_acuity d_c log2(|V| / p))``
     (``d_c = min(d, 1)``: frequency is coded once the stimulus is felt) plus unit Gaussian noise.
     Decisions: yes/no says yes when ``d + n > criterion``; 2IFC picks the interval with the larger
@@ -201,7 +233,7 @@ class SimulatedObserver(ResponseSource):
 
     def __init__(self, protocol: Protocol, *, seed: int | None = None, threshold_strain: float = 2e-3,
                  exponent: float = 1.0, criterion: float = 1.0, frequency_acuity: float = 2.0,
-                 magnitude_gain: float = 2.0, depth_m: float = 1e-3,
+                 magnitude_gain: float = 2.0, depth_m: float = 1e-3, display=None,
                  strain_fn: Callable[[Stimulus], float] | None = None) -> None:
         for name, value in (("threshold_strain", threshold_strain), ("exponent", exponent),
                             ("depth_m", depth_m)):
@@ -215,13 +247,25 @@ class SimulatedObserver(ResponseSource):
         self.seed = protocol.seed if seed is None else int(seed)
         self.threshold_strain, self.exponent, self.criterion = threshold_strain, exponent, criterion
         self.frequency_acuity, self.magnitude_gain, self.depth_m = frequency_acuity, magnitude_gain, depth_m
-        self.strain_fn = strain_fn if strain_fn is not None else (lambda s: receptor_strain(s, depth_m))
+        if strain_fn is not None:
+            self.strain_source = "custom"
+        elif display is not None:
+            if not callable(getattr(display, "strain", None)):
+                raise ValueError(
+                    f"display: the observer feels a display's strain only for a simulated display, got "
+                    f"{type(display).__name__}; use the surface strain (display=None)"
+                )
+            self.strain_source, strain_fn = "display", (lambda s: rendered_strain(s, display))
+        else:
+            self.strain_source, strain_fn = "surface", (lambda s: receptor_strain(s, depth_m))
+        self.strain_fn = strain_fn
         self._drives: dict[Stimulus, float] = {}
 
     @property
     def config(self) -> dict[str, float]:
         """The observer's parameters (recorded with the session so a resume uses the same observer)."""
-        return {"seed": self.seed, "threshold_strain": self.threshold_strain, "exponent": self.exponent,
+        return {"strain": self.strain_source, "seed": self.seed, "threshold_strain": self.threshold_strain,
+                "exponent": self.exponent,
                 "criterion": self.criterion, "frequency_acuity": self.frequency_acuity,
                 "magnitude_gain": self.magnitude_gain, "depth_m": self.depth_m}
 

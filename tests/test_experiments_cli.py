@@ -192,6 +192,39 @@ def test_damaged_logs_are_refused(session):
         replay_session(session)
 
 
+def test_observer_feeling_the_display_is_recorded_and_resumed(tmp_path, capsys):
+    toml = tmp_path / "p.toml"
+    toml.write_text(PROTOCOL)
+    args = ["--subject", "S06", "--responses", "simulated", "--no-wait", "--quiet", "--observer-strain", "display"]
+    assert cli_main(["experiment", "run", str(toml), *args, "--out", str(tmp_path)]) == 0
+    session = tmp_path / "sub-S06_ses-01_task-cli.sqlite"
+    assert SessionLog(session).meta()["responses_config"]["strain"] == "display"
+    connection = sqlite3.connect(session)
+    connection.execute("DELETE FROM events WHERE trial_index >= 3 OR kind = 'session_complete'")
+    connection.execute("DELETE FROM trials WHERE trial_index >= 3")
+    connection.commit()
+    connection.close()
+    assert cli_main(["experiment", "resume", str(session), "--no-wait", "--quiet", "--observer-strain", "surface"]) == 2
+    assert "responses: the session was recorded with simulated responses" in capsys.readouterr().err
+    assert cli_main(["experiment", "resume", str(session), "--no-wait", "--quiet"]) == 0
+
+
+def test_make_responses_options():
+    from tactilab.data_schemas.experiment import Protocol
+
+    protocol = Protocol.from_toml(Path(__file__).resolve().parents[1] / "examples" / "protocol_psi.toml")
+    udp_like = object()
+    with pytest.raises(ValueError, match="--observer-strain display: needs --display simulated"):
+        factory.make_responses("simulated", protocol, udp_like, strain="display")
+    with pytest.raises(ValueError, match="--observer-strain: must be 'surface' or 'display', got 'skin'"):
+        factory.make_responses("simulated", protocol, udp_like, strain="skin")
+    with pytest.raises(ValueError, match="custom strain function: resume it from Python"):
+        factory.make_responses("simulated", protocol, udp_like, recorded={"strain": "custom"})
+    observer = factory.make_responses("simulated", protocol, udp_like, threshold="1e-3",
+                                      recorded={"strain": "surface", "exponent": 2.0})
+    assert observer.config["threshold_strain"] == 1e-3 and observer.config["exponent"] == 2.0
+
+
 def test_factory_specs(tmp_path):
     assert factory.description_from_spec("stress2").display_id == "STReSS2"
     path = DisplayDescription.braille_row().save(tmp_path / "d.json")

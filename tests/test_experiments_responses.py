@@ -14,7 +14,10 @@ from scipy.special import ndtr
 
 from tactilab.data_schemas.experiment import Protocol, Stimulus
 from tactilab.experiments.procedures import PlannedLevel
-from tactilab.experiments.responses import SimulatedObserver, TerminalResponses, receptor_strain
+from tactilab.data_schemas.display import DisplayDescription
+from tactilab.experiments.responses import (
+    SimulatedObserver, TerminalResponses, receptor_strain, rendered_strain)
+from tactilab.experiments.simulated_display import SimulatedDisplay
 from tactilab.experiments.tasks import plan_trial
 
 
@@ -42,6 +45,29 @@ def test_square_surface_strain_sums_its_harmonics_in_quadrature():
                      * math.exp(-2 * math.pi * n * depth / pitch)) ** 2 for n in range(1, 400, 2))
     square = Stimulus(surface="square", amplitude_m=amplitude, pitch_m=pitch, speed_m_per_s=0.04)
     assert receptor_strain(square, depth) == pytest.approx(math.sqrt(total), rel=1e-9)
+
+
+@pytest.mark.parametrize("amplitude,pitch", [(1e-6, 2e-3), (3e-6, 2e-3), (1e-6, 4e-3), (1e-6, 1.2e-3)])
+def test_display_strain_matches_the_virtual_surface_within_the_limits(amplitude, pitch):
+    """Two independent routes: the tractor row's Flamant superposition (simulated display, after
+    the safety limiter) and the sliding surface's spectral closed form agree within 1 % when the
+    drive stays within the display's limits (the drive gain is defined by that match)."""
+    display = SimulatedDisplay(DisplayDescription.braille_row())
+    stimulus = Stimulus(amplitude_m=amplitude, pitch_m=pitch, speed_m_per_s=0.04, duration_s=0.2)
+    assert rendered_strain(stimulus, display) == pytest.approx(receptor_strain(stimulus, display.depth_m), rel=0.01)
+
+
+def test_an_observer_feeling_the_display_feels_the_safety_limits():
+    p = protocol({"kind": "2ifc"})
+    display = SimulatedDisplay(DisplayDescription.braille_row())
+    felt = SimulatedObserver(p, display=display)
+    ideal = SimulatedObserver(p)
+    small, huge = (Stimulus(amplitude_m=a, pitch_m=2e-3, speed_m_per_s=0.04) for a in (1e-6, 40e-6))
+    assert felt.drive(small) == pytest.approx(ideal.drive(small), rel=0.01)
+    assert felt.drive(huge) < 0.8 * ideal.drive(huge)  # 40 um asks for more traction than 50 kPa
+    assert felt.config["strain"] == "display" and ideal.config["strain"] == "surface"
+    with pytest.raises(ValueError, match="display: the observer feels a display's strain only for a simulated"):
+        SimulatedObserver(p, display=object())
 
 
 def _proportion(observer, p, level, label, n=3000):
