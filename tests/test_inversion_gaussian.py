@@ -190,3 +190,9 @@ def test_validation(rng):
         it.variance_ratio()
     with pytest.raises(ValueError, match="resolution_kernel"):
         it.resolution_kernel(0)
+
+
+def test_iterative_reports_cg_failure(rng):
+    op, prior, cov, truth, data = setup(n=32, rng=rng)
+    with pytest.raises(ValueError, match="max_iter: CG did not converge"):
+        gaussian_posterior(op, data, prior, 1e-3, method="iterative", rng=rng, max_iter=1)
