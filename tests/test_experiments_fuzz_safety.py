@@ -12,6 +12,7 @@ ends at rest. The display description is deliberately tight (slew and duty limit
 from __future__ import annotations
 
 import math
+import shutil
 import tempfile
 import threading
 from pathlib import Path
@@ -50,6 +51,7 @@ def emulator():
     yield port, record, folder
     stop.set()
     thread.join(timeout=5)
+    shutil.rmtree(folder, ignore_errors=True)
 
 
 lengths = st.floats(min_value=0.2e-3, max_value=20e-3)
