@@ -118,7 +118,8 @@ def kernel_identification(finger: BiomimeticFinger, rng: np.random.Generator, *,
     -------
     DataFrame with columns ``bits``, ``record_m`` (m), ``repeats``, ``noise_std`` (output unit,
     added white noise), ``error_binned`` (mean relative L2 error), ``error_binned_std`` and
-    ``error_continuous``.
+    ``error_continuous``; ``attrs`` holds ``lags_m``, ``true_kernel`` (per bit) and the last
+    ``estimates`` per record length, for plots.
     """
     if not isinstance(rng, np.random.Generator):
         raise ValueError(f"rng: expected a numpy.random.Generator, got {type(rng).__name__}; use numpy.random.default_rng(seed)")
@@ -142,7 +143,7 @@ def kernel_identification(finger: BiomimeticFinger, rng: np.random.Generator, *,
     cont = linear_kernel(finger, lags * bit_length, sensor=sensor, component=component) * bit_length
     if int(repeats) < 1:
         raise ValueError(f"repeats: need at least 1 random grating per record length, got {repeats!r}")
-    rows = []
+    rows, last = [], {}
     for n in record_lengths:
         if int(n) != n or n <= 2 * max_lag + 1:
             raise ValueError(f"record_lengths: each must be an integer > {2 * max_lag + 1} bits (the kernel "
@@ -158,13 +159,17 @@ def kernel_identification(finger: BiomimeticFinger, rng: np.random.Generator, *,
             if noise_std > 0:
                 y = y + noise_std * rng.standard_normal(y.shape)
             est = wiener_kernel(grating.bits, y, max_lag)
+            last[n] = est
             errors.append((np.linalg.norm(est - true) / np.linalg.norm(true),
                            np.linalg.norm(est - cont) / np.linalg.norm(cont)))
         e = np.array(errors)
         rows.append(dict(bits=n, record_m=n * bit_length, repeats=int(repeats), noise_std=noise_std,
                          error_binned=float(e[:, 0].mean()), error_binned_std=float(e[:, 0].std()),
                          error_continuous=float(e[:, 1].mean())))
-    return pd.DataFrame(rows)
+    table = pd.DataFrame(rows)
+    # the last estimate per length and the true binned kernel, for plots (lags in m)
+    table.attrs.update(lags_m=lags * bit_length, true_kernel=true, estimates=last)
+    return table
 
 
 def texture_spectrum(finger: BiomimeticFinger, rng: np.random.Generator, *, speed: float = 0.1,

@@ -203,3 +203,39 @@ def plot_rendered_vs_real(sensors, rendered: np.ndarray, real: np.ndarray, path)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def plot_fingerprint_spectra(freqs, ridged, smooth, peak_hz: float, path, *, unit: str = "kPa",
+                             scale: float = 1e-3) -> pathlib.Path:
+    """PSDs of one sensor scanning a random texture with ridged and smooth skin (PNG)."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.5, 4), constrained_layout=True)
+    ax.semilogy(freqs[1:], ridged[1:] * scale ** 2, label="ridged skin (fingerprint)")
+    ax.semilogy(freqs[1:], smooth[1:] * scale ** 2, label="smooth skin")
+    ax.axvline(peak_hz, color="k", ls=":", label=f"v / lambda = {peak_hz:g} Hz")
+    ax.set(title=f"sigma_zz power spectrum ({unit}^2/Hz)", xlabel="frequency (Hz)", ylabel=f"PSD ({unit}^2/Hz)")
+    ax.legend(fontsize=8)
+    path = pathlib.Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_wiener_kernels(x, true_kernel, estimates: dict, path, *, unit: str = "kPa",
+                        scale: float = 1e-3) -> pathlib.Path:
+    """First-order Wiener kernel estimates (one per record length) against the true kernel (PNG).
+
+    ``x`` in m (finger frame), kernels per bit in Pa (or strain); ``estimates`` maps a label to an array.
+    """
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.5, 4), constrained_layout=True)
+    for label, est in estimates.items():
+        ax.plot(x * 1e3, est * scale, lw=1, label=label)
+    ax.plot(x * 1e3, true_kernel * scale, "k--", lw=2, label="true kernel p(x) g(x - x0), binned")
+    ax.set(title=f"first-order Wiener kernel of a sigma_zz sensor ({unit} per bit)",
+           xlabel="x, finger frame (mm)", ylabel=f"kernel ({unit})")
+    ax.legend(fontsize=8)
+    path = pathlib.Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
