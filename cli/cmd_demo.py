@@ -14,6 +14,7 @@ SECTIONS = (
     "tactilab.data_schemas.demo",
     "tactilab.forward.demo",
     "tactilab.forward.display_demo",
+    "tactilab.experiments.demo",
 )
 
 
