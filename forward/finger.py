@@ -10,13 +10,15 @@ with ``G`` the Cerruti (tangential) and Boussinesq (normal) point-load stress at
 (:func:`tactilab.forward.kernels.point_green`, Pa per N). Strain sensors apply Hooke's law
 (tensor shear eps_ij; engineering gamma = 2 eps).
 
-Interface. While sliding, ``|qx| = mu p`` (local Amontons law). The traction is applied TO the
-skin and opposes the finger's motion, which is along +x in every scan (data_schemas Scene
-convention): ``qx = -mu p`` (physics.md 4b writes the magnitude, p_x = mu_d p_z).
-``adhesion`` in [0, 1] blends this with the fully adhesive (no-slip, Mindlin) distribution carrying
-the same total tangential force: ``qx = -[(1 - a) mu p + a mu F s(x, y)]`` with ``s`` the unit
-Mindlin traction (:mod:`.contact`); or, with ``slip_ratio``, the Cattaneo--Mindlin partial-slip
-traction of tangential force ``-slip_ratio mu F``. A fingerprint (square-wave ridges of
+Interface. While sliding, ``qx = D mu p`` (local Amontons law; traction applied TO the skin),
+with ``D = friction_direction``. The default ``D = +1`` is physics.md 4b's ``p_x = mu_d p_z``
+(also the convention of ``tactilab.inversion``'s defect model): the surface drags the skin
+towards +x, as when the finger moves towards -x relative to the surface. A finger sliding
+towards +x over a fixed surface (the direction of data_schemas scans) is dragged backwards:
+``D = -1``. ``adhesion`` in [0, 1] blends this with the fully adhesive (no-slip, Mindlin)
+distribution carrying the same total tangential force: ``qx = D [(1 - a) mu p + a mu F s(x, y)]``
+with ``s`` the unit Mindlin traction (:mod:`.contact`); or, with ``slip_ratio``, the
+Cattaneo--Mindlin partial-slip traction of tangential force ``D slip_ratio mu F``. A fingerprint (square-wave ridges of
 period lambda, contrast c) multiplies both by ``1 + c T(x)``, T = +-1 (force preserved on average).
 """
 
@@ -32,10 +34,6 @@ from tactilab.data_schemas.sensors import SensorArray
 from .contact import HertzContact, _stuck_shape, interfacial_traction
 from .fields import output_weights
 from .kernels import COMPONENTS, point_green
-
-MOTION_FRICTION_SIGN = -1.0
-"""Sign of the friction traction on the skin: scans move the finger along +x, so the surface
-drags the skin along -x."""
 
 
 @dataclass(frozen=True)
@@ -75,7 +73,7 @@ class BiomimeticFinger:
     friction : float
         Sliding friction coefficient mu_d >= 0.
     adhesion : float
-        0 = sliding (qx = -mu p), 1 = fully adhesive (Mindlin no-slip), in between a blend with
+        0 = sliding (qx = D mu p), 1 = fully adhesive (Mindlin no-slip), in between a blend with
         the same total tangential force mu F.
     fingerprint : Fingerprint or None
         Ridges on the skin, or None for smooth skin.
@@ -94,8 +92,12 @@ class BiomimeticFinger:
     fingerprint: Fingerprint | None = None
     grid_spacing: float | None = None
     slip_ratio: float | None = None
+    friction_direction: float = 1.0
 
     def __post_init__(self):
+        if self.friction_direction not in (1.0, -1.0):
+            raise ValueError(f"friction_direction: must be +1 (physics.md p_x = +mu p_z) or -1 (finger sliding "
+                             f"towards +x over a fixed surface), got {self.friction_direction!r}")
         if not isinstance(self.contact, HertzContact) or self.contact.line:
             raise ValueError("contact: expected a 3-D HertzContact (line=False); the finger is a 3-D contact")
         if not isinstance(self.sensors, SensorArray):
@@ -136,7 +138,7 @@ class BiomimeticFinger:
 
     @property
     def tangential_force(self) -> float:
-        """Magnitude of the total tangential force, mu F in N (it acts along -x on the skin)."""
+        """Magnitude of the total tangential force, mu F in N (along ``friction_direction``)."""
         return self.friction * self.contact.normal_force
 
     @property
@@ -173,8 +175,7 @@ class BiomimeticFinger:
             if self.adhesion > 0 and self.friction > 0:
                 q = q + self.adhesion * self.tangential_force * _stuck_shape(
                     self.contact, x, y, x * x + y * y, cell)
-        # the surface drags the skin against the finger's motion, which is along +x in scans
-        q = MOTION_FRICTION_SIGN * q
+        q = self.friction_direction * q
         if self.fingerprint is not None:
             f = self.fingerprint.factor(x)
             p, q = p * f, q * f

@@ -295,10 +295,17 @@ def test_partial_slip_finger_spans_no_load_to_sliding():
     for ratio in (0.0, 0.4, 1.0):
         f = BiomimeticFinger(HertzContact(0.8), sensors, friction=0.5, grid_spacing=h, slip_ratio=ratio)
         p, q = f.traction(X, Y)
-        assert q.sum() * h * h == pytest.approx(-ratio * 0.4, rel=2e-3, abs=1e-9)  # against the motion
+        assert q.sum() * h * h == pytest.approx(ratio * 0.4, rel=2e-3, abs=1e-9)
         assert p.sum() * h * h == pytest.approx(0.8, rel=2e-3)
     u = np.linspace(-4e-3, 4e-3, 17)
     np.testing.assert_allclose(f.receptive_field(u, 0.0), slide.receptive_field(u, 0.0), rtol=1e-12, atol=1e-20)
+    back = BiomimeticFinger(HertzContact(0.8), sensors, friction=0.5, grid_spacing=h, friction_direction=-1.0)
+    p_b, q_b = back.traction(X, Y)
+    p_f, q_f = slide.traction(X, Y)
+    np.testing.assert_array_equal(q_b, -q_f)
+    np.testing.assert_array_equal(p_b, p_f)
+    with pytest.raises(ValueError, match="friction_direction: must be \\+1"):
+        BiomimeticFinger(HertzContact(0.8), sensors, friction=0.5, friction_direction=0.5)
     with pytest.raises(ValueError, match="slip_ratio: Q / \\(mu F\\) must lie in"):
         BiomimeticFinger(HertzContact(0.8), sensors, friction=0.5, slip_ratio=1.5)
     with pytest.raises(ValueError, match="slip_ratio: partial slip .* give adhesion=0"):
