@@ -13,6 +13,7 @@ HELP = "run the end-to-end demo on built-in example data and write a report fold
 SECTIONS = (
     "tactilab.data_schemas.demo",
     "tactilab.forward.demo",
+    "tactilab.forward.scene_demo",
     "tactilab.forward.display_demo",
     "tactilab.experiments.demo",
 )
