@@ -164,6 +164,15 @@ class GaussianPosterior:
         raise ValueError("variance_ratio: needs the fft path or a 1-D dense problem; "
                          f"this posterior used the {self.method} path")
 
+    def _prior_pointwise_var(self) -> float:
+        if "prior_pointwise_var" in self._aux:
+            return self._aux["prior_pointwise_var"]
+        a = self._aux
+        return float(np.sum(a["w"] * np.where(a["finite"], a["prior_half"], 0)) / a["n"])
+
+    def _gain(self) -> float:
+        return self._aux["gain"] if "gain" in self._aux else float(np.max(np.abs(self._aux["h"])))
+
     def resolvable_band(self, threshold: float = 0.5, depth: float | None = None) -> dict:
         """Wavenumbers where the posterior variance is below ``threshold`` x prior variance.
 
@@ -191,7 +200,7 @@ class GaussianPosterior:
         out = {"k_max": k_max, "wavelength_min": 2 * np.pi / k_max if k_max > 0 else np.inf,
                "fraction": float(resolved.mean()), "k_c_estimate": None}
         if depth is not None:
-            snr = np.sqrt(self._aux["prior_pointwise_var"]) * self._aux["gain"] / self.noise_std
+            snr = np.sqrt(self._prior_pointwise_var()) * self._gain() / self.noise_std
             out["k_c_estimate"] = float(np.log(snr) / depth) if snr > 1 else 0.0
         return out
 
@@ -205,7 +214,10 @@ class GaussianPosterior:
             e = np.zeros(self.dims)
             e.flat[flat] = 1.0
             axes = tuple(range(len(self.dims)))
-            return np.fft.irfftn(np.fft.rfftn(e, axes=axes) * self._aux["filter"], s=self.dims, axes=axes)
+            filt = self._aux["filter"]
+            if filt is None:
+                filt = 1.0 - self._aux["post_var"] / self._aux["prior_half"]
+            return np.fft.irfftn(np.fft.rfftn(e, axes=axes) * filt, s=self.dims, axes=axes)
         if self.method == "dense":
             return self._aux["resolution"][:, flat].reshape(self.dims)
         raise ValueError("resolution_kernel: needs the fft or dense path; the iterative path has no explicit R")
@@ -217,39 +229,53 @@ def _prior_spectrum(prior, dims, spacing) -> np.ndarray:
     lam = np.asarray(prior, dtype=float)
     if lam.shape != tuple(dims):
         raise ValueError(f"prior: spectrum shape {lam.shape} does not match the model grid {tuple(dims)}")
-    if np.any(np.isnan(lam)) or np.any(lam <= 0):
+    if not (lam > 0).all():  # NaN fails too
         raise ValueError("prior: spectrum eigenvalues must be > 0 (inf allowed for flat modes), no NaN")
     return lam
 
 
 def _fft_posterior(op: FourierDiagonal, d, lam_full, m0, sigma):
     dims = op.dims
-    axes = tuple(range(len(dims)))
     n = d.size
+    if len(dims) == 1:  # plain 1-D transforms: less overhead on small grids
+        fwd = np.fft.rfft
+        inv = lambda spec: np.fft.irfft(spec, n)  # noqa: E731
+    else:
+        axes = tuple(range(len(dims)))
+        fwd = lambda x: np.fft.rfftn(x, axes=axes)  # noqa: E731
+        inv = lambda spec: np.fft.irfftn(spec, s=dims, axes=axes)  # noqa: E731
     half = lam_full[..., : dims[-1] // 2 + 1]
     h = op.half_multiplier
-    h2 = np.abs(h) ** 2
+    h2 = h.real**2 + h.imag**2
     s2 = sigma**2
     finite = np.isfinite(half)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        post_var = np.where(finite, half * s2 / (s2 + h2 * half), s2 / h2)
-        gain = np.where(finite, half * np.conj(h) / (h2 * half + s2), 1.0 / h)  # Kalman gain per mode
-        filt = np.where(finite, h2 * half / (h2 * half + s2), 1.0)
-    if not np.all(np.isfinite(post_var)):
-        raise ValueError("prior: a flat (infinite-variance) mode is not seen by the operator (H = 0 there); "
-                         "give it a finite prior variance")
-    resid_hat = np.fft.rfftn(d.reshape(dims) - op.matvec(np.full(n, m0)).reshape(dims), axes=axes)
-    mean = m0 + np.fft.irfftn(gain * resid_hat, s=dims, axes=axes)
+    proper = bool(finite.all())
+    if proper:
+        v = h2 * half + s2  # data variance per mode
+        inv_v = 1.0 / v
+        post_var = (s2 * half) * inv_v
+        gain = (half * inv_v) * np.conj(h)  # Kalman gain per mode
+        filt = None  # the resolution filter 1 - post_var / prior is built on demand
+    else:
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            post_var = np.where(finite, half * s2 / (s2 + h2 * half), s2 / h2)
+            gain = np.where(finite, half * np.conj(h) / (h2 * half + s2), 1.0 / h)
+            filt = np.where(finite, h2 * half / (h2 * half + s2), 1.0)
+        if not np.all(np.isfinite(post_var)):
+            raise ValueError("prior: a flat (infinite-variance) mode is not seen by the operator (H = 0 there); "
+                             "give it a finite prior variance")
+    d_grid = d.reshape(dims)
+    resid_hat = fwd(d_grid - op.matvec(np.full(n, m0)).reshape(dims) if m0 != 0 else d_grid)
+    mean = m0 + inv(gain * resid_hat)
     w = op.weights
-    pointwise = float(np.sum(w * post_var) / n)
-    if np.all(finite):
-        v = h2 * half + s2
-        log_ev = float(-0.5 * np.sum(w * (np.abs(resid_hat) ** 2 / (n * v) + np.log(2 * np.pi * v))))
+    pointwise = float((w * post_var).sum() / n)
+    if proper:
+        r2 = resid_hat.real**2 + resid_hat.imag**2
+        log_ev = -0.5 * float((w * (r2 * inv_v / n + np.log(2 * np.pi * v))).sum())
     else:
         log_ev = float("nan")
-    prior_pw = float(np.sum(w * np.where(finite, half, 0)) / n)
-    aux = {"post_var": post_var, "filter": filt, "prior_half": half, "prior_pointwise_var": prior_pw,
-           "gain": float(np.max(np.abs(h)))}
+    aux = {"post_var": post_var, "filter": filt, "prior_half": half, "w": w, "n": n, "finite": finite,
+           "h": h}
     return mean, np.full(dims, np.sqrt(pointwise)), log_ev, aux, "exact (closed form per Fourier mode)"
 
 

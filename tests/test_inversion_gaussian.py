@@ -196,3 +196,21 @@ def test_iterative_reports_cg_failure(rng):
     op, prior, cov, truth, data = setup(n=32, rng=rng)
     with pytest.raises(ValueError, match="max_iter: CG did not converge"):
         gaussian_posterior(op, data, prior, 1e-3, method="iterative", rng=rng, max_iter=1)
+
+
+def test_two_dimensional_fft_equals_dense(rng):
+    """2-D grid (ny, nx) with the forward model's exact multiplier: fft path = dense path."""
+    from tactilab.inversion.operators import halfspace_fourier_operator
+
+    op = halfspace_fourier_operator((12, 16), DX, DEPTH, load="p", component="zz")
+    prior = StationaryPrior(variance=1e6, correlation_length=0.4e-3, mean=50.0)
+    data = rng.normal(0, 100.0, 12 * 16)
+    pf = gaussian_posterior(op, data, prior, 10.0)
+    pd = gaussian_posterior(op, data, prior, 10.0, method="dense")
+    assert pf.mean.shape == (12, 16)
+    np.testing.assert_allclose(pf.mean, pd.mean, atol=1e-10 * np.abs(pd.mean).max())
+    np.testing.assert_allclose(pf.std, pd.std, rtol=1e-10)
+    assert pf.log_evidence == pytest.approx(pd.log_evidence, rel=1e-10)
+    np.testing.assert_allclose(pf.resolution_kernel((3, 4)), pd.resolution_kernel((3, 4)), atol=1e-10)
+    draws = pf.sample(2, rng)
+    assert draws.shape == (2, 12, 16)
