@@ -171,18 +171,19 @@ class LoadToSensor(LinearOperator):
                 for s, xy in enumerate(self.sensor_xy):
                     mat[:, s, l] = self._periodic_row(l, xy)
             return mat.reshape(int(np.prod(self.dimsd)), -1)
+        dx = self.sensor_xy[:, 0][:, None] - nodes[:, 0][None, :]
+        dy = None if t.ndim == 1 else self.sensor_xy[:, 1][:, None] - nodes[:, 1][None, :]
         for l, name in enumerate(self.loads):
             for j, comp in enumerate(VOIGT):
                 col = self.weights[:, j]
                 if not np.any(col):
                     continue
-                dx = self.sensor_xy[:, 0][:, None] - nodes[:, 0][None, :]
                 if t.ndim == 1:
                     g = line_green(comp, _DIRECTION[name], dx, self.depth, self.nu)
                 else:
-                    dy = self.sensor_xy[:, 1][:, None] - nodes[:, 1][None, :]
                     g = point_green(comp, _DIRECTION[name], dx, dy, self.depth, self.nu)
-                mat[:, :, l] += np.multiply.outer(col, g) * t.cell_area
+                for o in np.flatnonzero(col):  # in place: no (n_comp, n_sensors, n_nodes) temporaries
+                    mat[o, :, l] += (col[o] * t.cell_area) * g
         return mat.reshape(int(np.prod(self.dimsd)), -1)
 
     def _periodic_row(self, l: int, xy: np.ndarray) -> np.ndarray:
