@@ -228,12 +228,15 @@ def plot(rows, path):
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(8, 5.5))
+    markers = "osD^v<>px*h"
     for i, name in enumerate(dict.fromkeys(r[0] for r in rows if not r[0].startswith("mcmc"))):
         pts = sorted((r[1], r[2], r[3]) for r in rows if r[0] == name)
-        ax.loglog([p[1] for p in pts], [p[2] for p in pts], "o-", color=f"C{i % 10}", label=name, ms=4)
+        style = "--" if ("cuqipy" in name.lower() or "pylops" in name.lower()) else "-"
+        ax.loglog([p[1] for p in pts], [p[2] for p in pts], style, marker=markers[i % len(markers)],
+                  color=f"C{i % 10}", label=name, ms=4)
     ax.set(xlabel="wall time (s)", ylabel="relative error vs truth (-)",
            title="Inversion: error vs time (points: n = 2^8 ... 2^20; peers on their problems)")
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="center left")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
