@@ -201,8 +201,11 @@ def test_invert_linear_validation(rng):
         invert_linear(op, data, method="magic")
     with pytest.raises(ValueError, match="method: 'fft' needs"):
         invert_linear(op.todense(), data, method="fft")
-    with pytest.raises(ValueError, match="iterative path needs an explicit lam"):
+    with pytest.raises(ValueError, match="iterative path chooses lam only by the discrepancy"):
         invert_linear(aslinearoperator(op.todense()), data, method="iterative")
+    with pytest.raises(ValueError, match="noise_std: must be finite"):
+        invert_linear(aslinearoperator(op.todense()), data, method="iterative", criterion="discrepancy",
+                      noise_std=-1.0)
     bad = data.copy()
     bad[3] = np.nan
     with pytest.raises(ValueError, match="must be finite, found nan at flat index 3"):
@@ -313,3 +316,17 @@ def test_lead_transfer_and_halfspace_operator(rng):
     fft = invert_linear(op, data, penalty="identity", lam=1e-2)
     it = invert_linear(lead, data, penalty="identity", lam=1e-2, method="iterative", tol=1e-12, rng=rng)
     np.testing.assert_allclose(it.model.ravel(), fft.model, atol=1e-6 * np.abs(fft.model).max())
+
+
+def test_iterative_discrepancy_matches_closed_form(rng):
+    """CG root search for the discrepancy lam agrees with the closed-form (dense) choice."""
+    op, truth, data = problem(n=64, rng=rng)
+    a = op.todense()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        dense = invert_linear(a, data, penalty="identity", noise_std=5.0, criterion="discrepancy", spacing=DX)
+    it = invert_linear(aslinearoperator(a), data, penalty="identity", noise_std=5.0, criterion="discrepancy",
+                       method="iterative", spacing=DX, rng=rng, tol=1e-12)
+    assert "CG root search" in it.lam_source
+    assert it.lam == pytest.approx(dense.lam, rel=0.05)
+    assert it.residual_norm == pytest.approx(np.sqrt(64) * 5.0, rel=0.01)
