@@ -130,7 +130,7 @@ def stick_radius(contact: HertzContact, friction: float, tangential_force: float
         return 0.0 if Q == 0.0 else _too_much(Q, mu, contact)
     if math.isinf(mu):
         return contact.contact_radius
-    ratio = abs(Q) / (mu * contact.normal_force)
+    ratio = abs(Q) / mu / contact.normal_force  # not Q / (mu F): mu F underflows to 0 for subnormal mu
     if ratio > 1.0 + 1e-12:
         _too_much(Q, mu, contact)
     power = 0.5 if contact.line else 1.0 / 3.0

@@ -99,6 +99,14 @@ def test_stuck_cell_average_carries_Q(line):
     assert np.all(np.isfinite(q))
 
 
+def test_stick_radius_subnormal_friction():
+    """Regression (hypothesis, mu = 5e-324): mu F underflowed to 0 and stick_radius divided by zero."""
+    c = HertzContact(0.5, 0.25, 1e5, 0.0)
+    assert stick_radius(c, 5e-324, 0.0) == c.contact_radius
+    with pytest.raises(ValueError, match="exceeds the friction limit"):
+        stick_radius(c, 5e-324, 1e-300)
+
+
 def test_bad_input_raises():
     with pytest.raises(ValueError, match="normal_force: must be finite and > 0"):
         HertzContact(-0.5)
@@ -147,6 +155,7 @@ from hypothesis import strategies as st  # noqa: E402
 @given(force=st.floats(0.05, 5.0), radius=st.floats(0.005, 0.3), modulus=st.floats(1e5, 5e6),
        nu=st.floats(0.0, 0.5), mu=st.floats(0.0, 2.0), ratio=st.floats(0.0, 1.0))
 @example(force=1.0, radius=0.25, modulus=1e5, nu=0.0, mu=1.0, ratio=1.192092896e-07)  # stick radius 4e-8 a short of a
+@example(force=0.5, radius=0.25, modulus=1e5, nu=0.0, mu=5e-324, ratio=0.0)  # mu F underflows to 0
 def test_force_balance_property(force, radius, modulus, nu, mu, ratio):
     """For any contact: the Hertz pressure integrates to F (polar quadrature) and the
     Cattaneo--Mindlin traction to Q = ratio mu F (with the analytic stick-zone integral)."""
