@@ -24,11 +24,29 @@ import numpy as np
 
 from .fields import output_weights
 from .tractor_display import travelling_wave_drive
-from .tractors import array_phi_psi, sliding_sinusoid_strain, tractor_stress_kernel
+from .tractors import _positive, array_phi_psi, sliding_sinusoid_strain, tractor_stress_kernel
 
 
 def display_gain(display, depth: float, young_modulus: float) -> tuple[float, float]:
-    """Line load per unit virtual height ((N/m)/m) and the rendered pitch 4 d (m) of a display."""
+    """Line load per unit virtual height ((N/m)/m) and the rendered pitch 4 d (m) of a display.
+
+    Parameters
+    ----------
+    display : DisplayDescription
+        The display (its ``pitch_x_m`` = 2 d and ``columns``).
+    depth : float
+        Receptor depth Z in m (> 0).
+    young_modulus : float
+        Skin Young's modulus E in Pa (> 0).
+
+    Returns
+    -------
+    gain : float
+        Line load per tractor per unit virtual surface height, (N/m)/m.
+    pitch : float
+        Rendered grating pitch 4 d in m.
+    """
+    young_modulus = _positive(young_modulus, "young_modulus", "Pa", "skin is ~1e5-4e6 Pa")
     d = float(display.pitch_x_m) / 2
     pairs = max(1, int(display.columns) // 2)
     k2p = float(array_phi_psi(np.array([d]), d, depth, pairs)[1][0])

@@ -1,0 +1,48 @@
+"""Forward-model guards that no other test triggered (one pytest.raises(match=) per raise)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from tactilab.data_schemas.display import DisplayDescription
+from tactilab.forward.display_scene import display_gain
+from tactilab.forward.fields import tensor
+from tactilab.forward.load_files import read_load
+from tactilab.forward.spectral import _cached_geometry, _table_uncached
+
+
+def test_display_gain_rejects_a_depth_where_no_drive_renders():
+    """At Z = 1e-12 m the pair sum S_Psi(d) is negative: no gain exists, so it must not return one."""
+    display = DisplayDescription.braille_row()
+    gain, pitch = display_gain(display, 1e-3, 1e6)
+    assert gain > 0 and pitch == pytest.approx(2 * display.pitch_x_m)
+    with pytest.raises(ValueError, match=r"display: S_Psi\(d\) = -.* is not positive"):
+        display_gain(display, 1e-12, 1e6)
+
+
+@pytest.mark.parametrize("modulus", [np.nan, np.inf, 0.0, -1e6])
+def test_display_gain_rejects_bad_young_modulus(modulus):
+    with pytest.raises(ValueError, match="young_modulus: must be finite and > 0 Pa"):
+        display_gain(DisplayDescription.braille_row(), 1e-3, modulus)
+
+
+def test_tensor_needs_all_six_components():
+    field = xr.DataArray(np.zeros((2, 4)), dims=("component", "x"), coords={"component": ["zz", "zx"]})
+    with pytest.raises(ValueError, match=r"field: invariants need all six components, missing \['xx', 'yy', 'yz', 'xy'\]"):
+        tensor(field)
+
+
+def test_read_load_missing_file(tmp_path):
+    with pytest.raises(FileNotFoundError, match="load file not found") as info:
+        read_load(tmp_path / "nope.npz")
+    assert info.value.filename == str(tmp_path / "nope.npz")
+
+
+def test_spectral_table_rejects_unknown_component():
+    """The coefficient table is looked up by Voigt name; a wrong name must not fall through silently."""
+    g = _cached_geometry((4, 4), (1e-3, 1e-3), "float64")
+    assert len(_table_uncached(g, 0.5, "zz")) == 4
+    with pytest.raises(ValueError, match="components: unknown stress component 'xz'"):
+        _table_uncached(g, 0.5, "xz")
