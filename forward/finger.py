@@ -36,6 +36,9 @@ from .fields import output_weights
 from .kernels import COMPONENTS, point_green
 
 
+MAX_GRID_NODES_PER_AXIS = 2049  # 4.2e6 contact nodes; finer grids exhaust memory in the scan maps
+
+
 @dataclass(frozen=True)
 class Fingerprint:
     """Fingerprint ridges along y with period ``period`` (m) and contrast in [0, 1]; the ridge
@@ -117,6 +120,15 @@ class BiomimeticFinger:
                                  f"give adhesion=0, got adhesion={self.adhesion!r}")
         if self.grid_spacing is not None and (not math.isfinite(self.grid_spacing) or self.grid_spacing <= 0):
             raise ValueError(f"grid_spacing: must be finite and > 0 m (or None for automatic), got {self.grid_spacing!r}")
+        if self.grid_spacing is not None:
+            # a typo such as 1e-12mm would otherwise ask numpy for terabytes (MemoryError deep in the scan)
+            a = self.contact.contact_radius
+            n = 2 * (int(math.ceil(a / self.grid_spacing)) + 1) + 1
+            if n > MAX_GRID_NODES_PER_AXIS:
+                raise ValueError(
+                    f"grid_spacing: {self.grid_spacing!r} m gives {n} contact-grid nodes per axis over the contact "
+                    f"radius {a:.4g} m, above the limit {MAX_GRID_NODES_PER_AXIS} (memory); give a spacing of at "
+                    f"least {a / ((MAX_GRID_NODES_PER_AXIS - 3) // 2):.3g} m, or None for automatic")
 
     # ---------------------------------------------------------------- construction
     @classmethod

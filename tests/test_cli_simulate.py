@@ -95,6 +95,8 @@ def test_simulate_user_mistakes_exit_2(tmp_path, capsys):
     assert "--grid-spacing: must be > 0" in capsys.readouterr().err
     assert main(["simulate", str(_scene(tmp_path)), "--grid-spacing", "1kPa", "--quiet"]) == 2
     assert "--grid-spacing" in capsys.readouterr().err
+    assert main(["simulate", str(_scene(tmp_path)), "--grid-spacing", "1e-12mm", "--quiet"]) == 2  # was MemoryError
+    assert "contact-grid nodes per axis" in capsys.readouterr().err
     display = (ROOT / "data_schemas" / "examples" / "tractor_display.toml").read_text()
     strong = tmp_path / "strong.toml"
     strong.write_text(display.replace('amplitude = "10um"', 'amplitude = "100um"'))

@@ -178,6 +178,8 @@ def test_bad_input_raises():
         BiomimeticFinger(HertzContact(1.0), [[0, 0]])
     with pytest.raises(ValueError, match="grid_spacing: must be finite"):
         BiomimeticFinger(HertzContact(1.0), sensors, grid_spacing=0.0)
+    with pytest.raises(ValueError, match=r"grid_spacing: 1e-15 m gives \d+ contact-grid nodes per axis .* above the limit"):
+        BiomimeticFinger(HertzContact(1.0), sensors, grid_spacing=1e-15)  # was a MemoryError deep in the scan
     with pytest.raises(ValueError, match="fingerprint period"):
         Fingerprint(period=-1.0)
     with pytest.raises(ValueError, match="fingerprint contrast"):
