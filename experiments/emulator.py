@@ -60,13 +60,20 @@ class EmulatorSummary:
     duration_s: float = 0.0
 
 
+_MAX_SECONDS = 1e7
+
+
 def _seconds(value, name: str, *, allow_none: bool = False) -> float | None:
     if value is None and allow_none:
         return None
     number = math.nan if isinstance(value, bool) or value is None else float(value)
     if not (math.isfinite(number) and number > 0):
         raise ValueError(f"{name}: must be a finite number of seconds > 0, got {value!r}; give e.g. 0.05")
+    if number > _MAX_SECONDS:  # the emulator counts in integer ns; 1e300 s overflowed to inf there
+        raise ValueError(f"{name}: must be at most {_MAX_SECONDS:g} s (about 4 months), got {value!r}; "
+                         "give e.g. 60 and restart the emulator for longer runs")
     return number
+
 
 
 def emulate(port: int = 0, *, watchdog_s: float = 0.05, record: str | pathlib.Path | None = None,

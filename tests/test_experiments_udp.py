@@ -347,6 +347,7 @@ def test_emulator_statuses_gaps_and_rearming(thread_emulator):
     ({"port": 70000}, r"--port: must be an integer in 0..65535"),
     ({"watchdog_s": 0.0}, "--watchdog: must be a finite number of seconds > 0"),
     ({"max_seconds": float("inf")}, "--max-seconds: must be a finite number of seconds > 0"),
+    ({"max_seconds": 1e300}, r"--max-seconds: must be at most 1e\+07 s .*, got 1e\+300"),
     ({"late_after_s": -1.0}, "--late-after: must be a finite number of seconds > 0"),
     ({"n_tractors": 0}, "--tractors: must be an integer >= 1"),
 ])
@@ -358,6 +359,8 @@ def test_emulate_rejects_bad_arguments(kwargs, match):
 def test_cli_reports_bad_options_in_one_line(capsys):
     assert cli_main(["device", "emulate", "--port", "0", "--watchdog", "0ms", "--max-seconds", "1"]) == 2
     assert "--watchdog: must be a finite number of seconds > 0" in capsys.readouterr().err
+    assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "1e300"]) == 2  # was OverflowError
+    assert "--max-seconds: must be at most" in capsys.readouterr().err
 
 
 def test_cli_emulator_stops_on_its_own_after_max_seconds(tmp_path, capsys):
