@@ -75,7 +75,6 @@ def _seconds(value, name: str, *, allow_none: bool = False) -> float | None:
     return number
 
 
-
 def emulate(port: int = 0, *, watchdog_s: float = 0.05, record: str | pathlib.Path | None = None,
             max_seconds: float = 60.0, n_tractors: int | None = None, late_after_s: float = 1e-3,
             log: Callable[[str], None] = print, stop: threading.Event | None = None,
