@@ -22,7 +22,8 @@ modes disagree visibly. Every ``check_every`` steps, on the second half of the c
 - chain length >= ``tau_factor`` x the integrated autocorrelation time (emcee, per ensemble).
 Sampling stops when all hold (``converged=True``) or at ``max_steps`` (``converged=False``, the
 failing checks listed in ``message``). Parameters whose posterior sd exceeds
-``flat_ratio`` x their prior sd are reported as flat (the likelihood does not inform them).
+``flat_ratio`` x their prior sd AND whose marginal is close to the prior (two-sample KS statistic
+against prior draws < 0.1; a bimodal posterior is wide but not prior-like) are reported as flat.
 """
 
 from __future__ import annotations
@@ -57,7 +58,8 @@ class MCMCResult:
     summary : pandas.DataFrame
         ``arviz_stats.summary`` of the posterior.
     flat_parameters : list of str
-        Parameters the data do not inform (posterior sd > flat_ratio x prior sd).
+        Parameters the data do not inform (posterior sd > flat_ratio x prior sd and the marginal
+        is prior-like: KS statistic against prior draws < 0.1).
     map_estimates : list of dict
         The MAP each ensemble started from.
     message : str
@@ -326,7 +328,13 @@ def sample_scene_posterior(
          "sample_stats": {"lp": lps}},
         dims={"obs": ["obs_id"]}, attrs={"/": attrs})
     summary = azs.summary(tree, round_to="none")
-    flats = [q for q in sampled if posterior[q].std() > flat_ratio * priors[q].std]
+    from scipy.stats import ks_2samp
+
+    def prior_like(q):
+        draws = posterior[q].ravel()
+        return ks_2samp(draws, priors[q].sample(rng, draws.size)).statistic < 0.1
+
+    flats = [q for q in sampled if posterior[q].std() > flat_ratio * priors[q].std and prior_like(q)]
     lines = [("converged" if converged else "did NOT converge") + f" after {steps} steps x {w} walkers x {k} ensembles",
              f"R-hat max {diag['rhat_max']:.4f} (walkers), {diag['rhat_between_max']:.4f} (between ensembles); "
              f"ESS bulk {diag['ess_bulk_min']:.0f}, tail {diag['ess_tail_min']:.0f}; tau {diag['tau_max']:.1f} steps"]
