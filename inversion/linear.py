@@ -273,7 +273,8 @@ def invert_linear(
     if lam is not None and not (np.isfinite(lam) and lam > 0):
         raise ValueError(f"lam: regularisation strength must be finite and > 0, got {lam!r}; or None to choose it")
     path = _pick_path(operator, method)
-    op = operator if isinstance(operator, (FourierDiagonal, np.ndarray)) else aslinearoperator(operator)
+    keep = isinstance(operator, FourierDiagonal) or (isinstance(operator, np.ndarray) and path == "dense")
+    op = operator if keep else aslinearoperator(operator)
     d = check_data(data, operator.shape[0])
     dims = _dims(operator) if not isinstance(operator, np.ndarray) else (operator.shape[1],)
     spacing = spacing if spacing is not None else getattr(operator, "spacing", 1.0)

@@ -128,6 +128,8 @@ def invert_tv(operator, data, *, lam=None, noise_std=None, method="auto", spacin
         raise ValueError(f"method: unknown path {method!r}; use auto, fft, dense or iterative")
     if method == "fft" and not isinstance(operator, FourierDiagonal):
         raise ValueError("method: 'fft' needs a FourierDiagonal operator; use 'dense' or 'iterative'")
+    if is_matrix and method == "iterative":
+        operator, is_matrix = aslinearoperator(operator), False
     op = operator if isinstance(operator, (FourierDiagonal, np.ndarray)) else aslinearoperator(operator)
     d = check_data(data, operator.shape[0])
     dims = (operator.shape[1],) if is_matrix else tuple(getattr(operator, "dims", (operator.shape[1],)))

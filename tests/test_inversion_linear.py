@@ -330,3 +330,14 @@ def test_iterative_discrepancy_matches_closed_form(rng):
     assert "CG root search" in it.lam_source
     assert it.lam == pytest.approx(dense.lam, rel=0.05)
     assert it.residual_norm == pytest.approx(np.sqrt(64) * 5.0, rel=0.01)
+
+
+def test_matrix_operator_on_iterative_paths(rng):
+    """A plain ndarray operator works on the iterative Tikhonov and TV paths."""
+    op, truth, data = problem(n=48, rng=rng)
+    a = op.todense()
+    it = invert_linear(a, data, penalty="identity", lam=1e-2, method="iterative", spacing=DX, tol=1e-12, rng=rng)
+    dense = invert_linear(a, data, penalty="identity", lam=1e-2, spacing=DX)
+    np.testing.assert_allclose(it.model, dense.model, atol=1e-6 * np.abs(dense.model).max())
+    tv = invert_linear(a, data, penalty="tv", lam=1e-2, method="iterative", spacing=DX, max_iter=50)
+    assert tv.method == "iterative" and np.all(np.isfinite(tv.model))
