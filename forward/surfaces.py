@@ -45,6 +45,8 @@ def _finite(value, name: str, unit: str = "m") -> float:
 def _xy(x, y):
     x = np.asarray(x, dtype=float)
     y = np.zeros_like(x) if y is None else np.asarray(y, dtype=float)
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+        raise ValueError("x, y: surface points must be finite (no NaN or inf), in m")
     return np.broadcast_arrays(x, y)
 
 
@@ -76,6 +78,8 @@ class SinusoidalGrating(Feature):
     def __post_init__(self):
         _pos(self.period, "period")
         _finite(self.amplitude, "amplitude")
+        _finite(self.phase, "phase", "rad")
+        _finite(self.orientation, "orientation", "rad")
 
     def height(self, x, y=None):
         x, y = _xy(x, y)
@@ -97,6 +101,7 @@ class SquareWaveGrating(Feature):
         _finite(self.amplitude, "amplitude")
         if not 0.0 < float(self.duty) < 1.0:
             raise ValueError(f"duty: the ridge fraction must lie in (0, 1), got {self.duty!r}")
+        _finite(self.offset, "offset")
 
     def height(self, x, y=None):
         x, _ = _xy(x, y)
@@ -290,8 +295,6 @@ class Surface:
     def height(self, x, y=None) -> np.ndarray:
         """Total height in m at surface points (x, y) in m; 0 off the surface."""
         x, y = _xy(x, y)
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
-            raise ValueError("x, y: surface points must be finite (no NaN or inf), in m")
         total = np.zeros(x.shape)
         for f in self.features:
             total = total + f.height(x, y)

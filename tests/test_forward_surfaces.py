@@ -151,3 +151,29 @@ def test_bad_input_raises():
         rigid_surface_pressure(np.zeros(4), 1e-4, 0.0)
     with pytest.raises(ValueError, match="poisson_ratio: must lie"):
         rigid_surface_pressure(np.zeros(4), 1e-4, 1e6, poisson_ratio=-0.1)
+
+
+@pytest.mark.parametrize("feature", [
+    SinusoidalGrating(period=1e-3, amplitude=1e-6),
+    SquareWaveGrating(period=1e-3, amplitude=1e-6),
+    RandomSquareWaveGrating(bit_length=1e-4, amplitude=1e-6, bits=np.array([1.0, -1.0, 1.0])),
+    Bump(0.0, 0.0, 1e-3, 1e-5),
+    Step(0.0, 1e-5, width=1e-4),
+    HeightMap(np.zeros((3, 3)), spacing=(1e-4, 1e-4)),
+], ids=lambda f: type(f).__name__)
+def test_every_feature_rejects_non_finite_points(feature):
+    """NaN positions used to come back as NaN heights from the features (only Surface checked)."""
+    assert np.all(np.isfinite(feature.height(np.array([0.0, 1e-4]), np.array([0.0, 0.0]))))
+    with pytest.raises(ValueError, match="x, y: surface points must be finite"):
+        feature.height(np.array([0.0, np.nan]), np.array([0.0, 0.0]))
+    with pytest.raises(ValueError, match="x, y: surface points must be finite"):
+        feature.height(np.array([0.0, 1e-4]), np.array([np.inf, 0.0]))
+
+
+def test_grating_angles_and_offset_must_be_finite():
+    with pytest.raises(ValueError, match=r"phase: must be finite \(rad\), got nan"):
+        SinusoidalGrating(period=1e-3, amplitude=1e-6, phase=math.nan)
+    with pytest.raises(ValueError, match=r"orientation: must be finite \(rad\), got inf"):
+        SinusoidalGrating(period=1e-3, amplitude=1e-6, orientation=math.inf)
+    with pytest.raises(ValueError, match=r"offset: must be finite \(m\), got nan"):
+        SquareWaveGrating(period=1e-3, amplitude=1e-6, offset=math.nan)
