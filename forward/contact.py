@@ -126,6 +126,8 @@ class HertzContact:
 def stick_radius(contact: HertzContact, friction: float, tangential_force: float) -> float:
     """Cattaneo--Mindlin stick-zone radius ``c`` in m for ``0 <= |Q| <= mu F``."""
     mu, Q = _check_friction(friction), float(tangential_force)
+    if not math.isfinite(Q):  # NaN compared False with the friction limit and gave a radius
+        raise ValueError(f"tangential_force: must be finite (N, or N/m for a line contact), got {tangential_force!r}")
     if mu == 0.0:
         return 0.0 if Q == 0.0 else _too_much(Q, mu, contact)
     if math.isinf(mu):

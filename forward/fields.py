@@ -15,6 +15,7 @@ import xarray as xr
 
 from .kernels import COMPONENTS as VOIGT
 from .kernels import check_components as kernel_check_components
+from .kernels import check_nu as kernel_check_nu
 
 SHEAR_CONVENTION = "tensor shear eps_ij (engineering gamma_ij = 2 eps_ij; see to_engineering)"
 INVARIANTS = ("volumetric", "von_mises", "energy_density", "principal", "max_shear")
@@ -32,16 +33,39 @@ def check_components(components: Sequence[str] | str | None, name: str = "compon
 
 
 def compliance_matrix(young_modulus: float, nu: float) -> np.ndarray:
-    """(6, 6) map from Voigt stress (Pa) to Voigt TENSOR strain (dimensionless)."""
+    """(6, 6) map from Voigt stress (Pa) to Voigt TENSOR strain (dimensionless).
+
+    Parameters
+    ----------
+    young_modulus : float
+        Young's modulus E in Pa (finite, > 0).
+    nu : float
+        Poisson's ratio in (-1, 0.5].
+
+    Returns
+    -------
+    ndarray, shape (6, 6), 1/Pa
+        Rows and columns in Voigt order (xx, yy, zz, yz, zx, xy); shear rows give tensor
+        shear eps_ij (engineering gamma_ij = 2 eps_ij, see :func:`to_engineering`).
+    """
+    E = float(young_modulus)
+    if not np.isfinite(E) or E <= 0:
+        raise ValueError(f"young_modulus: Young's modulus must be a finite number > 0 Pa, got {young_modulus!r}; "
+                         "skin is ~1e5-4e6 Pa")
+    nu = kernel_check_nu(nu)
     c = np.zeros((6, 6))
     c[:3, :3] = -nu
     np.fill_diagonal(c[:3, :3], 1.0)
     c[3:, 3:] = np.eye(3) * (1.0 + nu)
-    return c / young_modulus
+    return c / E
 
 
 def output_weights(quantity: str, components: Sequence[str], young_modulus: float, nu: float) -> np.ndarray:
-    """Rows mapping Voigt stress to the requested outputs, shape (n_out, 6)."""
+    """Rows mapping Voigt stress to the requested outputs, shape (n_out, 6).
+
+    ``quantity`` is ``"stress"`` (rows of the identity, Pa -> Pa) or ``"strain"`` (rows of
+    :func:`compliance_matrix`, Pa -> tensor strain); ``young_modulus`` in Pa.
+    """
     idx = [VOIGT.index(c) for c in components]
     if quantity == "stress":
         return np.eye(6)[idx]

@@ -215,6 +215,9 @@ class BiomimeticFinger:
         ndarray, shape S + (n_sensors, n_components): Pa (stress) or strain (tensor).
         """
         xs, ys, fx, fz = np.broadcast_arrays(*(np.asarray(v, float) for v in (xs, ys, fx, fz)))
+        for name, v, unit in (("xs", xs, "m"), ("ys", ys, "m"), ("fx", fx, "N"), ("fz", fz, "N")):
+            if not np.all(np.isfinite(v)):
+                raise ValueError(f"{name}: point forces and their positions must be finite (no NaN or inf), in {unit}")
         W = self._weights()
         pos = self.sensors.positions_m
         dx = pos[:, 0] - xs[..., None]

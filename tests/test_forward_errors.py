@@ -7,8 +7,11 @@ import pytest
 import xarray as xr
 
 from tactilab.data_schemas.display import DisplayDescription
+from tactilab.data_schemas.sensors import SensorArray
+from tactilab.forward.contact import HertzContact, stick_radius
 from tactilab.forward.display_scene import display_gain
-from tactilab.forward.fields import tensor
+from tactilab.forward.fields import compliance_matrix, output_weights, tensor
+from tactilab.forward.finger import BiomimeticFinger
 from tactilab.forward.load_files import read_load
 from tactilab.forward.spectral import _cached_geometry, _table_uncached
 
@@ -46,3 +49,27 @@ def test_spectral_table_rejects_unknown_component():
     assert len(_table_uncached(g, 0.5, "zz")) == 4
     with pytest.raises(ValueError, match="components: unknown stress component 'xz'"):
         _table_uncached(g, 0.5, "xz")
+
+
+def test_compliance_matrix_rejects_bad_material():
+    """A NaN modulus used to give a NaN compliance (and NaN strains downstream) without a word."""
+    assert compliance_matrix(2e6, 0.5)[0, 0] == pytest.approx(0.5e-6)
+    with pytest.raises(ValueError, match="young_modulus: Young's modulus must be a finite number > 0 Pa, got nan"):
+        compliance_matrix(np.nan, 0.5)
+    with pytest.raises(ValueError, match=r"nu: Poisson's ratio must lie in \(-1, 0.5\]"):
+        output_weights("strain", ("zz",), 1e6, np.nan)
+
+
+def test_stick_radius_rejects_nan_tangential_force():
+    with pytest.raises(ValueError, match="tangential_force: must be finite"):
+        stick_radius(HertzContact(1.0), 0.5, np.nan)
+
+
+def test_point_response_rejects_non_finite_forces():
+    sensors = SensorArray.grid(2, 2, 1e-3, 2e-3, quantity="stress", components=("zz",))
+    finger = BiomimeticFinger(HertzContact(0.8), sensors, friction=0.5, grid_spacing=0.2e-3)
+    assert np.all(np.isfinite(finger.point_response(0.0, 0.0, 0.1, 1.0)))
+    with pytest.raises(ValueError, match="fz: point forces and their positions must be finite"):
+        finger.point_response(0.0, 0.0, 0.1, np.nan)
+    with pytest.raises(ValueError, match="xs: point forces and their positions must be finite"):
+        finger.point_response(np.inf, 0.0, 0.1, 1.0)
