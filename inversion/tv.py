@@ -37,8 +37,13 @@ def _soft(x, t):
     return np.sign(x) * np.maximum(np.abs(x) - t, 0.0)
 
 
-def admm_tv(op, d, lam, dims, spacing, path, rho=None, eps_abs=1e-6, eps_rel=1e-4, max_iter=3000, alpha=1.8, adapt_every=20):
-    """Run ADMM for one lam. Returns (model_flat, iterations, converged)."""
+def admm_tv(op, d, lam, dims, spacing, path, rho=None, eps_abs=1e-6, eps_rel=1e-4, max_iter=3000, alpha=1.8,
+            adapt_every=20, warm: dict | None = None):
+    """Run ADMM for one lam. Returns (model_flat, iterations, converged).
+
+    ``warm``: a dict updated in place with the final ``m, z, u, rho``; when it holds them, ADMM
+    starts there (the discrepancy search re-solves for nearby lam).
+    """
     n = int(np.prod(dims))
     dmat = penalty_matrix("gradient", dims, spacing, periodic=(path == "fft"))
     dtd = (dmat.T @ dmat).tocsr()
@@ -67,7 +72,14 @@ def admm_tv(op, d, lam, dims, spacing, path, rho=None, eps_abs=1e-6, eps_rel=1e-
     m = np.zeros(n)
     z = dmat @ m
     u = np.zeros_like(z)
+    if warm and "m" in warm:
+        m, z, u, rho = warm["m"].copy(), warm["z"].copy(), warm["u"] * (warm["rho"] / rho), rho
     cache = {}
+
+    def keep(it, ok):
+        if warm is not None:
+            warm.update(m=m, z=z, u=u, rho=rho)
+        return m, it, ok
 
     def solve(rhs, rho_):
         if path == "fft":
@@ -98,7 +110,7 @@ def admm_tv(op, d, lam, dims, spacing, path, rho=None, eps_abs=1e-6, eps_rel=1e-
         eps_pri = np.sqrt(p) * eps_abs + eps_rel * max(np.linalg.norm(dm), np.linalg.norm(z))
         eps_dual = np.sqrt(n) * eps_abs + eps_rel * rho * np.linalg.norm(dmat.T @ u)
         if r_norm <= eps_pri and s_norm <= eps_dual:
-            return m, it, True
+            return keep(it, True)
         if adapt_every and it % adapt_every == 0:
             # residual balancing (Boyd 3.4.1) applied sparingly: ADMM needs a steady rho between changes
             ratio = (r_norm / eps_pri) / max(s_norm / eps_dual, 1e-300)
@@ -108,7 +120,7 @@ def admm_tv(op, d, lam, dims, spacing, path, rho=None, eps_abs=1e-6, eps_rel=1e-
             elif ratio < 0.1:
                 rho /= 2.0
                 u *= 2.0
-    return m, max_iter, False
+    return keep(max_iter, False)
 
 
 def invert_tv(operator, data, *, lam=None, noise_std=None, method="auto", spacing=None, tol=None,
@@ -142,8 +154,11 @@ def invert_tv(operator, data, *, lam=None, noise_std=None, method="auto", spacin
     def fwd(x):
         return op @ x if is_matrix else op.matvec(x)
 
+    warm: dict = {}
+
     def run(lam_):
-        return admm_tv(op, d, lam_, dims, spacing, method, eps_abs=eps_abs, eps_rel=eps_rel, max_iter=max_iter)
+        return admm_tv(op, d, lam_, dims, spacing, method, eps_abs=eps_abs, eps_rel=eps_rel, max_iter=max_iter,
+                       warm=warm)
 
     if lam is None:
         if noise_std is None or not (np.isfinite(noise_std) and noise_std > 0):
