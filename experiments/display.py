@@ -217,9 +217,17 @@ def virtual_height(x_m: np.ndarray, *, surface: Literal["sinusoid", "square"], a
     Raises
     ------
     ValueError
-        If ``surface`` is not ``"sinusoid"`` or ``"square"``.
+        If ``surface`` is not ``"sinusoid"`` or ``"square"``, or a value is NaN or inf
+        (``pitch_m`` must also be > 0).
     """
-    argument = 2 * np.pi * np.asarray(x_m, dtype=float) / pitch_m + phase_rad
+    x_m = np.asarray(x_m, dtype=float)
+    if not np.all(np.isfinite(x_m)):
+        raise ValueError("x_m: positions must be finite (no NaN or inf), in m")
+    for name, value, unit in (("amplitude_m", amplitude_m, "m"), ("phase_rad", phase_rad, "rad")):
+        if isinstance(value, bool) or not math.isfinite(float(value)):
+            raise ValueError(f"{name}: must be a finite number in {unit}, got {value!r}")
+    pitch_m = _positive(pitch_m, "pitch_m", "m")
+    argument = 2 * np.pi * x_m / pitch_m + phase_rad
     if surface == "sinusoid":
         return amplitude_m * np.sin(argument)
     if surface == "square":

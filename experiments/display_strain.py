@@ -52,8 +52,14 @@ def sliding_surface_strain_amplitude(amplitude_m: float, pitch_m: float, depth_m
     """Amplitude of eps_xx (and of the tensor shear eps_xz) under a sliding sinusoidal surface.
 
     ``4 pi^2 A Z / p^2 exp(-2 pi Z / p)`` (physics brief 4a; independent of E). The
-    engineering shear amplitude is twice this.
+    engineering shear amplitude is twice this. ``amplitude_m`` (finite), ``pitch_m`` and
+    ``depth_m`` (finite, > 0) in m.
     """
+    if isinstance(amplitude_m, bool) or not math.isfinite(float(amplitude_m)):
+        raise ValueError(f"amplitude_m: must be a finite number in m, got {amplitude_m!r}")
+    for name, value in (("pitch_m", pitch_m), ("depth_m", depth_m)):
+        if isinstance(value, bool) or not (math.isfinite(float(value)) and float(value) > 0):
+            raise ValueError(f"{name}: must be a finite number > 0 m, got {value!r}; give a positive value")
     return 4 * math.pi**2 * amplitude_m * depth_m / pitch_m**2 * math.exp(-2 * math.pi * depth_m / pitch_m)
 
 

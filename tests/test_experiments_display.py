@@ -287,3 +287,28 @@ def test_3d_patches_of_long_tractors_approach_the_plane_model():
     np.testing.assert_allclose(voigt[0, :, 0], eps_xx[0, 0], atol=0.01 * np.abs(eps_xx).max())
     np.testing.assert_allclose(voigt[0, :, 4], eps_xz[0, 0], atol=1e-3 * np.abs(eps_xz).max())
     np.testing.assert_allclose(voigt[0, :, 2], -eps_xx[0, 0], atol=0.02 * np.abs(eps_xx).max())  # nu = 1/2
+
+
+@pytest.mark.parametrize("change,match", [
+    ({"x_m": np.array([0.0, np.nan])}, "x_m: positions must be finite"),
+    ({"amplitude_m": math.nan}, "amplitude_m: must be a finite number in m, got nan"),
+    ({"pitch_m": math.inf}, "pitch_m: must be a finite number > 0 m, got inf"),
+    ({"phase_rad": math.nan}, "phase_rad: must be a finite number in rad, got nan"),
+])
+def test_virtual_height_rejects_non_finite_values(change, match):
+    """These used to come back as NaN heights."""
+    kwargs = {"x_m": np.array([0.0, 1e-3]), "surface": "sinusoid", "amplitude_m": 1e-5, "pitch_m": 2e-3,
+              "phase_rad": 0.0}
+    assert np.all(np.isfinite(virtual_height(**kwargs)))
+    with pytest.raises(ValueError, match=match):
+        virtual_height(**{**kwargs, **change})
+
+
+@pytest.mark.parametrize("args,match", [
+    ((math.nan, 2e-3, 1e-3), "amplitude_m: must be a finite number in m, got nan"),
+    ((1e-5, 0.0, 1e-3), "pitch_m: must be a finite number > 0 m, got 0.0"),
+    ((1e-5, 2e-3, math.nan), "depth_m: must be a finite number > 0 m, got nan"),
+])
+def test_sliding_surface_strain_amplitude_rejects_bad_values(args, match):
+    with pytest.raises(ValueError, match=match):
+        sliding_surface_strain_amplitude(*args)
