@@ -15,8 +15,9 @@ import tomllib
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, ValidationError, model_validator
 
+from .base import format_validation_error
 from .experiment_procedures import (  # noqa: F401 - the configs are part of this module's API
     LIKELIHOOD_FAMILIES, PARAMETERS, TASKS, ConstantStimuliConfig, Frequency, Length, ProcedureConfig,
     PsiConfig, Speed, StaircaseConfig, StaircaseTrack, Time, _finite, _Model, _positive, check_label)
@@ -217,13 +218,25 @@ class Protocol(_Model):
 
     @classmethod
     def from_toml(cls, path: str | Path) -> Protocol:
-        """Load and validate a protocol file; unit suffixes are converted to SI here."""
+        """Load and validate a protocol file; unit suffixes are converted to SI here.
+
+        Raises
+        ------
+        OSError
+            If the file cannot be read.
+        ValueError
+            Invalid TOML or an invalid protocol, in one line that starts with the file's path
+            (a scene or load file given by mistake is named, not just its missing keys).
+        """
         path = Path(path)
         try:
             data = tomllib.loads(path.read_text(encoding="utf-8"))
         except tomllib.TOMLDecodeError as exc:
             raise ValueError(f"{path}: not valid TOML ({exc}); fix the syntax") from None
-        return cls.model_validate(data)
+        try:
+            return cls.model_validate(data)
+        except ValidationError as err:
+            raise ValueError(format_validation_error(err, f"{path} (protocol)")) from None
 
     def to_json(self) -> str:
         """Serialise to JSON (SI numbers); :meth:`model_validate_json` reads it back."""
