@@ -11,6 +11,7 @@ sessions in :mod:`tactilab.data_schemas.experiment_records`.
 
 from __future__ import annotations
 
+import errno
 import tomllib
 from pathlib import Path
 from typing import Any, Literal
@@ -229,6 +230,9 @@ class Protocol(_Model):
             (a scene or load file given by mistake is named, not just its missing keys).
         """
         path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(errno.ENOENT, "protocol file not found (check the path and the current folder)",
+                                    str(path))
         try:
             data = tomllib.loads(path.read_text(encoding="utf-8"))
         except tomllib.TOMLDecodeError as exc:

@@ -17,6 +17,7 @@ Built-in examples (package data in ``data_schemas/examples/``):
 
 from __future__ import annotations
 
+import errno
 import importlib.resources
 import pathlib
 import tomllib
@@ -111,11 +112,14 @@ def load_scene(path: str | pathlib.Path) -> Scene:
     ``[sensors]`` (optionally ``[sensors.grid]``), ``[scan]`` and optionally ``[display]``.
     """
     path = pathlib.Path(path)
-    if path.suffix.lower() == ".json":
-        return Scene.load(path)
-    if path.suffix.lower() != ".toml":
+    if path.suffix.lower() not in (".toml", ".json"):
         raise ValueError(f"{path}: a scene file must end in .toml or .json, got {path.suffix!r}; "
                          "rename it or convert it")
+    if not path.is_file():
+        raise FileNotFoundError(errno.ENOENT, "scene file not found (check the path and the current folder)",
+                                str(path))
+    if path.suffix.lower() == ".json":
+        return Scene.load(path)
     return read_toml_record(path, Scene)
 
 

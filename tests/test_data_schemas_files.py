@@ -188,8 +188,9 @@ def test_file_level_errors(tmp_path):
         load_scene(bad)
     with pytest.raises(ValueError, match=r"a scene file must end in .toml or .json, got '.yaml'"):
         load_scene(tmp_path / "scene.yaml")
-    with pytest.raises(OSError):
+    with pytest.raises(FileNotFoundError, match="scene file not found") as info:
         load_scene(tmp_path / "missing.toml")
+    assert info.value.filename == str(tmp_path / "missing.toml")
     broken = tmp_path / "broken.json"
     broken.write_text("{")
     with pytest.raises(ValueError, match=r"broken.json: not valid JSON .*; fix the file"):

@@ -202,6 +202,8 @@ def test_invalid_toml_names_the_file(tmp_path):
     path.write_text("name = 'x\n")
     with pytest.raises(ValueError, match="bad.toml: not valid TOML"):
         Protocol.from_toml(path)
+    with pytest.raises(FileNotFoundError, match="protocol file not found"):
+        Protocol.from_toml(tmp_path / "missing.toml")
     load = tmp_path / "load.toml"  # a load file given as a protocol by mistake
     load.write_text("[grid]\nshape = [8, 8]\nspacing = '0.1mm'\n")
     with pytest.raises(ValueError, match=r"load.toml \(protocol\): name: missing; this key is required; .*"
