@@ -59,6 +59,12 @@ SI_UNIT = {
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?inf|nan)\s*(\S*)\s*$")
 
 
+def _known_units(dimension: str) -> str:
+    """The units of ``dimension`` for error messages ("1 or no unit" for dimensionless)."""
+    units = [u for u, (d, _) in UNITS.items() if d == dimension and u]
+    return ", ".join(units) + (" or no unit" if dimension == "dimensionless" else "")
+
+
 def factor(unit: str, dimension: str, *, name: str = "value") -> float:
     """Return the factor that converts ``unit`` to SI, checking its dimension.
 
@@ -68,15 +74,14 @@ def factor(unit: str, dimension: str, *, name: str = "value") -> float:
         If ``unit`` is unknown or measures another dimension than ``dimension``.
     """
     if unit not in UNITS:
-        known = ", ".join(u for u, (d, _) in UNITS.items() if d == dimension)
         raise ValueError(
-            f"{name}: unknown unit {unit!r}; use one of {known} (SI: {SI_UNIT[dimension]})"
+            f"{name}: unknown unit {unit!r}; use one of {_known_units(dimension)} (SI: {SI_UNIT[dimension]})"
         )
     dim, f = UNITS[unit]
     if dim != dimension and not (unit == "" and dimension == "dimensionless"):
-        known = ", ".join(u for u, (d, _) in UNITS.items() if d == dimension)
+        wanted = "dimensionless number" if dimension == "dimensionless" else dimension
         raise ValueError(
-            f"{name}: unit {unit!r} measures {dim}, but a {dimension} is expected; use one of {known}"
+            f"{name}: unit {unit!r} measures {dim}, but a {wanted} is expected; use one of {_known_units(dimension)}"
         )
     return f
 
@@ -121,7 +126,8 @@ def to_si(value: str | float | int, dimension: str, *, name: str = "value",
     else:
         raise ValueError(f"{name}: expected a number or a string like '1.5mm', got {type(value).__name__}")
     if not math.isfinite(number):
-        raise ValueError(f"{name}: must be finite, got {value!r}")
+        raise ValueError(f"{name}: must be finite, got {value!r}; give a finite number with a unit, "
+                         f"e.g. '1.5{SI_UNIT[dimension]}'")
     f = factor(unit, dimension, name=name)
     if f == 1.0:
         return number

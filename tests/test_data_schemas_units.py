@@ -29,6 +29,8 @@ def test_bare_numbers_take_the_default_unit():
     (True, "length", "got the boolean"),
     ([1], "length", "expected a number or a string"),
     ("1mm", "colour", "dimension: unknown dimension"),
+    ("2furlong", "dimensionless", r"unknown unit 'furlong'; use one of 1 or no unit \(SI: 1\)$"),
+    ("2mm", "dimensionless", r"measures length, but a dimensionless number is expected; use one of 1 or no unit$"),
 ])
 def test_bad_quantities_are_named(value, dimension, message):
     with pytest.raises(ValueError, match=message):
