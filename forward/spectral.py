@@ -101,6 +101,7 @@ class _Geometry:
 
 
 _TABLE_CACHE_MAX_MODES = 2**18  # cache coefficient tables only while they stay small (memory)
+_TABLE_CACHE_MAX_ENTRIES = 24  # six components at four Poisson ratios; a sweep over nu must not grow it
 
 
 def _table(g: _Geometry, nu: float, component: str):
@@ -109,6 +110,8 @@ def _table(g: _Geometry, nu: float, component: str):
         return _table_uncached(g, nu, component)
     key = (float(nu), component)
     if key not in g.tables:
+        if len(g.tables) >= _TABLE_CACHE_MAX_ENTRIES:
+            del g.tables[next(iter(g.tables))]  # oldest first
         g.tables[key] = _table_uncached(g, nu, component)
     return g.tables[key]
 

@@ -13,7 +13,7 @@ from tactilab.forward.display_scene import display_gain
 from tactilab.forward.fields import compliance_matrix, output_weights, tensor
 from tactilab.forward.finger import BiomimeticFinger
 from tactilab.forward.load_files import read_load
-from tactilab.forward.spectral import _cached_geometry, _table_uncached
+from tactilab.forward.spectral import _TABLE_CACHE_MAX_ENTRIES, _cached_geometry, _table, _table_uncached
 
 
 def test_display_gain_rejects_a_depth_where_no_drive_renders():
@@ -73,3 +73,14 @@ def test_point_response_rejects_non_finite_forces():
         finger.point_response(0.0, 0.0, 0.1, np.nan)
     with pytest.raises(ValueError, match="xs: point forces and their positions must be finite"):
         finger.point_response(np.inf, 0.0, 0.1, 1.0)
+
+
+def test_spectral_table_cache_stays_bounded_over_a_sweep_in_nu():
+    """The per-geometry table cache was keyed on nu without a bound: a sweep over nu grew it forever."""
+    g = _cached_geometry((4, 4), (1e-3, 1e-3), "float64")
+    for nu in np.linspace(0.0, 0.5, 40):
+        for component in ("zz", "zx"):
+            assert _table(g, nu, component) is not None
+    assert len(g.tables) <= _TABLE_CACHE_MAX_ENTRIES
+    fresh = _table(g, 0.5, "zz")  # the latest entries are still served from the cache
+    assert _table(g, 0.5, "zz") is fresh
