@@ -56,6 +56,11 @@ def _positive(value: float, name: str, unit: str) -> float:
 
 
 def check_label(value: str, name: str) -> str:
+    """Return ``value`` if it is a BIDS label (1-32 letters or digits); ``name`` is quoted in the error.
+
+    Subject and session labels go into file names and exports, so a real name (with a space)
+    is refused: pseudonymous codes only.
+    """
     if not _LABEL.match(value):
         raise ValueError(
             f"{name}: must be 1-32 letters or digits (a BIDS label; a pseudonymous code, never "

@@ -191,7 +191,7 @@ class SensorArray(Record):
 
     @property
     def unit(self) -> str:
-        """Unit of the measured values and of ``noise_std``: ``"Pa"`` or ``"strain"``."""
+        """Unit of the measured values and of ``noise_std``: ``"Pa"`` or ``"strain"`` (tensor shear eps_ij)."""
         return QUANTITY_UNITS[self.quantity]
 
     @property

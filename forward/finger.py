@@ -251,7 +251,8 @@ class BiomimeticFinger:
 
         Returns
         -------
-        ndarray, shape (n_u, n_sensors, n_components): Pa or strain per finger position.
+        ndarray, shape (n_u, n_sensors, n_components): Pa or strain (tensor shear eps_ij; engineering
+        gamma_ij = 2 eps_ij) per finger position.
         """
         u = np.atleast_1d(np.asarray(positions, dtype=float))
         if u.ndim != 1 or not np.all(np.isfinite(u)):
@@ -273,7 +274,7 @@ class BiomimeticFinger:
             Finger-frame node coordinates (m) of the loaded nodes (interfacial stress > 0).
         W : ndarray, shape (n_nodes, n_sensors * n_components)
             Output per unit surface modulation at each node: the node's force (traction times
-            cell area, N) times the point-load response (Pa/N or strain/N).
+            cell area, N) times the point-load response (Pa/N or tensor-shear strain/N).
         """
         x, y = self.grid()
         h = self.spacing
@@ -289,7 +290,7 @@ class BiomimeticFinger:
 
         Returns a ``scipy.sparse.linalg.LinearOperator`` of shape (n_sensors * n_components,
         n_nodes) (nodes as in :meth:`node_weights`), with its adjoint; outputs in Pa or strain
-        per unit modulation.
+        (tensor shear eps_ij) per unit modulation.
         """
         from scipy.sparse.linalg import LinearOperator
 

@@ -77,6 +77,7 @@ _SWAP_XY = {"xx": "yy", "yy": "xx", "zz": "zz", "yz": "zx", "zx": "yz", "xy": "x
 
 
 def point_unit(comp: str, direction: str, l, m, n, g, nu: float):
+    """Stress per unit point force (N) along ``direction`` from the direction cosines and 1/(2 pi R^2)."""
     if direction == "z":
         return boussinesq(comp, l, m, n, g, nu)
     if direction == "x":
@@ -86,6 +87,7 @@ def point_unit(comp: str, direction: str, l, m, n, g, nu: float):
 
 
 def line_geometry(x, z):
+    """Direction cosines (x/r, z/r) and 1/(pi r) of points (m) from a line force at the origin."""
     inv = 1.0 / radius(x, z)
     return x * inv, z * inv, inv / np.pi
 

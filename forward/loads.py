@@ -109,10 +109,12 @@ class SurfaceLoad:
 
     @property
     def dx(self) -> float:
+        """Node spacing along x in m."""
         return self.spacing[0]
 
     @property
     def dy(self) -> float | None:
+        """Node spacing along y in m; None for a plane-strain (1-D) load."""
         return self.spacing[1] if self.ndim == 2 else None
 
     @property
