@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import sys
+import warnings
 from pathlib import Path
 
 NAME = "stress"
@@ -30,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas.units import to_si
-    from tactilab.forward.halfspace import HalfSpace
+    from tactilab.forward.halfspace import AccuracyWarning, HalfSpace
     from tactilab.forward.load_files import read_load, write_field
 
     load = read_load(args.load)
@@ -38,7 +40,14 @@ def run(args: argparse.Namespace) -> int:
     hs = HalfSpace(E=to_si(args.young_modulus, "pressure", name="--young-modulus"), nu=args.nu)
     components = [c.strip() for c in args.components.split(",") if c.strip()]
     compute = hs.stress if args.quantity == "stress" else hs.strain
-    result = compute(load, depths, components=components, method=args.method, tol=args.tol)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", AccuracyWarning)
+        result = compute(load, depths, components=components, method=args.method, tol=args.tol)
+    for w in caught:  # one line each, like errors (the default format adds the source line)
+        if issubclass(w.category, AccuracyWarning):
+            print(f"tactilab stress: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     paths = write_field(result, args.out)
     print(f"method: {result.method} ({result.reason}); estimated relative error {result.error_estimate:.1e}")
     for p in paths:
