@@ -15,6 +15,7 @@ SECTIONS = (
     "tactilab.forward.demo",
     "tactilab.forward.scene_demo",
     "tactilab.forward.display_demo",
+    "tactilab.inversion.demo",
     "tactilab.experiments.demo",
 )
 
