@@ -120,7 +120,29 @@ def test_stress_command_bad_options(tmp_path, capsys, argv, message):
     assert message in capsys.readouterr().err
 
 
-def test_load_files_validate(tmp_path):
+GRID = '[grid]\nshape = [16]\nspacing = "0.1mm"\n'
+
+
+@pytest.mark.parametrize("text,message", [
+    (GRID + '[[patch]]\nshape = "cone"\nradius = "1mm"\npressure = "1kPa"\n', r"patch\[0\].shape: unknown patch shape"),
+    (GRID + '[[patch]]\nradius = "1mm"\npressure = "1kPa"\ncolour = 1\n', "unknown key"),
+    (GRID, r"no \[\[patch\]\]"),
+    ('title = "x"\n', r"missing \[grid\]"),
+    ('[grid]\nshape = [0]\nspacing = "0.1mm"\n', "grid.shape must be"),
+    ('[grid]\nshape = [16]\nspacing = "-0.1mm"\n', "grid.spacing: must be > 0"),
+    (GRID + '[[patch]]\ncentre = ["0mm", "1mm"]\nradius = "1mm"\n', "centre: needs 1 coordinate"),
+    (GRID + '[[patch]]\nradius = "0mm"\n', "radius: must be > 0"),
+])
+def test_toml_load_files_validate(tmp_path, text, message):
+    from tactilab.forward.load_files import read_load
+
+    path = tmp_path / "l.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message):
+        read_load(path)
+
+
+def test_npz_and_unknown_load_files_validate(tmp_path):
     from tactilab.forward.load_files import read_load
 
     bad = tmp_path / "x.csv"
@@ -134,34 +156,14 @@ def test_load_files_validate(tmp_path):
     np.savez(npz, p=np.ones(4))
     with pytest.raises(ValueError, match="missing 'spacing'"):
         read_load(npz)
-    toml = tmp_path / "l.toml"
-    toml.write_text('[grid]\nshape = [16]\nspacing = "0.1mm"\n[[patch]]\nshape = "cone"\nradius = "1mm"\npressure = "1kPa"\n')
-    with pytest.raises(ValueError, match="patch\\[0\\].shape: unknown patch shape"):
-        read_load(toml)
-    toml.write_text('[grid]\nshape = [16]\nspacing = "0.1mm"\n[[patch]]\nradius = "1mm"\npressure = "1kPa"\ncolour = 1\n')
-    with pytest.raises(ValueError, match="unknown key"):
-        read_load(toml)
-    toml.write_text('[grid]\nshape = [16]\nspacing = "0.1mm"\n')
-    with pytest.raises(ValueError, match="no \\[\\[patch\\]\\]"):
-        read_load(toml)
-    toml.write_text('title = "x"\n')
-    with pytest.raises(ValueError, match="missing \\[grid\\]"):
-        read_load(toml)
-    toml.write_text('[grid]\nshape = [0]\nspacing = "0.1mm"\n')
-    with pytest.raises(ValueError, match="grid.shape must be"):
-        read_load(toml)
-    toml.write_text('[grid]\nshape = [16]\nspacing = "-0.1mm"\n')
-    with pytest.raises(ValueError, match="grid.spacing: must be > 0"):
-        read_load(toml)
-    toml.write_text('[grid]\nshape = [16]\nspacing = "0.1mm"\n[[patch]]\ncentre = ["0mm", "1mm"]\nradius = "1mm"\n')
-    with pytest.raises(ValueError, match="centre: needs 1 coordinate"):
-        read_load(toml)
-    toml.write_text('[grid]\nshape = [16]\nspacing = "0.1mm"\n[[patch]]\nradius = "0mm"\n')
-    with pytest.raises(ValueError, match="radius: must be > 0"):
-        read_load(toml)
-    toml.write_text('[grid]\nshape = [16]\nspacing = "0.1mm"\n[[patch]]\nshape = "gaussian"\nradius = "0.3mm"\n'
-                    'pressure = "2kPa"\ntraction_x = "1kPa"\n')
-    load = read_load(toml)
+
+
+def test_toml_gaussian_patch_values(tmp_path):
+    from tactilab.forward.load_files import read_load
+
+    path = tmp_path / "l.toml"
+    path.write_text(GRID + '[[patch]]\nshape = "gaussian"\nradius = "0.3mm"\npressure = "2kPa"\ntraction_x = "1kPa"\n')
+    load = read_load(path)
     assert load.ndim == 1 and np.isclose(load.p.max(), 2e3) and np.isclose(load.qx.max(), 1e3)
 
 
@@ -172,3 +174,13 @@ def test_example_load_file_reads():
 
     load = read_load(Path(__file__).resolve().parents[1] / "examples" / "fingertip_load.toml")
     assert load.shape == (128, 128) and np.isclose(load.p.max(), 42e3, rtol=1e-3)
+
+
+def test_stress_command_unwritable_out_names_the_option(tmp_path, capsys):
+    load = tmp_path / "load.npz"
+    np.savez(load, p=np.ones((8, 8)), spacing=1e-4)
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    assert main(["stress", str(load), "--depth", "1mm", "--out", str(blocker / "sub")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--out: cannot create the output folder" in err
