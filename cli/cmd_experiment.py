@@ -73,6 +73,16 @@ def _print_result(result, parameter: str) -> int:
     return 0
 
 
+def _make_out(folder: Path, option: str = "--out") -> Path:
+    """Create the output folder first, so a bad path fails before the computation, in one line."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OSError(f"{option}: cannot create the output folder {str(folder)!r} ({exc.strerror or exc}); "
+                      "choose a writable folder") from None
+    return folder
+
+
 def run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas.experiment import Protocol, check_label
     from tactilab.experiments import factory
@@ -83,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
             check_label(args.session_label, "--session")
         protocol = Protocol.from_toml(args.protocol)
         description = factory.description_from_spec(args.device)
+        _make_out(args.out)
         path, label = factory.next_session_path(args.out, args.subject, protocol.name)
         if args.session_label is not None:
             label = args.session_label

@@ -96,6 +96,9 @@ def test_simulate_user_mistakes_exit_2(tmp_path, capsys):
     assert "--grid-spacing" in capsys.readouterr().err
     assert main(["simulate", str(_scene(tmp_path)), "--grid-spacing", "1e-12mm", "--quiet"]) == 2  # was MemoryError
     assert "contact-grid nodes per axis" in capsys.readouterr().err
+    (tmp_path / "a_file").write_text("")
+    assert main(["simulate", str(_scene(tmp_path)), "--out", str(tmp_path / "a_file" / "x"), "--quiet"]) == 2
+    assert "--out: cannot create the output folder" in capsys.readouterr().err  # before simulating, in one line
     display = (ROOT / "data_schemas" / "examples" / "tractor_display.toml").read_text()
     strong = tmp_path / "strong.toml"
     strong.write_text(display.replace('amplitude = "10um"', 'amplitude = "100um"'))

@@ -119,6 +119,7 @@ def test_user_mistakes_give_one_line_and_exit_2(session, tmp_path, capsys):
         (["run", str(toml), "--subject", "S02", "--responses", "telepathy"], "--responses: must be 'terminal'"),
         (["run", str(toml), "--subject", "S02", "--responses", "terminal"], "standard input is not a terminal"),
         (["run", str(tmp_path / "missing.toml"), "--subject", "S02"], "protocol file not found"),
+        (["run", str(toml), "--subject", "S02", "--out", str(toml / "x")], "--out: cannot create the output folder"),
         (["run", str(toml), "--subject", "S02", "--responses", "simulated", "--observer-threshold", "-1"],
          "--observer-threshold: must be a strain > 0"),
         (["run", str(toml), "--subject", "S02", "--responses", "simulated", "--observer-threshold", "2mm"],
