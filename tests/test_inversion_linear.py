@@ -341,3 +341,19 @@ def test_matrix_operator_on_iterative_paths(rng):
     np.testing.assert_allclose(it.model, dense.model, atol=1e-6 * np.abs(dense.model).max())
     tv = invert_linear(a, data, penalty="tv", lam=1e-2, method="iterative", spacing=DX, max_iter=50)
     assert tv.method == "iterative" and np.all(np.isfinite(tv.model))
+
+
+@pytest.mark.parametrize("penalty", ["identity", "gradient", "curvature"])
+def test_two_dimensional_fft_path_equals_normal_equations(penalty, rng):
+    from tactilab.inversion.operators import halfspace_fourier_operator
+
+    shape = (10, 12)
+    op = halfspace_fourier_operator(shape, (DX, 2 * DX), DEPTH)
+    data = rng.normal(0, 100.0, 120)
+    lam = {"identity": 1e-3, "gradient": 1e-9, "curvature": 1e-16}[penalty]
+    a = op.todense()
+    lmat = penalty_matrix(penalty, shape, (DX, 2 * DX), periodic=True).toarray()
+    expected = np.linalg.solve(a.T @ a + lam * lmat.T @ lmat, a.T @ data).reshape(shape)
+    res = invert_linear(op, data, penalty=penalty, lam=lam)
+    assert res.model.shape == shape
+    np.testing.assert_allclose(res.model, expected, atol=1e-8 * np.abs(expected).max())
