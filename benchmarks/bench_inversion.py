@@ -15,8 +15,9 @@ the data std. Error = ||estimate - truth|| / ||truth||. Methods:
 - pylops: ``pylops.optimization.leastsquares.regularized_inversion`` (LSQR) on the same operator
   (a pylops FunctionOperator doing the same FFT products) with the same penalty and lam;
 - cuqipy: CUQIpy's own ``Deconvolution1D`` test problem (its Gaussian blur, prior N(0, I),
-  noise 0.01), solved by CUQIpy's ``sample_posterior(1000)`` (direct Gaussian sampling), against
-  tactilab's exact fft posterior on the same matrix and data.
+  noise 0.01), solved by CUQIpy's ``sample_posterior(1000)`` (direct Gaussian sampling; best of 3
+  for dim <= 512, one run above), against tactilab's exact fft posterior (best of 20) on the same
+  matrix and data.
 - mcmc: the defect-localisation posterior (emcee, 4 ensembles) at fixed budgets; error =
   |posterior mean x0 - truth| / posterior sd is not used, we report |error| in um and ESS/s.
 
@@ -61,11 +62,13 @@ PEER_SCRIPT = textwrap.dedent('''
             a = tp.model._matrix.toarray() if hasattr(tp.model._matrix, "toarray") else np.asarray(tp.model._matrix)
             y = np.asarray(tp.data)
             x = np.asarray(tp.exactSolution)
-            with contextlib.redirect_stdout(io.StringIO()):
-                t = time.perf_counter()
-                s = tp.sample_posterior(task["n_samples"])
-                mean, std = np.asarray(s.mean()), np.asarray(s.std())
-                el = time.perf_counter() - t
+            el = float("inf")
+            for _ in range(3 if dim <= 512 else 1):  # best of 3 where affordable, as for tactilab
+                with contextlib.redirect_stdout(io.StringIO()):
+                    t = time.perf_counter()
+                    s = tp.sample_posterior(task["n_samples"])
+                    mean, std = np.asarray(s.mean()), np.asarray(s.std())
+                    el = min(el, time.perf_counter() - t)
             np.savez(task["dir"] + f"/cuqi_{dim}.npz", a=a, y=y, x=x, mean=mean, std=std, time=el)
             out[dim] = el
     else:
