@@ -31,6 +31,7 @@ from tactilab.data_schemas.units import to_si
 from .loads import SurfaceLoad
 
 _PATCH_KEYS = {"shape", "centre", "radius", "pressure", "traction_x", "traction_y"}
+MAX_GRID_NODES = 2**24  # 4096 x 4096: one float64 component is 134 MB, and the methods need a few
 
 
 def _profile(shape: str, r2: np.ndarray, radius: float, where: str) -> np.ndarray:
@@ -44,17 +45,25 @@ def _profile(shape: str, r2: np.ndarray, radius: float, where: str) -> np.ndarra
 
 
 def _from_toml(path: pathlib.Path) -> SurfaceLoad:
-    data = tomllib.loads(path.read_text())
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as err:
+        raise ValueError(f"{path}: not valid TOML ({err}); fix the syntax") from None
     grid = data.get("grid")
     if not isinstance(grid, dict):
         raise ValueError(f"{path}: missing [grid] table with shape and spacing")
     shape = grid.get("shape")
     if not isinstance(shape, list) or len(shape) not in (1, 2) or not all(isinstance(n, int) and n > 0 for n in shape):
         raise ValueError(f"{path}: grid.shape must be [nx] or [ny, nx] of positive integers, got {shape!r}")
+    if int(np.prod(shape)) > MAX_GRID_NODES:
+        raise ValueError(f"{path}: grid.shape {shape} has {int(np.prod(shape))} nodes, above the limit "
+                         f"{MAX_GRID_NODES} (memory); use a coarser spacing or a smaller grid")
     spacing = to_si(grid.get("spacing", ""), "length", name="grid.spacing")
     if spacing <= 0:
         raise ValueError(f"grid.spacing: must be > 0, got {grid.get('spacing')!r}")
-    periodic = bool(grid.get("periodic", False))
+    periodic = grid.get("periodic", False)
+    if not isinstance(periodic, bool):
+        raise ValueError(f"{path}: grid.periodic must be true or false (TOML booleans, no quotes), got {periodic!r}")
     template = SurfaceLoad(p=np.zeros(shape), spacing=spacing, periodic=periodic)
     if template.ndim == 1:
         coords = (template.x,)
@@ -65,6 +74,9 @@ def _from_toml(path: pathlib.Path) -> SurfaceLoad:
     patches = data.get("patch", [])
     if not patches:
         raise ValueError(f"{path}: no [[patch]] given; add at least one load patch")
+    if not isinstance(patches, list) or not all(isinstance(patch, dict) for patch in patches):
+        raise ValueError(f"{path}: patches must be an array of tables, one [[patch]] (double brackets) per "
+                         f"patch, got {type(patches).__name__}")
     for k, patch in enumerate(patches):
         where = f"patch[{k}]"
         unknown = set(patch) - _PATCH_KEYS
@@ -87,7 +99,15 @@ def _from_toml(path: pathlib.Path) -> SurfaceLoad:
 
 
 def _from_npz(path: pathlib.Path) -> SurfaceLoad:
-    with np.load(path) as data:
+    try:
+        archive = np.load(path)  # allow_pickle=False: a non-numpy file ends up here as ValueError
+    except (ValueError, EOFError):
+        raise ValueError(f"{path}: not a numpy .npz archive; write one with "
+                         "numpy.savez(path, p=..., spacing=...)") from None
+    if not isinstance(archive, np.lib.npyio.NpzFile):
+        raise ValueError(f"{path}: holds a single array, not an .npz archive; write one with "
+                         "numpy.savez(path, p=..., spacing=...)")
+    with archive as data:
         names = [k for k in ("p", "qx", "qy") if k in data]
         if not names:
             raise ValueError(f"{path}: holds none of the arrays p, qx, qy (tractions in Pa)")

@@ -84,3 +84,31 @@ def test_spectral_table_cache_stays_bounded_over_a_sweep_in_nu():
     assert len(g.tables) <= _TABLE_CACHE_MAX_ENTRIES
     fresh = _table(g, 0.5, "zz")  # the latest entries are still served from the cache
     assert _table(g, 0.5, "zz") is fresh
+
+
+@pytest.mark.parametrize("text,match", [
+    ("[grid\n", r"bad.toml: not valid TOML \(.*\); fix the syntax"),
+    ("[grid]\nshape = [100000, 100000]\nspacing = '0.1mm'\n",
+     r"grid.shape \[100000, 100000\] has 10000000000 nodes, above the limit 16777216"),  # was a MemoryError
+    ("[grid]\nshape = [8, 8]\nspacing = '0.1mm'\nperiodic = 'false'\n[[patch]]\nradius = '1mm'\n",
+     "grid.periodic must be true or false"),  # the string 'false' used to mean True
+    ("[grid]\nshape = [8, 8]\nspacing = '0.1mm'\n[patch]\nradius = '1mm'\n",
+     r"patches must be an array of tables, one \[\[patch\]\]"),
+])
+def test_read_load_toml_mistakes(tmp_path, text, match):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=match):
+        read_load(path)
+
+
+def test_read_load_npz_mistakes(tmp_path):
+    garbage = tmp_path / "garbage.npz"
+    garbage.write_text("not numpy")
+    with pytest.raises(ValueError, match="garbage.npz: not a numpy .npz archive; write one with numpy.savez"):
+        read_load(garbage)
+    single = tmp_path / "single.npz"
+    with open(single, "wb") as fh:
+        np.save(fh, np.ones(3))
+    with pytest.raises(ValueError, match="single.npz: holds a single array, not an .npz archive"):
+        read_load(single)
