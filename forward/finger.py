@@ -37,6 +37,7 @@ from .kernels import COMPONENTS, point_green
 
 
 MAX_GRID_NODES_PER_AXIS = 2049  # 4.2e6 contact nodes; finer grids exhaust memory in the scan maps
+MAX_WORK_VALUES = 2**28  # 2 GiB of float64 work arrays for the scan operator
 
 
 @dataclass(frozen=True)
@@ -120,15 +121,22 @@ class BiomimeticFinger:
                                  f"give adhesion=0, got adhesion={self.adhesion!r}")
         if self.grid_spacing is not None and (not math.isfinite(self.grid_spacing) or self.grid_spacing <= 0):
             raise ValueError(f"grid_spacing: must be finite and > 0 m (or None for automatic), got {self.grid_spacing!r}")
-        if self.grid_spacing is not None:
-            # a typo such as 1e-12mm would otherwise ask numpy for terabytes (MemoryError deep in the scan)
-            a = self.contact.contact_radius
-            n = 2 * (int(math.ceil(a / self.grid_spacing)) + 1) + 1
-            if n > MAX_GRID_NODES_PER_AXIS:
+        # a typo such as 1e-12mm, or sensors a few nm deep (automatic spacing = depth / 5), would
+        # otherwise ask numpy for terabytes (MemoryError deep in the scan)
+        a, h = self.contact.contact_radius, self.spacing
+        n = 2 * (int(math.ceil(a / h)) + 1) + 1
+        if n > MAX_GRID_NODES_PER_AXIS:
+            coarsest = a / ((MAX_GRID_NODES_PER_AXIS - 3) // 2)
+            if self.grid_spacing is not None:
                 raise ValueError(
                     f"grid_spacing: {self.grid_spacing!r} m gives {n} contact-grid nodes per axis over the contact "
                     f"radius {a:.4g} m, above the limit {MAX_GRID_NODES_PER_AXIS} (memory); give a spacing of at "
-                    f"least {a / ((MAX_GRID_NODES_PER_AXIS - 3) // 2):.3g} m, or None for automatic")
+                    f"least {coarsest:.3g} m, or None for automatic")
+            raise ValueError(
+                f"grid_spacing: the automatic spacing {h:.3g} m (contact radius / 25, sensor depth "
+                f"{self.depth:.3g} m / 5, fingerprint period / 10) gives {n} contact-grid nodes per axis, above "
+                f"the limit {MAX_GRID_NODES_PER_AXIS} (memory); give grid_spacing >= {coarsest:.3g} m, or place "
+                "the sensors deeper")
 
     # ---------------------------------------------------------------- construction
     @classmethod
@@ -282,6 +290,13 @@ class BiomimeticFinger:
         p, q = self.traction(X, Y, cell=(h, h))
         keep = (p != 0) | (q != 0)
         X, Y, p, q = X[keep], Y[keep], p[keep], q[keep]
+        n_sensors, n_components = self.sensors.n_sensors, self.sensors.n_components
+        size = X.size * n_sensors * (n_components + 3)  # point_response's work arrays
+        if size > MAX_WORK_VALUES:
+            raise ValueError(
+                f"sensors: {n_sensors} sensors x {n_components} components over {X.size} loaded contact nodes "
+                f"need ~{size * 8 / 2**30:.3g} GiB of work arrays, above the limit {MAX_WORK_VALUES * 8 / 2**30:.3g} GiB; "
+                "use fewer sensors or components, or a coarser grid_spacing")
         W = self.point_response(X, Y, q * h * h, p * h * h)
         return X, Y, W.reshape(X.size, -1)
 

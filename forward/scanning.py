@@ -130,6 +130,10 @@ def reference_height(surface: Surface) -> float:
     return peak if peak > 0 else 1.0
 
 
+MAX_OUTPUT_VALUES = 2**27  # 1 GiB of float64 outputs (or surface strip) per scan
+MAX_FRAMES = 2**24
+
+
 def scan_outputs(finger: BiomimeticFinger, surface: Surface, positions, *, y_offset: float = 0.0,
                  reference_height_m: float | None = None, batch: int = 256,
                  weights=None, progress: bool = False) -> np.ndarray:
@@ -168,6 +172,11 @@ def scan_outputs(finger: BiomimeticFinger, surface: Surface, positions, *, y_off
     h_ref = reference_height(surface) if reference_height_m is None else reference_height_m
     X, Y, W = finger.node_weights() if weights is None else weights
     n_s, n_c = finger.sensors.n_sensors, finger.sensors.n_components
+    if u.size * W.shape[1] > MAX_OUTPUT_VALUES:
+        raise ValueError(
+            f"positions: {u.size} frames x {W.shape[1]} outputs (sensors x components) = {u.size * W.shape[1]} "
+            f"values, above the limit {MAX_OUTPUT_VALUES} (memory); shorten the scan, lower the sampling rate "
+            "or use fewer sensors")
     out = np.empty((u.size, W.shape[1]))
     starts = range(0, u.size, int(batch))
     if progress:
@@ -177,8 +186,12 @@ def scan_outputs(finger: BiomimeticFinger, surface: Surface, positions, *, y_off
     h = finger.spacing
     steps = (u - u[0]) / h
     strip = None
-    if np.allclose(steps, np.round(steps), rtol=0.0, atol=1e-6):
+    on_nodes = np.allclose(steps, np.round(steps), rtol=0.0, atol=1e-6)
+    reach_x, reach_y = (float(np.abs(X).max()), float(np.abs(Y).max())) if X.size else (0.0, 0.0)
+    strip_size = (steps.max() - steps.min() + 2 * reach_x / h + 3) * (2 * reach_y / h + 3)
+    if on_nodes and strip_size <= MAX_OUTPUT_VALUES:
         # frames land on grid nodes: sample the surface ONCE on a world strip and slide over it
+        # (unless that strip would be too large: then sample per batch, slower but bounded memory)
         k = np.round(steps).astype(np.int64)
         ix, iy = np.round(X / h).astype(np.int64), np.round(Y / h).astype(np.int64)
         c0, r0 = ix.min() + k.min(), iy.min()
@@ -208,6 +221,9 @@ def check_scan(speed: float, sampling_rate: float, duration: float) -> int:
     n = int(math.floor(duration * sampling_rate + 1e-9))
     if n < 1:
         raise ValueError(f"duration: {duration!r} s at {sampling_rate!r} Hz gives no sample; record for longer")
+    if n > MAX_FRAMES:
+        raise ValueError(f"duration: {duration!r} s at {sampling_rate!r} Hz gives {n} frames, above the limit "
+                         f"{MAX_FRAMES} (memory); shorten the scan or lower the sampling rate")
     return n
 
 

@@ -330,3 +330,37 @@ def test_scan_operators_pass_the_dot_test(rng):
     maps = sm.apply(np.ones((sm.n, sm.n)))
     flat = f.operator() @ np.ones(f.operator().shape[1])
     np.testing.assert_allclose(sm.sensor_values(maps[None])[0].ravel(), flat, rtol=1e-9)
+
+
+def test_memory_guards_give_clear_errors_instead_of_memory_errors(monkeypatch):
+    """Each guard replaces a numpy MemoryError (terabytes) found by running `tactilab simulate`
+    on scenes with sensors 3 nm deep, 1e6 sensors or 1e9 frames."""
+    import tactilab.forward.finger as finger_module
+    import tactilab.forward.scanning as scanning
+
+    sensors = SensorArray.grid(2, 1, 1e-3, 3e-9, components=("zz",), quantity="stress")
+    with pytest.raises(ValueError, match=r"grid_spacing: the automatic spacing 6e-10 m .* above the limit 2049"):
+        BiomimeticFinger(HertzContact(0.8), sensors)
+    with pytest.raises(ValueError, match="duration: 1.0 s at 1000000000.0 Hz gives 1000000000 frames, above the limit"):
+        scanning.check_scan(0.02, 1e9, 1.0)
+    f = _finger(spacing=0.2e-3)
+    monkeypatch.setattr(finger_module, "MAX_WORK_VALUES", 100)
+    with pytest.raises(ValueError, match=r"sensors: 6 sensors x 1 components over \d+ loaded contact nodes need"):
+        f.node_weights()
+    monkeypatch.undo()
+    monkeypatch.setattr(scanning, "MAX_OUTPUT_VALUES", 10)
+    with pytest.raises(ValueError, match=r"positions: 5 frames x 6 outputs .* = 30 values, above the limit 10"):
+        scan_outputs(f, Surface(length=2e-2, x_start=-1e-2), np.linspace(-1e-3, 1e-3, 5))
+
+
+def test_scan_without_the_surface_strip_matches_the_strip(monkeypatch):
+    """When the shared surface strip would be too large the scan samples per batch: same outputs."""
+    import tactilab.forward.scanning as scanning
+
+    f = _finger(spacing=0.1e-3)
+    h = f.spacing
+    u = np.arange(-20, 21) * h  # frames on grid nodes: the strip path
+    surface = scanned_surface(Bump(0.3e-3, 0.0, 0.5e-3, 20e-6), u, f)
+    ref = scan_outputs(f, surface, u)
+    monkeypatch.setattr(scanning, "MAX_OUTPUT_VALUES", ref.size)  # outputs fit, the strip does not
+    np.testing.assert_allclose(scan_outputs(f, surface, u), ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
