@@ -250,3 +250,25 @@ def test_recorder_open_failures_are_recording_errors(tmp_path, monkeypatch):
     (tmp_path / "b.sqlite").touch()
     with pytest.raises(RecordingError, match="cannot open .* for writing \\(disk I/O error\\)"):
         Recorder.open(tmp_path / "b.sqlite")
+
+
+def test_factory_rejects_bad_specs(tmp_path):
+    """The CLI-edge builders raise ValueError naming the option (also checked through the CLI above)."""
+    from tactilab.data_schemas.experiment import Protocol
+
+    protocol_file = tmp_path / "p.toml"
+    protocol_file.write_text(PROTOCOL)
+    protocol = Protocol.from_toml(protocol_file)
+    description = DisplayDescription.braille_row()
+    with pytest.raises(ValueError, match=r"--device: must be one of \['braille-row', 'stress2'\] .*got 'x.json'"):
+        factory.description_from_spec("x.json")  # no such file
+    with pytest.raises(ValueError, match="--display: must be 'simulated' or 'udp://HOST:PORT', got 'tcp://h:1'"):
+        factory.display_from_spec("tcp://h:1", description)
+    with pytest.raises(ValueError, match="--responses: must be 'terminal' or 'simulated', got 'mind'"):
+        factory.responses_from_spec("mind", protocol)
+    display = factory.display_from_spec("simulated", description, realtime=False)
+    try:
+        with pytest.raises(ValueError, match="--observer-threshold: must be a strain > 0, got '0'"):
+            factory.make_responses("simulated", protocol, display, threshold="0")
+    finally:
+        display.close()
