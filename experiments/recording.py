@@ -236,7 +236,8 @@ class SessionLog:
             self.connection = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True)
             self.connection.execute("SELECT count(*) FROM events").fetchone()
         except sqlite3.Error as exc:
-            raise ValueError(f"session: {self.path} is not a tactilab session database ({exc})") from None
+            raise ValueError(f"session: {self.path} is not a tactilab session database ({exc}); give the .sqlite "
+                             "file that `experiment run` printed") from None
 
     def meta(self) -> dict[str, Any]:
         """The session's metadata, decoded."""

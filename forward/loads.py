@@ -91,7 +91,7 @@ class SurfaceLoad:
             raise ValueError(f"SurfaceLoad: p, qx, qy must share one shape, got {shapes}")
         shape = next(iter(shapes.values()))
         if min(shape) < 1:
-            raise ValueError(f"SurfaceLoad: grid is empty, shape {shape}")
+            raise ValueError(f"SurfaceLoad: grid is empty, shape {shape}; give at least one node per axis")
         object.__setattr__(self, "spacing", _check_spacing(self.spacing, len(shape)))
         if not isinstance(self.periodic, (bool, np.bool_)):
             raise ValueError(f"periodic: must be True or False, got {self.periodic!r}")
@@ -154,7 +154,7 @@ class SurfaceLoad:
     def row(self) -> "SurfaceLoad":
         """The 1-D plane-strain load of a 2-D load that does not vary in y."""
         if self.varies_in_y():
-            raise ValueError("load: varies in y, so it has no exact plane-strain (1-D) form")
+            raise ValueError("load: varies in y, so it has no exact plane-strain (1-D) form; keep the 2-D load")
         if self.ndim == 1:
             return self
         return SurfaceLoad(**{k: v[0] for k, v in self._arrays.items()}, spacing=self.dx, periodic=self.periodic)
