@@ -23,8 +23,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "with the four regularisation criteria; all: both (default)")
     parser.add_argument("--criterion", choices=("gcv", "lcurve", "discrepancy", "evidence"), default="evidence",
                         help="regularisation criterion used for the profile (all four are plotted)")
-    parser.add_argument("--sample-friction", action="store_true",
-                        help="also sample the friction coefficient mu (uniform prior on [0, 1], dimensionless)")
+    parser.add_argument("--sample", default="",
+                        help="comma-separated extra parameters to sample besides x0, y0 (mm): friction "
+                             "(uniform on [0, 1], dimensionless), depth (m), young_modulus (Pa), normal_force "
+                             "(N); the last three log-normal around the scene value (x/1.35); e.g. friction,depth")
     parser.add_argument("--max-steps", type=int, default=20000,
                         help="emcee step limit per ensemble (steps; default 20000); stops earlier once converged")
     parser.add_argument("--max-data", type=int, default=1500,
@@ -61,7 +63,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"profile: {x.size} nodes, lam by {args.criterion}; criteria: {choices}")
         print(f"profile: largest |load density| at x = {peak * 1e3:.3f} mm; files profile.png, criteria.png")
     if args.method in ("all", "mcmc"):
-        res, info = invert_defect_position(scene, recording, rng, sample_friction=args.sample_friction,
+        extra = tuple(q.strip() for q in args.sample.split(",") if q.strip())
+        res, info = invert_defect_position(scene, recording, rng, sample=extra,
                                            max_data=args.max_data, progress=not args.quiet, max_steps=args.max_steps)
         res.to_netcdf(out / "posterior.nc")
         plot_corner(res.tree, out / "corner.png")

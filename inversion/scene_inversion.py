@@ -25,7 +25,7 @@ from .criteria import CriteriaResult
 from .gaussian import GaussianPosterior, gaussian_posterior
 from .linear import invert_linear
 from .mcmc import MCMCResult, sample_scene_posterior
-from .scene_params import DefectScanModel, Normal, Uniform
+from .scene_params import DefectScanModel, LogNormal, Normal, Uniform
 
 __all__ = ["read_recording", "defect_problem", "invert_defect_position", "defect_profile"]
 
@@ -115,22 +115,34 @@ def _amplitude_scale(model, data, fixed, x_grid) -> float:
     return 10.0 * float(np.max(np.abs(data))) / max(float(np.max(np.abs(g))), 1e-300)
 
 
-def invert_defect_position(scene, recording: Recording, rng: np.random.Generator, *, sample_friction: bool = False,
+EXTRA = ("friction", "depth", "young_modulus", "normal_force")
+
+
+def invert_defect_position(scene, recording: Recording, rng: np.random.Generator, *, sample=(),
                            max_data: int = 1500, progress: bool = False, **sampler_options) -> tuple[MCMCResult, dict]:
-    """Posterior of the defect position (x0, y0) (and optionally mu) by emcee.
+    """Posterior of the defect position (x0, y0) and optionally other scene parameters, by emcee.
 
     Priors: x0 uniform over the scanned range (contact centre path widened by the contact
-    radius), y0 uniform over +-1 contact radius, mu uniform on [0, 1] when sampled; the rest
-    fixed at the scene's values; the defect area ``S_d`` integrated out under N(0, s^2) with s
-    ten times the amplitude that explains the largest datum.
+    radius), y0 uniform over +-1 contact radius; parameters named in ``sample`` get a default
+    prior around the scene's value (friction: uniform on [0, 1]; depth, young_modulus,
+    normal_force: log-normal with median at the scene value and a factor-1.35 (sigma_log 0.3)
+    spread); the rest stay fixed at the scene's values. The defect area ``S_d`` is integrated
+    out under N(0, s^2) with s ten times the amplitude that explains the largest datum. With the
+    area integrated out, young_modulus and normal_force act only through the contact radius, so
+    sampling both leaves a ridge (F/E): the result reports it.
     """
+    sample = tuple(sample)
+    unknown = [q for q in sample if q not in EXTRA]
+    if unknown:
+        raise ValueError(f"sample: unknown parameter(s) {unknown}; choose from {', '.join(EXTRA)} "
+                         "(x0 and y0 are always sampled)")
     model, data, info = defect_problem(scene, recording, max_data=max_data)
     a = info["contact_radius"]
     u = model.scan_positions
     fixed = _fixed(scene)
     priors = dict(fixed, x0=Uniform(float(u.min() - a), float(u.max() + a)), y0=Uniform(-a, a))
-    if sample_friction:
-        priors["friction"] = Uniform(0.0, 1.0)
+    for q in sample:
+        priors[q] = Uniform(0.0, 1.0) if q == "friction" else LogNormal(fixed[q], 0.3)
     scale = _amplitude_scale(model, data, fixed, np.linspace(u.min(), u.max(), 64))
     result = sample_scene_posterior(model, data, info["noise_std"], priors, Normal(0.0, scale), rng=rng,
                                     progress=progress, **sampler_options)

@@ -123,7 +123,7 @@ def test_cli_invert_end_to_end(rng, tmp_path, capsys):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         status = main(["invert", str(rec_path), "--scene", str(scene_path), "--out", str(out), "--max-steps", "400",
-                       "--quiet"])
+                       "--quiet", "--sample", "friction"])
     assert status == 0
     for name in ("posterior.nc", "corner.png", "profile.png", "criteria.png"):
         assert (out / name).stat().st_size > 1000
@@ -133,3 +133,15 @@ def test_cli_invert_end_to_end(rng, tmp_path, capsys):
     assert "--max-steps: must be >= 1" in capsys.readouterr().err
     assert main(["invert", str(rec_path), "--scene", str(scene_path), "--max-data", "3"]) == 2
     assert "--max-data" in capsys.readouterr().err
+
+
+def test_extra_parameters_sampled_and_validated(rng):
+    scene = small_scene()
+    rec, _ = synthetic_recording(scene, rng)
+    res, _ = invert_defect_position(scene, rec, rng, sample=("friction", "depth"), n_walkers=16, check_every=150,
+                                    max_steps=300, min_ess=10, tau_factor=1, n_start=64)
+    assert set(res.tree["posterior"].data_vars) == {"x0", "y0", "friction", "depth", "amplitude"}
+    depth = res.tree["posterior"]["depth"].values
+    assert np.all(depth > 0)
+    with pytest.raises(ValueError, match="sample: unknown parameter"):
+        invert_defect_position(scene, rec, rng, sample=("speed",))
