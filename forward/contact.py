@@ -124,7 +124,22 @@ class HertzContact:
 
 
 def stick_radius(contact: HertzContact, friction: float, tangential_force: float) -> float:
-    """Cattaneo--Mindlin stick-zone radius ``c`` in m for ``0 <= |Q| <= mu F``."""
+    """Cattaneo--Mindlin stick-zone radius ``c`` in m for ``0 <= |Q| <= mu F``.
+
+    Parameters
+    ----------
+    contact : HertzContact
+        The Hertz contact (normal force F in N, or N/m for a line contact).
+    friction : float
+        Friction coefficient mu >= 0 (dimensionless; inf: fully stuck, c = a).
+    tangential_force : float
+        Total tangential force Q in N (N/m for a line contact), finite, |Q| <= mu F.
+
+    Returns
+    -------
+    float
+        ``a (1 - |Q| / (mu F))^(1/3)`` (3-D) or ``^(1/2)`` (line contact), m.
+    """
     mu, Q = _check_friction(friction), float(tangential_force)
     if not math.isfinite(Q):  # NaN compared False with the friction limit and gave a radius
         raise ValueError(f"tangential_force: must be finite (N, or N/m for a line contact), got {tangential_force!r}")
@@ -132,7 +147,9 @@ def stick_radius(contact: HertzContact, friction: float, tangential_force: float
         return 0.0 if Q == 0.0 else _too_much(Q, mu, contact)
     if math.isinf(mu):
         return contact.contact_radius
-    ratio = abs(Q) / mu / contact.normal_force  # not Q / (mu F): mu F underflows to 0 for subnormal mu
+    limit = mu * contact.normal_force
+    # mu F underflows to 0 for a subnormal mu: divide in two steps then (no ZeroDivisionError)
+    ratio = abs(Q) / limit if limit > 0 else abs(Q) / mu / contact.normal_force
     if ratio > 1.0 + 1e-12:
         _too_much(Q, mu, contact)
     power = 0.5 if contact.line else 1.0 / 3.0
