@@ -85,6 +85,25 @@ def resume_session(path: str | Path, display: Display, responses: ResponseSource
                    progress: bool = False) -> RunResult:
     """Continue a killed or stopped session where it left off (locks it first).
 
+    The log is replayed to rebuild the procedure's state; an interrupted trial is repeated.
+
+    Parameters
+    ----------
+    path : str or Path
+        The session's SQLite file.
+    display : Display
+        A bare display of the same description the session was recorded on.
+    responses : ResponseSource
+        The same kind and configuration the session was recorded with.
+    likelihood : callable, optional
+        The custom likelihood the session used, if any.
+    realtime, progress : bool
+        As in :func:`tactilab.experiments.runner.new_session`.
+
+    Returns
+    -------
+    RunResult
+
     Raises
     ------
     SessionLockedError

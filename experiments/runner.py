@@ -260,6 +260,30 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
                 realtime: bool = True, progress: bool = False) -> RunResult:
     """Create a session file at ``path`` and run the protocol to the end (or to an interruption).
 
+    Parameters
+    ----------
+    protocol : Protocol
+        The validated protocol (stimulus fields in SI: m, m/s, s, Hz).
+    path : str or Path
+        The SQLite session file to create (``sub-<ID>_ses-<NN>_task-<name>.sqlite``).
+    display : Display
+        A bare display; the runner wraps it in the safety layer (limits in Pa, m, 1/s).
+    responses : ResponseSource
+        Where responses come from (terminal or simulated observer); its ``config`` is recorded.
+    subject, session : str
+        BIDS labels (1-32 letters or digits; pseudonymous codes, never names).
+    likelihood : callable, optional
+        A custom psychometric likelihood for a psi procedure (recorded by import path).
+    realtime : bool
+        Wait in real time between trials and during playback (False: dry runs only).
+    progress : bool
+        Show a tqdm bar over trials.
+
+    Returns
+    -------
+    RunResult
+        Status, trial count and the procedure's estimate (SI).
+
     Raises
     ------
     FileExistsError

@@ -210,7 +210,17 @@ def scan_outputs(finger: BiomimeticFinger, surface: Surface, positions, *, y_off
 
 
 def check_scan(speed: float, sampling_rate: float, duration: float) -> int:
-    """Validate scan timing (SI) and return the number of frames."""
+    """Validate scan timing and return the number of frames ``floor(duration * sampling_rate)``.
+
+    Parameters
+    ----------
+    speed : float
+        Finger speed in m/s (> 0).
+    sampling_rate : float
+        Sensor sampling rate in Hz (> 0).
+    duration : float
+        Record length in s (> 0); at most ``MAX_FRAMES`` frames.
+    """
     if not math.isfinite(speed) or speed <= 0:
         raise ValueError(f"speed: a scan time series needs a finger speed > 0 m/s, got {speed!r}; "
                          "give e.g. 0.05 (5 cm/s), or use receptive_field() for a static map")
