@@ -32,7 +32,7 @@ def _dot(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.einsum("i,i->", a, b))
 
 
-__all__ = ["CRITERIA", "SpectralForm", "CriteriaResult", "choose_lambda", "plot_criteria"]
+__all__ = ["CRITERIA", "SpectralForm", "CriteriaResult", "choose_lambda", "plot_criteria", "spread_warning"]
 
 
 @dataclass
@@ -181,6 +181,12 @@ class CriteriaResult:
         Criterion -> remark (bracket hit, noise estimated, ...).
     spread : float
         max/min ratio of the finite choices.
+    estimator : str
+        How the curves were computed (closed-form spectral sums, or the stochastic estimators of
+        the iterative path with their accuracy).
+    errors : dict
+        Standard errors of stochastic curves on ``grid`` (``"gcv"``, ``"dof"``, ``"log_evidence"``);
+        empty for closed forms.
     """
 
     lam: dict
@@ -189,6 +195,23 @@ class CriteriaResult:
     noise_std: float
     notes: dict
     spread: float
+    estimator: str = "closed-form spectral sums (exact)"
+    errors: dict = field(default_factory=dict)
+
+
+def spread_warning(chosen: dict, warn_factor: float, stacklevel: int = 3) -> float:
+    """max/min of the finite choices; warn (UserWarning) when it exceeds ``warn_factor``."""
+    vals = np.array([v for v in chosen.values() if np.isfinite(v) and v > 0])
+    spread = float(vals.max() / vals.min()) if vals.size else float("nan")
+    if vals.size > 1 and spread > warn_factor:
+        listing = ", ".join(f"{k}={v:.3g}" for k, v in chosen.items())
+        warnings.warn(
+            f"regularisation criteria disagree by a factor {spread:.3g} (> {warn_factor:g}): {listing}; "
+            "inspect the criteria plot and check the noise level",
+            UserWarning,
+            stacklevel=stacklevel,
+        )
+    return spread
 
 
 def _refine(fun, grid: np.ndarray, values: np.ndarray) -> float:
@@ -278,16 +301,7 @@ def choose_lambda(
             chosen["discrepancy"] = float(np.exp(brentq(f, a, b, xtol=1e-4)))
         if noise_std is None:
             notes["discrepancy"] = notes.get("discrepancy", "") + f" (noise std estimated by the evidence: {sigma:.3g})"
-    vals = np.array([v for v in chosen.values() if np.isfinite(v) and v > 0])
-    spread = float(vals.max() / vals.min()) if vals.size else float("nan")
-    if vals.size > 1 and spread > warn_factor:
-        listing = ", ".join(f"{k}={v:.3g}" for k, v in chosen.items())
-        warnings.warn(
-            f"regularisation criteria disagree by a factor {spread:.3g} (> {warn_factor:g}): {listing}; "
-            "inspect the criteria plot and check the noise level",
-            UserWarning,
-            stacklevel=2,
-        )
+    spread = spread_warning(chosen, warn_factor, stacklevel=3)
     return CriteriaResult(lam=chosen, grid=grid, curves=curves, noise_std=float(sigma), notes=notes, spread=spread)
 
 
@@ -310,6 +324,9 @@ def plot_criteria(result: CriteriaResult, path, title: str = "Regularisation cri
     ax = axes[0, 0]
     if "gcv" in result.curves:
         ax.loglog(g, result.curves["gcv"], "k-")
+        if "gcv" in result.errors:  # stochastic estimate: +-2 s.e. band
+            ax.fill_between(g, result.curves["gcv"] - 2 * result.errors["gcv"],
+                            result.curves["gcv"] + 2 * result.errors["gcv"], color="0.8", label="+-2 s.e.")
     ax.set(xlabel="lambda (penalty weight)", ylabel="GCV (data units^2)", title="Generalised cross-validation")
     mark(ax, ["gcv"])
     ax.legend(fontsize=7)
@@ -329,10 +346,13 @@ def plot_criteria(result: CriteriaResult, path, title: str = "Regularisation cri
     ax = axes[1, 1]
     if "log_evidence" in result.curves:
         ax.semilogx(g, result.curves["log_evidence"], "k-")
+        if "log_evidence" in result.errors:
+            ev, se = result.curves["log_evidence"], result.errors["log_evidence"]
+            ax.fill_between(g, ev - 2 * se, ev + 2 * se, color="0.8", label="+-2 s.e.")
     ax.set(xlabel="lambda", ylabel="log evidence", title="Marginal likelihood")
     mark(ax, ["evidence"])
     ax.legend(fontsize=7)
-    fig.suptitle(title)
+    fig.suptitle(title if not result.errors else f"{title} (stochastic estimates, iterative path)")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -22,9 +22,10 @@ from typing import Callable
 
 import numpy as np
 import scipy.linalg as sla
-from scipy.sparse.linalg import LinearOperator, aslinearoperator, cg
+from scipy.sparse.linalg import aslinearoperator
 
 from .criteria import CRITERIA, CriteriaResult, SpectralForm, choose_lambda
+from .iterative_criteria import IterativeCriteria, NormalSolver, choose_lambda_iterative
 from .operators import FourierDiagonal
 from .penalties import PENALTIES, check_penalty, penalty_matrix, penalty_symbol
 
@@ -138,58 +139,9 @@ def _solve_dense(op, data, penalty, lam, aux):
     return sla.solve_triangular(r, y, lower=False), 0, True
 
 
-def _probe_diag_mean(op: LinearOperator, rng: np.random.Generator, n_probe: int = 8) -> float:
-    """Estimate mean(diag(A^T A)) = ||A||_F^2 / n with Rademacher probes (Hutchinson)."""
-    n = op.shape[1]
-    z = rng.choice([-1.0, 1.0], size=(n, n_probe))
-    az = np.column_stack([op.matvec(z[:, j]) for j in range(n_probe)])
-    return float(np.sum(az * az) / (n * n_probe))
-
-
-def _solve_iterative(op, data, penalty, lam, dims, spacing, rng, tol, max_iter):
-    n = op.shape[1]
-    lmat = penalty_matrix(penalty, dims, spacing, periodic=False)
-    ltl = (lmat.T @ lmat).tocsr()
-    c = _probe_diag_mean(op, rng)
-    l2 = penalty_symbol(penalty, dims, spacing)[..., : dims[-1] // 2 + 1]
-    axes = tuple(range(len(dims)))
-    pre_den = c + lam * l2
-
-    def precondition(x):
-        spec = np.fft.rfftn(np.asarray(x).reshape(dims), axes=axes) / pre_den
-        return np.fft.irfftn(spec, s=dims, axes=axes).ravel()
-
-    normal = LinearOperator((n, n), matvec=lambda x: op.rmatvec(op.matvec(x)) + lam * (ltl @ x), dtype=float)
-    m_pre = LinearOperator((n, n), matvec=precondition, dtype=float)
-    count = [0]
-
-    def callback(_):
-        count[0] += 1
-
-    x, info = cg(normal, op.rmatvec(data), rtol=tol, maxiter=max_iter, M=m_pre, callback=callback)
-    return x, count[0], info == 0
-
-
-def _discrepancy_iterative(op, d, penalty, dims, spacing, rng, tol, max_iter, noise_std):
-    """Root of ||A m(lam) - d|| = sqrt(n) sigma on log lam, one preconditioned CG solve per trial."""
-    from scipy.optimize import brentq
-
-    if not (np.isfinite(noise_std) and noise_std > 0):
-        raise ValueError(f"noise_std: must be finite and > 0 (data units), got {noise_std!r}")
-    target = np.sqrt(d.size) * noise_std
-    l2 = penalty_symbol(penalty, dims, spacing)
-    lam0 = _probe_diag_mean(op, rng) / max(float(np.mean(l2)), 1e-300)
-    lo, hi = np.log(lam0 * 1e-12), np.log(lam0 * 1e4)
-
-    def gap(t):
-        x, _, _ = _solve_iterative(op, d, penalty, float(np.exp(t)), dims, spacing, rng, tol, max_iter)
-        return float(np.linalg.norm(op.matvec(x) - d)) - target
-
-    if gap(hi) <= 0:
-        return float(np.exp(hi)), "discrepancy (bracket top: data within noise)"
-    if gap(lo) >= 0:
-        return float(np.exp(lo)), "discrepancy (bracket bottom: residual above noise)"
-    return float(np.exp(brentq(gap, lo, hi, xtol=0.02))), "discrepancy (CG root search)"
+def _solve_iterative(op, data, penalty, lam, aux):
+    solver, x0 = aux
+    return solver.solve(lam, op.rmatvec(data), x0)
 
 
 #: path name -> callable(op, data, penalty, lam, aux) -> (model_flat, iterations, converged)
@@ -226,6 +178,7 @@ def invert_linear(
     tol: float | None = None,
     max_iter: int | None = None,
     rng: np.random.Generator | None = None,
+    n_probes: int = 8,
 ) -> LinearInversionResult:
     """Regularised linear inversion ``d = A m + noise`` through one of the registered paths.
 
@@ -240,9 +193,11 @@ def invert_linear(
     lam : float or None
         Regularisation strength. ``None``: chosen by ``criterion``.
     criterion : {"gcv", "lcurve", "discrepancy", "evidence"}
-        Used when ``lam`` is None. On the fft and dense paths all four are computed and
-        reported (and a warning is issued when they disagree by more than 10x); the iterative
-        path supports ``"discrepancy"`` (with ``noise_std``) by a root search over CG solves.
+        Used when ``lam`` is None. All four are computed and reported (and a warning is issued
+        when they disagree by more than 10x): in closed form on the fft and dense paths; on the
+        iterative path from warm-started CG solves, with GCV's trace by Hutchinson and the
+        evidence's log det by stochastic Lanczos quadrature (``criteria.estimator`` states the
+        estimators and their standard errors; see :mod:`tactilab.inversion.iterative_criteria`).
     noise_std : float or None
         Noise standard deviation in data units (needed by the discrepancy principle; else
         estimated by the evidence).
@@ -254,7 +209,10 @@ def invert_linear(
         Relative tolerance and iteration limit: CG (default 1e-8, 2000) or ADMM for TV
         (default 1e-4, 3000).
     rng : numpy.random.Generator, optional
-        For the probe vectors of the iterative preconditioner (default seed 0).
+        For the probe vectors of the iterative path: preconditioner scale and the stochastic
+        criteria (default seed 0).
+    n_probes : int
+        Rademacher probes of the iterative path's GCV and evidence estimators (>= 2).
 
     Returns
     -------
@@ -298,21 +256,22 @@ def invert_linear(
         rng = rng if rng is not None else np.random.default_rng(0)
         tol = 1e-8 if tol is None else tol
         max_iter = 2000 if max_iter is None else max_iter
+        if int(n_probes) != n_probes or n_probes < 2:
+            raise ValueError(f"n_probes: need an integer >= 2 probes for a standard error, got {n_probes!r}; e.g. 8")
+        solver = NormalSolver(op, penalty, dims, spacing, rng, tol, max_iter)
+        x0 = None
         if lam is None:
-            if criterion != "discrepancy" or noise_std is None:
-                raise ValueError(
-                    "lam: the iterative path chooses lam only by the discrepancy principle (criterion="
-                    "'discrepancy' with noise_std); the other criteria need the fft or dense path. Pass lam, "
-                    "or criterion='discrepancy' and noise_std"
-                )
-            lam_used, source = _discrepancy_iterative(op, d, penalty, dims, spacing, rng, tol, max_iter,
-                                                      float(noise_std))
+            icrit = IterativeCriteria(solver, d, rng, n_probes=n_probes)
+            crit = choose_lambda_iterative(icrit, noise_std=noise_std)
+            lam_used, source = crit.lam[criterion], criterion
+            x0 = icrit.norms(lam_used)["x"] if lam_used in icrit._cache else None
         else:
             lam_used, source = float(lam), "given"
-        x, iters, ok = _solve_iterative(op, d, penalty, lam_used, dims, spacing, rng, tol, max_iter)
+        x, iters, ok = _solve_iterative(op, d, penalty, lam_used, (solver, x0))
         model = x.reshape(dims)
         resid = float(np.linalg.norm(op.matvec(x) - d))
     msg = (f"path={path}, penalty={penalty}, lam={lam_used:.4g} ({source}), residual={resid:.4g}"
-           + (f", {iters} CG iterations{'' if ok else ' (NOT converged)'}" if path == "iterative" else ""))
+           + (f", {iters} CG iterations{'' if ok else ' (NOT converged)'}" if path == "iterative" else "")
+           + (f"; criteria: {crit.estimator}" if crit is not None and crit.errors else ""))
     return LinearInversionResult(model=model, method=path, penalty=penalty, lam=lam_used, lam_source=source,
                                  criteria=crit, residual_norm=resid, iterations=iters, converged=ok, message=msg)
