@@ -96,9 +96,10 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
     tractions = np.broadcast_to(drive[0] / display.tractor_width_m, (array.rows, array.columns))
     xs3 = x[::8]
     points = np.column_stack([xs3, np.zeros_like(xs3), np.full_like(xs3, DEPTH)])
-    strain3d = np.concatenate([
-        display_patch_strain_3d(array, points[i:i + 10], tractions, YOUNG)
-        for i in tqdm(range(0, len(points), 10), desc="3-D array", disable=not progress, leave=False)])
+    starts = range(0, len(points), 10)
+    if progress:  # no tqdm object otherwise: even a disabled one starts a monitor thread that outlives it
+        starts = tqdm(starts, desc="3-D array", leave=False)
+    strain3d = np.concatenate([display_patch_strain_3d(array, points[i:i + 10], tractions, YOUNG) for i in starts])
     plane = rendered[0, ::8]
     diff = float(np.abs(strain3d[:, 4] - plane[:, 4]).max() / np.abs(plane[:, 4]).max())
     yield (f"3-D check: 6 x 10 array (rows {array.tractor_length_m * 1e3:g} mm long, pitch "

@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from tactilab.forward.display_demo import run_demo
 
 
 def test_display_demo_writes_files_and_reports_the_match(tmp_path):
+    before = {t.name for t in threading.enumerate()}
     lines = list(run_demo(tmp_path, progress=False))
+    # progress=False starts no thread (a disabled tqdm left 'tqdm_monitor' running, which broke the
+    # fork-based reliability test when it ran later in the same process)
+    assert {t.name for t in threading.enumerate()} <= before
     text = "\n".join(lines)
     assert "optimal half spacing d =" in text and "shape error" in text and "3-D check" in text
     assert (tmp_path / "display_strain.png").stat().st_size > 10_000
