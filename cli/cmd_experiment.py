@@ -149,6 +149,8 @@ def run(args: argparse.Namespace) -> int:
         from tactilab.experiments.export import export_session
 
         out = args.out if args.out is not None else args.session.parent
+        if args.out is not None and args.session.is_file():  # a missing session is reported by export_session
+            _make_out(args.out)
         for path in export_session(args.session, out, args.format):
             print(f"wrote {path}")
         return 0

@@ -129,6 +129,7 @@ def test_user_mistakes_give_one_line_and_exit_2(session, tmp_path, capsys):
         (["resume", str(session), "--device", "stress2"], "--device: the session was recorded on display"),
         (["resume", str(session), "--no-wait"], "is complete; nothing to resume"),
         (["status", str(tmp_path / "nope.sqlite")], "no session file"),
+        (["export", str(session), "--out", str(session / "x")], "--out: cannot create the output folder"),
     ]
     for args, message in cases:
         assert cli_main(["experiment", *args]) == 2, args
