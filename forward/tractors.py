@@ -30,14 +30,19 @@ SHEAR_INDICES = (3, 4, 5)
 
 
 # ----- validation helpers --------------------------------------------------------------------
+def _show(value) -> str:
+    """repr for messages: numpy scalars as plain numbers ('nan', not 'np.float64(nan)')."""
+    return repr(value.item()) if isinstance(value, np.generic) else repr(value)
+
+
 def _positive(value, name: str, unit: str = "m", fix: str = "") -> float:
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a number in {unit}, got {value!r}") from None
+        raise ValueError(f"{name}: expected a number in {unit}, got {_show(value)}") from None
     if not math.isfinite(v) or v <= 0:
         fix = fix or f"give a finite value > 0 in {unit}"
-        raise ValueError(f"{name}: must be finite and > 0 {unit}, got {value!r}; {fix}")
+        raise ValueError(f"{name}: must be finite and > 0 {unit}, got {_show(value)}; {fix}")
     return v
 
 
@@ -45,9 +50,9 @@ def _non_negative(value, name: str, unit: str = "m") -> float:
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a number in {unit}, got {value!r}") from None
+        raise ValueError(f"{name}: expected a number in {unit}, got {_show(value)}") from None
     if not math.isfinite(v) or v < 0:
-        raise ValueError(f"{name}: must be finite and >= 0 {unit}, got {value!r}; give 0 for a line load")
+        raise ValueError(f"{name}: must be finite and >= 0 {unit}, got {_show(value)}; give 0 for a line load")
     return v
 
 

@@ -112,3 +112,11 @@ def test_read_load_npz_mistakes(tmp_path):
         np.save(fh, np.ones(3))
     with pytest.raises(ValueError, match="single.npz: holds a single array, not an .npz archive"):
         read_load(single)
+
+
+def test_synthesis_messages_show_numpy_scalars_as_numbers():
+    """Array entries used to appear as 'np.float64(nan)' in the message."""
+    from tactilab.forward.synthesis import depth_scaling
+
+    with pytest.raises(ValueError, match=r"depths: must be finite and > 0 m, got nan; give a finite value"):
+        depth_scaling([1e-3, np.nan])
