@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 from .fields import output_weights
+from .scanning import MAX_OUTPUT_VALUES
 from .tractor_display import travelling_wave_drive
 from .tractors import _positive, array_phi_psi, sliding_sinusoid_strain, tractor_stress_kernel
 
@@ -86,6 +87,12 @@ def display_scene_outputs(scene) -> tuple[np.ndarray, np.ndarray, dict]:
                               t, gain, lead=scan.start_position_m + virtual_pitch / 4, traction_limit=limit,
                               footprint=width if limit is not None else None)
     xs = sensors.positions_m[:, 0]
+    size = t.size * xs.size * 6 + xs.size * display.tractor_x_m.size * 3  # Voigt field and kernel
+    if size > MAX_OUTPUT_VALUES:
+        raise ValueError(
+            f"sensors: {t.size} frames x {xs.size} sensors need ~{size * 8 / 2**30:.3g} GiB of work arrays, above "
+            f"the limit {MAX_OUTPUT_VALUES * 8 / 2**30:.3g} GiB; use fewer sensors, a shorter scan or a lower "
+            "sampling rate")
     kernel = tractor_stress_kernel(xs[:, None] - display.tractor_x_m[None, :], depth, width)  # (nx, ntr, 3)
     plane = np.einsum("tn,xnc->txc", q, kernel)
     voigt = np.zeros(plane.shape[:-1] + (6,))

@@ -120,3 +120,15 @@ def test_synthesis_messages_show_numpy_scalars_as_numbers():
 
     with pytest.raises(ValueError, match=r"depths: must be finite and > 0 m, got nan; give a finite value"):
         depth_scaling([1e-3, np.nan])
+
+
+def test_display_scene_outputs_memory_guard(monkeypatch):
+    """A display scene with 1e6 sensors ran for minutes towards ~11 GiB; now it is refused at once."""
+    import tactilab.forward.display_scene as display_scene
+    from tactilab.data_schemas.files import load_example
+
+    scene = load_example("tractor_display")
+    values, _, _ = display_scene.display_scene_outputs(scene)
+    monkeypatch.setattr(display_scene, "MAX_OUTPUT_VALUES", values.size)  # the Voigt field is 6 / 3 x larger
+    with pytest.raises(ValueError, match=r"sensors: 250 frames x 41 sensors need .* GiB of work arrays"):
+        display_scene.display_scene_outputs(scene)
