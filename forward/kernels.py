@@ -34,6 +34,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .kernel_formulas import line_geometry, line_unit, point_geometry, point_unit
 from .loads import SurfaceLoad
@@ -57,7 +58,7 @@ __all__ = [
 
 
 # ----------------------------------------------------------------------------- validation
-def check_nu(nu) -> float:
+def check_nu(nu: float) -> float:
     """Validate Poisson's ratio: a finite number in (-1, 0.5]."""
     try:
         value = float(nu)
@@ -71,7 +72,7 @@ def check_nu(nu) -> float:
     return value
 
 
-def check_components(components) -> tuple[str, ...]:
+def check_components(components: Sequence[str] | str) -> tuple[str, ...]:
     """Validate a selection of stress components; returns a tuple of names from COMPONENTS."""
     if isinstance(components, str):
         components = (components,)
@@ -126,7 +127,8 @@ def _check_point_coordinates(x, y, z):
     return x, y, z
 
 
-def point_green(component: str, direction: str, x, y, z, nu: float = 0.5) -> np.ndarray:
+def point_green(component: str, direction: str, x: ArrayLike, y: ArrayLike, z: ArrayLike,
+                nu: float = 0.5) -> np.ndarray:
     """One stress component per unit point force (Pa/N), the Green's function of method 1.
 
     Parameters
@@ -152,7 +154,8 @@ def point_green(component: str, direction: str, x, y, z, nu: float = 0.5) -> np.
     return point_unit(component, direction, *point_geometry(x, y, z), nu)
 
 
-def point_load_stress(x, y, z, fx=0.0, fy=0.0, fz=0.0, nu: float = 0.5) -> np.ndarray:
+def point_load_stress(x: ArrayLike, y: ArrayLike, z: ArrayLike, fx: ArrayLike = 0.0, fy: ArrayLike = 0.0,
+                      fz: ArrayLike = 0.0, nu: float = 0.5) -> np.ndarray:
     """Stress of a point force applied to the surface at the origin (Boussinesq + Cerruti).
 
     Parameters
@@ -203,7 +206,7 @@ def _check_line_coordinates(x, z):
     return x, z
 
 
-def line_green(component: str, direction: str, x, z, nu: float = 0.5) -> np.ndarray:
+def line_green(component: str, direction: str, x: ArrayLike, z: ArrayLike, nu: float = 0.5) -> np.ndarray:
     """One stress component per unit line force (Pa per N/m), plane strain, force along y at x = 0.
 
     Parameters as ``point_green`` without ``y``; returns shape ``broadcast(x, z)``.
@@ -216,7 +219,8 @@ def line_green(component: str, direction: str, x, z, nu: float = 0.5) -> np.ndar
     return line_unit(component, direction, *line_geometry(x, z), nu)
 
 
-def line_load_stress(x, z, fx=0.0, fy=0.0, fz=0.0, nu: float = 0.5) -> np.ndarray:
+def line_load_stress(x: ArrayLike, z: ArrayLike, fx: ArrayLike = 0.0, fy: ArrayLike = 0.0, fz: ArrayLike = 0.0,
+                     nu: float = 0.5) -> np.ndarray:
     """Plane-strain stress of a line force along the y axis (Flamant and antiplane shear).
 
     Parameters
@@ -266,7 +270,7 @@ def active_pairs(components: Sequence[str], directions: Sequence[str], ndim: int
 _PAIR_BUDGET = 1 << 17  # (point, force) pairs per block: bounds temporaries to a few MB each
 
 
-def direct_stress_from_forces(forces, positions, points, nu: float = 0.5,
+def direct_stress_from_forces(forces: ArrayLike, positions: ArrayLike, points: ArrayLike, nu: float = 0.5,
                               components: Sequence[str] = COMPONENTS) -> np.ndarray:
     """Stress at sensor points from a few concentrated surface forces, by direct summation.
 
@@ -345,7 +349,7 @@ def _check_points(points, ndim: int) -> np.ndarray:
     return pts
 
 
-def direct_stress(load: SurfaceLoad, points, nu: float = 0.5,
+def direct_stress(load: SurfaceLoad, points: ArrayLike, nu: float = 0.5,
                   components: Sequence[str] = COMPONENTS) -> np.ndarray:
     """Method 1: stress at points as the sum of closed-form kernels over the load nodes.
 

@@ -15,13 +15,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from tactilab.data_schemas.recording import Recording
 
 from .finger import BiomimeticFinger
 from .surfaces import Feature, Surface
+
+if TYPE_CHECKING:  # type hints only
+    from tactilab.data_schemas.scene import Scene
+    from tactilab.data_schemas.surface import Surface as SurfaceRecord
 
 
 class RecordFeature(Feature):
@@ -81,7 +87,8 @@ def feature_peak(feature: Feature) -> float:
     return 0.0
 
 
-def scanned_surface(record_or_features, positions, finger: BiomimeticFinger, *,
+def scanned_surface(record_or_features: SurfaceRecord | Feature | Iterable[Feature], positions: ArrayLike,
+                    finger: BiomimeticFinger, *,
                     width: float | None = None) -> Surface:
     """The strip of surface a scan touches, holding the given features; raises if a defect
     lies outside it (the finger would never touch it).
@@ -134,7 +141,7 @@ MAX_OUTPUT_VALUES = 2**27  # 1 GiB of float64 outputs (or surface strip) per sca
 MAX_FRAMES = 2**24
 
 
-def scan_outputs(finger: BiomimeticFinger, surface: Surface, positions, *, y_offset: float = 0.0,
+def scan_outputs(finger: BiomimeticFinger, surface: Surface, positions: ArrayLike, *, y_offset: float = 0.0,
                  reference_height_m: float | None = None, batch: int = 256,
                  weights=None, progress: bool = False) -> np.ndarray:
     """Sensor outputs while the finger slides over ``surface``.
@@ -237,7 +244,8 @@ def check_scan(speed: float, sampling_rate: float, duration: float) -> int:
     return n
 
 
-def scan_recording(finger: BiomimeticFinger, surface, *, speed: float, sampling_rate: float,
+def scan_recording(finger: BiomimeticFinger, surface: SurfaceRecord | Feature | Surface, *, speed: float,
+                   sampling_rate: float,
                    duration: float, start_position: float = 0.0, y_offset: float = 0.0,
                    reference_height_m: float | None = None, progress: bool = False,
                    description: str = "") -> Recording:
@@ -260,7 +268,7 @@ def scan_recording(finger: BiomimeticFinger, surface, *, speed: float, sampling_
     return Recording.from_sensors(finger.sensors, values, float(sampling_rate), description=description)
 
 
-def surface_spacing(record) -> float | None:
+def surface_spacing(record: SurfaceRecord) -> float | None:
     """Grid spacing (m) that resolves a surface record's relief, or None (flat): an isolated
     defect needs size / 6 (its load is integrated node by node), a random or regular square
     wave element / 2, a sinusoid period / 8, a height map its own spacing."""
@@ -276,7 +284,7 @@ def surface_spacing(record) -> float | None:
     return None
 
 
-def scene_finger(scene, grid_spacing: float | None = None) -> BiomimeticFinger:
+def scene_finger(scene: Scene, grid_spacing: float | None = None) -> BiomimeticFinger:
     """The finger of a Scene, with a grid fine enough for its surface (:func:`surface_spacing`)
     unless ``grid_spacing`` (m) is given."""
     finger = BiomimeticFinger.from_scene(scene, grid_spacing=grid_spacing)
@@ -286,7 +294,7 @@ def scene_finger(scene, grid_spacing: float | None = None) -> BiomimeticFinger:
     return finger
 
 
-def scene_recording(scene, *, progress: bool = False, grid_spacing: float | None = None) -> Recording:
+def scene_recording(scene: Scene, *, progress: bool = False, grid_spacing: float | None = None) -> Recording:
     """Simulate a data_schemas Scene with a finger contact: the sensors' Recording.
 
     The contact grid resolves the surface (:func:`scene_finger`) unless ``grid_spacing`` (m) is given.
