@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import numpy as np
+from numpy.typing import ArrayLike
 
 VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
 SHEAR_INDICES = (3, 4, 5)
@@ -70,7 +71,7 @@ def _poisson(nu) -> float:
     return v
 
 
-def check_pairs(pairs) -> int:
+def check_pairs(pairs: int) -> int:
     """Validate a number of tractor pairs (an integer >= 1) and return it as ``int``."""
     if isinstance(pairs, bool) or not isinstance(pairs, (int, np.integer)) or pairs < 1:
         raise ValueError(f"pairs: the number of tractor pairs must be an integer >= 1, got {pairs!r}")
@@ -104,7 +105,7 @@ def _pair_complex(x: np.ndarray, half_spacing: float, depth: float) -> np.ndarra
     return -half_spacing / den + 2j * depth * w * half_spacing / (den * den)
 
 
-def pair_phi_psi(x, half_spacing: float, depth: float) -> tuple[np.ndarray, np.ndarray]:
+def pair_phi_psi(x: ArrayLike, half_spacing: float, depth: float) -> tuple[np.ndarray, np.ndarray]:
     """Phi(x) and Psi(x) of a tractor pair (physics.md 4a), in 1/m.
 
     The pair is ``q [-delta(x + d) + delta(x - d)]`` (tangential line loads, N/m); at depth Z
@@ -131,7 +132,7 @@ def pair_phi_psi(x, half_spacing: float, depth: float) -> tuple[np.ndarray, np.n
     return c.real, -2.0 * c.imag
 
 
-def dipole_phi_psi(x, depth: float) -> tuple[np.ndarray, np.ndarray]:
+def dipole_phi_psi(x: ArrayLike, depth: float) -> tuple[np.ndarray, np.ndarray]:
     """The d -> 0 limit of ``pair_phi_psi / d`` (a tangential force dipole), in 1/m^2.
 
     ``Phi(x; d) = d * phi_1(x) + O(d^3)``; with ``w = x + iZ``,
@@ -173,7 +174,7 @@ def array_tractors(half_spacing: float, pairs: int) -> tuple[np.ndarray, np.ndar
     return x, signs
 
 
-def array_phi_psi(x, half_spacing: float, depth: float, pairs: int = 5) -> tuple[np.ndarray, np.ndarray]:
+def array_phi_psi(x: ArrayLike, half_spacing: float, depth: float, pairs: int = 5) -> tuple[np.ndarray, np.ndarray]:
     """S_Phi(x) = sum_n Phi(x - 4 n d) and S_Psi(x) for an array of ``pairs`` pairs, in 1/m.
 
     See :func:`array_centres` for the layout (odd ``pairs``: exactly physics.md's sum).
@@ -208,7 +209,7 @@ def _ab(u: np.ndarray, depth: float, footprint: float) -> tuple[np.ndarray, np.n
     return a, a - 1j * depth / (w1 * w2)
 
 
-def tractor_stress_kernel(u, depth: float, footprint: float = 0.0) -> np.ndarray:
+def tractor_stress_kernel(u: ArrayLike, depth: float, footprint: float = 0.0) -> np.ndarray:
     """Plane-strain stress at depth per unit tangential line load, (xx, zz, zx), in 1/m.
 
     Parameters
@@ -250,7 +251,7 @@ def plane_strain_from_stress(stress_xz: np.ndarray, young_modulus: float, nu: fl
     return out
 
 
-def tractor_row_strain(x, depth: float, tractor_x, line_loads, young_modulus: float,
+def tractor_row_strain(x: ArrayLike, depth: float, tractor_x: ArrayLike, line_loads: ArrayLike, young_modulus: float,
                        nu: float = 0.5, footprint: float = 0.0) -> np.ndarray:
     """Strain at depth under a row of tractors driven with tangential line loads (plane strain).
 
@@ -291,8 +292,8 @@ def tractor_row_strain(x, depth: float, tractor_x, line_loads, young_modulus: fl
 
 
 # ----- the real sliding surface --------------------------------------------------------------
-def sliding_sinusoid_strain(x, depth: float, amplitude: float, pitch: float, speed: float = 0.0,
-                            time=0.0, nu: float = 0.5) -> np.ndarray:
+def sliding_sinusoid_strain(x: ArrayLike, depth: float, amplitude: float, pitch: float, speed: float = 0.0,
+                            time: ArrayLike = 0.0, nu: float = 0.5) -> np.ndarray:
     """Strain at depth under a frictionless sinusoidal surface ``H = A sin(2 pi (x + V t) / p)``.
 
     H is the indentation (surface deflection into the skin, m); the surface slides at speed V
