@@ -14,10 +14,12 @@ preconditioned-CG solution. Per lam on a descending log grid, warm-started from 
   the probes live in data space, ``z^T A N^-1 A^T z``, when there are fewer data than unknowns),
   standard error ``std_j / sqrt(p)``, carried to GCV by the delta method;
 - the evidence ``-1/2 [quad/sigma^2 + logdet(lam) + n log(2 pi sigma^2)]`` with the exact
-  ``quad = rho + lam eta`` and ``logdet(lam) = log det N(lam) - n_model log lam - log det(L^T L)``:
-  ``log det N`` by stochastic Lanczos quadrature (Ubaru, Chen and Saad 2017): per probe, Lanczos
-  with full reorthogonalisation on ``N`` started at ``z/||z||`` until the Gauss-quadrature value of
-  ``z^T log(N) z`` changes by < ``1e-6 n``; ``log det(L^T L + eps I)`` is exact (sparse LU).
+  ``quad = rho + lam eta`` and ``logdet(lam) = log det(I + M^-1 A^T A / lam)``, ``M = L^T L + eps I``
+  (``= log det N(lam) - n log lam - log det M``) = ``tr log(I + R^-T A^T A R^-1 / lam)`` with
+  ``R^T R = M`` (sparse LDL^T), by stochastic Lanczos quadrature (Ubaru, Chen and Saad 2017), see
+  :func:`slq_log1p_trace`: per Rademacher probe, Lanczos with full reorthogonalisation until the
+  quadrature value changes by < 1e-6 relative. The eigenvalues ``r_i / lam`` decay like the
+  forward map's spectrum, so few steps suffice (``log det N`` itself would span many more decades).
   The same probes serve every lam (common random numbers), so the estimated curves are smooth in
   lam and their minimisers are well defined.
 
@@ -32,12 +34,13 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import eigh_tridiagonal
 from scipy.optimize import brentq, minimize_scalar
-from scipy.sparse.linalg import LinearOperator, cg, splu
+import scipy.linalg as sla
+from scipy.sparse.linalg import LinearOperator, cg, splu, spsolve_triangular
 
 from .criteria import CRITERIA, CriteriaResult, spread_warning
 from .penalties import penalty_matrix, penalty_symbol
 
-__all__ = ["NormalSolver", "IterativeCriteria", "choose_lambda_iterative"]
+__all__ = ["NormalSolver", "IterativeCriteria", "choose_lambda_iterative", "slq_log1p_trace"]
 
 
 class NormalSolver:
@@ -84,54 +87,69 @@ class NormalSolver:
         self.iterations += count[0]
         return x, count[0], info == 0
 
-    def logdet_penalty(self) -> float:
-        """``log det(L^T L + eps I)`` exactly, by sparse LU (the matrix is SPD)."""
-        lu = splu((self.ltl + self.eps * sp.identity(self.n, format="csc")).tocsc())
-        return float(np.sum(np.log(np.abs(lu.U.diagonal()))) + np.sum(np.log(np.abs(lu.L.diagonal()))))
+    def penalty_factor(self):
+        """``(v -> R^-1 v, v -> R^-T v)`` with ``R^T R = L^T L + eps I``: ``R = D^1/2 L^T`` from an
+        LDL^T factorisation (sparse LU without pivoting, exact for this SPD matrix)."""
+        m = (self.ltl + self.eps * sp.identity(self.n, format="csc")).tocsc()
+        lu = splu(m, permc_spec="NATURAL", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+        if not (np.array_equal(lu.perm_r, np.arange(self.n)) and np.array_equal(lu.perm_c, np.arange(self.n))):
+            # SuperLU pivoted after all: fall back to a dense Cholesky factor (small n only)
+            r = np.linalg.cholesky(m.toarray()).T
+            return (lambda v: sla.solve_triangular(r, v, lower=False),
+                    lambda v: sla.solve_triangular(r, v, lower=False, trans="T"))
+        low = lu.L.tocsr()
+        up = low.T.tocsr()
+        d_isqrt = 1.0 / np.sqrt(lu.U.diagonal())
+        return (lambda v: spsolve_triangular(up, d_isqrt * v, lower=False, unit_diagonal=True),
+                lambda v: d_isqrt * spsolve_triangular(low, v, lower=True, unit_diagonal=True))
 
 
-def slq_logdet(matvec, n: int, probes: np.ndarray, max_steps: int = 200, rtol: float = 1e-6) -> np.ndarray:
-    """Stochastic Lanczos quadrature: per probe ``z``, the estimate ``z^T log(M) z`` of ``log det M``.
+def slq_log1p_trace(apply_s, probes: np.ndarray, max_steps: int = 300, rtol: float = 1e-6) -> np.ndarray:
+    """Stochastic Lanczos quadrature of ``tr log(I + S)`` for symmetric positive semidefinite ``S``.
+
+    Per Rademacher probe ``z``: Lanczos (full reorthogonalisation) started at ``z/||z||`` gives a
+    tridiagonal ``T`` with eigenpairs ``(theta_k, v_k)``; ``||z||^2 sum_k v_k[0]^2 log(1 + theta_k)``
+    is the Gauss quadrature of ``z^T log(I + S) z`` (Ubaru, Chen and Saad 2017), and the mean over
+    probes estimates the trace.
 
     Parameters
     ----------
-    matvec : callable
-        SPD operator ``M``.
-    n : int
-        Its size.
+    apply_s : callable
+        ``v -> S v``.
     probes : ndarray, shape (n, p)
-        Rademacher probes (so that ``E[z^T log(M) z] = tr log M``).
+        Rademacher probes.
     max_steps : int
-        Lanczos steps at most per probe (full reorthogonalisation).
+        Lanczos steps at most per probe.
     rtol : float
-        Stop a probe once its quadrature value changes by less than ``rtol * n``.
+        Stop a probe once its quadrature value changes by less than ``rtol * max(1, |value|)``.
 
     Returns
     -------
     ndarray, shape (p,)
-        One unbiased-up-to-quadrature estimate per probe; their mean is the log det.
+        One estimate per probe.
     """
-    out = np.empty(probes.shape[1])
-    for j in range(probes.shape[1]):
+    n, p = probes.shape
+    out = np.empty(p)
+    for j in range(p):
         z = probes[:, j]
         norm2 = float(z @ z)
         q = z / np.sqrt(norm2)
         basis = [q]
         alpha: list[float] = []
         beta: list[float] = []
-        prev = np.inf
-        est = 0.0
+        prev, est = np.inf, 0.0
         for _ in range(min(max_steps, n)):
-            w = matvec(q)
+            w = apply_s(q)
             a = float(q @ w)
             alpha.append(a)
             qs = np.array(basis)
-            w = w - qs.T @ (qs @ w)
-            w = w - qs.T @ (qs @ w)  # twice is enough (Kahan/Parlett)
-            theta, vecs = eigh_tridiagonal(np.array(alpha), np.array(beta)) if beta else (np.array([a]), np.ones((1, 1)))
-            est = norm2 * float(np.sum(vecs[0] ** 2 * np.log(np.maximum(theta, np.finfo(float).tiny))))
+            for _ in range(2):  # twice is enough (Parlett)
+                w = w - qs.T @ (qs @ w)
+            theta, vecs = (eigh_tridiagonal(np.array(alpha), np.array(beta)) if beta
+                           else (np.array([a]), np.ones((1, 1))))
+            est = norm2 * float(np.sum(vecs[0] ** 2 * np.log1p(np.maximum(theta, 0.0))))
             b = float(np.linalg.norm(w))
-            if abs(est - prev) < rtol * n or b <= 1e-12 * abs(a):
+            if abs(est - prev) < rtol * max(1.0, abs(est)) or b <= 1e-12 * max(abs(a), 1e-300):
                 break
             prev = est
             beta.append(b)
@@ -151,7 +169,7 @@ class IterativeCriteria:
         self.probes = rng.choice([-1.0, 1.0], size=(self.n, int(n_probes)))
         self._rng = rng
         self._atap: np.ndarray | None = None
-        self._logdet_l: float | None = None
+        self._rinv = None
         self._cache: dict = {}
         self._warm: dict = {}
 
@@ -222,13 +240,22 @@ class IterativeCriteria:
         return self.n_data * rho / left**2, 2.0 * self.n_data * rho / left**3 * se
 
     def logdet(self, lam: float) -> tuple[float, float]:
-        """``log det(I + B B^T / lam)`` of the dense path's evidence, by SLQ, and its standard error."""
+        """``log det(I + B B^T / lam)`` of the dense path's evidence, by SLQ, and its standard error.
+
+        ``B = A R^-1`` with ``R^T R = L^T L + eps I``: ``tr log(I + B^T B / lam)`` by SLQ.
+        """
         h = self._cache.setdefault(float(lam), {})
         if "logdet" not in h:
-            if self._logdet_l is None:
-                self._logdet_l = self.s.logdet_penalty()
-            est = slq_logdet(self.s.normal(float(lam)).matvec, self.n, self.probes)
-            h["logdet"] = float(est.mean()) - self.n * np.log(lam) - self._logdet_l
+            if self._rinv is None:
+                self._rinv, self._rinv_t = self.s.penalty_factor()
+            op, rinv, rinv_t = self.s.op, self._rinv, self._rinv_t
+
+            def apply_s(v):
+                av = op.matvec(rinv(v))
+                return rinv_t(op.rmatvec(av)) / lam
+
+            est = slq_log1p_trace(apply_s, self.probes)
+            h["logdet"] = float(est.mean())
             h["logdet_se"] = float(est.std(ddof=1) / np.sqrt(est.size))
         return h["logdet"], h["logdet_se"]
 
@@ -266,7 +293,8 @@ def choose_lambda_iterative(crit: IterativeCriteria, noise_std: float | None = N
     """Choose lam by each criterion on the matrix-free path (stochastic GCV and evidence).
 
     Parameters as :func:`tactilab.inversion.criteria.choose_lambda`; ``per_decade`` grid points per
-    decade of lam, at most ``max_decades`` below the start ``100 c / max|L(k)|^2``.
+    decade of lam, at most ``max_decades`` below the start (two decades above the lam where the
+    residual has fallen by 10% from its penalty-dominated value).
     The result's ``estimator`` names the stochastic estimators and ``errors`` holds the standard
     errors of the GCV and log-evidence curves (``"gcv"``, ``"log_evidence"``, ``"dof"``).
     """
@@ -278,8 +306,17 @@ def choose_lambda_iterative(crit: IterativeCriteria, noise_std: float | None = N
         raise ValueError(f"noise_std: must be finite and > 0 (data units), got {noise_std!r}; or pass None to estimate it")
     s = crit.s
     need_ev = "evidence" in criteria or ("discrepancy" in criteria and noise_std is None)
-    l2max = float(np.max(s.l2)) if np.max(s.l2) > 0 else 1.0
-    lam_hi = 100.0 * s.c / l2max
+    pos = s.l2[s.l2 > 0]
+    # above lam_top the penalty outweighs A^T A on every penalised mode; walk down by decades
+    # (one CG solve each, cheap there) until the residual starts to fall, and start the fine grid
+    # two decades above that: higher up every criterion is flat or monotone
+    lam = 100.0 * s.c / (float(pos.min()) if pos.size else 1.0)
+    rho_top = crit.norms(lam)["rho"]
+    for _ in range(40):
+        if crit.norms(lam / 10.0)["rho"] < 0.9 * rho_top:
+            break
+        lam /= 10.0
+    lam_hi = lam * 10.0
     step = 10.0 ** (1.0 / per_decade)
     grid: list[float] = []
     cur = {k: [] for k in ("residual2", "seminorm2", "gcv", "gcv_se", "dof", "dof_se", "curvature",
