@@ -42,7 +42,8 @@ def run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas.files import load_scene
     from tactilab.inversion.criteria import plot_criteria
     from tactilab.inversion.plots import plot_corner, plot_profile
-    from tactilab.inversion.scene_inversion import defect_profile, invert_defect_position, read_recording
+    from tactilab.forward.scene_simulation import read_recording
+    from tactilab.inversion.scene_inversion import defect_profile, invert_defect_position
 
     if args.max_steps < 1:
         raise ValueError(f"--max-steps: must be >= 1 step, got {args.max_steps}; e.g. 20000")

@@ -64,6 +64,42 @@ def write_recording(recording: Recording, out_dir, fmt: str = "netcdf", *, finge
     return path
 
 
+def read_recording(path) -> Recording:
+    """Read a Recording written by :func:`write_recording` (``.nc`` or ``.parquet``) or a JSON record.
+
+    The inverse of :func:`write_recording`: values in SI (Pa or strain, tensor shear), the
+    sampling rate, start time, quantity, unit, description, and the sensor and component order.
+    """
+    path = pathlib.Path(path)
+    if not path.exists():
+        raise OSError(f"RECORDING: file {str(path)!r} not found; give the recording.nc, .parquet or .json written by "
+                      "tactilab simulate")
+    if path.suffix == ".json":
+        return Recording.load(path)
+    if path.suffix == ".parquet":
+        if importlib.util.find_spec("pyarrow") is None:
+            raise ValueError(f"RECORDING: reading {path} needs the optional package pyarrow (pip install pyarrow); "
+                             "or write the recording with --format netcdf")
+        import pandas as pd
+
+        df = pd.read_parquet(path)
+        # pandas keeps DataFrame.attrs in the Parquet metadata; tuples come back as lists
+        order = {k: tuple(df.attrs[k]) for k in ("sensor_ids", "components") if k in df.attrs}
+        return Recording.from_dataframe(df, **order)
+    if path.suffix != ".nc":
+        raise ValueError(f"RECORDING: unsupported file type {path.suffix!r} ({path}); use .nc, .parquet or .json")
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        if "values" not in ds:
+            raise ValueError(f"RECORDING: {path} has no 'values' variable (time, sensor, component); "
+                             "write it with tactilab simulate")
+        return Recording(values=ds["values"].values, sampling_rate_hz=float(ds.attrs["sampling_rate_hz"]),
+                         sensor_ids=tuple(str(s) for s in ds["sensor"].values),
+                         components=tuple(str(c) for c in ds["component"].values),
+                         quantity=str(ds.attrs.get("quantity", "stress")), unit=str(ds.attrs.get("unit", "Pa")),
+                         start_time_s=float(ds.attrs.get("start_time_s", 0.0)),
+                         description=str(ds.attrs.get("description", "")))
+
+
 def simulate_scene(scene, out_dir, *, fmt: str = "netcdf", rng: np.random.Generator | None = None,
                    progress: bool = False, grid_spacing: float | None = None, plots: bool = True) -> list[str]:
     """Scan a finger scene and write its recording and figures; return lines describing what was done.

@@ -79,10 +79,10 @@ def _defect_section(out: pathlib.Path, rng, progress: bool) -> Iterator[str]:
     from tactilab.data_schemas.files import load_example
     from tactilab.data_schemas.scene import Scan
     from tactilab.data_schemas.sensors import SensorArray
-    from tactilab.forward.scene_simulation import simulate_scene
+    from tactilab.forward.scene_simulation import read_recording, simulate_scene
 
     from .plots import plot_corner
-    from .scene_inversion import invert_defect_position, read_recording
+    from .scene_inversion import invert_defect_position
 
     base = load_example("fingertip_defect")
     sensors = SensorArray(positions_m=np.array([[x, y] for y in (-1e-3, 0.0, 1e-3) for x in (-1e-3, 0.0, 1e-3)]),

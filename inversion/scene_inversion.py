@@ -15,11 +15,10 @@ chosen by the four criteria, and the credible band comes from the equivalent Gau
 
 from __future__ import annotations
 
-import pathlib
-
 import numpy as np
 
 from tactilab.data_schemas.recording import Recording
+from tactilab.forward.scene_simulation import read_recording
 
 from .criteria import CriteriaResult
 from .gaussian import GaussianPosterior, gaussian_posterior
@@ -27,30 +26,7 @@ from .linear import invert_linear
 from .mcmc import MCMCResult, sample_scene_posterior
 from .scene_params import DefectScanModel, LogNormal, Normal, Uniform
 
-__all__ = ["read_recording", "defect_problem", "invert_defect_position", "defect_profile"]
-
-
-def read_recording(path) -> Recording:
-    """Read a Recording from ``recording.nc`` (written by ``tactilab simulate``) or a JSON record."""
-    path = pathlib.Path(path)
-    if not path.exists():
-        raise OSError(f"RECORDING: file {str(path)!r} not found; give the recording.nc or .json written by "
-                      "tactilab simulate")
-    if path.suffix == ".json":
-        return Recording.load(path)
-    if path.suffix != ".nc":
-        raise ValueError(f"RECORDING: unsupported file type {path.suffix!r} ({path}); use .nc or .json")
-    import xarray as xr
-
-    with xr.open_dataset(path, engine="h5netcdf") as ds:
-        if "values" not in ds:
-            raise ValueError(f"RECORDING: {path} has no 'values' variable (time, sensor, component); "
-                             "write it with tactilab simulate")
-        return Recording(values=ds["values"].values, sampling_rate_hz=float(ds.attrs["sampling_rate_hz"]),
-                         sensor_ids=tuple(str(s) for s in ds["sensor"].values),
-                         components=tuple(str(c) for c in ds["component"].values),
-                         quantity=str(ds.attrs.get("quantity", "stress")), unit=str(ds.attrs.get("unit", "Pa")),
-                         start_time_s=float(ds.attrs.get("start_time_s", 0.0)))
+__all__ = ["defect_problem", "invert_defect_position", "defect_profile"]
 
 
 def defect_problem(scene, recording: Recording, max_data: int = 1500, max_sensors: int = 6):

@@ -10,7 +10,7 @@ from tactilab.data_schemas.recording import Recording
 from tactilab.data_schemas.scene import Scan
 from tactilab.data_schemas.sensors import SensorArray
 from tactilab.inversion.scene_inversion import (
-    defect_problem, defect_profile, invert_defect_position, read_recording,
+    defect_problem, defect_profile, invert_defect_position,
 )
 from tactilab.inversion.scene_params import DefectScanModel
 
@@ -92,22 +92,6 @@ def test_mismatched_recordings_fail(rng, tmp_path):
     no_contact = scene.model_copy(update={"contact": None})
     with pytest.raises(ValueError, match="scene.contact"):
         defect_problem(no_contact, rec)
-
-
-def test_read_recording_errors(tmp_path, rng):
-    with pytest.raises(OSError, match="not found"):
-        read_recording(tmp_path / "missing.nc")
-    (tmp_path / "rec.csv").write_text("x")
-    with pytest.raises(ValueError, match="unsupported file type"):
-        read_recording(tmp_path / "rec.csv")
-    import xarray as xr
-
-    xr.Dataset({"other": ("t", np.zeros(3))}).to_netcdf(tmp_path / "bad.nc", engine="h5netcdf")
-    with pytest.raises(ValueError, match="no 'values' variable"):
-        read_recording(tmp_path / "bad.nc")
-    scene = small_scene()
-    rec, _ = synthetic_recording(scene, rng)
-    assert read_recording(rec.save(tmp_path / "rec.json")) == rec
 
 
 def test_cli_invert_end_to_end(rng, tmp_path, capsys):

@@ -1,0 +1,58 @@
+"""One reader for the writer: ``write_recording`` -> ``read_recording`` gives back the same record.
+
+Owned by the inversion helper (the reader moved next to the writer in
+``tactilab.forward.scene_simulation``; ``tactilab invert`` and the inversion demo use it).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from tactilab.data_schemas.recording import Recording
+from tactilab.forward.scene_simulation import read_recording, write_recording
+
+
+def record(rng, quantity="stress"):
+    return Recording(values=rng.normal(0, 50.0, (7, 3, 2)), sampling_rate_hz=250.0, sensor_ids=("s2", "s0", "s1"),
+                     components=("zz", "zx"), quantity=quantity, start_time_s=0.25,
+                     description="round trip: sensors out of alphabetical order")
+
+
+@pytest.mark.parametrize("fmt", ["netcdf", "parquet"])
+def test_write_then_read_gives_the_same_record(fmt, rng, tmp_path):
+    if fmt == "parquet" and importlib.util.find_spec("pyarrow") is None:
+        with pytest.raises(ValueError, match="needs the optional package pyarrow"):
+            write_recording(record(rng), tmp_path, fmt)
+        return
+    for quantity in ("stress", "strain"):
+        rec = record(rng, quantity)
+        path = write_recording(rec, tmp_path, fmt)
+        assert read_recording(path) == rec
+
+
+def test_json_round_trip(rng, tmp_path):
+    rec = record(rng)
+    assert read_recording(rec.save(tmp_path / "rec.json")) == rec
+
+
+def test_read_recording_errors(tmp_path):
+    with pytest.raises(OSError, match="not found"):
+        read_recording(tmp_path / "missing.nc")
+    (tmp_path / "rec.csv").write_text("x")
+    with pytest.raises(ValueError, match="unsupported file type"):
+        read_recording(tmp_path / "rec.csv")
+    xr.Dataset({"other": ("t", np.zeros(3))}).to_netcdf(tmp_path / "bad.nc", engine="h5netcdf")
+    with pytest.raises(ValueError, match="no 'values' variable"):
+        read_recording(tmp_path / "bad.nc")
+
+
+def test_parquet_reader_without_pyarrow_says_so(rng, tmp_path, monkeypatch):
+    (tmp_path / "recording.parquet").write_bytes(b"PAR1")
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "pyarrow" else real(name, *a))
+    with pytest.raises(ValueError, match="needs the optional package pyarrow"):
+        read_recording(tmp_path / "recording.parquet")
