@@ -19,8 +19,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", type=Path, required=True,
                         help="scene file (.toml with units such as 0.8N, 3mm; or .json in SI) that produced it")
     parser.add_argument("--method", choices=METHODS, default="all",
-                        help="mcmc: defect position posterior (emcee); profile: linear-Gaussian load profile "
-                             "with the four regularisation criteria; all: both (default)")
+                        help="mcmc: defect position posterior (emcee); profile: the defect-load density s(x) "
+                             "along the scan line (mm^2 of effective defect area per mm of scan, NOT a surface "
+                             "height) by the linear-Gaussian posterior with the four regularisation criteria; "
+                             "all: both (default)")
     parser.add_argument("--criterion", choices=("gcv", "lcurve", "discrepancy", "evidence"), default="evidence",
                         help="regularisation criterion used for the profile (all four are plotted)")
     parser.add_argument("--sample", default="",
@@ -57,11 +59,13 @@ def run(args: argparse.Namespace) -> int:
     if args.method in ("all", "profile"):
         post, crit, x = defect_profile(scene, recording, criterion=args.criterion, max_data=args.max_data)
         plot_profile(x, post.mean, post.std, out / "profile.png",
-                     title=f"Irregularity load density along the scan (lam by {args.criterion})")
+                     title=f"Defect-load density along the scan, not a height (lam by {args.criterion})")
         plot_criteria(crit, out / "criteria.png")
         choices = ", ".join(f"{k}={v:.3g}" for k, v in crit.lam.items())
         peak = x[int(np.argmax(np.abs(post.mean)))]
-        print(f"profile: {x.size} nodes, lam by {args.criterion}; criteria: {choices}")
+        print(f"profile: defect-load density s(x) along the scan line (mm^2 of effective point-defect area per mm "
+              f"of scan at y = 0; the linear part of the defect model, not a surface height), {x.size} nodes, "
+              f"lam by {args.criterion}; criteria: {choices}")
         print(f"profile: largest |load density| at x = {peak * 1e3:.3f} mm; files profile.png, criteria.png")
     if args.method in ("all", "mcmc"):
         extra = tuple(q.strip() for q in args.sample.split(",") if q.strip())
