@@ -13,17 +13,10 @@ E_SKIN, NU, DEPTH, DX, N = 1e6, 0.5, 1e-3, 50e-6, 1024
 
 
 def _profile_operator():
-    """Plane strain: rigid surface height H(x) sliding frictionless on the skin -> sigma_zz at depth.
+    """Plane strain: rigid surface height H(x) sliding frictionless on the skin -> sigma_zz at depth."""
+    from .operators import rigid_surface_height_operator
 
-    P~ = E |k| H~ / (2 (1 - nu^2)) (physics.md section 2), then the exact pressure -> sigma_zz
-    multiplier; a single sensor scanned along the surface records the same values as a sensor at
-    every node, so the map is Fourier-diagonal.
-    """
-    from .operators import FourierDiagonal, angular_wavenumbers, halfspace_fourier_operator
-
-    (k,) = angular_wavenumbers((N,), DX)
-    p_to_szz = halfspace_fourier_operator((N,), DX, DEPTH, NU).multiplier
-    return FourierDiagonal(p_to_szz * E_SKIN * np.abs(k) / (2 * (1 - NU**2)), DX)
+    return rigid_surface_height_operator(N, DX, DEPTH, E_SKIN, NU)
 
 
 def _profile_section(out: pathlib.Path, rng) -> Iterator[str]:

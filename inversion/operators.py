@@ -17,6 +17,7 @@ import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
 __all__ = [
+    "rigid_surface_height_operator",
     "FourierDiagonal",
     "angular_wavenumbers",
     "normal_pressure_to_szz_multiplier",
@@ -124,6 +125,28 @@ def halfspace_fourier_operator(shape, spacing, depth: float, nu: float = 0.5, lo
             idx[axis] = n // 2
             full[tuple(idx)] = full[tuple(idx)].real
     return FourierDiagonal(full, spacing)
+
+
+def rigid_surface_height_operator(n: int, spacing: float, depth: float, young_modulus: float,
+                                  poisson_ratio: float = 0.5) -> "FourierDiagonal":
+    """Plane strain: height ``H(x)`` (m) of a rigid surface in full frictionless contact with the
+    skin -> ``sigma_zz`` (Pa) at ``depth`` under every node (one sensor scanned along x records the
+    same values).
+
+    Multiplier ``E |k| / (2 (1 - nu^2))`` (pressure of a small-slope relief in full contact,
+    physics.md section 2) times the exact pressure -> ``sigma_zz`` multiplier of
+    :func:`halfspace_fourier_operator`. ``k = 0`` maps to 0: a uniform height change loads
+    nothing, so heights are relative. This is the operator of the inversion demo's height profile;
+    it does not describe a finite (Hertz) finger contact.
+    """
+    for name, value in (("spacing", spacing), ("depth", depth), ("young_modulus", young_modulus)):
+        if not (np.isfinite(value) and value > 0):
+            raise ValueError(f"{name}: must be finite and > 0 (SI units), got {value!r}; e.g. depth=1e-3 m")
+    if not (0.0 <= poisson_ratio <= 0.5):
+        raise ValueError(f"poisson_ratio: must lie in [0, 0.5], got {poisson_ratio!r}; skin is about 0.5")
+    (k,) = angular_wavenumbers((int(n),), spacing)
+    p_to_szz = halfspace_fourier_operator((int(n),), spacing, depth, poisson_ratio).multiplier
+    return FourierDiagonal(p_to_szz * young_modulus * np.abs(k) / (2 * (1 - poisson_ratio**2)), spacing)
 
 
 def _half(full: np.ndarray) -> np.ndarray:

@@ -359,3 +359,22 @@ def test_two_dimensional_fft_path_equals_normal_equations(penalty, rng):
     res = invert_linear(op, data, penalty=penalty, lam=lam)
     assert res.model.shape == shape
     np.testing.assert_allclose(res.model, expected, atol=1e-8 * np.abs(expected).max())
+
+
+def test_rigid_surface_height_operator_closed_form(rng):
+    """A height sinusoid H0 cos(kx) gives sigma_zz = -(1 + kZ) e^{-kZ} E k H0 / (2 (1 - nu^2)) cos(kx)."""
+    from tactilab.inversion.operators import rigid_surface_height_operator
+
+    n, dx, depth, e, nu = 256, 50e-6, 1e-3, 1e6, 0.5
+    op = rigid_surface_height_operator(n, dx, depth, e, nu)
+    x = np.arange(n) * dx
+    k = 2 * np.pi * 8 / (n * dx)
+    h0 = 10e-6
+    expected = -(1 + k * depth) * np.exp(-k * depth) * e * k * h0 / (2 * (1 - nu**2)) * np.cos(k * x)
+    np.testing.assert_allclose(op.matvec(h0 * np.cos(k * x)), expected, atol=1e-10 * np.abs(expected).max())
+    assert abs(op.matvec(np.ones(n))).max() < 1e-9  # a uniform height loads nothing
+    assert dottest(op, rng) < 1e-10
+    with pytest.raises(ValueError, match="depth: must be finite and > 0"):
+        rigid_surface_height_operator(n, dx, -1.0, e, nu)
+    with pytest.raises(ValueError, match="poisson_ratio: must lie in"):
+        rigid_surface_height_operator(n, dx, depth, e, 0.7)
