@@ -71,6 +71,9 @@ class _Options:
             raise ValueError(f"--pairs: give one number of pairs, got {args.pairs!r}; use --sensitivity-pairs for a list")
         self.pairs = self.pairs[0]
         self.amplitude = None if args.amplitude is None else to_si(args.amplitude, "length", name="--amplitude")
+        if self.amplitude is not None and self.amplitude <= 0:
+            raise ValueError(f"--amplitude: the sinusoid amplitude must be > 0, got {args.amplitude!r}; "
+                             "give its size, e.g. 50um (a sign only shifts the phase)")
         self.young = None if args.young_modulus is None else _positive(
             to_si(args.young_modulus, "pressure", name="--young-modulus"), "--young-modulus", "Pa")
         self.limit = None if args.traction_limit is None else _positive(

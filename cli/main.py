@@ -25,6 +25,16 @@ EXIT_USER_ERROR = 2
 EXIT_INTERRUPTED = 130
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line usage errors (the usage block is one --help away)."""
+
+    def error(self, message: str):  # noqa: D401 - argparse API
+        hint = ""
+        if "expected one argument" in message:
+            hint = " (a value that starts with '-' needs '=', e.g. --depth=-1mm)"
+        self.exit(EXIT_USER_ERROR, f"{self.prog}: error: {message}{hint}; see '{self.prog} --help'\n")
+
+
 def _version() -> str:
     try:
         return metadata.version("tactilab")
@@ -44,7 +54,7 @@ def _command_modules() -> list[ModuleType]:
 
 def build_parser() -> argparse.ArgumentParser:
     """Build the top-level parser with every discovered subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="tactilab",
         description=(
             "Touch science toolkit. Units: SI inside; files and options take explicit "

@@ -184,3 +184,21 @@ def test_stress_command_unwritable_out_names_the_option(tmp_path, capsys):
     assert main(["stress", str(load), "--depth", "1mm", "--out", str(blocker / "sub")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--out: cannot create the output folder" in err
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["stress", "x.toml", "--depth", "-1mm"], "needs '=', e.g. --depth=-1mm"),
+    (["nosuch"], "invalid choice: 'nosuch'"),
+    (["stress"], "the following arguments are required"),
+])
+def test_argparse_mistakes_are_one_line(argv, message, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert message in err and err.strip().count("\n") == 0 and "usage:" not in err
+
+
+def test_synthesis_rejects_a_non_positive_amplitude(capsys):
+    assert main(["synthesis", "--depth", "1mm", "--amplitude=-5um", "--young-modulus", "1MPa"]) == 2
+    assert "--amplitude: the sinusoid amplitude must be > 0" in capsys.readouterr().err
