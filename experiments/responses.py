@@ -40,7 +40,11 @@ class ResponseSource(abc.ABC):
     """Where responses come from; ``name`` is recorded with the session."""
 
     name = "abstract"
-    config: dict = {}
+
+    @property
+    def config(self) -> dict:
+        """Settings recorded with the session and checked on resume (none by default)."""
+        return {}
 
     def arm(self, plan: TrialPlan, onset_ns: int) -> None:
         """Start listening: called right before the first stimulus of ``plan`` is driven."""
