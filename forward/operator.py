@@ -171,19 +171,23 @@ class LoadToSensor(LinearOperator):
                 for s, xy in enumerate(self.sensor_xy):
                     mat[:, s, l] = self._periodic_row(l, xy)
             return mat.reshape(int(np.prod(self.dimsd)), -1)
-        dx = self.sensor_xy[:, 0][:, None] - nodes[:, 0][None, :]
-        dy = None if t.ndim == 1 else self.sensor_xy[:, 1][:, None] - nodes[:, 1][None, :]
-        for l, name in enumerate(self.loads):
-            for j, comp in enumerate(VOIGT):
-                col = self.weights[:, j]
-                if not np.any(col):
-                    continue
-                if t.ndim == 1:
-                    g = line_green(comp, _DIRECTION[name], dx, self.depth, self.nu)
-                else:
-                    g = point_green(comp, _DIRECTION[name], dx, dy, self.depth, self.nu)
-                for o in np.flatnonzero(col):  # in place: no (n_comp, n_sensors, n_nodes) temporaries
-                    mat[o, :, l] += (col[o] * t.cell_area) * g
+        # sensors in chunks of ~2^20 pairs, so the kernels' temporaries stay small beside the matrix
+        step = max(1, 2**20 // len(nodes))
+        for start in range(0, len(self.sensor_xy), step):
+            chunk = slice(start, start + step)
+            dx = self.sensor_xy[chunk, 0][:, None] - nodes[:, 0][None, :]
+            dy = None if t.ndim == 1 else self.sensor_xy[chunk, 1][:, None] - nodes[:, 1][None, :]
+            for l, name in enumerate(self.loads):
+                for j, comp in enumerate(VOIGT):
+                    col = self.weights[:, j]
+                    if not np.any(col):
+                        continue
+                    if t.ndim == 1:
+                        g = line_green(comp, _DIRECTION[name], dx, self.depth, self.nu)
+                    else:
+                        g = point_green(comp, _DIRECTION[name], dx, dy, self.depth, self.nu)
+                    for o in np.flatnonzero(col):
+                        mat[o, chunk, l] += (col[o] * t.cell_area) * g
         return mat.reshape(int(np.prod(self.dimsd)), -1)
 
     def _periodic_row(self, l: int, xy: np.ndarray) -> np.ndarray:

@@ -273,3 +273,14 @@ def test_reported_estimate_bounds_the_error_relative_to_the_field(depth_over_h):
     _, fine = field(h / 3, 97)  # node 3k of the fine grid sits on node k of the coarse one
     err = np.abs(a - fine[:, ::3, ::3]).max() / np.abs(fine).max()
     assert err <= coarse.error_estimate
+
+
+def test_dense_operator_built_in_sensor_chunks_matches_closed_form(rng):
+    """More sensor-node pairs than one chunk (2^20): chunk edges must not shift rows."""
+    pts = rng.uniform(-1.5e-3, 1.5e-3, size=(1100, 2))
+    op = HS.operator((32, 32), 1e-4, sensors=pts, depth=5e-4, components=("zz",), loads=("p",))
+    assert op.path == "dense"
+    p = rng.uniform(size=(32, 32))
+    ref = HS.stress(SurfaceLoad(p=p, spacing=1e-4), 5e-4, points=pts, components=("zz",),
+                    method="closed_form").data["stress"].values[0, 0]
+    np.testing.assert_allclose(op @ p.ravel(), ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
