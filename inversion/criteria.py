@@ -185,8 +185,9 @@ class CriteriaResult:
         How the curves were computed (closed-form spectral sums, or the stochastic estimators of
         the iterative path with their accuracy).
     errors : dict
-        Standard errors of stochastic curves on ``grid`` (``"gcv"``, ``"dof"``, ``"log_evidence"``);
-        empty for closed forms.
+        Standard errors of stochastic curves on ``grid`` (``"gcv"``, ``"dof"``, ``"log_evidence"``)
+        and the lam ranges within 2 s.e. of each stochastic optimum (``"gcv_lam_range"``,
+        ``"evidence_lam_range"``); empty for closed forms.
     """
 
     lam: dict

@@ -14,7 +14,7 @@ preconditioned-CG solution. Per lam on a descending log grid, warm-started from 
   the probes live in data space, ``z^T A N^-1 A^T z``, when there are fewer data than unknowns),
   standard error ``std_j / sqrt(p)``, carried to GCV by the delta method;
 - the evidence ``-1/2 [quad/sigma^2 + logdet(lam) + n log(2 pi sigma^2)]`` with the exact
-  ``quad = rho + lam eta`` and ``logdet(lam) = log det(I + M^-1 A^T A / lam)``, ``M = L^T L + eps I``
+  ``quad = rho + lam (eta + eps ||x||^2)`` and ``logdet(lam) = log det(I + M^-1 A^T A / lam)``, ``M = L^T L + eps I``
   (``= log det N(lam) - n log lam - log det M``) = ``tr log(I + R^-T A^T A R^-1 / lam)`` with
   ``R^T R = M`` (sparse LDL^T), by stochastic Lanczos quadrature (Ubaru, Chen and Saad 2017), see
   :func:`slq_log1p_trace`: per Rademacher probe, Lanczos with full reorthogonalisation until the
@@ -182,7 +182,9 @@ class IterativeCriteria:
     def _solve(self, key: str, lam: float, rhs: np.ndarray) -> np.ndarray:
         x, _, ok = self.s.solve(lam, rhs, self._warm_start(key, lam))
         self._warm.setdefault(key, {})[lam] = x
-        self.converged = getattr(self, "converged", True) and ok
+        self.failed = getattr(self, "failed", set())
+        if not ok:
+            self.failed.add(lam)
         return x
 
     def norms(self, lam: float) -> dict:
@@ -229,6 +231,7 @@ class IterativeCriteria:
             else:
                 t = np.array([self._tprobes[:, j] @ y for j, y in enumerate(ys)])
             h["dof"], h["dof_se"] = float(t.mean()), float(t.std(ddof=1) / np.sqrt(t.size))
+            h["dof_probes"] = t
         return h["dof"], h["dof_se"]
 
     def gcv(self, lam: float) -> tuple[float, float]:
@@ -238,6 +241,21 @@ class IterativeCriteria:
         if left <= 0:  # the estimate says every datum is fitted: GCV is undefined there
             return np.inf, np.inf
         return self.n_data * rho / left**2, 2.0 * self.n_data * rho / left**3 * se
+
+    def probe_values(self, name: str, lam: float, noise_std: float | None = None) -> np.ndarray:
+        """Per-probe values of ``"gcv"`` or ``"neg_log_evidence"`` at lam (their mean ~ the estimate).
+
+        With common probes, differences between lam are far more precise than each value: these
+        give the standard error of a difference (see :func:`_plausible`).
+        """
+        h = self.norms(lam)
+        if name == "gcv":
+            self.dof(lam)
+            left = np.maximum(self.n_data - h["dof_probes"], 1e-300)
+            return self.n_data * h["rho"] / left**2
+        self.logdet(lam)
+        ll, _, sig = self.log_evidence(lam, noise_std)
+        return -ll + 0.5 * (h["logdet_probes"] - h["logdet"])
 
     def logdet(self, lam: float) -> tuple[float, float]:
         """``log det(I + B B^T / lam)`` of the dense path's evidence, by SLQ, and its standard error.
@@ -256,13 +274,16 @@ class IterativeCriteria:
 
             est = slq_log1p_trace(apply_s, self.probes)
             h["logdet"] = float(est.mean())
+            h["logdet_probes"] = est
             h["logdet_se"] = float(est.std(ddof=1) / np.sqrt(est.size))
         return h["logdet"], h["logdet_se"]
 
     def log_evidence(self, lam: float, noise_std: float | None) -> tuple[float, float, float]:
         """Log evidence, its standard error and the noise std used (given, or profiled out)."""
         h = self.norms(lam)
-        quad = h["rho"] + lam * h["eta"]
+        # d^T (I + B B^T / lam)^-1 d = rho + lam x^T (L^T L + eps I) x: the eps I term is the dense
+        # path's (proper, very wide) prior on the null space of L, kept so that values agree
+        quad = h["rho"] + lam * (h["eta"] + self.s.eps * float(h["x"] @ h["x"]))
         ld, se = self.logdet(lam)
         var = max(quad / self.n_data, np.finfo(float).tiny) if noise_std is None else noise_std**2
         ll = -0.5 * (quad / var + ld + self.n_data * np.log(2 * np.pi * var))
@@ -275,6 +296,21 @@ def _past_optimum(values: list, k: int = 3) -> bool:
         return False
     best = int(np.nanargmin(values))
     return 0 < best <= len(values) - 1 - k
+
+
+def _plausible(grid: np.ndarray, samples: np.ndarray) -> tuple[float, float]:
+    """Range of grid lam whose criterion (to minimise) is within 2 s.e. of the best grid value.
+
+    ``samples`` has shape (n_grid, n_probes): per-probe values with probes shared across lam, so
+    the s.e. of each difference is ``std_j(s_ij - s_bj) / sqrt(p)``: the choice's uncertainty
+    from the estimator (wide where the curve is flat against its noise).
+    """
+    mean = samples.mean(axis=1)
+    b = int(np.nanargmin(mean))
+    diff = samples - samples[b]
+    se = diff.std(axis=1, ddof=1) / np.sqrt(samples.shape[1])
+    ok = mean - mean[b] <= 2.0 * se
+    return float(grid[ok].min()), float(grid[ok].max())
 
 
 def _refine(fun, grid: np.ndarray, values: np.ndarray) -> float:
@@ -296,7 +332,9 @@ def choose_lambda_iterative(crit: IterativeCriteria, noise_std: float | None = N
     decade of lam, at most ``max_decades`` below the start (two decades above the lam where the
     residual has fallen by 10% from its penalty-dominated value).
     The result's ``estimator`` names the stochastic estimators and ``errors`` holds the standard
-    errors of the GCV and log-evidence curves (``"gcv"``, ``"log_evidence"``, ``"dof"``).
+    errors of the GCV and log-evidence curves (``"gcv"``, ``"log_evidence"``, ``"dof"``) and, as
+    ``"gcv_lam_range"`` / ``"evidence_lam_range"``, the grid lam whose criterion is within 2 s.e.
+    (of the difference, probes being shared) of the best: the choice's stochastic uncertainty.
     """
     criteria = tuple(criteria)
     unknown = [c for c in criteria if c not in CRITERIA]
@@ -321,6 +359,7 @@ def choose_lambda_iterative(crit: IterativeCriteria, noise_std: float | None = N
     grid: list[float] = []
     cur = {k: [] for k in ("residual2", "seminorm2", "gcv", "gcv_se", "dof", "dof_se", "curvature",
                            "log_evidence", "log_evidence_se")}
+    notes: dict = {}
     lam = lam_hi
     while len(grid) < max_decades * per_decade + 1:
         grid.append(lam)
@@ -345,11 +384,15 @@ def choose_lambda_iterative(crit: IterativeCriteria, noise_std: float | None = N
             done.append(h["rho"] < tau**2 * crit.n_data * sigma_now**2)
         if all(done):
             break
+        if lam in getattr(crit, "failed", set()):
+            # smaller lam are worse conditioned still: stop here rather than report unconverged values
+            notes["grid"] = (f"CG did not converge at lam = {lam:.3g} (max_iter {s.max_iter}); the grid stops there, "
+                             "so a criterion whose optimum lies lower is reported at the grid's end")
+            break
         lam /= step
     g = np.array(grid)
     curves = {k: np.array(v) for k, v in cur.items() if v}
     chosen: dict = {}
-    notes: dict = {}
     if "gcv" in criteria:
         chosen["gcv"] = _refine(lambda t: crit.gcv(np.exp(t))[0], g, curves["gcv"])
     if need_ev:
@@ -380,16 +423,24 @@ def choose_lambda_iterative(crit: IterativeCriteria, noise_std: float | None = N
             notes["discrepancy"] = notes.get("discrepancy", "") + f" (noise std estimated by the evidence: {sigma:.3g})"
     p = crit.probes.shape[1]
     parts = []
+    ranges: dict = {}
     if "gcv" in criteria:
         t, tse = crit.dof(chosen["gcv"])
+        lo, hi = _plausible(g, np.array([crit.probe_values("gcv", x) for x in g]))
         parts.append(f"GCV trace by Hutchinson ({p} Rademacher probes, one CG solve each): "
-                     f"dof {t:.4g} +- {tse:.2g} (1 s.e.) at the GCV choice")
+                     f"dof {t:.4g} +- {tse:.2g} (1 s.e.) at the GCV choice; grid lam within 2 s.e. (of the difference) of the "
+                     f"GCV minimum: {lo:.3g} .. {hi:.3g}")
+        ranges["gcv_lam_range"] = np.array([lo, hi])
     if need_ev:
         ll, llse, _ = crit.log_evidence(lam_ev, noise_std)
+        lo, hi = _plausible(g, np.array([crit.probe_values("neg_log_evidence", x, noise_std) for x in g]))
         parts.append(f"evidence log det by stochastic Lanczos quadrature ({p} probes): "
-                     f"log evidence {ll:.6g} +- {llse:.2g} (1 s.e.) at its choice")
+                     f"log evidence {ll:.6g} +- {llse:.2g} (1 s.e.) at its choice; grid lam within 2 s.e. (of the "
+                     f"difference) of the maximum: {lo:.3g} .. {hi:.3g}")
+        ranges["evidence_lam_range"] = np.array([lo, hi])
     parts.append("L-curve and discrepancy from CG norms (deterministic to the CG tolerance)")
     errors = {k: curves[k + "_se"] for k in ("gcv", "dof", "log_evidence") if k + "_se" in curves}
+    errors.update(ranges)
     result = CriteriaResult(lam=chosen, grid=g, curves={k: v for k, v in curves.items() if not k.endswith("_se")},
                             noise_std=float(sigma), notes=notes, spread=float("nan"),
                             estimator="; ".join(parts), errors=errors)

@@ -85,7 +85,13 @@ def test_chosen_lambdas_agree_with_dense_path(penalty, tmp_path):
         factor = 1.01 if name == "discrepancy" else 2.0
         assert 1 / factor < it.criteria.lam[name] / lam < factor, name
     assert "Hutchinson" in it.criteria.estimator and "Lanczos" in it.criteria.estimator
-    assert "Hutchinson" in it.message and set(it.criteria.errors) == {"gcv", "dof", "log_evidence"}
+    assert "Hutchinson" in it.message
+    assert set(it.criteria.errors) == {"gcv", "dof", "log_evidence", "gcv_lam_range", "evidence_lam_range"}
+    # the stated uncertainty (lam within 2 s.e. of the optimum) holds the dense choice, to one grid step
+    step = it.criteria.grid[0] / it.criteria.grid[1]
+    for name in ("gcv", "evidence"):
+        lo, hi = it.criteria.errors[f"{name}_lam_range"]
+        assert lo / step <= dense.criteria.lam[name] <= hi * step, name
     assert (it.criteria.spread > 10) == any("disagree by a factor" in str(w.message) for w in caught)
     plot_criteria(it.criteria, tmp_path / "criteria.png")
     assert (tmp_path / "criteria.png").stat().st_size > 10_000
