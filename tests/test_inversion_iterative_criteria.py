@@ -110,3 +110,14 @@ def test_noise_profiled_and_validation():
         choose_lambda_iterative(crit, criteria=("aic",))
     with pytest.raises(ValueError, match="noise_std: must be finite and > 0"):
         choose_lambda_iterative(crit, noise_std=float("nan"))
+
+
+def test_grid_stops_where_cg_fails():
+    """An iteration limit too small for the small lam ends the grid there, with a note (no silent values)."""
+    a, data = problem()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        it = invert_linear(aslinearoperator(a), data, penalty="gradient", noise_std=NOISE, spacing=DX,
+                           method="iterative", tol=1e-12, max_iter=4, rng=np.random.default_rng(3))
+    assert "CG did not converge" in it.criteria.notes["grid"]
+    assert all(np.isfinite(v) and v > 0 for v in it.criteria.lam.values())
