@@ -72,8 +72,8 @@ def read_recording(path) -> Recording:
     """
     path = pathlib.Path(path)
     if not path.exists():
-        raise OSError(f"RECORDING: file {str(path)!r} not found; give the recording.nc, .parquet or .json written by "
-                      "tactilab simulate")
+        raise OSError(f"RECORDING: file {str(path)!r} not found; give the recording.nc, .parquet or .json "
+                      "written by tactilab simulate")
     if path.suffix == ".json":
         return Recording.load(path)
     if path.suffix == ".parquet":

@@ -254,7 +254,7 @@ class IterativeCriteria:
             left = np.maximum(self.n_data - h["dof_probes"], 1e-300)
             return self.n_data * h["rho"] / left**2
         self.logdet(lam)
-        ll, _, sig = self.log_evidence(lam, noise_std)
+        ll = self.log_evidence(lam, noise_std)[0]
         return -ll + 0.5 * (h["logdet_probes"] - h["logdet"])
 
     def logdet(self, lam: float) -> tuple[float, float]:
@@ -341,7 +341,8 @@ def choose_lambda_iterative(crit: IterativeCriteria, noise_std: float | None = N
     if unknown or not criteria:
         raise ValueError(f"criteria: unknown or empty {criteria!r}; use a subset of {', '.join(CRITERIA)}")
     if noise_std is not None and not (np.isfinite(noise_std) and noise_std > 0):
-        raise ValueError(f"noise_std: must be finite and > 0 (data units), got {noise_std!r}; or pass None to estimate it")
+        raise ValueError(f"noise_std: must be finite and > 0 (data units), got {noise_std!r}; "
+                         "or pass None to estimate it")
     s = crit.s
     need_ev = "evidence" in criteria or ("discrepancy" in criteria and noise_std is None)
     pos = s.l2[s.l2 > 0]
@@ -428,8 +429,8 @@ def choose_lambda_iterative(crit: IterativeCriteria, noise_std: float | None = N
         t, tse = crit.dof(chosen["gcv"])
         lo, hi = _plausible(g, np.array([crit.probe_values("gcv", x) for x in g]))
         parts.append(f"GCV trace by Hutchinson ({p} Rademacher probes, one CG solve each): "
-                     f"dof {t:.4g} +- {tse:.2g} (1 s.e.) at the GCV choice; grid lam within 2 s.e. (of the difference) of the "
-                     f"GCV minimum: {lo:.3g} .. {hi:.3g}")
+                     f"dof {t:.4g} +- {tse:.2g} (1 s.e.) at the GCV choice; grid lam within 2 s.e. "
+                     f"(of the difference) of the GCV minimum: {lo:.3g} .. {hi:.3g}")
         ranges["gcv_lam_range"] = np.array([lo, hi])
     if need_ev:
         ll, llse, _ = crit.log_evidence(lam_ev, noise_std)

@@ -18,7 +18,6 @@ from __future__ import annotations
 import numpy as np
 
 from tactilab.data_schemas.recording import Recording
-from tactilab.forward.scene_simulation import read_recording
 
 from .criteria import CriteriaResult
 from .gaussian import GaussianPosterior, gaussian_posterior
