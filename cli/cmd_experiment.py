@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from .common import make_out
+
 NAME = "experiment"
 HELP = "run, resume, export or inspect a psychophysics session (SQLite log, SI units)"
 
@@ -73,16 +75,6 @@ def _print_result(result, parameter: str) -> int:
     return 0
 
 
-def _make_out(folder: Path, option: str = "--out") -> Path:
-    """Create the output folder first, so a bad path fails before the computation, in one line."""
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OSError(f"{option}: cannot create the output folder {str(folder)!r} ({exc.strerror or exc}); "
-                      "choose a writable folder") from None
-    return folder
-
-
 def run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas.experiment import Protocol, check_label
     from tactilab.experiments import factory
@@ -93,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
             check_label(args.session_label, "--session")
         protocol = Protocol.from_toml(args.protocol)
         description = factory.description_from_spec(args.device)
-        _make_out(args.out)
+        make_out(args.out)
         path, label = factory.next_session_path(args.out, args.subject, protocol.name)
         if args.session_label is not None:
             label = args.session_label
@@ -150,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
 
         out = args.out if args.out is not None else args.session.parent
         if args.out is not None and args.session.is_file():  # a missing session is reported by export_session
-            _make_out(args.out)
+            make_out(args.out)
         for path in export_session(args.session, out, args.format):
             print(f"wrote {path}")
         return 0

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from .common import make_out
+
 NAME = "simulate"
 HELP = ("simulate a finger scene file (TOML, units like 0.8N, 3mm, 20mm/s): write the sensors' recording "
         "(netCDF or Parquet) and PNG plots (mm, kPa, strain)")
@@ -27,16 +29,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def _make_out(folder: Path, option: str = "--out") -> Path:
-    """Create the output folder first, so a bad path fails before the computation, in one line."""
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OSError(f"{option}: cannot create the output folder {str(folder)!r} ({exc.strerror or exc}); "
-                      "choose a writable folder") from None
-    return folder
-
-
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -50,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
         if spacing <= 0:
             raise ValueError(f"--grid-spacing: must be > 0, got {args.grid_spacing!r}; e.g. 50um")
     scene = load_scene(args.scene)
-    out = _make_out(args.out if args.out is not None else Path(f"{scene.name or args.scene.stem}-simulation"))
+    out = make_out(args.out if args.out is not None else Path(f"{scene.name or args.scene.stem}-simulation"))
     rng = np.random.default_rng(args.seed) if args.seed is not None else None
     for line in simulate_scene(scene, out, fmt=args.format, rng=rng, progress=not args.quiet,
                                grid_spacing=spacing, plots=not args.no_plots):

@@ -7,6 +7,8 @@ import sys
 import warnings
 from pathlib import Path
 
+from .common import make_out
+
 NAME = "stress"
 HELP = "stress or strain at given depths under a load file (.npz in SI, or .toml with units)"
 
@@ -30,23 +32,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="output folder for field.nc (SI) and field.png (mm, kPa)")
 
 
-def _make_out(folder: Path, option: str = "--out") -> Path:
-    """Create the output folder first, so a bad path fails before the computation, in one line."""
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OSError(f"{option}: cannot create the output folder {str(folder)!r} ({exc.strerror or exc}); "
-                      "choose a writable folder") from None
-    return folder
-
-
 def run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas.units import to_si
     from tactilab.forward.halfspace import AccuracyWarning, HalfSpace
     from tactilab.forward.load_files import read_load, write_field
 
     load = read_load(args.load)
-    _make_out(args.out)
+    make_out(args.out)
     depths = [to_si(d, "length", name="--depth") for d in args.depth]
     hs = HalfSpace(E=to_si(args.young_modulus, "pressure", name="--young-modulus"), nu=args.nu)
     components = [c.strip() for c in args.components.split(",") if c.strip()]
