@@ -292,7 +292,7 @@ class Record(BaseModel):
             Invalid JSON, an unknown unit or an invalid field, in one line that starts with
             ``where`` (e.g. the file name) when given.
         """
-        from .unit_keys import convert_units  # the edge converter is only needed here
+        from .files import record_from_dict  # the file edge (units, one-line errors) lives there
 
         prefix = f"{where}: " if where else ""
         try:
@@ -302,12 +302,7 @@ class Record(BaseModel):
         if not isinstance(data, dict):
             raise ValueError(f"{prefix}a {cls.__name__} must be a JSON object, got {type(data).__name__}; "
                              "write it with Record.save")
-        try:
-            return cls.model_validate(convert_units(cls, data))
-        except ValidationError as err:
-            raise ValueError(format_validation_error(err, where or cls.__name__)) from None
-        except ValueError as err:
-            raise ValueError(f"{prefix}{err}") from None
+        return record_from_dict(cls, data, where)
 
     def save(self, path: str | pathlib.Path) -> pathlib.Path:
         """Write the record as JSON (SI units) to ``path`` and return the path."""

@@ -23,6 +23,11 @@ from .base import Record, at_least, finite, in_range, positive
 Length = Annotated[float, positive()]
 
 
+# Nominal drive limits shared by the presets (not confirmed from a source; override per display).
+_NOMINAL_LIMITS = dict(motion_axes="x", max_traction_pa=50e3, max_deflection_m=0.1e-3,
+                       max_slew_rate_per_s=2000.0, max_duty_cycle=1.0, frame_rate_hz=1000.0)
+
+
 class DisplayDescription(Record):
     """A tractor array and the limits of each tractor.
 
@@ -244,12 +249,7 @@ class DisplayDescription(Record):
             pitch_y_m=1.4e-3,
             tractor_width_m=0.6e-3,
             tractor_length_m=1.0e-3,
-            motion_axes="x",
-            max_traction_pa=50e3,
-            max_deflection_m=0.1e-3,
-            max_slew_rate_per_s=2000.0,
-            max_duty_cycle=1.0,
-            frame_rate_hz=1000.0,
+            **_NOMINAL_LIMITS,
             description=("STReSS2 layout, 6 x 10 tractors (Wang & Hayward 2010); pitch 1.2 mm x "
                          "1.4 mm, footprint, limits and frame rate are nominal values"),
         )
@@ -273,12 +273,7 @@ class DisplayDescription(Record):
             pitch_x_m=pitch_x_m,
             tractor_width_m=pitch_x_m / 2.0,
             tractor_length_m=6e-3,
-            motion_axes="x",
-            max_traction_pa=50e3,
-            max_deflection_m=0.1e-3,
-            max_slew_rate_per_s=2000.0,
-            max_duty_cycle=1.0,
-            frame_rate_hz=1000.0,
+            **_NOMINAL_LIMITS,
             description="one-row virtual Braille display; pitch, footprint and limits are nominal",
         )
         values.update(overrides)
