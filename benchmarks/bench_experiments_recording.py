@@ -31,7 +31,8 @@ import numpy as np
 
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
-from tactilab.experiments.demo import DEMO_PROTOCOL, true_threshold_2ifc
+from tactilab.demo.experiments import DEMO_PROTOCOL
+from tactilab.experiments.responses import true_threshold_2ifc
 from tactilab.experiments.display import Display, PlaybackReport
 from tactilab.experiments.recording import Recorder
 from tactilab.experiments.responses import SimulatedObserver

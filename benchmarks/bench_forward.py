@@ -6,7 +6,7 @@ Tables (all from one run, single-threaded scipy.fft, float64, SI units):
 
 1. Methods on the grid. Six stress components at one depth (1 mm) or three (0.5, 1, 2 mm).
    - ``spectral``: periodic band-limited load (a sum of oblique plane waves, p, qx, qy, zero mean,
-     no Nyquist content), error against the exact plane-wave closed form (physics.md s3,
+     no Nyquist content), error against the exact plane-wave closed form (docs/theory.md s3,
      rotated to each wave's direction; independent of the spectral code). ``periodic_stress``
      is the core; ``facade`` is ``HalfSpace.stress(method="spectral")`` (validation, labelling).
    - ``dcfft``: isolated Gaussian contact (p, qx, qy), error against the closed-form direct sum
@@ -45,12 +45,12 @@ from pathlib import Path
 import numpy as np
 import scipy.fft as sfft
 
-from tactilab.forward.dcfft import dcfft_stress, padded_shape
-from tactilab.forward.halfspace import HalfSpace
-from tactilab.forward.kernels import COMPONENTS, active_pairs, direct_stress
-from tactilab.forward.loads import SurfaceLoad
-from tactilab.forward.operator import LoadToSensor
-from tactilab.forward.spectral import periodic_stress
+from tactilab.forward.halfspace.dcfft import dcfft_stress, padded_shape
+from tactilab.forward.halfspace.facade import HalfSpace
+from tactilab.forward.halfspace.kernels import COMPONENTS, active_pairs, direct_stress
+from tactilab.forward.halfspace.loads import SurfaceLoad
+from tactilab.forward.halfspace.operator import LoadToSensor
+from tactilab.forward.halfspace.spectral import periodic_stress
 
 SPACING = 1e-4  # m, grid spacing of every scene
 E_PA = 1e6  # Pa
@@ -96,7 +96,7 @@ def plane_wave_load(n: int, modes) -> SurfaceLoad:
 def plane_wave_stress(n: int, modes, depth: float, nu: float, x, y) -> np.ndarray:
     """Exact stress (6, *x.shape), Voigt order, of the plane-wave load at (x, y, depth).
 
-    physics.md s3 sinusoid solutions in the frame of each wave (x' along k, y' across), the
+    docs/theory.md s3 sinusoid solutions in the frame of each wave (x' along k, y' across), the
     antiplane part for the traction across the wave, sigma_y'y' = nu (sigma_x'x' + sigma_zz),
     then the tensor rotated back to (x, y). Written in real space, independently of spectral.py.
     """
@@ -311,7 +311,7 @@ def print_methods(rows: list[dict]) -> None:
         print(f"{r['method']:<12}{r['n']:>5}^2{r['depths']:>3}{mark}{med:9.4g} {lo:9.4g}{floor}"
               f"{fac}{err}{err2}{est}")
     print("z: number of depths (1: 1 mm; 3: 0.5, 1, 2 mm). facade: HalfSpace.stress(method=...) median (adds\n"
-          "validation and xarray labelling). error: spectral vs exact plane waves (closed form, physics.md s3);\n"
+          "validation and xarray labelling). error: spectral vs exact plane waves (closed form, docs/theory.md s3);\n"
           "dcfft vs the closed-form direct sum at 16 nodes per depth; closed_form (~: time scaled from 32 nodes,\n"
           "cost ~ n^4, infeasible on full grids) not compared. err 2: spectral through the facade vs exact;\n"
           "dcfft vs a converged reference (same Gaussian on a grid h/2, n <= 256). estimate: the facade's\n"

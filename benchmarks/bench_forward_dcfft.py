@@ -35,9 +35,9 @@ import tracemalloc
 import numpy as np
 import scipy.fft as sfft
 
-from tactilab.forward.dcfft import dcfft_error_estimate, dcfft_stress, padded_shape
-from tactilab.forward.kernels import COMPONENTS, active_pairs, direct_stress
-from tactilab.forward.loads import SurfaceLoad
+from tactilab.forward.halfspace.dcfft import dcfft_error_estimate, dcfft_stress, padded_shape
+from tactilab.forward.halfspace.kernels import COMPONENTS, active_pairs, direct_stress
+from tactilab.forward.halfspace.loads import SurfaceLoad
 
 SPACING = 1e-4  # m
 
@@ -140,7 +140,7 @@ def estimate_table() -> None:
 
 
 def direct_table(repeats: int) -> None:
-    from tactilab.forward.kernels import direct_stress_from_forces
+    from tactilab.forward.halfspace.kernels import direct_stress_from_forces
 
     rng = np.random.default_rng(1)
     forces = rng.normal(size=(10, 3))

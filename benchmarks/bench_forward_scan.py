@@ -25,8 +25,8 @@ import numpy as np
 from tactilab.data_schemas.sensors import SensorArray
 from tactilab.forward.contact import HertzContact
 from tactilab.forward.finger import BiomimeticFinger
-from tactilab.forward.halfspace import HalfSpace
-from tactilab.forward.loads import SurfaceLoad
+from tactilab.forward.halfspace.facade import HalfSpace
+from tactilab.forward.halfspace.loads import SurfaceLoad
 from tactilab.forward.scan_maps import ScanMaps
 from tactilab.forward.scanning import scan_outputs
 from tactilab.forward.surfaces import Bump, RandomSquareWaveGrating, Surface

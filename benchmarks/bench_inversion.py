@@ -4,7 +4,7 @@ Run:  /work/venv/bin/python benchmarks/bench_inversion.py [--quick] [--out docs]
 
 Problem (all linear methods): a plane-strain pressure field p(x) (a draw of a Matern-3/2 prior,
 1 kPa std, 1 mm correlation length) on a periodic grid, dx = 50 um, sensed as sigma_zz at every
-node at Z = 0.5 mm (exact multiplier from tactilab.forward.spectral.transfer), white noise 1% of
+node at Z = 0.5 mm (exact multiplier from tactilab.forward.halfspace.spectral.transfer), white noise 1% of
 the data std. Error = ||estimate - truth|| / ||truth||. Methods:
 
 - gauss-fft / gauss-dense / gauss-iterative: exact posterior mean + pointwise std

@@ -1,4 +1,4 @@
-"""Benchmark the tactile synthesis design (physics.md 4a): speed, accuracy, robustness, results.
+"""Benchmark the tactile synthesis design (docs/theory.md 4a): speed, accuracy, robustness, results.
 
 Run: ``python benchmarks/bench_synthesis.py`` (about 30 s). Prints, from one run:
 

@@ -3,21 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import importlib
 from pathlib import Path
 
 NAME = "demo"
 HELP = "run the end-to-end demo on built-in example data and write a report folder"
-
-# Each part's demo section, in pipeline order: module with run_demo(report_dir, progress).
-SECTIONS = (
-    "tactilab.data_schemas.demo",
-    "tactilab.forward.demo",
-    "tactilab.forward.scene_demo",
-    "tactilab.forward.display_demo",
-    "tactilab.inversion.demo",
-    "tactilab.experiments.demo",
-)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,10 +16,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Imported here so that `tactilab --help` does not load the whole library.
+    from tactilab.demo import SECTIONS
+
     out = args.out.resolve()
     out.mkdir(parents=True, exist_ok=True)
-    for name in SECTIONS:
-        section = importlib.import_module(name)
+    for section in SECTIONS:
         for line in section.run_demo(out, progress=not args.quiet):
             print(line, flush=True)
     print(f"report written to {out}")

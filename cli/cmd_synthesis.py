@@ -1,4 +1,4 @@
-"""``tactilab synthesis``: optimal tractor spacing for receptors at depth (physics.md 4a)."""
+"""``tactilab synthesis``: optimal tractor spacing for receptors at depth (docs/theory.md 4a)."""
 
 from __future__ import annotations
 
@@ -124,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
 
     opts = _Options(args)
     footprint = "d (half the tractor pitch)" if opts.footprint is None else f"{opts.footprint * 1e3:g} mm"
-    print("tactile synthesis design (physics.md 4a; plane strain, nu = 1/2, tractors as line loads)")
+    print("tactile synthesis design (docs/theory.md 4a; plane strain, nu = 1/2, tractors as line loads)")
     print(f"objective J(d) over x in [-w/2, w/2]; optimum = lowest non-trivial local minimum, d in "
           f"[0.2 Z, 5 Z]; k2 = max S_Psi, k2p = S_Psi(d)")
     if opts.amplitude is not None:

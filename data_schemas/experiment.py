@@ -27,7 +27,7 @@ from .experiment_procedures import (  # noqa: F401 - the configs are part of thi
 class Stimulus(_Model):
     """A virtual surface H(x) scanned at a speed, and how the display's tractors render it.
 
-    Each tractor at position x_n follows H(x_n + V t) (a travelling wave, physics.md 4a).
+    Each tractor at position x_n follows H(x_n + V t) (a travelling wave, docs/theory.md 4a).
     """
 
     surface: Literal["sinusoid", "square"] = "sinusoid"

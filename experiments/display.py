@@ -17,7 +17,7 @@ The base class refuses frames that break the description's amplitude or slew-rat
 bare driver never streams them; :class:`tactilab.experiments.safety.SafeDisplay` instead
 *limits* any drive (and enforces the duty limit too) and reports each intervention.
 
-:func:`render_drive` turns a virtual surface into frames (physics.md 4a): each tractor at
+:func:`render_drive` turns a virtual surface into frames (docs/theory.md 4a): each tractor at
 position x_n follows the height of the virtual surface as the display scans it,
 ``q_n(t) = gain * H(x_n + V t) * envelope(t)``.
 """
@@ -41,7 +41,7 @@ __all__ = [
 ]
 
 #: Receptor depth at which the drive's strain is matched to the virtual surface's, m
-#: (physics.md 1: receptors sit 0.5 to 3 mm deep; 1 mm is a mid value).
+#: (docs/theory.md 1: receptors sit 0.5 to 3 mm deep; 1 mm is a mid value).
 DEFAULT_DEPTH_M = 1.0e-3
 #: Skin Young's modulus used to convert strain to traction when none is given, Pa
 #: (order of magnitude of in-vivo fingertip skin; the traction gain is proportional to it).
@@ -248,7 +248,7 @@ def render_drive(description, *, amplitude_m: float, pitch_m: float, speed_m_per
                  depth_m: float = DEFAULT_DEPTH_M,
                  young_modulus_pa: float = DEFAULT_YOUNG_MODULUS_PA,
                  gain: float | None = None, command: str | None = None) -> np.ndarray:
-    """Frames that render a virtual surface scanned at speed V (physics.md 4a).
+    """Frames that render a virtual surface scanned at speed V (docs/theory.md 4a).
 
     Each tractor at position ``x_n`` (its column's centre, x along the scan) follows the height
     of the virtual surface as the display scans it::
@@ -266,7 +266,7 @@ def render_drive(description, *, amplitude_m: float, pitch_m: float, speed_m_per
       strain (Frobenius norm of the deviatoric strain tensor) that the tractor array produces
       at ``depth_m``, over the skin under the array and over one period of the scan, equals
       that of the real surface sliding on the skin, ``2 (2 pi)^2 A Z / p^2 exp(-2 pi Z / p)``
-      squared (physics.md 4a). The array's strain is the superposition of Flamant tangential
+      squared (docs/theory.md 4a). The array's strain is the superposition of Flamant tangential
       loads spread over each tractor's width (nu = 1/2, plane strain,
       :func:`tactilab.forward.tractors.tractor_row_strain`); a line load is traction times the
       tractor width along x. The traction is proportional to ``young_modulus_pa``. At

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Callable, TextIO
 
 import numpy as np
+from scipy.special import ndtri
 
 from tactilab.data_schemas.experiment import Protocol, Stimulus
 from tactilab.forward.tractors import sliding_sinusoid_strain
@@ -166,7 +167,7 @@ def receptor_strain(stimulus: Stimulus, depth_m: float, n_harmonics: int = 15) -
     The sliding surface's strain comes from ``tactilab.forward.tractors.sliding_sinusoid_strain``
     (nu = 1/2); a square surface is the sum of its odd sine harmonics ``4 A / (n pi)`` of pitch
     ``p / n``. For a sinusoid the norm is constant in space and time and equals
-    ``sqrt(2) (2 pi / p)^2 A Z exp(-2 pi Z / p)`` (physics.md 4a).
+    ``sqrt(2) (2 pi / p)^2 A Z exp(-2 pi Z / p)`` (docs/theory.md 4a).
     """
     if stimulus.amplitude_m == 0:
         return 0.0
@@ -314,3 +315,14 @@ class SimulatedObserver(ResponseSource):
             margin, label = 1.0, str(rating)
         rt_s = (0.3 + 0.4 * math.exp(-abs(margin))) * math.exp(0.2 * rng.standard_normal())
         return Response(label, rt_s, self._onset_ns + int(rt_s * 1e9))
+
+def true_threshold_2ifc(observer: SimulatedObserver, protocol: Protocol, p_correct: float = 2 ** -0.5) -> float:
+    """Amplitude (m) at which the observer is correct with ``p_correct`` in 2IFC against a blank.
+
+    Signal detection: P(correct) = Phi(d / sqrt(2)), d = (s / s_threshold)^exponent, and the
+    sinusoid's strain s = sqrt(2) (2 pi / p)^2 A Z exp(-2 pi Z / p) is linear in A.
+    """
+    d = math.sqrt(2) * float(ndtri(p_correct))
+    strain = observer.threshold_strain * d ** (1 / observer.exponent)
+    p, z = protocol.stimulus.pitch_m, observer.depth_m
+    return strain / (math.sqrt(2) * (2 * math.pi / p) ** 2 * z * math.exp(-2 * math.pi * z / p))

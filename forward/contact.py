@@ -1,6 +1,6 @@
 """Fingertip contact: Hertz interfacial pressure and the tangential traction of friction.
 
-Conventions (physics.md section 1): tractions are applied TO the skin, in Pa; ``p`` pushes
+Conventions (docs/theory.md section 1): tractions are applied TO the skin, in Pa; ``p`` pushes
 into the skin, ``qx`` acts along +x (the scanning direction). Coordinates are in the
 finger's frame, in m, with the centre of contact at the origin.
 

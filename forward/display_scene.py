@@ -1,6 +1,6 @@
 """Display scenes: a laterotactile display rendering the scene's (virtual) surface to the skin.
 
-Plane model of physics.md 4a (the one :mod:`.tractor_display` uses): every row of tractors gets
+Plane model of docs/theory.md 4a (the one :mod:`.tractor_display` uses): every row of tractors gets
 the same travelling-wave drive ``q_n(t) = gain H(x_n + V t)`` (N/m), and the stress at the
 sensor depth is the superposition of the tractors' plane-strain kernels
 (:func:`.tractors.tractor_stress_kernel`, tractors of the display's footprint width);
@@ -9,7 +9,7 @@ sensor depth is the superposition of the tractors' plane-strain kernels
 The gain renders a sinusoid of the display's natural pitch ``p = 4 d`` (d = pitch_x / 2) with the
 strain amplitude of the real sliding surface: ``Q / A = 8 sqrt(2) pi^3 Z E e^{-2 pi Z/p} / (3 k2' p^2)``
 with ``k2' = S_Psi(x = d)`` of THIS display (its own spacing and ``columns // 2`` pairs, not the
-optimum), physics.md 4a. The drive samples the surface a quarter pitch ahead, which puts the
+optimum), docs/theory.md 4a. The drive samples the surface a quarter pitch ahead, which puts the
 rendered strain in phase with the real sliding grating's. At p = 4 d the tractors sample the
 wave twice per period, so the rendered field is a standing wave: its normalised correlation with
 the real travelling wave is bounded by about 1 / sqrt(2). A drive over the display's traction
@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from .fields import output_weights
+from .halfspace import output_weights
 from .scanning import MAX_OUTPUT_VALUES
 from .tractor_display import travelling_wave_drive
 from .tractors import _positive, array_phi_psi, sliding_sinusoid_strain, tractor_stress_kernel
@@ -82,7 +82,7 @@ def display_scene_outputs(scene) -> tuple[np.ndarray, np.ndarray, dict]:
     limit = display.max_traction_pa
     surf = scene.surface
     virtual_pitch = surf.period_m if getattr(surf, "kind", "") == "sinusoidal_grating" else pitch
-    # a quarter-pitch sampling lead puts the rendered strain in phase with the real one (physics.md 4a)
+    # a quarter-pitch sampling lead puts the rendered strain in phase with the real one (docs/theory.md 4a)
     q = travelling_wave_drive(display.tractor_x_m, lambda x: surf.height_at(x), scan.speed_m_per_s,
                               t, gain, lead=scan.start_position_m + virtual_pitch / 4, traction_limit=limit,
                               footprint=width if limit is not None else None)

@@ -1,4 +1,4 @@
-"""Exploration studies with the biomimetic finger (physics.md 4b).
+"""Exploration studies with the biomimetic finger (docs/theory.md 4b).
 
 - :func:`linear_kernel`: the true first-order kernel of a y-invariant texture,
   ``g1(xi) = int [qx(xi, eta) G_x + p(xi, eta) G_z] d eta`` (output per unit modulation per m).
@@ -230,7 +230,7 @@ def shape_invariance(baseline: dict | None = None, variations: dict | None = Non
     """Normalised correlation between a sensor's defect response at baseline and with one
     exploration parameter changed.
 
-    The response is the receptive field (physics.md 4b) of one stress sensor (``component``,
+    The response is the receptive field (docs/theory.md 4b) of one stress sensor (``component``,
     ``"zz"`` or ``"zx"``; Pa) for a point defect
     at the origin, against finger position u in [-window, window] (m). ``corr_position`` compares
     the two curves against u; ``corr_contact_scaled`` against u / a (a = contact radius), the frame

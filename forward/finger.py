@@ -1,17 +1,17 @@
-"""Biomimetic finger (physics.md 4b): a Hertz contact, friction, fingerprints, sensors at depth.
+"""Biomimetic finger (docs/theory.md 4b): a Hertz contact, friction, fingerprints, sensors at depth.
 
 Frames. Sensor positions and the contact live in the FINGER frame (origin at the centre of
 contact, m). The surface lives in the WORLD frame; when the contact centre is at world
 ``(u, 0)``, a surface point at world ``(x_w, y_w)`` touches the skin at finger ``(x_w - u, y_w)``.
 
-Transduction is linear (physics.md 4b): a sensor at ``(x_i, y_i, Z)`` reads
+Transduction is linear (docs/theory.md 4b): a sensor at ``(x_i, y_i, Z)`` reads
 ``sigma(x_i, y_i) = iint qx(x, y) G_x(x_i - x, y_i - y) + p(x, y) G_z(x_i - x, y_i - y) dx dy``
 with ``G`` the Cerruti (tangential) and Boussinesq (normal) point-load stress at depth Z
-(:func:`tactilab.forward.kernels.point_green`, Pa per N). Strain sensors apply Hooke's law
+(:func:`tactilab.forward.halfspace.kernels.point_green`, Pa per N). Strain sensors apply Hooke's law
 (tensor shear eps_ij; engineering gamma = 2 eps).
 
 Interface. While sliding, ``qx = D mu p`` (local Amontons law; traction applied TO the skin),
-with ``D = friction_direction``. The default ``D = +1`` is physics.md 4b's ``p_x = mu_d p_z``
+with ``D = friction_direction``. The default ``D = +1`` is docs/theory.md 4b's ``p_x = mu_d p_z``
 (also the convention of ``tactilab.inversion``'s defect model): the surface drags the skin
 towards +x, as when the finger moves towards -x relative to the surface. A finger sliding
 towards +x over a fixed surface (the direction of data_schemas scans) is dragged backwards:
@@ -32,8 +32,8 @@ import numpy as np
 from tactilab.data_schemas.sensors import SensorArray
 
 from .contact import HertzContact, _stuck_shape, interfacial_traction
-from .fields import output_weights
-from .kernels import COMPONENTS, point_green
+from .halfspace import output_weights
+from .halfspace import COMPONENTS, point_green
 
 
 MAX_GRID_NODES_PER_AXIS = 2049  # 4.2e6 contact nodes; finer grids exhaust memory in the scan maps
@@ -100,7 +100,7 @@ class BiomimeticFinger:
 
     def __post_init__(self):
         if self.friction_direction not in (1.0, -1.0):
-            raise ValueError(f"friction_direction: must be +1 (physics.md p_x = +mu p_z) or -1 (finger sliding "
+            raise ValueError(f"friction_direction: must be +1 (docs/theory.md p_x = +mu p_z) or -1 (finger sliding "
                              f"towards +x over a fixed surface), got {self.friction_direction!r}")
         if not isinstance(self.contact, HertzContact) or self.contact.line:
             raise ValueError("contact: expected a 3-D HertzContact (line=False); the finger is a 3-D contact")
@@ -242,7 +242,7 @@ class BiomimeticFinger:
 
     def receptive_field(self, positions, defect_x: float, defect_y: float = 0.0,
                         strength: float = 1e-8) -> np.ndarray:
-        """Exploratory receptive field of every sensor for a small isolated defect (physics.md 4b).
+        """Exploratory receptive field of every sensor for a small isolated defect (docs/theory.md 4b).
 
         The defect at world ``(defect_x, defect_y)`` adds a concentrated force ``strength`` times
         the local interfacial traction: ``(fx, fz) = S_d (qx, p)`` at finger ``(defect_x - u, defect_y)``.

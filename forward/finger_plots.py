@@ -14,7 +14,7 @@ from tactilab.data_schemas.recording import Recording
 
 from .finger import BiomimeticFinger
 from .halfspace import HalfSpace
-from .loads import SurfaceLoad
+from .halfspace import SurfaceLoad
 from .surfaces import Surface
 
 

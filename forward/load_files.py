@@ -28,7 +28,7 @@ import numpy as np
 
 from tactilab.data_schemas.units import to_si
 
-from .loads import SurfaceLoad
+from .halfspace import SurfaceLoad
 
 _PATCH_KEYS = {"shape", "centre", "radius", "pressure", "traction_x", "traction_y"}
 MAX_GRID_NODES = 2**24  # 4096 x 4096: one float64 component is 134 MB, and the methods need a few

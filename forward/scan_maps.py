@@ -2,7 +2,7 @@
 
 The finger's grid of N x N nodes (spacing h) carries the modulated interfacial tractions
 (:mod:`.scanning`). The field at depth Z on the same nodes is the aperiodic convolution with
-the point-load kernel sampled at the node offsets (DC-FFT, physics.md section 5): the kernel is
+the point-load kernel sampled at the node offsets (DC-FFT, docs/theory.md section 5): the kernel is
 sampled on a (2N) x (2N) circular grid and transformed ONCE; each batch of frames costs one
 forward and one inverse real FFT of shape (batch, 2N, 2N). The result is exact for the sampled
 load (it equals the direct sum over nodes to rounding), and its cost does not depend on how
@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fields import output_weights
+from .halfspace import output_weights
 from .finger import BiomimeticFinger
-from .kernels import COMPONENTS, point_green
+from .halfspace import COMPONENTS, point_green
 from .surfaces import Surface
 
 

@@ -1,6 +1,6 @@
 """Scanning a surface with the biomimetic finger: sensor time series as a data_schemas Recording.
 
-The surface modulates the interfacial stress (physics.md 4b): at finger position u (world x of
+The surface modulates the interfacial stress (docs/theory.md 4b): at finger position u (world x of
 the contact centre) the traction at finger node (x, y) is ``traction(x, y) * M(x + u, y)`` with
 ``M = max(0, 1 + h / h_ref)`` (``h_ref`` defaults to the surface's peak |height|, so a +-A grating
 is the T = +-1 texture of the paper and a bump of height h is a load of strength = its

@@ -9,8 +9,8 @@ Two ways turn heights into loads on the skin:
 
 - :func:`rigid_surface_pressure`: a frictionless rigid surface sliding over the skin in full
   contact prescribes the normal displacement; the pressure is
-  ``P~ = E rho H~ / (2 (1 - nu^2))`` (physics.md section 2), zero-mean and periodic.
-- :meth:`Surface.modulation`: in the biomimetic-finger model (physics.md 4b) the texture
+  ``P~ = E rho H~ / (2 (1 - nu^2))`` (docs/theory.md section 2), zero-mean and periodic.
+- :meth:`Surface.modulation`: in the biomimetic-finger model (docs/theory.md 4b) the texture
   modulates the interfacial stress of the fingertip contact multiplicatively,
   ``p_eff = p (1 + h / h_ref)`` (clipped at 0, as the skin cannot be pulled); a +-A square
   wave with ``h_ref = A`` is the T = +-1 grating of the paper, and a small defect of height
@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .spectral import pressure_from_deflection
+from .halfspace import pressure_from_deflection
 
 
 def _pos(value, name: str, unit: str = "m") -> float:
@@ -314,7 +314,7 @@ def rigid_surface_pressure(heights, spacing, young_modulus: float, poisson_ratio
     """Pressure (Pa) that a frictionless rigid surface in full contact imposes on the skin.
 
     The surface prescribes the normal displacement ``H`` (m, periodic on the grid); in Fourier
-    space ``P~ = E rho H~ / (2 (1 - nu^2))`` (physics.md section 2). The rho = 0 mode is 0:
+    space ``P~ = E rho H~ / (2 (1 - nu^2))`` (docs/theory.md section 2). The rho = 0 mode is 0:
     the result is the zero-mean part, to which the mean contact pressure adds.
 
     Parameters

@@ -9,7 +9,7 @@ window ``x in [-w/2, w/2]``:
 
     J(d) = int [S_Phi + (k2/2) cos(2 pi x / (4d))]^2 dx + int [S_Psi - k2 sin(2 pi x / (4d))]^2 dx,
 
-with ``k2 = max S_Psi`` over ``[-4d, 4d]`` (the sign and k2 corrections of physics.md are
+with ``k2 = max S_Psi`` over ``[-4d, 4d]`` (the sign and k2 corrections of docs/theory.md are
 applied). J -> 0 trivially as d -> 0 and has spurious minima at very small d, so the optimum is
 the lowest non-trivial local minimum: J is scanned on a geometric grid of d over a bracket
 starting at 0.2 Z, every interior local minimum is refined with a bounded scalar minimiser,
@@ -128,7 +128,7 @@ def amplitude_factor(half_spacing: float, depth: float, pairs: int = 5) -> tuple
 
 def spacing_objective(half_spacing: float, depth: float, width: float = 10e-3, pairs: int = 5,
                       panel_fraction: float = 0.5) -> dict:
-    """The design objective J(d) of physics.md 4a and its parts.
+    """The design objective J(d) of docs/theory.md 4a and its parts.
 
     Parameters
     ----------
@@ -248,7 +248,7 @@ def matching_line_load(amplitude: float, pitch: float | None, depth: float | Non
                        design: SpacingDesign) -> float:
     """Line load Q (N/m) whose tractor drive matches a sliding sinusoid of amplitude A and pitch p.
 
-    ``Q = 8 sqrt(2) pi^3 A Z E exp(-2 pi Z / p) / (3 k2' p^2)`` (physics.md 4a). Without the
+    ``Q = 8 sqrt(2) pi^3 A Z E exp(-2 pi Z / p) / (3 k2' p^2)`` (docs/theory.md 4a). Without the
     sqrt(2) it equates the peak engineering shear of the array, ``3 Q k2' / (pi E)``, with the
     grating's ``8 pi^2 A Z e^{-2 pi Z/p} / p^2``; at p = 4d the tractors sample the travelling
     wave at two points per period, so the drive is a standing wave whose mean square over

@@ -2,7 +2,7 @@
 
 Builds on the closed forms of :mod:`tactilab.forward.tractors` (plane problem, rows of
 tractors as strips uniform in y) and on the Cerruti point-force kernel of
-:mod:`tactilab.forward.kernels` for 2-D arrays of finite patches (3-D half-space).
+:mod:`tactilab.forward.halfspace.kernels` for 2-D arrays of finite patches (3-D half-space).
 Units are SI; tractor loads are line loads (N/m) in the plane model and tractions (Pa) on
 patches; strain is a Voigt vector (xx, yy, zz, yz, zx, xy) with TENSOR shear.
 """
@@ -23,7 +23,7 @@ def travelling_wave_drive(tractor_x, height: Callable[[np.ndarray], np.ndarray],
     """Tractor line loads that render a virtual surface scanned at speed V.
 
     ``q_n(t) = gain * H(x_n + V t + lead)``: each tractor follows the virtual height at its
-    position as the display scans the surface (physics.md 4a).
+    position as the display scans the surface (docs/theory.md 4a).
 
     Parameters
     ----------
@@ -172,7 +172,7 @@ def patch_strain_3d(points, tractor_xy, tractions, width: float, length: float, 
     """Strain at points inside the skin under rectangular tractor patches pulling along +x (3-D).
 
     Each tractor is a ``width`` (x) by ``length`` (y) patch carrying a uniform tangential
-    traction along +x. The Cerruti point-force stress (``tactilab.forward.kernels``) is
+    traction along +x. The Cerruti point-force stress (``tactilab.forward.halfspace.kernels``) is
     integrated over each patch with composite Gauss-Legendre quadrature, panels no longer
     than ``depth / panels_per_depth`` (4 nodes each), which resolves the kernel's smallest
     length scale, the depth of the point.
@@ -199,7 +199,7 @@ def patch_strain_3d(points, tractor_xy, tractions, width: float, length: float, 
     ndarray, shape (..., n_points, 6)
         Voigt strain with TENSOR shear.
     """
-    from .kernels import point_load_stress
+    from .halfspace import point_load_stress
 
     pts = _finite_array(points, "points", "m")
     if pts.ndim != 2 or pts.shape[1] != 3:

@@ -1,13 +1,13 @@
 """Laterotactile tractors: closed-form strain at depth of tractor pairs, arrays and drives.
 
-Plane problem (physics.md section 4a): tractors are tangential line loads along +x on the skin
+Plane problem (docs/theory.md section 4a): tractors are tangential line loads along +x on the skin
 surface z = 0 (uniform in y), receptors sit at depth ``Z`` (``depth``, m, z > 0 inside the skin).
 Loads are the tractions applied TO the skin; a line load ``q`` is a force per unit length in y
 (N/m). Strain is returned as a Voigt vector ordered (xx, yy, zz, yz, zx, xy) with TENSOR shear
 ``eps_zx`` (the symmetric strain tensor); engineering shear ``gamma_zx = 2 eps_zx``, as listed in
-physics.md and in the tactile synthesis literature, is obtained with :func:`to_engineering_shear`.
+docs/theory.md and in the tactile synthesis literature, is obtained with :func:`to_engineering_shear`.
 
-Closed forms used (derived from Flamant's tangential line load, section 3 of physics.md):
+Closed forms used (derived from Flamant's tangential line load, section 3 of docs/theory.md):
 with ``w = u + iZ`` (``u`` the horizontal distance from the tractor),
 
 - ``sigma_xx = -(T/pi) Re(a + b)``, ``sigma_zz = -(T/pi) Re(a - b)``, ``sigma_xz = (T/pi) Im b``,
@@ -17,7 +17,7 @@ with ``w = u + iZ`` (``u`` the horizontal distance from the tractor),
   (``log w`` and ``iZ/w`` are antiderivatives), written without cancellation;
 - a pair ``-q delta(x + d) + q delta(x - d)`` at ``nu = 1/2`` gives ``Phi - i Psi / 2 = C`` with
   ``C = -d/(w^2 - d^2) + 2 i Z w d/(w^2 - d^2)^2`` (``w = x + iZ``): the same as the Phi and Psi
-  of physics.md, but free of the cancellation that the difference form suffers as d -> 0.
+  of docs/theory.md, but free of the cancellation that the difference form suffers as d -> 0.
 """
 
 from __future__ import annotations
@@ -106,7 +106,7 @@ def _pair_complex(x: np.ndarray, half_spacing: float, depth: float) -> np.ndarra
 
 
 def pair_phi_psi(x: ArrayLike, half_spacing: float, depth: float) -> tuple[np.ndarray, np.ndarray]:
-    """Phi(x) and Psi(x) of a tractor pair (physics.md 4a), in 1/m.
+    """Phi(x) and Psi(x) of a tractor pair (docs/theory.md 4a), in 1/m.
 
     The pair is ``q [-delta(x + d) + delta(x - d)]`` (tangential line loads, N/m); at depth Z
     with nu = 1/2, ``eps_xx = 3 q Phi / (pi E)``, ``eps_zz = -eps_xx`` and the ENGINEERING shear
@@ -148,7 +148,7 @@ def array_centres(half_spacing: float, pairs: int) -> tuple[np.ndarray, int]:
     """Centres ``4 n d`` (m) of the pairs of a symmetric array, and the array's sign.
 
     ``pairs`` pairs are centred on x = 0. For an odd number, the centres are ``4 n d`` with
-    ``n = -(N-1)/2 .. (N-1)/2`` and the sign is +1: the array of physics.md. For an even number
+    ``n = -(N-1)/2 .. (N-1)/2`` and the sign is +1: the array of docs/theory.md. For an even number
     the centres fall on ``4 (n + 1/2) d`` and the sign is -1, so that in both cases the tractors
     sit at the odd multiples of d and the tractor at x = +d pushes along +x: the array samples
     ``sin(2 pi x / (4 d))`` at its peaks, as the target pattern of the design objective assumes.
@@ -177,7 +177,7 @@ def array_tractors(half_spacing: float, pairs: int) -> tuple[np.ndarray, np.ndar
 def array_phi_psi(x: ArrayLike, half_spacing: float, depth: float, pairs: int = 5) -> tuple[np.ndarray, np.ndarray]:
     """S_Phi(x) = sum_n Phi(x - 4 n d) and S_Psi(x) for an array of ``pairs`` pairs, in 1/m.
 
-    See :func:`array_centres` for the layout (odd ``pairs``: exactly physics.md's sum).
+    See :func:`array_centres` for the layout (odd ``pairs``: exactly docs/theory.md's sum).
     """
     z = _positive(depth, "depth")
     centres, sign = array_centres(half_spacing, pairs)
@@ -269,7 +269,7 @@ def tractor_row_strain(x: ArrayLike, depth: float, tractor_x: ArrayLike, line_lo
     young_modulus : float
         E, Pa.
     nu : float
-        Poisson's ratio (default 0.5, the incompressible skin of physics.md 4a).
+        Poisson's ratio (default 0.5, the incompressible skin of docs/theory.md 4a).
     footprint : float
         Contact width of each tractor along x, m (0: line loads).
 
@@ -299,7 +299,7 @@ def sliding_sinusoid_strain(x: ArrayLike, depth: float, amplitude: float, pitch:
     H is the indentation (surface deflection into the skin, m); the surface slides at speed V
     (m/s) along -x, so that the pattern at time t is H(x + V t). The pressure is the spectral
     prescribed-displacement solution ``P = E k H / (2 (1 - nu^2))`` (k = 2 pi / p); strain is
-    independent of E. At nu = 1/2 it is physics.md 4a's closed form,
+    independent of E. At nu = 1/2 it is docs/theory.md 4a's closed form,
     ``eps_xx = -eps_zz = K sin(k (x + V t))``, ``gamma_zx = 2 K cos(...)``, ``K = k^2 A Z e^{-k Z}``.
 
     Parameters

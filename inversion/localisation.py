@@ -1,4 +1,4 @@
-"""Defect localisation accuracy vs number of sensors and stress components (physics.md 4b).
+"""Defect localisation accuracy vs number of sensors and stress components (docs/theory.md 4b).
 
 For the point-defect scan model (:class:`DefectScanModel`) with Gaussian noise, the Fisher
 information of ``theta = (x0, y0, S_d)`` is ``I = J^T J / sigma^2`` with ``J`` the Jacobian of the

@@ -2,10 +2,10 @@
 
 The forward map from a surface load to sensors at depth is, on a periodic grid with a sensor at
 every node, a convolution: it is diagonal in Fourier space with a multiplier ``H(k)`` (the
-transfer function of physics.md section 2). :class:`FourierDiagonal` applies it in
+transfer function of docs/theory.md section 2). :class:`FourierDiagonal` applies it in
 O(n log n) with real FFTs and carries ``dims`` / ``dimsd`` like PyLops operators.
 
-Fourier convention (physics.md section 1): ``f~(k) = sum_x f(x) exp(-i k x)``, angular
+Fourier convention (docs/theory.md section 1): ``f~(k) = sum_x f(x) exp(-i k x)``, angular
 wavenumbers ``k = 2 pi * fftfreq(n, dx)`` in rad/m. A multiplier is given on the FULL grid in
 ``numpy.fft.fftfreq`` order (shape equal to the model shape); it must be Hermitian,
 ``H(-k) = conj(H(k))``, so that the operator maps real arrays to real arrays.
@@ -35,7 +35,7 @@ def angular_wavenumbers(shape: tuple[int, ...], spacing) -> tuple[np.ndarray, ..
         Grid shape ``(nx,)`` or ``(ny, nx)``.
     spacing : float or tuple of float
         Grid spacing in m, ``dx`` or ``(dx, dy)``; for 2-D grids the order is (dx, dy) as in
-        :class:`tactilab.forward.loads.SurfaceLoad`.
+        :class:`tactilab.forward.halfspace.loads.SurfaceLoad`.
 
     Returns
     -------
@@ -58,9 +58,9 @@ def angular_wavenumbers(shape: tuple[int, ...], spacing) -> tuple[np.ndarray, ..
 def normal_pressure_to_szz_multiplier(n: int, dx: float, depth: float) -> np.ndarray:
     """Closed-form plane-strain multiplier from normal pressure p to sigma_zz at depth.
 
-    ``H(k) = -(1 + |k| Z) exp(-|k| Z)`` (physics.md section 3, sinusoidal loads): a pressure
+    ``H(k) = -(1 + |k| Z) exp(-|k| Z)`` (docs/theory.md section 3, sinusoidal loads): a pressure
     ``P cos kx`` gives ``sigma_zz = -P (1 + kZ) e^{-kZ} cos kx``. Written as a product with
-    ``exp`` so that it underflows harmlessly to 0 for ``|k| Z > 745`` (physics.md section 5).
+    ``exp`` so that it underflows harmlessly to 0 for ``|k| Z > 745`` (docs/theory.md section 5).
 
     Parameters
     ----------
@@ -89,7 +89,7 @@ def halfspace_fourier_operator(shape, spacing, depth: float, nu: float = 0.5, lo
                                component: str = "zz") -> "FourierDiagonal":
     """FourierDiagonal map from one load component to one stress component at ``depth``.
 
-    Uses the exact multiplier :func:`tactilab.forward.spectral.transfer` (physics.md section 2)
+    Uses the exact multiplier :func:`tactilab.forward.halfspace.spectral.transfer` (docs/theory.md section 2)
     on the periodic grid, one sensor per node. At the Nyquist wavenumber of an even grid the
     sign of ``k`` is ambiguous; the odd (imaginary) part is dropped there so that the operator
     stays real (Hermitian multiplier).
@@ -109,7 +109,7 @@ def halfspace_fourier_operator(shape, spacing, depth: float, nu: float = 0.5, lo
     component : str
         Stress component (Voigt name) the sensors measure, Pa.
     """
-    from tactilab.forward.spectral import transfer
+    from tactilab.forward.halfspace import transfer
 
     shape = tuple(int(v) for v in shape)
     ks = angular_wavenumbers(shape, spacing)
@@ -134,7 +134,7 @@ def rigid_surface_height_operator(n: int, spacing: float, depth: float, young_mo
     same values).
 
     Multiplier ``E |k| / (2 (1 - nu^2))`` (pressure of a small-slope relief in full contact,
-    physics.md section 2) times the exact pressure -> ``sigma_zz`` multiplier of
+    docs/theory.md section 2) times the exact pressure -> ``sigma_zz`` multiplier of
     :func:`halfspace_fourier_operator`. ``k = 0`` maps to 0: a uniform height change loads
     nothing, so heights are relative. This is the operator of the inversion demo's height profile;
     it does not describe a finite (Hertz) finger contact.

@@ -1,4 +1,4 @@
-"""Priors for scene parameters and the defect-localisation model (physics.md section 4b).
+"""Priors for scene parameters and the defect-localisation model (docs/theory.md section 4b).
 
 A small isolated defect at world ``(x0, y0)`` under a Hertz fingertip contact that scans along
 +x adds a concentrated load ``S_d (q_x, 0, p)`` (``S_d`` in m^2, the defect's effective area, times
@@ -9,7 +9,7 @@ sees, when the contact centre is at world x = u,
                        + mu p(x0 - u, y0) g_c^x(xs - (x0 - u), ys - y0, Z) ]
 
 with ``g`` the Boussinesq (normal) and Cerruti (tangential) point-load Green's functions
-(:func:`tactilab.forward.kernels.point_green`, Pa per N) and ``p`` the Hertz pressure of
+(:func:`tactilab.forward.halfspace.kernels.point_green`, Pa per N) and ``p`` the Hertz pressure of
 :class:`tactilab.forward.contact.HertzContact`. The tangential traction is ``+mu p`` along +x
 (sign fixed by the sliding direction; negate the signal for the opposite one).
 
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tactilab.forward.kernels import point_green
+from tactilab.forward.halfspace import point_green
 
 NONLINEAR = ("x0", "y0", "friction", "depth", "young_modulus", "normal_force")
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from tactilab.data_schemas.demo import run_demo
+from tactilab.demo.records import run_demo
 from tactilab.data_schemas.files import list_examples
 from tactilab.data_schemas.scene import Scene
 

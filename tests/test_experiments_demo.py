@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import re
 
-from tactilab.experiments.demo import run_demo
+from tactilab.demo.experiments import run_demo
 from tactilab.experiments.recording import SessionLog
 
 

@@ -1,4 +1,4 @@
-"""Display interface, travelling-wave drive and the simulated display (physics.md 4a)."""
+"""Display interface, travelling-wave drive and the simulated display (docs/theory.md 4a)."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ STIM = dict(amplitude_m=10e-6, pitch_m=2.0e-3, speed_m_per_s=0.04, duration_s=0.
 
 
 def phi_psi(x, d, z):
-    """Phi and Psi of physics.md 4a, transcribed literally (the pair -q at -d, +q at +d)."""
+    """Phi and Psi of docs/theory.md 4a, transcribed literally (the pair -q at -d, +q at +d)."""
     a, b = x + d, x - d
     phi = 0.5 * (a / (z**2 + a**2) - b / (z**2 + b**2)) - z**2 * (a / (z**2 + a**2) ** 2 - b / (z**2 + b**2) ** 2)
     psi = z * ((z**2 - b**2) / (z**2 + b**2) ** 2 - (z**2 - a**2) / (z**2 + a**2) ** 2) - (
@@ -42,7 +42,7 @@ def test_pair_of_line_tractors_matches_phi_psi_closed_form():
 
 
 def flamant_strain(x, z, e, t):
-    """Flamant tangential line load (physics.md 3) + plane-strain Hooke with nu = 1/2."""
+    """Flamant tangential line load (docs/theory.md 3) + plane-strain Hooke with nu = 1/2."""
     r4 = (x**2 + z**2) ** 2
     sxx, szz, sxz = -2 * t * x**3 / (math.pi * r4), -2 * t * x * z**2 / (math.pi * r4), -2 * t * x**2 * z / (math.pi * r4)
     nu = 0.5
@@ -73,7 +73,7 @@ def test_tractor_of_finite_width_matches_quadrature_of_line_loads():
 
 def test_rms_gain_agrees_with_the_optimal_spacing_design():
     """At the optimal half spacing d (p = 4 d), the forward model's matching line load
-    (physics.md 4a, peak-shear match with the sqrt(2) RMS factor) and this RMS-strain gain
+    (docs/theory.md 4a, peak-shear match with the sqrt(2) RMS factor) and this RMS-strain gain
     are two definitions of "the same strain"; they agree to within 10 % at Z = 1 mm."""
     from tactilab.forward.synthesis import matching_line_load, optimal_half_spacing
 

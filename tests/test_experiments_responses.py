@@ -30,7 +30,7 @@ def protocol(task, **extra) -> Protocol:
 
 @pytest.mark.parametrize("amplitude,pitch,depth", [(2e-6, 2e-3, 1e-3), (20e-6, 1e-3, 0.5e-3), (5e-6, 4e-3, 3e-3)])
 def test_receptor_strain_matches_the_sliding_surface_closed_form(amplitude, pitch, depth):
-    """physics.md 4a: eps_xx = -eps_zz = K sin, eps_xz = K cos (tensor shear), K = (2 pi/p)^2 A Z e^{-2 pi Z/p};
+    """docs/theory.md 4a: eps_xx = -eps_zz = K sin, eps_xz = K cos (tensor shear), K = (2 pi/p)^2 A Z e^{-2 pi Z/p};
     the deviatoric Frobenius norm is sqrt(2) K at every point and time."""
     k = (2 * math.pi / pitch) ** 2 * amplitude * depth * math.exp(-2 * math.pi * depth / pitch)
     stimulus = Stimulus(amplitude_m=amplitude, pitch_m=pitch, speed_m_per_s=0.04)

@@ -12,9 +12,9 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from tactilab.forward.dcfft import dcfft_error_estimate, dcfft_stress, padded_shape
-from tactilab.forward.kernels import COMPONENTS, direct_stress, point_load_stress
-from tactilab.forward.loads import SurfaceLoad
+from tactilab.forward.halfspace.dcfft import dcfft_error_estimate, dcfft_stress, padded_shape
+from tactilab.forward.halfspace.kernels import COMPONENTS, direct_stress, point_load_stress
+from tactilab.forward.halfspace.loads import SurfaceLoad
 
 
 def _nodes(load: SurfaceLoad, depth: float) -> np.ndarray:

@@ -6,7 +6,7 @@ import threading
 
 import numpy as np
 
-from tactilab.forward.display_demo import run_demo
+from tactilab.demo.display import run_demo
 
 
 def test_display_demo_writes_files_and_reports_the_match(tmp_path):

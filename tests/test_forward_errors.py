@@ -10,10 +10,10 @@ from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.sensors import SensorArray
 from tactilab.forward.contact import HertzContact, stick_radius
 from tactilab.forward.display_scene import display_gain
-from tactilab.forward.fields import compliance_matrix, output_weights, tensor
+from tactilab.forward.halfspace.fields import compliance_matrix, output_weights, tensor
 from tactilab.forward.finger import BiomimeticFinger
 from tactilab.forward.load_files import read_load
-from tactilab.forward.spectral import _TABLE_CACHE_MAX_ENTRIES, _cached_geometry, _table, _table_uncached
+from tactilab.forward.halfspace.spectral import _TABLE_CACHE_MAX_ENTRIES, _cached_geometry, _table, _table_uncached
 
 
 def test_display_gain_rejects_a_depth_where_no_drive_renders():

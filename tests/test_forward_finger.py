@@ -12,8 +12,8 @@ from tactilab.forward.contact import HertzContact
 from tactilab.forward.exploration import (kernel_identification, linear_kernel, shape_invariance,
                                           texture_spectrum, wiener_kernel)
 from tactilab.forward.finger import BiomimeticFinger, Fingerprint
-from tactilab.forward.halfspace import HalfSpace
-from tactilab.forward.loads import SurfaceLoad
+from tactilab.forward.halfspace.facade import HalfSpace
+from tactilab.forward.halfspace.loads import SurfaceLoad
 from tactilab.forward.scanning import scan_outputs, scan_recording, scanned_surface
 from tactilab.forward.surfaces import Bump, Surface
 

@@ -7,10 +7,10 @@ import warnings
 import numpy as np
 import pytest
 
-from tactilab.forward.halfspace import AccuracyWarning, HalfSpace
-from tactilab.forward.kernels import point_load_stress
-from tactilab.forward.loads import SurfaceLoad
-from tactilab.forward.methods import Spectral, image_error
+from tactilab.forward.halfspace.facade import AccuracyWarning, HalfSpace
+from tactilab.forward.halfspace.kernels import point_load_stress
+from tactilab.forward.halfspace.loads import SurfaceLoad
+from tactilab.forward.halfspace.methods import Spectral, image_error
 
 HS = HalfSpace(E=1e6, nu=0.5)
 
@@ -65,7 +65,7 @@ def test_closed_form_matches_boussinesq_for_a_single_node():
 def test_periodic_images_vanish_at_the_stated_rate(ndim, rate):
     """Periodic (spectral) vs isolated (DC-FFT) on the same isolated load as the period L
     grows: the worst component (in-plane stress of a tangential load) differs by ~ (Z/L)^2
-    in 2-D and ~ Z/L in 1-D (physics.md s5); the image-error estimate bounds it within 20x.
+    in 2-D and ~ Z/L in 1-D (docs/theory.md s5); the image-error estimate bounds it within 20x.
     Normal loads converge faster and stay below the estimate."""
     h, z = 1e-4, 5e-4
     sizes = [32, 64, 128]
@@ -208,7 +208,7 @@ def test_bad_input_names_the_argument():
     with pytest.raises(ValueError, match="depth: must be finite"):
         HS.operator((4, 4), 1e-4, depth=0.0)
     with pytest.raises(ValueError, match="points: method 'dcfft' evaluates on grid nodes"):
-        from tactilab.forward.methods import DCFFT, Problem
+        from tactilab.forward.halfspace.methods import DCFFT, Problem
         DCFFT().compute(Problem(load, np.array([1e-3]), 0.5, np.eye(6), np.array([[0.5e-4, 0.0]]), np.dtype(float)))
 
 
@@ -251,7 +251,7 @@ def test_zero_load_and_extreme_amplitudes(rng):
 def test_spectral_error_estimate_for_periodic_is_rounding():
     load = SurfaceLoad(p=np.ones((4, 4)), spacing=1e-4, periodic=True)
     assert Spectral().error_estimate(
-        __import__("tactilab.forward.methods", fromlist=["Problem"]).Problem(
+        __import__("tactilab.forward.halfspace.methods", fromlist=["Problem"]).Problem(
             load, np.array([1e-3]), 0.5, np.eye(6), None, np.dtype(float))) < 1e-13
 
 

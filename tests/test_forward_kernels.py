@@ -1,7 +1,7 @@
-"""Oracles for the closed-form point and line load kernels (method 1, tactilab.forward.kernels).
+"""Oracles for the closed-form point and line load kernels (method 1, tactilab.forward.halfspace.kernels).
 
-Independent references: the polar Boussinesq and Flamant forms of physics.md section 3, a
-brute-force quadrature of the spectral solution of physics.md section 2 (written here, not
+Independent references: the polar Boussinesq and Flamant forms of docs/theory.md section 3, a
+brute-force quadrature of the spectral solution of docs/theory.md section 2 (written here, not
 shared with the library), equilibrium by finite differences, traction-free surface and total
 force balance by quadrature.
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tactilab.forward.kernels import (
+from tactilab.forward.halfspace.kernels import (
     COMPONENTS,
     direct_stress,
     direct_stress_from_forces,
@@ -20,14 +20,14 @@ from tactilab.forward.kernels import (
     point_green,
     point_load_stress,
 )
-from tactilab.forward.loads import SurfaceLoad
+from tactilab.forward.halfspace.loads import SurfaceLoad
 
 XX, YY, ZZ, YZ, ZX, XY = range(6)
 
 
 # ----------------------------------------------------------------------------- helpers
 def _spectral_point(x, y, z, f, nu, n_rho=240, n_phi=256, umax=60.0):
-    """Stress of a point force by quadrature of physics.md section 2 in polar frequency coordinates.
+    """Stress of a point force by quadrature of docs/theory.md section 2 in polar frequency coordinates.
 
     sigma(x) = (2 pi)^-2 int rho d rho d phi sigma~(rho, phi) exp(i rho (x cos phi + y sin phi)),
     Gauss-Legendre in u = rho z on [0, umax], trapezoid (spectral) in phi.
@@ -61,7 +61,7 @@ def _spectral_point(x, y, z, f, nu, n_rho=240, n_phi=256, umax=60.0):
 
 
 def _spectral_line(x, z, f, nu, n=400, umax=70.0):
-    """Plane-strain stress of a line force: 1-D quadrature of physics.md section 2 (i -> i sign xi)."""
+    """Plane-strain stress of a line force: 1-D quadrature of docs/theory.md section 2 (i -> i sign xi)."""
     fx, fy, fz = f
     u, wu = np.polynomial.legendre.leggauss(n)
     u, wu = 0.5 * umax * (u + 1), 0.5 * umax * wu
@@ -92,7 +92,7 @@ def _divergence(fun, p, h):
 
 # ----------------------------------------------------------------------------- Boussinesq
 def test_boussinesq_matches_polar_forms(rng):
-    """All six components vs sigma_r, sigma_theta, sigma_zz, sigma_rz of physics.md section 3."""
+    """All six components vs sigma_r, sigma_theta, sigma_zz, sigma_rz of docs/theory.md section 3."""
     n = 200
     x, y = rng.uniform(-3e-3, 3e-3, (2, n))
     z = rng.uniform(1e-4, 3e-3, n)
@@ -148,7 +148,7 @@ def test_cerruti_z_components_match_brief(rng):
 @pytest.mark.parametrize("direction", [0, 1, 2])
 @pytest.mark.parametrize("nu", [0.5, 0.2, -0.6])
 def test_point_kernels_match_spectral_quadrature(rng, direction, nu):
-    """Full tensors of Boussinesq and Cerruti vs a brute-force quadrature of physics.md section 2."""
+    """Full tensors of Boussinesq and Cerruti vs a brute-force quadrature of docs/theory.md section 2."""
     f = np.zeros(3)
     f[direction] = 1.0
     for _ in range(3):
@@ -219,7 +219,7 @@ def test_flamant_matches_brief(rng):
 
 @pytest.mark.parametrize("direction", [0, 1, 2])
 def test_line_kernels_match_spectral_quadrature(rng, direction):
-    """Including the antiplane line force fy, which physics.md section 3 does not list."""
+    """Including the antiplane line force fy, which docs/theory.md section 3 does not list."""
     f = np.zeros(3)
     f[direction] = 1.0
     for _ in range(4):
@@ -289,7 +289,7 @@ def test_green_functions_match_full_tensors(rng):
 
 # ----------------------------------------------------------------------------- method 1
 def test_direct_stress_2d_is_the_node_sum(rng, monkeypatch):
-    import tactilab.forward.kernels as kernels
+    import tactilab.forward.halfspace.kernels as kernels
 
     monkeypatch.setattr(kernels, "_PAIR_BUDGET", 7)  # force several blocks
     p, qx, qy = rng.normal(size=(3, 4, 5)) * 1e3

@@ -6,7 +6,7 @@ import re
 
 import xarray as xr
 
-from tactilab.forward.scene_demo import run_demo
+from tactilab.demo.scenes import run_demo
 
 
 def test_scene_demo_writes_report(tmp_path):

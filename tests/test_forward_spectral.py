@@ -1,13 +1,13 @@
-"""Oracles for the periodic spectral solver (physics.md sections 2, 3 and 5)."""
+"""Oracles for the periodic spectral solver (docs/theory.md sections 2, 3 and 5)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from tactilab.forward.halfspace import HalfSpace
-from tactilab.forward.loads import SurfaceLoad
-from tactilab.forward.spectral import VOIGT, periodic_stress, pressure_from_deflection, transfer, wavenumbers
+from tactilab.forward.halfspace.facade import HalfSpace
+from tactilab.forward.halfspace.loads import SurfaceLoad
+from tactilab.forward.halfspace.spectral import VOIGT, periodic_stress, pressure_from_deflection, transfer, wavenumbers
 
 I6 = np.eye(6)
 
@@ -17,7 +17,7 @@ def _grid(n, h):
 
 
 def _plane_wave_expected(x, y, z, kvec, P, Q, nu):
-    """Stress of p = P cos(k.r), q = Q cos(k.r) from the 1-D closed forms of physics.md s3
+    """Stress of p = P cos(k.r), q = Q cos(k.r) from the 1-D closed forms of docs/theory.md s3
     (plus antiplane shear) in the wave's frame, rotated to (x, y). Shape (6, *x.shape)."""
     k = np.hypot(*kvec)
     c, s = kvec / k
@@ -81,7 +81,7 @@ def test_one_dimensional_sinusoids_match_physics_md(rng):
 
 
 def test_zero_mode_carries_the_total_load():
-    """rho = 0 limits of physics.md s2: 3-D sigma_xx = sigma_yy = -(1 + 2 nu) P / 2; 1-D sigma_xx = -P."""
+    """rho = 0 limits of docs/theory.md s2: 3-D sigma_xx = sigma_yy = -(1 + 2 nu) P / 2; 1-D sigma_xx = -P."""
     P, Qx, Qy, nu = 2e3, 300.0, -150.0, 0.3
     load = SurfaceLoad(p=np.full((8, 8), P), qx=np.full((8, 8), Qx), qy=np.full((8, 8), Qy), spacing=1e-4,
                        periodic=True)

@@ -39,7 +39,7 @@ def test_rigid_surface_pressure_anisotropic_spacing():
 
 
 def test_sliding_sinusoid_strain_matches_physics_4a():
-    """The pressure of a sliding sinusoid, fed to the sinusoidal-load closed forms (physics.md 3)
+    """The pressure of a sliding sinusoid, fed to the sinusoidal-load closed forms (docs/theory.md 3)
     and Hooke's law (nu = 1/2, plane strain), gives the 4a strain, independent of E."""
     p, A, Z, n = 2e-3, 10e-6, 1e-3, 128
     dx = p / 32

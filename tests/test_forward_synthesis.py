@@ -1,11 +1,11 @@
-"""Tactile synthesis design (physics.md 4a): objective, optimiser, matching traction.
+"""Tactile synthesis design (docs/theory.md 4a): objective, optimiser, matching traction.
 
 Oracles: a brute-force dense scan of J(d); scipy.integrate.quad for the objective's integrals;
 exact scale invariance (J(d; Z, w) = J(d/Z; 1, w/Z) / Z, so with w proportional to Z the optimum
 d/Z is constant); the strain of the driven array computed from the tractor closed forms
 (Flamant) against the sliding grating's closed form, both at the peak and in RMS over space
 and time. The matching formula Q = 8 sqrt(2) pi^3 A Z E e^{-2 pi Z/p} / (3 k2' p^2) is the one
-of Wang & Hayward's tactile synthesis analysis as restated in physics.md 4a.
+of Wang & Hayward's tactile synthesis analysis as restated in docs/theory.md 4a.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
-"""Tractor pairs, arrays, drives and the sliding sinusoid (physics.md 4a).
+"""Tractor pairs, arrays, drives and the sliding sinusoid (docs/theory.md 4a).
 
-Oracles: Flamant's tangential line load (tactilab.forward.kernels, an independent
-implementation of physics.md section 3) summed over tractors; physics.md's literal Phi, Psi and
+Oracles: Flamant's tangential line load (tactilab.forward.halfspace.kernels, an independent
+implementation of docs/theory.md section 3) summed over tractors; docs/theory.md's literal Phi, Psi and
 sliding-sinusoid formulas written out here; the periodic spectral solver with the
 prescribed-displacement pressure P~ = E rho H~ / (2 (1 - nu^2)); fine quadrature of line loads
 for footprints; the Cerruti point force integrated over long patches for the 3-D display.
@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.forward import spectral, tractor_display, tractors
-from tactilab.forward.kernels import line_load_stress
-from tactilab.forward.loads import SurfaceLoad
+from tactilab.forward import tractor_display, tractors
+from tactilab.forward.halfspace import spectral
+from tactilab.forward.halfspace.kernels import line_load_stress
+from tactilab.forward.halfspace.loads import SurfaceLoad
 
 Z = 1.25e-3
 E = 200e3
@@ -88,7 +89,7 @@ def test_array_is_superposition_of_signed_tractors(pairs):
     scale = 3 / (np.pi * E)
     np.testing.assert_allclose(strain[:, 0], scale * s_phi, atol=1e-10 * scale * np.abs(s_phi).max())
     np.testing.assert_allclose(2 * strain[:, 4], scale * s_psi, atol=1e-10 * scale * np.abs(s_psi).max())
-    if pairs % 2 == 1:  # physics.md's sum over n of Phi(x - 4 n d)
+    if pairs % 2 == 1:  # docs/theory.md's sum over n of Phi(x - 4 n d)
         n = np.arange(pairs) - (pairs - 1) // 2
         np.testing.assert_allclose(s_phi, sum(phi_literal(x - 4 * k * d, d, Z) for k in n),
                                    atol=1e-10 * np.abs(s_phi).max())
@@ -119,7 +120,7 @@ def test_sliding_sinusoid_closed_form_and_spectral_solution():
     k = 2 * np.pi / pitch
     big_k = k * k * amplitude * Z * np.exp(-k * Z)
     phase = k * x
-    # physics.md 4a (engineering shear): eps = K [sin, 0, -sin, 0, 2 cos, 0]
+    # docs/theory.md 4a (engineering shear): eps = K [sin, 0, -sin, 0, 2 cos, 0]
     engineering = tractors.to_engineering_shear(strain)
     expected = big_k * np.stack([np.sin(phase), 0 * phase, -np.sin(phase), 0 * phase, 2 * np.cos(phase),
                                  0 * phase], axis=-1)
@@ -190,7 +191,7 @@ def test_long_patches_in_3d_tend_to_the_plane_strip():
 
 
 def test_small_patch_is_a_point_force_and_quadrature_converges():
-    from tactilab.forward.kernels import point_load_stress
+    from tactilab.forward.halfspace.kernels import point_load_stress
 
     points = np.array([[1e-3, 0.5e-3, 2e-3], [0.0, 0.0, 1e-3]])
     size = 1e-6  # finite-size correction (size / R)^2 ~ 2e-7
@@ -283,7 +284,7 @@ def test_patch_errors(args, match):
 @pytest.mark.parametrize("method", ["closed_form", "dcfft"])
 def test_footprint_row_matches_the_halfspace_solver(method):
     """Second method: the lead's HalfSpace on a 1-D grid of strip tractions (cell edges on the strip edges)."""
-    from tactilab.forward.halfspace import HalfSpace
+    from tactilab.forward.halfspace.facade import HalfSpace
 
     width, cells = 0.6e-3, 24
     h = width / cells
@@ -306,7 +307,7 @@ def test_footprint_row_matches_the_halfspace_solver(method):
 
 def test_patch_in_3d_matches_the_halfspace_dcfft_solver():
     """Second method for the 3-D patch integral: the lead's HalfSpace (DC-FFT) on a 2-D grid."""
-    from tactilab.forward.halfspace import HalfSpace
+    from tactilab.forward.halfspace.facade import HalfSpace
 
     depth, h, n = 1e-3, 0.05e-3, 128
     width, length = 0.6e-3, 1.0e-3  # 12 x 20 cells; patch edges on cell boundaries

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-LAYER = {"data_schemas": 0, "forward": 1, "inversion": 2, "experiments": 3, "cli": 4}
+LAYER = {"data_schemas": 0, "forward": 1, "inversion": 2, "experiments": 3, "demo": 4, "cli": 5}
 
 
 def imported_parts(source: str, part: str, module_parts: tuple[str, ...]) -> set[str]:
@@ -59,3 +59,39 @@ def test_checker_catches_a_backward_import():
     assert imported_parts(src, "forward", ()) == {"experiments", "cli"}
     assert imported_parts("from ..x import y", "forward", ()) == {"<relative import leaving its part>"}
     assert imported_parts("from .x import y", "forward", ()) == set()
+
+
+def door_breaches(source: str, in_forward: bool) -> set[str]:
+    """Imports of the solver's inner modules (``forward/halfspace/*``) from outside the solver."""
+    found = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom):
+            if node.level == 1 and in_forward and (node.module or "").startswith("halfspace."):
+                found.add(f".{node.module}")
+            elif node.level == 0 and (node.module or "").startswith("tactilab.forward.halfspace."):
+                found.add(node.module)
+        elif isinstance(node, ast.Import):
+            found |= {a.name for a in node.names if a.name.startswith("tactilab.forward.halfspace.")}
+    return found
+
+
+def _library_modules_outside_the_solver():
+    for part in LAYER:
+        for path in sorted((ROOT / part).rglob("*.py")):
+            if (ROOT / "forward" / "halfspace") not in path.parents:
+                yield part, path
+
+
+@pytest.mark.parametrize("part,path", list(_library_modules_outside_the_solver()), ids=lambda v: str(v))
+def test_the_solver_has_one_door(part, path):
+    breaches = door_breaches(path.read_text(), part == "forward")
+    assert not breaches, (
+        f"{path}: import the solver from tactilab.forward.halfspace (its door), not {sorted(breaches)}"
+    )
+
+
+def test_door_checker_catches_a_breach():
+    assert door_breaches("from .halfspace.kernels import point_green", True) == {".halfspace.kernels"}
+    assert door_breaches("from tactilab.forward.halfspace.spectral import transfer", False) == {
+        "tactilab.forward.halfspace.spectral"}
+    assert door_breaches("from .halfspace import HalfSpace", True) == set()

@@ -6,7 +6,7 @@ import pathlib
 
 
 def test_run_demo(tmp_path: pathlib.Path):
-    from tactilab.inversion.demo import run_demo
+    from tactilab.demo.inversion import run_demo
 
     lines = list(run_demo(tmp_path, progress=False))
     text = "\n".join(lines)

@@ -221,7 +221,7 @@ def test_irregular_sensors_with_forward_operator(rng):
     iterative Gaussian mean = dense mean, Monte Carlo std close; discrepancy lam by CG = closed form."""
     import warnings
 
-    from tactilab.forward.halfspace import HalfSpace
+    from tactilab.forward.halfspace.facade import HalfSpace
     from tactilab.inversion.linear import invert_linear
 
     sensors = np.sort(rng.uniform(-2e-3, 2e-3, 20))

@@ -1,7 +1,7 @@
 """Linear inversion: operators, penalties, paths of invert_linear, criteria, TV.
 
 Oracles: dense normal-equation solves, agreement between the fft and dense paths,
-a closed-form sinusoid response (physics.md section 3), and dot tests for every operator.
+a closed-form sinusoid response (docs/theory.md section 3), and dot tests for every operator.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ def problem(n=128, depth=DEPTH, noise=5.0, rng=None):
 
 
 def test_multiplier_matches_closed_form_sinusoid():
-    """p = P cos kx gives sigma_zz = -P (1 + kZ) e^{-kZ} cos kx (physics.md section 3)."""
+    """p = P cos kx gives sigma_zz = -P (1 + kZ) e^{-kZ} cos kx (docs/theory.md section 3)."""
     n = 64
     op = FourierDiagonal(normal_pressure_to_szz_multiplier(n, DX, DEPTH), DX)
     x = (np.arange(n) - n // 2) * DX
@@ -299,7 +299,7 @@ def test_tv_dense_path_and_validation(rng):
 def test_lead_transfer_and_halfspace_operator(rng):
     """The forward model's exact multiplier equals the closed form; its LinearOperator inverts on
     the iterative path like the fft path on the same periodic problem."""
-    from tactilab.forward.halfspace import HalfSpace
+    from tactilab.forward.halfspace.facade import HalfSpace
     from tactilab.inversion.operators import halfspace_fourier_operator
 
     n = 64

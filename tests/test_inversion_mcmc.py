@@ -21,7 +21,7 @@ def small_model(n_times=15, components=("zz",)):
 
 
 def test_design_matches_boussinesq_cerruti_closed_form():
-    """sigma_zz = S p [ -3 z^3 / (2 pi R^5) + mu (-3 x z^2 / (2 pi R^5)) ] (physics.md section 3)."""
+    """sigma_zz = S p [ -3 z^3 / (2 pi R^5) + mu (-3 x z^2 / (2 pi R^5)) ] (docs/theory.md section 3)."""
     model = small_model(n_times=7)
     g = model.design(TRUTH)[0].reshape(model.data_shape)
     from tactilab.forward.contact import HertzContact

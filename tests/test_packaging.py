@@ -6,7 +6,7 @@ import tomllib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PARTS = ["data_schemas", "forward", "inversion", "experiments", "cli"]
+PARTS = ["data_schemas", "forward", "inversion", "experiments", "demo", "cli"]
 
 
 def _pyproject() -> dict:

@@ -12,8 +12,8 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from .files import list_examples, load_example
-from .scene import Scene
+from tactilab.data_schemas.files import list_examples, load_example
+from tactilab.data_schemas.scene import Scene
 
 
 def _plot_scene(scene: Scene, path: pathlib.Path) -> None:

@@ -1,4 +1,4 @@
-"""Demo section: a biomimetic finger scanning a surface with one small defect (physics.md 4b).
+"""Demo section: a biomimetic finger scanning a surface with one small defect (docs/theory.md 4b).
 
 The scene: an elastomer fingertip (E = 2 MPa, nu = 0.5, radius 100 mm) pressed at 0.8 N
 (Hertz contact 5.6 mm across) slides with mu = 0.5 at 20 mm/s over a 0.3 mm, 30 um bump;
@@ -21,15 +21,15 @@ from tactilab.data_schemas.scene import Contact, Scan, Scene
 from tactilab.data_schemas.sensors import SensorArray
 from tactilab.data_schemas.surface import IsolatedDefect
 
-from .contact import HertzContact
-from .exploration import kernel_identification, shape_invariance, texture_spectrum
-from .finger import BiomimeticFinger, Fingerprint
-from .finger_plots import plot_fingerprint_spectra, plot_wiener_kernels
-from .halfspace import HalfSpace
-from .loads import SurfaceLoad
-from .scanning import scene_finger
-from .scene_simulation import simulate_scene
-from .surfaces import Bump
+from tactilab.forward.contact import HertzContact
+from tactilab.forward.exploration import kernel_identification, shape_invariance, texture_spectrum
+from tactilab.forward.finger import BiomimeticFinger, Fingerprint
+from tactilab.forward.finger_plots import plot_fingerprint_spectra, plot_wiener_kernels
+from tactilab.forward.halfspace import HalfSpace
+from tactilab.forward.halfspace import SurfaceLoad
+from tactilab.forward.scanning import scene_finger
+from tactilab.forward.scene_simulation import simulate_scene
+from tactilab.forward.surfaces import Bump
 
 
 def demo_scene() -> Scene:
@@ -72,7 +72,7 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
     """Run the finger-scan demo, writing into ``report_dir / "finger_scan"``; yield report lines."""
     out = pathlib.Path(report_dir) / "finger_scan"
     scene = demo_scene()
-    yield "== biomimetic finger scanning a small defect (physics.md 4b) =="
+    yield "== biomimetic finger scanning a small defect (docs/theory.md 4b) =="
     yield from simulate_scene(scene, out, rng=np.random.default_rng(20261122), progress=progress)
     err = receptive_field_check(scene)
     yield (f"receptive field (interfacial stress x point-load response) vs full forward solve with the "

@@ -1,7 +1,7 @@
 """The closed-form Green's functions themselves: Boussinesq, Cerruti, Flamant, antiplane.
 
 Formulas only, per unit force and without input checks; the validated public functions
-are in :mod:`tactilab.forward.kernels` (conventions and limits are documented there).
+are in :mod:`tactilab.forward.halfspace.kernels` (conventions and limits are documented there).
 Geometry is passed in as direction cosines ``l, m, n = x/R, y/R, z/R`` and ``g = 1/(2 pi R^2)``
 (point) or ``l, n = x/r, z/r`` and ``g = 1/(pi r)`` (line), so that every stress is ``F g``
 times a bounded polynomial-like function of the direction: stable at any distance, exact at
@@ -41,7 +41,7 @@ def boussinesq(comp: str, l, m, n, g, nu: float):
         return -3.0 * l * n * n * g
     if comp == "yz":
         return -3.0 * m * n * n * g
-    # In-plane: sigma_r and sigma_theta of physics.md section 3 with the removable r -> 0
+    # In-plane: sigma_r and sigma_theta of docs/theory.md section 3 with the removable r -> 0
     # singularity resolved: (1 - z/R)/r^2 = 1/(R (R + z)) and (sigma_r - sigma_theta)/r^2 =
     # [(1 - 2 nu)(2R + z)/(R^3 (R + z)^2) - 3 z/R^5] / (2 pi) per unit force.
     one_n = 1.0 + n

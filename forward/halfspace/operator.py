@@ -6,7 +6,7 @@ sensors and one depth, flattened from ``dimsd = (n_comp, n_sensors)``. Batched o
 frames through ``matmat`` (columns are frames).
 
 Paths (chosen from the sensors; the attribute ``path`` says which):
-- ``"fft-periodic"``: the grid is one period; exact spectral multipliers (physics.md s2).
+- ``"fft-periodic"``: the grid is one period; exact spectral multipliers (docs/theory.md s2).
 - ``"fft-padded"``: isolated load; zero-padded convolution with the point (line) kernel
   sampled at depth (DC-FFT). Used when the sensors are the grid nodes or a subset of them.
 - ``"dense"``: sensors off the grid; the kernel matrix from the closed forms (isolated), or

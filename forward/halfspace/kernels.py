@@ -1,6 +1,6 @@
 """Closed-form stress of concentrated surface loads on an elastic half-space (method 1).
 
-Conventions (physics.md section 1): x, y on the surface, z = depth into the skin (z > 0 inside).
+Conventions (docs/theory.md section 1): x, y on the surface, z = depth into the skin (z > 0 inside).
 A force ``(fx, fy, fz)`` is applied TO the skin surface: ``fz > 0`` pushes into the skin,
 ``fx``, ``fy`` act along +x, +y. Stress is in Pa, tension positive, Voigt order
 ``COMPONENTS = ("xx", "yy", "zz", "yz", "zx", "xy")`` (tensor components, not engineering shear).
@@ -13,7 +13,7 @@ exact). Line forces (N/m along y, plane strain): Flamant (normal, tangential, wi
 ``sigma_yy = nu (sigma_xx + sigma_zz)``) and the antiplane line force ``fy`` (``sigma_yz``,
 ``sigma_xy`` only), written with ``l, n = x/r, z/r`` as ``F/r`` times a bounded function.
 
-The formulas themselves live in :mod:`tactilab.forward.kernel_formulas`; this module adds
+The formulas themselves live in :mod:`tactilab.forward.halfspace.kernel_formulas`; this module adds
 input checks, the full-tensor functions, and method 1 (direct summation over load nodes).
 
 Limits (documented, and tested):
@@ -355,7 +355,7 @@ def direct_stress(load: SurfaceLoad, points: ArrayLike, nu: float = 0.5,
 
     Each non-zero node carries its traction times the cell area (``dx * dy``; ``dx`` in 1-D)
     as a concentrated force at the node (``x_j = (j - nx // 2) dx``): the same sampled load
-    that the DC-FFT convolution (``tactilab.forward.dcfft``) sees, so the two agree to
+    that the DC-FFT convolution (``tactilab.forward.halfspace.dcfft``) sees, so the two agree to
     rounding. Cost O(n_points x n_loaded_nodes); memory is bounded by blocking.
 
     Parameters

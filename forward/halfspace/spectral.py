@@ -1,4 +1,4 @@
-"""Exact periodic spectral solution of the elastic half-space (physics.md section 2).
+"""Exact periodic spectral solution of the elastic half-space (docs/theory.md section 2).
 
 For each Fourier mode of the surface tractions the stress at depth z is
 
@@ -7,7 +7,7 @@ For each Fourier mode of the surface tractions the stress at depth z is
 where the depth-independent coefficient spectra ``E0`` and ``E1`` are linear in the load
 spectra (P~, Qx~, Qy~) and depend only on the direction (c, s) = (xi, eta)/rho and nu.
 They are written out per Voigt component in :func:`_table_uncached`; the rotated-frame
-formulas of physics.md were multiplied out once, so no per-mode rotation is done.
+formulas of docs/theory.md were multiplied out once, so no per-mode rotation is done.
 
 Numerical care:
 - ``exp(-rho z)`` is computed directly (never as a ratio), so rho z up to 1e4 and beyond
@@ -117,7 +117,7 @@ def _table(g: _Geometry, nu: float, component: str):
 
 
 def _table_uncached(g: _Geometry, nu: float, component: str):
-    """The coefficient table of one stress component (physics.md s2, multiplied out).
+    """The coefficient table of one stress component (docs/theory.md s2, multiplied out).
 
     Returns a list of ``(which, load, kind, coef)``: the component's spectrum is
     E0 e^{-rho z} + E1 (rho z) e^{-rho z} with ``E_which = sum coef * L~`` over the load
@@ -351,7 +351,7 @@ def transfer(xi: np.ndarray, eta: np.ndarray | None, depth: float, nu: float,
 def pressure_from_deflection(deflection: np.ndarray, spacing, young_modulus: float, nu: float) -> SurfaceLoad:
     """Pressure that imposes a normal surface deflection on a frictionless half-space.
 
-    Uses P~ = E rho H~ / (2 (1 - nu^2)) (physics.md section 2); periodic in the grid.
+    Uses P~ = E rho H~ / (2 (1 - nu^2)) (docs/theory.md section 2); periodic in the grid.
 
     Parameters
     ----------

@@ -14,16 +14,16 @@ E_SKIN, NU, DEPTH, DX, N = 1e6, 0.5, 1e-3, 50e-6, 1024
 
 def _profile_operator():
     """Plane strain: rigid surface height H(x) sliding frictionless on the skin -> sigma_zz at depth."""
-    from .operators import rigid_surface_height_operator
+    from tactilab.inversion.operators import rigid_surface_height_operator
 
     return rigid_surface_height_operator(N, DX, DEPTH, E_SKIN, NU)
 
 
 def _profile_section(out: pathlib.Path, rng) -> Iterator[str]:
-    from .criteria import plot_criteria
-    from .gaussian import StationaryPrior, gaussian_posterior
-    from .linear import invert_linear
-    from .plots import plot_profile
+    from tactilab.inversion.criteria import plot_criteria
+    from tactilab.inversion.gaussian import StationaryPrior, gaussian_posterior
+    from tactilab.inversion.linear import invert_linear
+    from tactilab.inversion.plots import plot_profile
 
     op = _profile_operator()
     x = (np.arange(N) - N // 2) * DX
@@ -74,8 +74,8 @@ def _defect_section(out: pathlib.Path, rng, progress: bool) -> Iterator[str]:
     from tactilab.data_schemas.sensors import SensorArray
     from tactilab.forward.scene_simulation import read_recording, simulate_scene
 
-    from .plots import plot_corner
-    from .scene_inversion import invert_defect_position
+    from tactilab.inversion.plots import plot_corner
+    from tactilab.inversion.scene_inversion import invert_defect_position
 
     base = load_example("fingertip_defect")
     sensors = SensorArray(positions_m=np.array([[x, y] for y in (-1e-3, 0.0, 1e-3) for x in (-1e-3, 0.0, 1e-3)]),

@@ -168,7 +168,7 @@ class HalfSpace:
                  loads=("p",), quantity: str = "stress", periodic: bool = False):
         """The linear load-to-sensor map as a ``scipy.sparse.linalg.LinearOperator``.
 
-        See :class:`tactilab.forward.operator.LoadToSensor` for the arguments.
+        See :class:`tactilab.forward.halfspace.operator.LoadToSensor` for the arguments.
         """
         from .operator import LoadToSensor
 

@@ -102,7 +102,7 @@ class Method(ABC):
 
 
 class Spectral(Method):
-    """Periodic FFT solution (physics.md s2): exact for periodic loads; for an isolated load
+    """Periodic FFT solution (docs/theory.md s2): exact for periodic loads; for an isolated load
     its periodic images add an error ~ (Z/L)^2 in 2-D and ~ Z/L in 1-D."""
 
     name = "spectral"

@@ -1,6 +1,6 @@
 """Demo: a tractor display rendering a virtual grating next to the real sliding grating.
 
-Designs the tractor spacing for receptors at 1.25 mm (physics.md 4a), drives a one-row
+Designs the tractor spacing for receptors at 1.25 mm (docs/theory.md 4a), drives a one-row
 display as a travelling wave that follows a virtual sinusoid, and compares the strain at depth
 with that of the real grating sliding over the finger. Also computes the same drive on a
 STReSS2-like 6 x 10 array of finite patches in 3-D, to measure the plane-strain approximation.
@@ -15,9 +15,9 @@ import numpy as np
 
 from tactilab.data_schemas.display import DisplayDescription
 
-from .synthesis import matching_line_load, optimal_half_spacing
-from .tractor_display import display_patch_strain_3d, render_virtual_surface
-from .tractors import sliding_sinusoid_strain
+from tactilab.forward.synthesis import matching_line_load, optimal_half_spacing
+from tactilab.forward.tractor_display import display_patch_strain_3d, render_virtual_surface
+from tactilab.forward.tractors import sliding_sinusoid_strain
 
 DEPTH = 1.25e-3  # m, receptor depth of the demo
 AMPLITUDE = 50e-6  # m, virtual grating amplitude

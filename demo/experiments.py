@@ -11,20 +11,18 @@ BIDS-style files, and the staircase track is plotted against the observer's true
 
 from __future__ import annotations
 
-import math
 import pathlib
 from collections.abc import Iterator
 
-from scipy.special import ndtri
 
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
 
-from .export import export_session
-from .recording import SessionLog
-from .responses import SimulatedObserver
-from .runner import new_session
-from .simulated_display import SimulatedDisplay
+from tactilab.experiments.export import export_session
+from tactilab.experiments.recording import SessionLog
+from tactilab.experiments.responses import SimulatedObserver, true_threshold_2ifc
+from tactilab.experiments.runner import new_session
+from tactilab.experiments.simulated_display import SimulatedDisplay
 
 DEMO_PROTOCOL = {
     "name": "gratingdetection", "seed": 20261122, "iti_s": "500ms",
@@ -36,17 +34,6 @@ DEMO_PROTOCOL = {
         {"start": "1um", "step_sizes": [0.3, 0.15], "min_level": "0.2um", "max_level": "50um", "max_trials": 20}]},
 }
 
-
-def true_threshold_2ifc(observer: SimulatedObserver, protocol: Protocol, p_correct: float = 2 ** -0.5) -> float:
-    """Amplitude (m) at which the observer is correct with ``p_correct`` in 2IFC against a blank.
-
-    Signal detection: P(correct) = Phi(d / sqrt(2)), d = (s / s_threshold)^exponent, and the
-    sinusoid's strain s = sqrt(2) (2 pi / p)^2 A Z exp(-2 pi Z / p) is linear in A.
-    """
-    d = math.sqrt(2) * float(ndtri(p_correct))
-    strain = observer.threshold_strain * d ** (1 / observer.exponent)
-    p, z = protocol.stimulus.pitch_m, observer.depth_m
-    return strain / (math.sqrt(2) * (2 * math.pi / p) ** 2 * z * math.exp(-2 * math.pi * z / p))
 
 
 def plot_track(trials, truth_m: float, estimate_m: float, path: pathlib.Path) -> None:

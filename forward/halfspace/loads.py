@@ -1,6 +1,6 @@
 """Surface loads on a regular grid: the tractions applied TO the skin surface.
 
-Conventions (physics.md section 1): ``p`` is the normal pressure, positive when it pushes into
+Conventions (docs/theory.md section 1): ``p`` is the normal pressure, positive when it pushes into
 the skin; ``qx`` and ``qy`` are the tangential tractions along +x and +y. All in Pa.
 A 1-D load (arrays of shape ``(nx,)``) is a plane-strain load, independent of y.
 Grid nodes sit at ``x_j = (j - nx // 2) * dx`` (and likewise in y), so index ``nx // 2``

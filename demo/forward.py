@@ -13,10 +13,10 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from .contact import HertzContact, interfacial_traction
-from .halfspace import HalfSpace
-from .loads import SurfaceLoad
-from .plots import plot_field
+from tactilab.forward.contact import HertzContact, interfacial_traction
+from tactilab.forward.halfspace import HalfSpace
+from tactilab.forward.halfspace import SurfaceLoad
+from tactilab.forward.plots import plot_field
 
 DEPTHS_M = (1.0e-3, 2.0e-3)  # receptor depths (Merkel ~1 mm, Ruffini/Meissner deeper)
 

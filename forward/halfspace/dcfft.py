@@ -6,7 +6,7 @@ closed-form point kernel (Boussinesq/Cerruti; the line kernel, Flamant/antiplane
 plane-strain load) sampled on the ``(2 ny - 1) x (2 nx - 1)`` grid of node offsets at depth Z.
 The convolution is computed with real FFTs on a zero-padded grid of at least ``2 n - 1``
 points per axis, so there are no periodic images: the result equals the direct sum over nodes
-(``tactilab.forward.kernels.direct_stress``) to rounding. Each kernel is even or odd in x and
+(``tactilab.forward.halfspace.kernels.direct_stress``) to rounding. Each kernel is even or odd in x and
 in y, so its spectrum is a real cosine/sine transform (DCT-I/DST-I) of the quadrant of
 non-negative offsets: a quarter of the data of a full FFT.
 
@@ -288,7 +288,7 @@ def dcfft_stress(load: SurfaceLoad, depths: Sequence[float], nu: float = 0.5,
 def _alias_terms(s: np.ndarray, c: float) -> np.ndarray:
     """Error per alias wavenumber k (s = |k| Z) for a load of Gaussian width w, c = (Z / w)^2.
 
-    Every entry of the half-space transfer function of physics.md section 2 is bounded, per
+    Every entry of the half-space transfer function of docs/theory.md section 2 is bounded, per
     unit load, by B(s) = (2 + s) exp(-s). A load of width w spreads its spectrum over
     |kappa| ~ 1/w, and the alias term is the average of B(|k - kappa| Z) over that spectrum:
     for a Gaussian load this tilts the exponent, giving (2 + s - c) exp(-s + c/2) while

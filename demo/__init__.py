@@ -1,0 +1,13 @@
+"""tactilab.demo: the end-to-end demonstration behind ``tactilab demo``.
+
+Each module is one section of the report, in pipeline order (:data:`SECTIONS`); each has
+``run_demo(report_dir, progress) -> Iterator[str]`` that writes its files and yields the lines
+to print.
+"""
+
+from . import display, experiments, forward, inversion, records, scenes
+
+#: The report's sections in pipeline order.
+SECTIONS = (records, forward, scenes, display, inversion, experiments)
+
+__all__ = ["SECTIONS"]

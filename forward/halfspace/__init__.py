@@ -1,0 +1,51 @@
+"""The elastic half-space solver: surface tractions to stress and strain at depth.
+
+This package is the solver's one door. Scene, display and synthesis code in
+:mod:`tactilab.forward` imports from here, never from the modules inside (a test enforces it).
+The theory is in ``docs/theory.md``.
+"""
+
+from .facade import AccuracyWarning, FieldResult, HalfSpace
+from .fields import (
+    INVARIANTS,
+    SHEAR_CONVENTION,
+    compliance_matrix,
+    invariants,
+    output_weights,
+    to_engineering,
+)
+from .kernels import (
+    COMPONENTS,
+    line_green,
+    line_load_stress,
+    point_green,
+    point_load_stress,
+)
+from .loads import LOAD_COMPONENTS, SurfaceLoad
+from .methods import METHODS, Method
+from .operator import LoadToSensor
+from .spectral import pressure_from_deflection, transfer
+
+__all__ = [
+    "AccuracyWarning",
+    "COMPONENTS",
+    "FieldResult",
+    "HalfSpace",
+    "INVARIANTS",
+    "LOAD_COMPONENTS",
+    "LoadToSensor",
+    "METHODS",
+    "Method",
+    "SHEAR_CONVENTION",
+    "SurfaceLoad",
+    "compliance_matrix",
+    "invariants",
+    "line_green",
+    "line_load_stress",
+    "output_weights",
+    "point_green",
+    "point_load_stress",
+    "pressure_from_deflection",
+    "to_engineering",
+    "transfer",
+]
