@@ -1,1 +1,49 @@
-"""tactilab.data_schemas."""
+"""tactilab.data_schemas: validated records shared by all parts, and file I/O at the edge.
+
+Records are pydantic models in SI units; files at the edge carry units (``1.25mm``, ``20kPa``)
+and are converted once. Import records from here::
+
+    from tactilab.data_schemas import Scene, SensorArray, Protocol, load_example
+"""
+
+from ._lazy import attach, package_version
+
+#: public name -> module that defines it
+_EXPORTS = {
+    "Record": "base",
+    "DisplayDescription": "display",
+    "Stimulus": "experiment",
+    "Task": "experiment",
+    "Protocol": "experiment",
+    "ConstantStimuliConfig": "experiment_procedures",
+    "StaircaseConfig": "experiment_procedures",
+    "StaircaseTrack": "experiment_procedures",
+    "PsiConfig": "experiment_procedures",
+    "TrialRecord": "experiment_records",
+    "Session": "experiment_records",
+    "trials_to_dataframe": "experiment_records",
+    "trials_from_dataframe": "experiment_records",
+    "load_scene": "files",
+    "list_examples": "files",
+    "example_path": "files",
+    "load_example": "files",
+    "read_toml_record": "files",
+    "read_json_record": "files",
+    "SkinMaterial": "material",
+    "Recording": "recording",
+    "Contact": "scene",
+    "Scan": "scene",
+    "Scene": "scene",
+    "SensorArray": "sensors",
+    "SensorGrid": "sensors",
+    "FlatSurface": "surface",
+    "SinusoidalGrating": "surface",
+    "SquareWaveGrating": "surface",
+    "IsolatedDefect": "surface",
+    "HeightMap": "surface",
+    "to_si": "units",
+}
+
+__version__ = package_version()
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = attach(__name__, _EXPORTS)

@@ -1,1 +1,42 @@
-"""tactilab.experiments."""
+"""tactilab.experiments: psychophysics on tactile displays, recorded durably.
+
+Protocols, procedures (constant stimuli, staircases, psi), displays (simulated, UDP, with safety
+limits), responses (terminal, simulated observer), durable session recording, resume and export.
+Import from here::
+
+    from tactilab.experiments import new_session, resume_session, export_session, SimulatedObserver
+"""
+
+from tactilab.data_schemas._lazy import attach, package_version
+
+#: public name -> module that defines it
+_EXPORTS = {
+    "new_session": "runner",
+    "RunResult": "runner",
+    "Runner": "runner",
+    "resume_session": "resume",
+    "session_status": "resume",
+    "replay_session": "resume",
+    "export_session": "export",
+    "session_dataframe": "export",
+    "SessionLog": "recording",
+    "RecordingError": "recording",
+    "SessionLockedError": "recording",
+    "Display": "display",
+    "DisplayError": "display",
+    "SafeDisplay": "safety",
+    "SimulatedDisplay": "simulated_display",
+    "UdpDisplay": "udp",
+    "emulate": "emulator",
+    "SimulatedObserver": "responses",
+    "TerminalResponses": "responses",
+    "true_threshold_2ifc": "responses",
+    "ConstantStimuli": "procedures",
+    "Staircase": "procedures",
+    "Psi": "psi",
+    "make_procedure": "procedures",
+}
+
+__version__ = package_version()
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = attach(__name__, _EXPORTS)

@@ -1,1 +1,74 @@
-"""tactilab.forward."""
+"""tactilab.forward: skin mechanics, from surface tractions to strain and stress at receptor depth.
+
+The elastic half-space solver (:class:`HalfSpace`, :class:`SurfaceLoad`, the operator and the
+kernels) lives in :mod:`tactilab.forward.halfspace`; touch scenes (contacts, surfaces, the
+biomimetic finger), tractor displays and tactile synthesis are built on it. Import from here::
+
+    from tactilab.forward import HalfSpace, SurfaceLoad, HertzContact
+"""
+
+from tactilab.data_schemas._lazy import attach, package_version
+
+#: public name -> module that defines it
+_EXPORTS = {
+    # the solver (its own door)
+    "HalfSpace": "halfspace",
+    "SurfaceLoad": "halfspace",
+    "FieldResult": "halfspace",
+    "AccuracyWarning": "halfspace",
+    "LoadToSensor": "halfspace",
+    "METHODS": "halfspace",
+    "COMPONENTS": "halfspace",
+    "LOAD_COMPONENTS": "halfspace",
+    "SHEAR_CONVENTION": "halfspace",
+    "point_green": "halfspace",
+    "line_green": "halfspace",
+    "point_load_stress": "halfspace",
+    "line_load_stress": "halfspace",
+    "pressure_from_deflection": "halfspace",
+    "to_engineering": "halfspace",
+    "invariants": "halfspace",
+    # contacts and surfaces
+    "HertzContact": "contact",
+    "interfacial_traction": "contact",
+    "stick_radius": "contact",
+    "Surface": "surfaces",
+    "Bump": "surfaces",
+    "Step": "surfaces",
+    "RandomSquareWaveGrating": "surfaces",
+    "rigid_surface_pressure": "surfaces",
+    # the biomimetic finger and scans
+    "BiomimeticFinger": "finger",
+    "Fingerprint": "finger",
+    "scan_recording": "scanning",
+    "scene_finger": "scanning",
+    "scene_recording": "scanning",
+    "simulate_scene": "scene_simulation",
+    "read_recording": "scene_simulation",
+    "write_recording": "scene_simulation",
+    "read_load": "load_files",
+    "write_field": "load_files",
+    "plot_field": "plots",
+    "wiener_kernel": "exploration",
+    "linear_kernel": "exploration",
+    "shape_invariance": "exploration",
+    # tractors, displays and synthesis
+    "sliding_sinusoid_strain": "tractors",
+    "tractor_row_strain": "tractors",
+    "pair_phi_psi": "tractors",
+    "array_phi_psi": "tractors",
+    "travelling_wave_drive": "tractor_display",
+    "display_row_strain": "tractor_display",
+    "render_virtual_surface": "tractor_display",
+    "display_scene_outputs": "display_scene",
+    "optimal_half_spacing": "synthesis",
+    "matching_line_load": "synthesis",
+    "matching_traction_amplitude": "synthesis",
+    "max_virtual_amplitude": "synthesis",
+    "design_table": "synthesis",
+    "depth_scaling": "synthesis",
+}
+
+__version__ = package_version()
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = attach(__name__, _EXPORTS)

@@ -1,1 +1,45 @@
-"""tactilab.inversion."""
+"""tactilab.inversion: from sensor or receptor data back to the surface, with uncertainty.
+
+Regularised inversion (:func:`invert_linear`), the exact Gaussian posterior
+(:func:`gaussian_posterior`), MCMC over scene parameters (:func:`sample_scene_posterior`) and
+defect localisation. Import from here::
+
+    from tactilab.inversion import invert_linear, gaussian_posterior, StationaryPrior
+"""
+
+from tactilab.data_schemas._lazy import attach, package_version
+
+#: public name -> module that defines it
+_EXPORTS = {
+    "invert_linear": "linear",
+    "LinearInversionResult": "linear",
+    "invert_tv": "tv",
+    "choose_lambda": "criteria",
+    "CriteriaResult": "criteria",
+    "plot_criteria": "criteria",
+    "choose_lambda_iterative": "iterative_criteria",
+    "StationaryPrior": "gaussian",
+    "GaussianPosterior": "gaussian",
+    "gaussian_posterior": "gaussian",
+    "tikhonov_prior_spectrum": "gaussian",
+    "MCMCResult": "mcmc",
+    "sample_scene_posterior": "mcmc",
+    "invert_defect_position": "scene_inversion",
+    "defect_profile": "scene_inversion",
+    "DefectScanModel": "scene_params",
+    "Uniform": "scene_params",
+    "Normal": "scene_params",
+    "LogNormal": "scene_params",
+    "cramer_rao": "localisation",
+    "localisation_study": "localisation",
+    "halfspace_fourier_operator": "operators",
+    "rigid_surface_height_operator": "operators",
+    "FourierDiagonal": "operators",
+    "dottest": "operators",
+    "plot_profile": "plots",
+    "plot_corner": "plots",
+}
+
+__version__ = package_version()
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = attach(__name__, _EXPORTS)
