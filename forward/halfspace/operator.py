@@ -1,7 +1,10 @@
 """The load-to-sensor map of a half-space as a ``scipy.sparse.linalg.LinearOperator``.
 
-Model: tractions ``loads`` (a subset of p, qx, qy; Pa) on a regular grid, flattened from
-``dims = (n_load, *shape)``. Data: ``components`` of stress (Pa) or tensor strain at the
+Model: tractions ``loads`` (a subset of p, qx, qy; Pa) on a regular grid. The operators of
+the solver and the inversion share one convention: ``dims`` is the grid shape, the attribute
+``loads`` names the load components, and the model vector is load-major (all nodes of the
+first load, C order, then all nodes of the next), i.e. the flattening of an array of shape
+``(len(loads), *dims)``. Data: ``components`` of stress (Pa) or tensor strain at the
 sensors and one depth, flattened from ``dimsd = (n_comp, n_sensors)``. Batched over time
 frames through ``matmat`` (columns are frames).
 
@@ -89,7 +92,8 @@ class LoadToSensor(LinearOperator):
                     f"{len(shape)}-D grid, got {np.shape(sensors)}")
             self.sensor_xy = pts
             self._select = self._on_grid(pts)
-        self.dims = (len(self.loads), *shape)
+        self.dims = shape
+        self.spacing = template.spacing
         self.dimsd = (len(self.components), len(self.sensor_xy))
         if self._select is not None or sensors is None:
             self.path = "fft-periodic" if periodic else "fft-padded"
@@ -97,7 +101,44 @@ class LoadToSensor(LinearOperator):
         else:
             self.path = "dense"
             self._matrix = self._dense_matrix()
-        super().__init__(dtype=np.float64, shape=(int(np.prod(self.dimsd)), int(np.prod(self.dims))))
+        super().__init__(dtype=np.float64,
+                         shape=(int(np.prod(self.dimsd)), len(self.loads) * int(np.prod(self.dims))))
+
+    @property
+    def model_shape(self) -> tuple[int, ...]:
+        """Shape of the load-major model array, ``(len(loads), *dims)``."""
+        return (len(self.loads), *self.dims)
+
+    @property
+    def circulant(self) -> bool:
+        """True when the map is a periodic convolution with a sensor at every node (in node
+        order): then each (component, load) block is diagonal in Fourier space."""
+        return self.path == "fft-periodic" and self._select is None
+
+    def fourier_multiplier(self) -> np.ndarray:
+        """The exact Fourier multipliers of a circulant operator on the full grid.
+
+        Returns
+        -------
+        ndarray, complex, shape ``(n_comp, n_load, *dims)``
+            ``H[c, l]`` in ``fftfreq`` order (wavenumbers from :func:`angular_wavenumbers`),
+            Hermitian, so that ``data_c = ifft(sum_l H[c, l] fft(load_l))``. Data units per Pa.
+
+        Raises
+        ------
+        ValueError
+            When the operator is not circulant (see :attr:`circulant`).
+        """
+        if not self.circulant:
+            raise ValueError(f"fourier_multiplier: the operator is not a periodic convolution (path {self.path!r}, "
+                             "sensors not the grid nodes); build it with periodic=True and sensors=None")
+        half = self._spectra
+        nx = self.dims[-1]
+        neg = np.arange(nx // 2 + 1, nx)
+        mirror = half[..., nx - neg]
+        if len(self.dims) == 2:
+            mirror = mirror[..., (-np.arange(self.dims[0])) % self.dims[0], :]
+        return np.concatenate([half, np.conj(mirror)], axis=-1)
 
     # -- geometry ----------------------------------------------------------------------------
     def _grid_points(self) -> np.ndarray:
@@ -220,7 +261,7 @@ class LoadToSensor(LinearOperator):
             return self._matrix @ m
         frames = m.shape[1]
         t = self.template
-        model = m.T.reshape(frames, *self.dims)
+        model = m.T.reshape(frames, *self.model_shape)
         axes = tuple(range(-t.ndim, 0))
         if self.path == "fft-periodic":
             spec = sfft.rfftn(model, axes=axes)  # (frames, n_load, ...)
