@@ -11,7 +11,9 @@ frames through ``matmat`` (columns are frames).
 Paths (chosen from the sensors; the attribute ``path`` says which):
 - ``"fft-periodic"``: the grid is one period; exact spectral multipliers (docs/theory.md s2).
 - ``"fft-padded"``: isolated load; zero-padded convolution with the point (line) kernel
-  sampled at depth (DC-FFT). Used when the sensors are the grid nodes or a subset of them.
+  sampled at depth (DC-FFT, the one engine of :mod:`.dcfft`: :func:`dcfft_kernel_spectrum`,
+  :func:`dcfft_convolve`, :func:`dcfft_correlate`). Used when the sensors are the grid nodes
+  or a subset of them.
 - ``"dense"``: sensors off the grid; the kernel matrix from the closed forms (isolated), or
   from the periodic Green's function evaluated per sensor (periodic).
 The adjoint (``rmatvec``/``rmatmat``) is exact for every path and passes a dot test.
@@ -23,6 +25,7 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.sparse.linalg import LinearOperator
 
+from .dcfft import dcfft_convolve, dcfft_correlate, dcfft_kernel_spectrum
 from .fields import check_components, output_weights
 from .kernels import line_green, point_green
 from .loads import LOAD_COMPONENTS, SurfaceLoad
@@ -168,38 +171,10 @@ class LoadToSensor(LinearOperator):
         return np.array([[multiplier(g, self.nu, name, row, self.depth) for name in self.loads]
                          for row in self.weights])
 
-    def _padded_shape(self) -> tuple[int, ...]:
-        return tuple(sfft.next_fast_len(2 * n - 1, real=True) for n in self.grid_shape)
-
     def _padded_multipliers(self) -> np.ndarray:
         t = self.template
-        pad = self._padded_shape()
-        # offsets x_out - x_in on the circular padded grid: 0..n-1 then -(n-1)..-1
-        offs = []
-        for n, h, p in zip(t.shape, t.spacing[::-1] if t.ndim == 2 else t.spacing, pad):
-            k = np.arange(p)
-            offs.append(np.where(k < n, k, k - p) * h)
-        if t.ndim == 1:
-            (ox,) = offs
-            grids = (ox,)
-        else:
-            oy, ox = offs
-            grids = np.meshgrid(oy, ox, indexing="ij")
-        out = np.zeros((len(self.components), len(self.loads), *pad[:-1], pad[-1] // 2 + 1), dtype=complex)
-        for l, name in enumerate(self.loads):
-            kernel = np.zeros((len(self.components), *pad))
-            for j, comp in enumerate(VOIGT):
-                col = self.weights[:, j]
-                if not np.any(col):
-                    continue
-                if t.ndim == 1:
-                    g = line_green(comp, _DIRECTION[name], grids[0], self.depth, self.nu)
-                else:
-                    g = point_green(comp, _DIRECTION[name], grids[1], grids[0], self.depth, self.nu)
-                kernel += np.multiply.outer(col, g)
-            kernel *= t.cell_area  # node traction x cell area = nodal force
-            out[:, l] = sfft.rfftn(kernel, axes=tuple(range(1, t.ndim + 1)))
-        return out
+        return dcfft_kernel_spectrum(t.shape, t.spacing, self.depth, self.nu, self.weights,
+                               [_DIRECTION[name] for name in self.loads])
 
     def _dense_matrix(self) -> np.ndarray:
         t = self.template
@@ -267,10 +242,7 @@ class LoadToSensor(LinearOperator):
             spec = sfft.rfftn(model, axes=axes)  # (frames, n_load, ...)
             data = sfft.irfftn(np.einsum("cl...,fl...->fc...", self._spectra, spec), s=t.shape, axes=axes)
         else:
-            pad = self._padded_shape()
-            spec = sfft.rfftn(model, s=pad, axes=axes)
-            full = sfft.irfftn(np.einsum("cl...,fl...->fc...", self._spectra, spec), s=pad, axes=axes)
-            data = full[(Ellipsis, *[slice(0, n) for n in t.shape])]
+            data = dcfft_convolve(self._spectra, model)
         data = data.reshape(frames, len(self.components), -1)
         if self._select is not None:
             data = data[:, :, self._select]
@@ -293,8 +265,5 @@ class LoadToSensor(LinearOperator):
             spec = sfft.rfftn(data, axes=axes)
             model = sfft.irfftn(np.einsum("cl...,fc...->fl...", np.conj(self._spectra), spec), s=t.shape, axes=axes)
         else:
-            pad = self._padded_shape()
-            spec = sfft.rfftn(data, s=pad, axes=axes)
-            full = sfft.irfftn(np.einsum("cl...,fc...->fl...", np.conj(self._spectra), spec), s=pad, axes=axes)
-            model = full[(Ellipsis, *[slice(0, n) for n in t.shape])]
+            model = dcfft_correlate(self._spectra, data)
         return model.reshape(frames, -1).T
