@@ -5,6 +5,8 @@ This package is the solver's one door. Scene, display and synthesis code in
 The theory is in ``docs/theory.md``.
 """
 
+from . import _validation as validation
+from ._validation import positive
 from .dcfft import dcfft_convolve, dcfft_correlate, dcfft_kernel_spectrum, dcfft_stress, padded_shape
 from .facade import AccuracyWarning, FieldResult, HalfSpace
 from .fields import (
@@ -52,7 +54,9 @@ __all__ = [
     "padded_shape",
     "point_green",
     "point_load_stress",
+    "positive",
     "pressure_from_deflection",
     "to_engineering",
     "transfer",
+    "validation",
 ]

@@ -21,7 +21,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import xarray as xr
 
-from .fields import SHEAR_CONVENTION, check_components, compliance_matrix, invariants, label, output_weights
+from . import _validation as check
+from .fields import SHEAR_CONVENTION, compliance_matrix, invariants, label, output_weights
 from .loads import SurfaceLoad
 from .methods import METHODS, Method, Problem
 from .spectral import pressure_from_deflection
@@ -58,18 +59,6 @@ class FieldResult:
     error_estimate: float
     reason: str
     candidates: dict = field(default_factory=dict)
-
-
-def _check_depths(depth) -> np.ndarray:
-    d = np.atleast_1d(np.asarray(depth, dtype=float))
-    if d.ndim != 1 or d.size == 0:
-        raise ValueError(f"depth: give one depth or a 1-D sequence of depths in m, got shape {d.shape}")
-    if not np.all(np.isfinite(d)) or np.any(d <= 0):
-        raise ValueError(
-            f"depth: every depth must be finite and > 0 m (z points into the skin), got {depth!r}; "
-            "give depths below the surface as positive metres"
-        )
-    return d
 
 
 def _check_points(points, load: SurfaceLoad) -> np.ndarray | None:
@@ -113,12 +102,8 @@ class HalfSpace:
     """
 
     def __init__(self, E: float, nu: float = 0.5):
-        if isinstance(E, bool) or not isinstance(E, (int, float, np.floating, np.integer)) or not math.isfinite(E) or E <= 0:
-            raise ValueError(f"E: Young's modulus must be a finite number > 0 Pa, got {E!r}; skin is ~1e5-4e6 Pa")
-        if isinstance(nu, bool) or not isinstance(nu, (int, float, np.floating)) or not math.isfinite(nu) or not -1 < nu <= 0.5:
-            raise ValueError(f"nu: Poisson's ratio must be in (-1, 0.5], got {nu!r}; use 0.5 for incompressible skin")
-        self.E = float(E)
-        self.nu = float(nu)
+        self.E = check.young_modulus(E, "E")
+        self.nu = check.poisson_ratio(nu)
 
     def __repr__(self) -> str:
         return f"HalfSpace(E={self.E!r}, nu={self.nu!r})"
@@ -181,10 +166,10 @@ class HalfSpace:
             raise ValueError(f"load: expected a SurfaceLoad, got {type(load).__name__}; build one with SurfaceLoad(p=..., spacing=...)")
         if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not math.isfinite(tol) or tol <= 0:
             raise ValueError(f"tol: must be a finite relative tolerance > 0, got {tol!r} (e.g. 1e-6)")
-        depths = _check_depths(depth)
-        comps = check_components(components)
+        depths = check.depths(depth)
+        comps = check.components(components)
         pts = _check_points(points, load)
-        if want_invariants and comps != check_components(None):
+        if want_invariants and comps != check.COMPONENTS:
             raise ValueError("invariants: need all six components; call with components=None")
         reduced = load.periodic and load.ndim == 2 and not load.varies_in_y()
         work_load = load.row() if reduced else load

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .dcfft import alias_error, nodal_dcfft_stress
+from .kernels import nodal_stress
 from .loads import SurfaceLoad
 from .spectral import VOIGT, periodic_stress
 
@@ -160,6 +162,11 @@ def image_error(load: SurfaceLoad, depths: np.ndarray) -> float:
     return float(8.0 * (2 * a / L) ** 2)
 
 
+def _sampling_error(problem: Problem) -> float:
+    """Kernel-sampling (alias) error of the nodal-force methods at the deepest-hit depth."""
+    return max(alias_error(problem.load.spacing, float(z), problem.dtype, float(z)) for z in problem.depths)
+
+
 class DCFFT(Method):
     """Zero-padded convolution with the point (line) kernel sampled at depth: no periodic
     images; exact for the load as a set of nodal forces."""
@@ -175,10 +182,7 @@ class DCFFT(Method):
         return None
 
     def _error(self, problem: Problem) -> float:
-        from .dcfft import dcfft_error_estimate
-
-        return max(dcfft_error_estimate(problem.load.spacing, float(z), dtype=problem.dtype)
-                   for z in problem.depths)
+        return _sampling_error(problem)
 
     def _cost(self, problem: Problem) -> float:
         n = np.prod([2 * s for s in problem.load.shape])
@@ -186,11 +190,9 @@ class DCFFT(Method):
         return n_fft * _fft_cost(n)
 
     def _grid_field(self, problem: Problem) -> np.ndarray:
-        from .dcfft import dcfft_stress
-
         rows = problem.stress_rows
-        stress = dcfft_stress(problem.load, problem.depths, problem.nu, [VOIGT[j] for j in rows],
-                              dtype=problem.dtype)
+        stress = nodal_dcfft_stress(problem.load, problem.depths, problem.nu, tuple(VOIGT[j] for j in rows),
+                                    problem.dtype)
         return np.einsum("oj,dj...->do...", problem.weights[:, rows], stress)
 
 
@@ -207,10 +209,7 @@ class ClosedForm(Method):
         return None
 
     def _error(self, problem: Problem) -> float:
-        from .dcfft import dcfft_error_estimate
-
-        return max(dcfft_error_estimate(problem.load.spacing, float(z), dtype=problem.dtype)
-                   for z in problem.depths)
+        return _sampling_error(problem)
 
     def _cost(self, problem: Problem) -> float:
         loaded = sum(np.count_nonzero(v) for v in problem.load.components.values())
@@ -220,8 +219,6 @@ class ClosedForm(Method):
         return self.compute(problem)
 
     def compute(self, problem: Problem) -> np.ndarray:
-        from .kernels import direct_stress
-
         load = problem.load
         if problem.points is None:
             if load.ndim == 1:
@@ -239,7 +236,7 @@ class ClosedForm(Method):
                 xyz = np.column_stack([pts[:, 0], np.full(len(pts), z)])
             else:
                 xyz = np.column_stack([pts[:, 0], pts[:, 1], np.full(len(pts), z)])
-            stress = direct_stress(load, xyz, problem.nu, comps)  # (n, n_comp)
+            stress = nodal_stress(load, xyz, problem.nu, tuple(comps))  # (n, n_comp)
             out.append(stress @ problem.weights[:, rows].T)
         values = np.asarray(out).transpose(0, 2, 1)  # (n_depth, n_out, n)
         if problem.points is None:
