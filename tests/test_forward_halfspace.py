@@ -207,7 +207,7 @@ def test_bad_input_names_the_argument():
         HS.operator((0, 4), 1e-4)
     with pytest.raises(ValueError, match="depth: every depth must be finite and > 0 m"):
         HS.operator((4, 4), 1e-4, depth=0.0)
-    with pytest.raises(ValueError, match="points: method 'dcfft' evaluates on grid nodes"):
+    with pytest.raises(ValueError, match="method: 'dcfft' cannot run here: sensors lie off the grid nodes"):
         from tactilab.forward.halfspace.methods import DCFFT, Problem
         DCFFT().compute(Problem(load, np.array([1e-3]), 0.5, np.eye(6), np.array([[0.5e-4, 0.0]]), np.dtype(float)))
 

@@ -25,7 +25,7 @@ from .kernels import (
     point_load_stress,
 )
 from .loads import LOAD_COMPONENTS, SurfaceLoad
-from .methods import METHODS, Method
+from .methods import METHODS, Method, select_method
 from .operator import LoadToSensor
 from .spectral import angular_wavenumbers, pressure_from_deflection, transfer
 
@@ -56,6 +56,7 @@ __all__ = [
     "point_load_stress",
     "positive",
     "pressure_from_deflection",
+    "select_method",
     "to_engineering",
     "transfer",
     "validation",
