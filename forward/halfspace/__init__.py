@@ -7,6 +7,7 @@ The theory is in ``docs/theory.md``.
 
 from . import _validation as validation
 from ._validation import positive
+from .adjoint import dottest
 from .dcfft import dcfft_convolve, dcfft_correlate, dcfft_kernel_spectrum, dcfft_stress, padded_shape
 from .facade import AccuracyWarning, FieldResult, HalfSpace
 from .fields import (
@@ -47,6 +48,7 @@ __all__ = [
     "dcfft_correlate",
     "dcfft_kernel_spectrum",
     "dcfft_stress",
+    "dottest",
     "invariants",
     "line_green",
     "line_load_stress",
