@@ -28,6 +28,7 @@ _EXPORTS = {
     "pressure_from_deflection": "halfspace",
     "to_engineering": "halfspace",
     "invariants": "halfspace",
+    "ReceptorHypothesis": "receptors",
     # contacts and surfaces
     "HertzContact": "contact",
     "interfacial_traction": "contact",
