@@ -27,6 +27,10 @@ _EXPORTS = {
     "SafeDisplay": "safety",
     "SimulatedDisplay": "simulated_display",
     "UdpDisplay": "udp",
+    # the display UDP frame format (docs/udp-frame-format.md)
+    "FRAME": "udp",
+    "encode": "udp",
+    "decode": "udp",
     "emulate": "emulator",
     "SimulatedObserver": "responses",
     "TerminalResponses": "responses",

@@ -45,8 +45,6 @@ _EXPORTS = {
     "scene_finger": "scanning",
     "scene_recording": "scanning",
     "simulate_scene": "scene_simulation",
-    "read_recording": "scene_simulation",
-    "write_recording": "scene_simulation",
     "read_load": "load_files",
     "write_field": "load_files",
     "plot_field": "plots",

@@ -211,3 +211,19 @@ def test_file_level_errors(tmp_path):
         SkinMaterial.from_json('{"young_modulus_pa": 3, "poisson_ratio": 0.7}')
     with pytest.raises(ValueError, match=r"here: a SkinMaterial must be a table, got list"):
         record_from_dict(SkinMaterial, [1], "here")
+
+
+def test_base_and_files_import_at_module_level_only():
+    """base.py and files.py form no import cycle: neither hides an import inside a function."""
+    import ast
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / "data_schemas"
+    for name in ("base.py", "files.py"):
+        tree = ast.parse((root / name).read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                inner = [n for n in ast.walk(node) if isinstance(n, (ast.Import, ast.ImportFrom))]
+                assert not inner, f"data_schemas/{name}: {node.name} imports inside the function"
+    base = (root / "base.py").read_text()
+    assert "from .files" not in base and "import files" not in base
