@@ -34,7 +34,12 @@ _EXPORTS = {
     "ConstantStimuli": "procedures",
     "Staircase": "procedures",
     "Psi": "psi",
-    "make_procedure": "procedures",
+    "make_procedure": "build",
+    "register_likelihood": "registry",
+    "register_procedure": "registry",
+    "UnregisteredError": "registry",
+    "Procedure": "procedures",
+    "PlannedLevel": "procedures",
 }
 
 __version__ = package_version()

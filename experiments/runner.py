@@ -36,7 +36,8 @@ from tactilab.data_schemas.experiment import Protocol, check_label
 from tactilab.data_schemas.experiment_records import TrialRecord
 
 from .display import Display, render_drive
-from .procedures import Likelihood, PlannedLevel, Procedure, make_procedure
+from .build import make_procedure
+from .procedures import PlannedLevel, Procedure
 from .recording import Recorder, RecordingError, utc_now
 from .responses import ResponseSource
 from .safety import SafeDisplay
@@ -256,8 +257,7 @@ DISPLAY_UNITS = {"amplitude_m": ("amplitude", 1e6, "um"), "pitch_m": ("pitch", 1
 
 
 def new_session(protocol: Protocol, path: str | Path, display: Display, responses: ResponseSource, *,
-                subject: str, session: str = "01", likelihood: Likelihood | None = None,
-                realtime: bool = True, progress: bool = False) -> RunResult:
+                subject: str, session: str = "01", realtime: bool = True, progress: bool = False) -> RunResult:
     """Create a session file at ``path`` and run the protocol to the end (or to an interruption).
 
     Parameters
@@ -272,8 +272,6 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
         Where responses come from (terminal or simulated observer); its ``config`` is recorded.
     subject, session : str
         BIDS labels (1-32 letters or digits; pseudonymous codes, never names).
-    likelihood : callable, optional
-        A custom psychometric likelihood for a psi procedure (recorded by import path).
     realtime : bool
         Wait in real time between trials and during playback (False: dry runs only).
     progress : bool
@@ -300,12 +298,12 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
             "seed": protocol.seed, "package_version": package_version(),
             "display_id": str(display.description.display_id), "responses": responses.name,
             "responses_config": dict(responses.config),
-            "likelihood": None if likelihood is None else
-            f"{getattr(likelihood, '__module__', '?')}:{getattr(likelihood, '__qualname__', '?')}"}
+            "likelihood": getattr(protocol.procedure, "likelihood", None)}
+    # built before the file exists: an unregistered method or likelihood leaves no session behind
+    procedure = make_procedure(protocol.procedure, protocol.task.guess_rate)
     recorder = Recorder.create(path, meta)
     try:
         recorder.log("session_started", payload={"pid": os.getpid()})
-        procedure = make_procedure(protocol.procedure, protocol.task.guess_rate, likelihood)
         runner = Runner(protocol, recorder, display, responses, subject=subject, session=session,
                         procedure=procedure, realtime=realtime, progress=progress)
         return runner.run()
