@@ -143,7 +143,7 @@ def parse_udp_url(url: str) -> tuple[str, int]:
     except ValueError:
         port = None
     if parsed.scheme != "udp" or not parsed.hostname or port is None or not 0 < port < 65536:
-        raise ValueError(f"--display: expected udp://HOST:PORT with a port in 1..65535, got {url!r}; "
+        raise ValueError(f"url: expected udp://HOST:PORT with a port in 1..65535, got {url!r}; "
                          "e.g. udp://127.0.0.1:9000")
     return parsed.hostname, port
 
