@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import sys
 from pathlib import Path
 
 from .common import make_out
@@ -95,7 +96,21 @@ def _flags(mapping: dict[str, str]):
         raise
 
 
+#: exit status of a run or resume stopped by a display fault (the trial was not scored)
+EXIT_DISPLAY_FAULT = 3
+
+
 def run(args: argparse.Namespace) -> int:
+    from tactilab.experiments.display import DisplayError
+
+    try:
+        return _run(args)
+    except DisplayError as exc:
+        print(f"tactilab experiment: display error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return EXIT_DISPLAY_FAULT
+
+
+def _run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas.experiment import Protocol, check_label
     from tactilab.experiments import factory
 

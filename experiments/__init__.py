@@ -13,6 +13,7 @@ from tactilab.data_schemas._lazy import attach, package_version
 _EXPORTS = {
     "new_session": "runner",
     "RunResult": "runner",
+    "DisplayFault": "runner",
     "Runner": "runner",
     "resume_session": "resume",
     "session_status": "resume",

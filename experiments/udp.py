@@ -327,4 +327,6 @@ class UdpDisplay(Display):
             late_acks=int(np.count_nonzero(rtt_s > self.ack_timeout_s)),
             send_intervals_s=np.diff(times) / 1e9,
             ack_rtt_s=rtt_s,
+            rejected=int(np.count_nonzero((status[:sent] >= 0) & (status[:sent] != STATUS_CODE["applied"]))),
+            stale=int(np.count_nonzero(status[:sent] == STATUS_CODE["stale"])),
         )
