@@ -112,12 +112,10 @@ def localisation_study(n_sides=(1, 2, 3, 4), components_sets=(("zz",), ("zx", "z
 
 def plot_localisation(table, path) -> None:
     """CRB (lines) and posterior sd (markers, if present) of x0 and y0 vs number of sensors (PNG)."""
-    import matplotlib
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    fig = Figure(figsize=(10, 4))
+    axes = fig.subplots(1, 2, sharey=True)
     for ax, coord in zip(axes, ("x0", "y0")):
         for i, (comps, grp) in enumerate(table.groupby("components", sort=False)):
             ax.loglog(grp["n_sensors"], grp[f"crb_sd_{coord}_um"], "-", color=f"C{i}", label=f"CRB, {comps}")
@@ -128,4 +126,3 @@ def plot_localisation(table, path) -> None:
         ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
