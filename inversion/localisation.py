@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .mcmc import sample_scene_posterior
 from .scene_params import NONLINEAR, DefectScanModel, Normal, Uniform
 
 __all__ = ["cramer_rao", "square_sensors", "localisation_study", "plot_localisation", "DEFAULT_SCENE"]
@@ -96,8 +97,6 @@ def localisation_study(n_sides=(1, 2, 3, 4), components_sets=(("zz",), ("zx", "z
             row = {"n_sensors": n_side**2, "components": "+".join(comps), "crb_sd_x0_um": crb["sd_x0"] * 1e6,
                    "crb_sd_y0_um": crb["sd_y0"] * 1e6}
             if mcmc:
-                from .mcmc import sample_scene_posterior
-
                 data = model.simulate(params, area).ravel() + rng.normal(0, noise_std, model.n_data)
                 priors = dict(params, x0=Uniform(-3e-3, 3e-3), y0=Uniform(-2e-3, 2e-3))
                 res = sample_scene_posterior(model, data, noise_std, priors, Normal(0.0, 10 * area), rng=rng,
