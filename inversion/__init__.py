@@ -41,6 +41,8 @@ _EXPORTS = {
     "rigid_surface_height_operator": "operators",
     "FourierDiagonal": "operators",
     "dottest": "operators",
+    "halfspace_strain_operator": "strain_operators",
+    "rigid_surface_height_strain_operator": "strain_operators",
     "plot_profile": "plots",
     "plot_corner": "plots",
 }
