@@ -31,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     resume = sub.add_parser("resume", help="continue a killed or stopped session exactly (repeats the interrupted trial)")
     resume.add_argument("session", type=Path, help="session .sqlite file")
-    _device_args(resume)
+    _device_args(resume, resume=True)
     resume.add_argument("--responses", default=None,
                         help="'terminal' or 'simulated'; default: what the session was started with")
     _observer_args(resume)
@@ -46,11 +46,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     status.add_argument("session", type=Path, help="session .sqlite file")
 
 
-def _device_args(p: argparse.ArgumentParser) -> None:
+def _device_args(p: argparse.ArgumentParser, resume: bool = False) -> None:
     p.add_argument("--display", default="simulated",
                    help="'simulated' or 'udp://HOST:PORT' (frames of tractions in Pa at the device rate, 1 kHz default)")
-    p.add_argument("--device", default="braille-row",
-                   help="display description: 'braille-row', 'stress2' or a .json description file (limits in Pa, m, 1/s)")
+    p.add_argument("--device", default=None if resume else "braille-row",
+                   help="display description: 'braille-row', 'stress2' or a .json description file (limits in Pa, "
+                        "m, 1/s); " + ("default: the description the session recorded (another one is refused)"
+                                       if resume else "default braille-row"))
     p.add_argument("--no-wait", action="store_true",
                    help="do not wait in real time (inter-trial pauses, simulated playback): dry runs only")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -94,6 +96,13 @@ def _flags(mapping: dict[str, str]):
             if text.startswith(parameter + ":") or text.startswith(parameter + " "):
                 raise ValueError(flag + text[len(parameter):]) from None
         raise
+
+
+class _Described:
+    """Just a description, to check it before any display is opened."""
+
+    def __init__(self, description) -> None:
+        self.description = description
 
 
 #: exit status of a run or resume stopped by a display fault (the trial was not scored)
@@ -148,16 +157,18 @@ def _run(args: argparse.Namespace) -> int:
         return _print_result(result, protocol.procedure.parameter)
 
     if args.action == "resume":
-        from tactilab.experiments.resume import replay_session, resume_session
+        from tactilab.data_schemas.display import DisplayDescription
+        from tactilab.experiments.resume import check_same_display, replay_session, resume_session
 
         state = replay_session(args.session)
-        with _flags(_DEVICE):
-            description = factory.description_from_spec(args.device)
-        if description.display_id != state.meta["display_id"]:
-            raise ValueError(
-                f"--device: the session was recorded on display {state.meta['display_id']!r}, but "
-                f"--device gives {description.display_id!r}; resume on the same display"
-            )
+        recorded_description = state.meta.get("display_description")
+        if args.device is None and recorded_description is not None:
+            description = DisplayDescription.model_validate(recorded_description)
+        else:
+            with _flags(_DEVICE):
+                description = factory.description_from_spec(args.device or "braille-row")
+        with _flags({"display": "--device"}):
+            check_same_display(state.meta, _Described(description), args.session)
         kind = args.responses or state.meta["responses"]
         with _flags(_DISPLAY):
             display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)

@@ -41,7 +41,7 @@ import numpy as np
 from tactilab.data_schemas.experiment import Protocol, check_label
 from tactilab.data_schemas.experiment_records import TrialRecord
 
-from .display import Display, DisplayError, PlaybackReport, render_drive
+from .display import Display, DisplayError, PlaybackReport, description_record, render_drive
 from .build import make_procedure
 from .procedures import PlannedLevel, Procedure
 from .recording import Recorder, RecordingError, utc_now
@@ -346,10 +346,12 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     """
     check_label(subject, "subject")
     check_label(session, "session")
+    description, description_sha256 = description_record(display.description)
     meta = {"session_id": uuid.uuid4().hex, "created_utc": utc_now(),
             "subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
             "seed": protocol.seed, "package_version": package_version(),
-            "display_id": str(display.description.display_id), "responses": responses.name,
+            "display_id": str(display.description.display_id), "display_description": description,
+            "display_sha256": description_sha256, "responses": responses.name,
             "responses_config": dict(responses.config),
             "likelihood": getattr(protocol.procedure, "likelihood", None)}
     # built before the file exists: an unregistered method or likelihood leaves no session behind
