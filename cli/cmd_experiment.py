@@ -98,6 +98,24 @@ def _flags(mapping: dict[str, str]):
         raise
 
 
+def _zero_and_close(display, responses, report: bool) -> None:
+    """The last word to the display is ZERO, whatever happened. A ZERO that fails is reported on
+    stderr when ``report`` (the run ended normally); otherwise the error that ended the run goes on
+    alone, in one line."""
+    try:
+        try:
+            display.zero()
+        except Exception as exc:  # noqa: BLE001 - the device may be what failed
+            if report:
+                print(f"tactilab experiment: warning: final ZERO failed ({' '.join(str(exc).split())}); "
+                      "the device's watchdog zeroes it when frames stop", file=sys.stderr)
+    finally:
+        try:
+            responses.close()
+        finally:
+            display.close()
+
+
 class _Described:
     """Just a description, to check it before any display is opened."""
 
@@ -148,12 +166,13 @@ def _run(args: argparse.Namespace) -> int:
         from tactilab.experiments.runner import new_session
 
         print(f"session file: {path}", flush=True)
+        ended = False
         try:
             result = new_session(protocol, path, display, responses, subject=args.subject, session=label,
                                  realtime=not args.no_wait, progress=not args.quiet)
+            ended = True
         finally:
-            responses.close()
-            display.close()
+            _zero_and_close(display, responses, ended)
         return _print_result(result, protocol.procedure.parameter)
 
     if args.action == "resume":
@@ -182,12 +201,13 @@ def _run(args: argparse.Namespace) -> int:
             raise
         print(f"resuming {args.session}: {len(state.trials)} trials done"
               + (f", repeating interrupted trial {next(iter(state.attempts))}" if state.attempts else ""), flush=True)
+        ended = False
         try:
             result = resume_session(args.session, display, responses, realtime=not args.no_wait,
                                     progress=not args.quiet)
+            ended = True
         finally:
-            responses.close()
-            display.close()
+            _zero_and_close(display, responses, ended)
         return _print_result(result, state.protocol.procedure.parameter)
 
     if args.action == "export":

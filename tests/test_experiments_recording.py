@@ -177,23 +177,27 @@ def test_completed_session_cannot_be_resumed(tmp_path):
         resume_session(path, CheckingDisplay(path), SimulatedObserver(protocol), realtime=False)
 
 
-def test_sigterm_during_a_stimulus_zeroes_and_stops_cleanly(tmp_path):
-    """SIGTERM mid-stimulus: the safety layer zeroes the display, the runner logs the stop and
-    returns 'interrupted' with the lock released; resuming repeats the interrupted trial."""
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT, signal.SIGUSR1])
+def test_a_stop_signal_during_a_stimulus_zeroes_and_stops_cleanly(tmp_path, signum):
+    """SIGTERM, SIGHUP, SIGQUIT or SIGUSR1 mid-stimulus: the safety layer zeroes the display, the
+    runner logs the stop and returns 'interrupted' with the lock released; resuming repeats the
+    interrupted trial."""
 
     def hook(display):
         if display.plays == 3:
-            os.kill(os.getpid(), signal.SIGTERM)
+            os.kill(os.getpid(), signum)
 
-    previous = signal.getsignal(signal.SIGTERM)
+    previous = signal.getsignal(signum)
     runner, recorder, display, path = _runner(tmp_path, hook)
     result = runner.run()
     recorder.close()
-    assert signal.getsignal(signal.SIGTERM) == previous
+    assert signal.getsignal(signum) == previous
     assert result.status == "interrupted" and result.n_completed == 1 and display.zeros >= 1
     events = SessionLog(path).events()
     assert events[-1]["kind"] == "session_stopped"
-    assert any(e["kind"] == "safety_intervention" and e["payload"]["kind"] == "zero_on_sigterm" for e in events)
+    assert signal.Signals(signum).name in events[-1]["payload"]["reason"]
+    kind = "zero_on_" + signal.Signals(signum).name.lower()
+    assert any(e["kind"] == "safety_intervention" and e["payload"]["kind"] == kind for e in events)
     status = session_status(path)
     assert status["status"] == "interrupted" and status["interrupted_trial"] == 1 and status["stopped_cleanly"]
 
