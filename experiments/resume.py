@@ -220,6 +220,7 @@ def session_status(path: str | Path) -> dict[str, Any]:
             "safety_interventions": kinds.count("safety_intervention"),
             "estimate": state.procedure.estimate(), "seed": state.protocol.seed,
             "display_id": state.meta["display_id"], "display_sha256": state.meta.get("display_sha256"),
+            "owner": log.owner(),
             "package_version": state.meta["package_version"],
         }
     finally:

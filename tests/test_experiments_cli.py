@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sqlite3
 import sys
@@ -244,7 +245,8 @@ def test_factory_specs(tmp_path):
 
 
 def test_recorder_open_failures_are_recording_errors(tmp_path, monkeypatch):
-    lock = _FileLock(tmp_path / "m.lock")
+    (tmp_path / "m.sqlite").touch()
+    lock = _FileLock(tmp_path / "m.sqlite")
     with pytest.raises(RecordingError, match="cannot use WAL journaling"):
         Recorder._connect(Path(":memory:"), lock)
 
@@ -293,7 +295,7 @@ def test_a_resume_with_a_laxer_display_description_is_refused(tmp_path, capsys):
     lax.write_text(nominal.model_copy(update={"max_traction_pa": nominal.max_traction_pa * 1e5}).model_dump_json())
     # a session interrupted after its creation: cut it short by deleting its completion
     assert cli_main(argv) == 0
-    with sqlite3.connect(path) as db:
+    with contextlib.closing(sqlite3.connect(path)) as db, db:
         db.execute("DELETE FROM events WHERE kind = 'session_complete'")
         db.execute("DELETE FROM trials WHERE trial_index >= 3")
         db.execute("DELETE FROM events WHERE trial_index >= 3")
