@@ -151,7 +151,8 @@ class Subspace:
         """The singular spectrum against the noise floor (s = 1)."""
         w = self._whitened
         plot_spectrum(self.singular_values, path, rho=w.rho if w.periodic else None,
-                      mode_s=w.s if w.periodic else None, title=str(w.h))
+                      mode_s=w.s if w.periodic else None,
+                      title=f"{w.h}; prior std {w.tau:.3g} {w.family.param_units[0]} per parameter")
 
 
 def resolvable_subspace(family, hypothesis, prior_std: float, receptors=None, *, rtol: float = 1e-12) -> Subspace:
