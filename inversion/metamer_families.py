@@ -236,7 +236,13 @@ class TractorFamily(_DenseFamily):
     def matrix(self, hypothesis, receptors=None) -> np.ndarray:
         """(n_readouts, n_tractors): readouts per N/m of each tractor's load."""
         h = _check_hypothesis(hypothesis)
-        return _linear_readout_matrix(self.strain(np.eye(self.n_params), h.depths, receptors), h, self.n_params)
+        require_linear(h)
+        x = _x_receptors(receptors, self.name)
+        # unit load of each tractor: one kernel evaluation at every receptor-tractor offset
+        offsets = (x[None, :] - self.tractor_x[:, None]).ravel()
+        strain = np.stack([tractor_row_strain(offsets, z, [0.0], [1.0], self.young_modulus, self.nu, self.footprint)
+                           for z in h.depths])
+        return _linear_readout_matrix(strain.reshape(h.n_depths, self.n_params, x.size, 6), h, self.n_params)
 
 
 class GridLoadFamily:

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.fft as sfft
 from scipy.cluster.hierarchy import fcluster, linkage
+from scipy.linalg import qr
 from scipy.optimize import least_squares, lsq_linear
 from scipy.spatial.distance import squareform
 from scipy.special import ndtr
@@ -148,7 +149,7 @@ class MetamerPair:
 
 
 def _solve(family, h, receptors, b, bounds, rcond):
-    """Match parameters (linear hypothesis) and the rank of the readout map."""
+    """Match parameters (linear hypothesis), the rank of the readout map, and its matrix (None per mode)."""
     periodic = getattr(family, "periodic", False) and isinstance(family, GridLoadFamily)
     if periodic and bounds is None and family.all_nodes(receptors):
         m, weight, _ = family.modes(h)
@@ -161,13 +162,16 @@ def _solve(family, h, receptors, b, bounds, rcond):
         coef = np.where(keep, coef / np.where(keep, s, 1.0), 0.0)
         p = np.einsum("mkl,mk->ml", vh.conj(), coef).T.reshape(len(family.loads), *family.shape[:-1], -1)
         params = sfft.irfftn(p, s=family.shape, axes=axes).reshape(-1)
-        return params, int((keep * weight[:, None]).sum())
+        return params, int((keep * weight[:, None]).sum()), None
     a = family.matrix(h, receptors)
     if bounds is None:
         params, _, rank, _ = np.linalg.lstsq(a, b, rcond=rcond)
-        return params, int(rank)
-    res = lsq_linear(a, b, bounds=bounds, method="bvls" if a.shape[1] <= 200 else "trf", tol=1e-12)
-    return res.x, int(np.linalg.matrix_rank(a, tol=rcond * np.linalg.norm(a, 2)))
+        return params, int(rank), a
+    # ||A x - b|| = ||R x - Q^T b|| + const: the bounded solve works on the small triangular factor
+    q, r = qr(a, mode="economic") if a.shape[0] > a.shape[1] else (np.eye(a.shape[0]), a)
+    res = lsq_linear(r, q.T @ b, bounds=bounds, method="trf", tol=1e-12)
+    s = np.linalg.svd(r, compute_uv=False)
+    return res.x, int(np.sum(s > rcond * s[0])) if s.size and s[0] > 0 else 0, a
 
 
 def _bounds(bounds, family):
@@ -223,13 +227,14 @@ def metamer_pair(target, family, hypothesis, receptors=None, *, bounds="family",
     bnds = _bounds(bounds, family)
     b = target.readout(h, r)
     if h.linear:
-        params, rank = _solve(family, h, r, b, bnds, rc)
+        params, rank, a = _solve(family, h, r, b, bnds, rc)
     else:
         if family.n_params > 2000:
             raise ValueError(f"hypothesis: nonlinear invariants need a small family (n_params <= 2000), the "
                              f"{family.name} family has {family.n_params}; use linear components")
         full = ReceptorHypothesis(VOIGT, h.depths, h.noise_std)
-        x0, _ = _solve(family, full, r, target.readout(full, r), bnds, rc)
+        x0, _, a = _solve(family, full, r, target.readout(full, r), bnds, rc)
+        a = None
         lo, hi = bnds if bnds is not None else (-np.inf, np.inf)
         x0 = np.clip(x0, lo, hi)
         scale = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
@@ -237,7 +242,7 @@ def metamer_pair(target, family, hypothesis, receptors=None, *, bounds="family",
                             xtol=1e-12, ftol=1e-12, gtol=1e-12)
         params, rank = fit.x, min(family.n_params, b.size)
     match = family.stimulus(params)
-    rm = match.readout(h, r)
+    rm = a @ params if a is not None else match.readout(h, r)
     score = _score(b, rm, h, crit)
     per = {}
     nb, nm = b.reshape(h.n_depths, h.n_components, -1), rm.reshape(h.n_depths, h.n_components, -1)
