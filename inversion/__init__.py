@@ -45,6 +45,22 @@ _EXPORTS = {
     "rigid_surface_height_strain_operator": "strain_operators",
     "plot_profile": "plots",
     "plot_corner": "plots",
+    "StimulusFamily": "metamer_families",
+    "SinusoidFamily": "metamer_families",
+    "IndentationFamily": "metamer_families",
+    "GridLoadFamily": "metamer_families",
+    "TractorFamily": "metamer_families",
+    "FamilyStimulus": "metamer_families",
+    "metamer_pair": "metameres",
+    "MetamerPair": "metameres",
+    "PairScore": "metameres",
+    "compare_stimuli": "metameres",
+    "metamer_classes": "metameres",
+    "MetamerClasses": "metameres",
+    "resolvable_subspace": "metamer_spectra",
+    "Subspace": "metamer_spectra",
+    "metamer_ambiguity": "metamer_spectra",
+    "Ambiguity": "metamer_spectra",
 }
 
 __version__ = package_version()
