@@ -35,6 +35,10 @@ _EXPORTS = {
     "Staircase": "procedures",
     "Psi": "psi",
     "make_procedure": "procedures",
+    "fit_psychometric": "psychometric",
+    "PsychometricFit": "psychometric",
+    "ParamSummary": "psychometric",
+    "SIGMOIDS": "psychometric",
 }
 
 __version__ = package_version()
