@@ -13,6 +13,8 @@ shifts each end by up to half a cell).
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,6 +27,7 @@ _COARSE = {"nafc": dict(threshold=30, width=40, lapse=10, guess=1, eta=20),
 _FINE = {"nafc": dict(threshold=40, width=40, lapse=20, guess=1, eta=20),
          "yes_no": dict(threshold=40, width=40, lapse=20, guess=20, eta=20)}
 _MASS_TOL = 1e-5
+_THREADS = max(1, min(4, os.cpu_count() or 1))
 
 
 def _threshold_prior(x, s0, s1):
@@ -104,10 +107,20 @@ class GridPosterior:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             eta_p = np.where(eta > 1e-9, 1 / np.maximum(eta, 1e-300) - 1, np.inf)
             if math.prod(np.broadcast_shapes(*(np.shape(a) for a in (g, lam, e, t, w)))) > 4096:
-                total = 0.0  # big grids: one level block at a time (memory of one grid)
-                for ui, ki, ni in zip(self.u, self.k, self.n):
-                    total = total + self._ll(g + (1 - g - lam) * self.core.cdf(self.z_pc + (ui - t) * scale),
-                                             ki, ni, eta, eta_p, beta_binomial)
+                span = 1 - g - lam  # big grids: one level block at a time (memory of one grid per thread)
+
+                def part(blocks):
+                    acc = 0.0
+                    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # per thread
+                        for ui, ki, ni in blocks:
+                            psi = g + span * self.core.cdf(self.z_pc + (ui - t) * scale)
+                            acc = acc + self._ll(psi, ki, ni, eta, eta_p, beta_binomial)
+                    return acc
+
+                blocks = list(zip(self.u, self.k, self.n))
+                n_threads = min(_THREADS, len(blocks))
+                with ThreadPoolExecutor(n_threads) as pool:  # numpy's ufuncs release the GIL
+                    total = sum(pool.map(part, [blocks[i::n_threads] for i in range(n_threads)]))
             else:  # a few points (the MAP search, emcee): all blocks at once on a trailing axis
                 ex = (lambda a: np.asarray(a, dtype=float)[..., None])
                 psi = ex(g) + (1 - ex(g) - ex(lam)) * self.core.cdf(self.z_pc + (self.u - ex(t)) * ex(scale))
@@ -120,7 +133,10 @@ class GridPosterior:
     @staticmethod
     def _ll(psi, k, n, eta, eta_p, beta_binomial):
         """Binomial (or psignifit's beta-binomial where eta > 1e-9) log-likelihood, no binomial coefficient."""
-        ll = xlogy(k, psi) + xlogy(n - k, 1 - psi)
+        if np.ndim(k) == 0:  # one block (grid pass): skip empty terms, np.log is much faster than xlogy
+            ll = (k * np.log(psi) if k > 0 else 0.0) + ((n - k) * np.log1p(-psi) if n > k else 0.0)
+        else:
+            ll = xlogy(k, psi) + xlogy(n - k, 1 - psi)
         if beta_binomial:
             ap, bp = psi * eta_p, (1 - psi) * eta_p
             bb = gammaln(k + ap) + gammaln(n - k + bp) - gammaln(n + eta_p) - gammaln(ap) - gammaln(bp) + gammaln(eta_p)
@@ -197,7 +213,8 @@ class GridPosterior:
 
     def draws(self, n_draws, rng):
         """Posterior draws: grid cells by mass, uniform within each cell; dict of (n_draws,) arrays."""
-        flat = rng.choice(self.mass.size, size=n_draws, p=self.mass.ravel() / self.mass.sum())
+        cum = np.cumsum(self.mass.ravel())
+        flat = np.minimum(np.searchsorted(cum, rng.random(n_draws) * cum[-1], side="right"), cum.size - 1)
         ids = np.unravel_index(flat, self.mass.shape)
         out = {}
         for i, ax in enumerate(AXES):
