@@ -272,7 +272,7 @@ def test_scene_and_record_guards(monkeypatch, tmp_path):
     from types import SimpleNamespace
 
     from tactilab.data_schemas.recording import Recording
-    from tactilab.forward import scene_simulation
+    from tactilab.data_schemas import recording_io
     from tactilab.forward.scanning import RecordFeature
 
     with pytest.raises(ValueError, match="scene.contact: the scene has no finger contact"):
@@ -281,10 +281,10 @@ def test_scene_and_record_guards(monkeypatch, tmp_path):
         RecordFeature(object())
     with pytest.raises(ValueError, match="defect_x: must be finite"):
         _finger().receptive_field([0.0], np.nan)
-    monkeypatch.setattr(scene_simulation.importlib.util, "find_spec", lambda name: None)
+    monkeypatch.setattr(recording_io.importlib.util, "find_spec", lambda name: None)
     rec = Recording(values=np.zeros((2, 1, 1)), sampling_rate_hz=10.0, sensor_ids=("s0",), components=("zz",))
     with pytest.raises(ValueError, match="format: 'parquet' needs the optional package pyarrow"):
-        scene_simulation.write_recording(rec, tmp_path, "parquet")
+        recording_io.write_recording(rec, tmp_path, "parquet")
 
 
 def test_partial_slip_finger_spans_no_load_to_sliding():

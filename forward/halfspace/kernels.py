@@ -39,6 +39,7 @@ from numpy.typing import ArrayLike
 from .kernel_formulas import line_geometry, line_unit, point_geometry, point_unit
 from .loads import SurfaceLoad
 
+#: Voigt order of stress and strain components (tensor shear in the last three), docs/theory.md section 1
 COMPONENTS = ("xx", "yy", "zz", "yz", "zx", "xy")
 DIRECTIONS = ("x", "y", "z")
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+#: Surface traction components: normal pressure p (pushes in) and tangential qx, qy (Pa)
 LOAD_COMPONENTS = ("p", "qx", "qy")
 
 
