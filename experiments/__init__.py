@@ -49,6 +49,12 @@ _EXPORTS = {
     "PsychometricFit": "psychometric",
     "ParamSummary": "psychometric",
     "SIGMOIDS": "psychometric",
+    "TransductionModel": "models",
+    "TransductionFit": "models",
+    "fit_transduction": "models",
+    "compare_models": "models",
+    "power_analysis": "models",
+    "PowerResult": "models",
 }
 
 __version__ = package_version()
