@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import sys
 from pathlib import Path
 
 from .common import make_out
@@ -75,7 +77,40 @@ def _print_result(result, parameter: str) -> int:
     return 0
 
 
+#: library parameter (as it starts a library error) -> the flag that sets it, per call
+_DEVICE, _DISPLAY = {"spec": "--device"}, {"spec": "--display", "url": "--display"}
+_RESPONSES = {"spec": "--responses", "kind": "--responses", "threshold": "--observer-threshold",
+              "strain": "--observer-strain"}
+
+
+@contextlib.contextmanager
+def _flags(mapping: dict[str, str]):
+    """Re-word a library error that names a parameter so that it names the CLI flag instead."""
+    try:
+        yield
+    except ValueError as exc:
+        text = str(exc)
+        for parameter, flag in mapping.items():
+            if text.startswith(parameter + ":") or text.startswith(parameter + " "):
+                raise ValueError(flag + text[len(parameter):]) from None
+        raise
+
+
+#: exit status of a run or resume stopped by a display fault (the trial was not scored)
+EXIT_DISPLAY_FAULT = 3
+
+
 def run(args: argparse.Namespace) -> int:
+    from tactilab.experiments.display import DisplayError
+
+    try:
+        return _run(args)
+    except DisplayError as exc:
+        print(f"tactilab experiment: display error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return EXIT_DISPLAY_FAULT
+
+
+def _run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas.experiment import Protocol, check_label
     from tactilab.experiments import factory
 
@@ -84,16 +119,20 @@ def run(args: argparse.Namespace) -> int:
         if args.session_label is not None:
             check_label(args.session_label, "--session")
         protocol = Protocol.from_toml(args.protocol)
-        description = factory.description_from_spec(args.device)
+        with _flags(_DEVICE):
+            description = factory.description_from_spec(args.device)
         make_out(args.out)
-        path, label = factory.next_session_path(args.out, args.subject, protocol.name)
+        with _flags({"folder": "--out"}):
+            path, label = factory.next_session_path(args.out, args.subject, protocol.name)
         if args.session_label is not None:
             label = args.session_label
             path = args.out / f"sub-{args.subject}_ses-{label}_task-{protocol.name}.sqlite"
-        display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
+        with _flags(_DISPLAY):
+            display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
         try:
-            responses = factory.make_responses(args.responses, protocol, display,
-                                               threshold=args.observer_threshold, strain=args.observer_strain)
+            with _flags(_RESPONSES):
+                responses = factory.make_responses(args.responses, protocol, display,
+                                                   threshold=args.observer_threshold, strain=args.observer_strain)
         except BaseException:
             display.close()
             raise
@@ -112,18 +151,21 @@ def run(args: argparse.Namespace) -> int:
         from tactilab.experiments.resume import replay_session, resume_session
 
         state = replay_session(args.session)
-        description = factory.description_from_spec(args.device)
+        with _flags(_DEVICE):
+            description = factory.description_from_spec(args.device)
         if description.display_id != state.meta["display_id"]:
             raise ValueError(
                 f"--device: the session was recorded on display {state.meta['display_id']!r}, but "
                 f"--device gives {description.display_id!r}; resume on the same display"
             )
         kind = args.responses or state.meta["responses"]
-        display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
+        with _flags(_DISPLAY):
+            display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
         recorded = state.meta.get("responses_config") if kind == state.meta["responses"] else None
         try:
-            responses = factory.make_responses(kind, state.protocol, display, threshold=args.observer_threshold,
-                                               strain=args.observer_strain, recorded=recorded)
+            with _flags(_RESPONSES):
+                responses = factory.make_responses(kind, state.protocol, display, threshold=args.observer_threshold,
+                                                   strain=args.observer_strain, recorded=recorded)
         except BaseException:
             display.close()
             raise
@@ -143,7 +185,9 @@ def run(args: argparse.Namespace) -> int:
         out = args.out if args.out is not None else args.session.parent
         if args.out is not None and args.session.is_file():  # a missing session is reported by export_session
             make_out(args.out)
-        for path in export_session(args.session, out, args.format):
+        with _flags({"format": "--format"}):
+            written = export_session(args.session, out, args.format)
+        for path in written:
             print(f"wrote {path}")
         return 0
 

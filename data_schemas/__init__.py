@@ -45,6 +45,7 @@ _EXPORTS = {
     "IsolatedDefect": "surface",
     "HeightMap": "surface",
     "to_si": "units",
+    "parse_hypothesis": "hypothesis",
 }
 
 __version__ = package_version()

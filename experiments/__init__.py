@@ -13,6 +13,7 @@ from tactilab.data_schemas._lazy import attach, package_version
 _EXPORTS = {
     "new_session": "runner",
     "RunResult": "runner",
+    "DisplayFault": "runner",
     "Runner": "runner",
     "resume_session": "resume",
     "session_status": "resume",
@@ -38,7 +39,12 @@ _EXPORTS = {
     "ConstantStimuli": "procedures",
     "Staircase": "procedures",
     "Psi": "psi",
-    "make_procedure": "procedures",
+    "make_procedure": "build",
+    "register_likelihood": "registry",
+    "register_procedure": "registry",
+    "UnregisteredError": "registry",
+    "Procedure": "procedures",
+    "PlannedLevel": "procedures",
 }
 
 __version__ = package_version()

@@ -79,6 +79,12 @@ class PlaybackReport:
         Intervals between consecutive frame sends, s (empty for non-real-time playback).
     ack_rtt_s : ndarray, shape (acked,)
         Round-trip time of each acknowledgement, s (empty when there are none).
+    rejected : int
+        Frames acknowledged with a status other than ``applied`` (stale, disarmed, ...);
+        ``missing - rejected`` frames got no acknowledgement at all.
+    stale : int
+        Frames acknowledged ``stale``: the device had already applied a newer sequence number
+        (another sender is ahead: an alarm).
     """
 
     frames_sent: int
@@ -91,6 +97,13 @@ class PlaybackReport:
     late_acks: int = 0
     send_intervals_s: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     ack_rtt_s: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    rejected: int = 0
+    stale: int = 0
+
+    @property
+    def unacknowledged(self) -> int:
+        """Frames that got no acknowledgement at all."""
+        return self.missing - self.rejected
 
     def with_interventions(self, n: int) -> PlaybackReport:
         """Return a copy with ``interventions`` set to ``n``."""

@@ -93,14 +93,14 @@ def export_session(path: str | Path, out: str | Path, format: str = "bids") -> l
         If ``format`` is unknown, or Parquet is asked for without pyarrow installed.
     """
     if format not in FORMATS:
-        raise ValueError(f"--format: must be one of {FORMATS}, got {format!r}")
+        raise ValueError(f"format: must be one of {FORMATS}, got {format!r}")
     if format == "parquet":
         try:
             import pyarrow  # noqa: F401
         except ImportError:
             raise ValueError(
-                "--format parquet: needs the optional dependency pyarrow, which is not installed; "
-                "install it (`pip install pyarrow`) or use --format csv"
+                "format: 'parquet' needs the optional dependency pyarrow, which is not installed; "
+                "install it (`pip install pyarrow`) or use format 'csv'"
             ) from None
     log = SessionLog(path)
     try:

@@ -6,7 +6,8 @@ every event in order, each committed (and fsynced) before the runner takes the n
 
 ``session_started``, ``session_resumed``, ``trial_planned``, ``stimulus_presented`` (written
 BEFORE the display is driven), ``response``, ``trial_complete``, ``safety_intervention``,
-``session_stopped``, ``session_failed``, ``session_complete``.
+``session_stopped``, ``session_failed``, ``session_complete``, ``display_fault`` (a stimulus that
+did not reach the display as commanded: the trial is not scored and is repeated on resume).
 
 Table ``trials`` holds one validated :class:`TrialRecord` (JSON) per completed trial, written
 in the same transaction as its ``trial_complete`` event. A session is locked while a runner
@@ -35,7 +36,7 @@ CREATE TABLE IF NOT EXISTS trials (trial_index INTEGER PRIMARY KEY, record TEXT 
 """
 EVENT_KINDS = ("session_started", "session_resumed", "trial_planned", "stimulus_presented",
                "response", "trial_complete", "safety_intervention", "session_stopped",
-               "session_failed", "session_complete")
+               "session_failed", "session_complete", "display_fault")
 
 
 class RecordingError(OSError):

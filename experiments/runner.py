@@ -14,6 +14,12 @@ uses its first spawned child, the task its second (the simulated observer uses
 ``[seed, i, 2]``). A resumed session therefore repeats an uninterrupted one exactly.
 If a write fails (disk full, read-only file), the display is zeroed and the run stops with a
 :class:`RecordingError` before the next stimulus; what was committed stays intact.
+
+A failed trial is never scored: when an interval's playback was stopped early, any frame was
+acknowledged with a status other than ``applied``, or more than :data:`MAX_UNACKED_FRACTION` of
+its frames got no acknowledgement, the display is zeroed, a ``display_fault`` event is logged
+(``alarm`` is true for ``stale`` acknowledgements: another sender is ahead in sequence on the
+link), the run stops with :class:`DisplayFault`, and the trial is repeated on resume.
 """
 
 from __future__ import annotations
@@ -35,8 +41,9 @@ import numpy as np
 from tactilab.data_schemas.experiment import Protocol, check_label
 from tactilab.data_schemas.experiment_records import TrialRecord
 
-from .display import Display, render_drive
-from .procedures import Likelihood, PlannedLevel, Procedure, make_procedure
+from .display import Display, DisplayError, PlaybackReport, render_drive
+from .build import make_procedure
+from .procedures import PlannedLevel, Procedure
 from .recording import Recorder, RecordingError, utc_now
 from .responses import ResponseSource
 from .safety import SafeDisplay
@@ -56,6 +63,43 @@ def trial_generators(seed: int, trial_index: int) -> tuple[np.random.Generator, 
     """(procedure, task) generators of one trial, spawned from ``default_rng([seed, trial_index])``."""
     procedure_rng, task_rng = np.random.default_rng([seed, trial_index]).spawn(2)
     return procedure_rng, task_rng
+
+
+#: Fraction of a stimulus's frames that may go unacknowledged (a lost datagram on a busy link)
+#: before the trial is a display fault; any non-``applied`` acknowledgement is a fault at once.
+MAX_UNACKED_FRACTION = 0.01
+
+
+class DisplayFault(DisplayError):
+    """A stimulus did not reach the display as commanded; the trial was not scored."""
+
+
+def display_fault(report: PlaybackReport) -> dict[str, Any] | None:
+    """Why one interval's playback cannot be scored, or None when it reached the display.
+
+    Returns
+    -------
+    dict or None
+        ``reason`` (text), ``alarm`` (True for ``stale`` acknowledgements), and the counts
+        ``frames_sent``, ``stale``, ``rejected`` (non-``applied`` acknowledgements) and
+        ``unacknowledged``.
+    """
+    counts = {"frames_sent": report.frames_sent, "stale": report.stale, "rejected": report.rejected,
+              "unacknowledged": report.unacknowledged, "stopped": report.stopped}
+    allowed = int(MAX_UNACKED_FRACTION * report.frames_sent)
+    if report.stale:
+        reason = (f"ALARM: {report.stale} of {report.frames_sent} frames were acknowledged 'stale': the "
+                  "device had applied newer sequence numbers, so another sender is driving it")
+    elif report.rejected:
+        reason = f"{report.rejected} of {report.frames_sent} frames were refused by the device"
+    elif report.unacknowledged > allowed:
+        reason = (f"{report.unacknowledged} of {report.frames_sent} frames were never acknowledged (at most "
+                  f"{allowed} = {MAX_UNACKED_FRACTION:.0%} may be)")
+    elif report.stopped:
+        reason = f"playback stopped after {report.frames_sent} frames, before the end of the stimulus"
+    else:
+        return None
+    return {"reason": reason, "alarm": bool(report.stale), **counts}
 
 
 @dataclass(frozen=True)
@@ -189,7 +233,17 @@ class Runner:
             if k == 0:  # the response clock starts at the first stimulus onset
                 onset_ns = time.monotonic_ns()
                 self.responses.arm(plan, onset_ns)
-            reports.append(self.display.play())
+            report = self.display.play()
+            fault = display_fault(report)
+            if fault is not None:  # never scored: zero, log, stop; resume repeats the trial
+                self.display.zero()
+                self.recorder.log("display_fault", index, attempt, {**fault, "interval": k})
+                raise DisplayFault(
+                    f"display fault in trial {index}, interval {k}: {fault['reason']}. The display is "
+                    f"zeroed and the trial was not scored; fix the link or the device, then resume "
+                    f"{self.recorder.path} (the trial is repeated)"
+                )
+            reports.append(report)
         response = self.responses.collect(plan)
         correct, outcome = score(self.protocol, plan, response.label)
         self.recorder.log("response", index, attempt, {
@@ -256,8 +310,7 @@ DISPLAY_UNITS = {"amplitude_m": ("amplitude", 1e6, "um"), "pitch_m": ("pitch", 1
 
 
 def new_session(protocol: Protocol, path: str | Path, display: Display, responses: ResponseSource, *,
-                subject: str, session: str = "01", likelihood: Likelihood | None = None,
-                realtime: bool = True, progress: bool = False) -> RunResult:
+                subject: str, session: str = "01", realtime: bool = True, progress: bool = False) -> RunResult:
     """Create a session file at ``path`` and run the protocol to the end (or to an interruption).
 
     Parameters
@@ -272,8 +325,6 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
         Where responses come from (terminal or simulated observer); its ``config`` is recorded.
     subject, session : str
         BIDS labels (1-32 letters or digits; pseudonymous codes, never names).
-    likelihood : callable, optional
-        A custom psychometric likelihood for a psi procedure (recorded by import path).
     realtime : bool
         Wait in real time between trials and during playback (False: dry runs only).
     progress : bool
@@ -300,12 +351,12 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
             "seed": protocol.seed, "package_version": package_version(),
             "display_id": str(display.description.display_id), "responses": responses.name,
             "responses_config": dict(responses.config),
-            "likelihood": None if likelihood is None else
-            f"{getattr(likelihood, '__module__', '?')}:{getattr(likelihood, '__qualname__', '?')}"}
+            "likelihood": getattr(protocol.procedure, "likelihood", None)}
+    # built before the file exists: an unregistered method or likelihood leaves no session behind
+    procedure = make_procedure(protocol.procedure, protocol.task.guess_rate)
     recorder = Recorder.create(path, meta)
     try:
         recorder.log("session_started", payload={"pid": os.getpid()})
-        procedure = make_procedure(protocol.procedure, protocol.task.guess_rate, likelihood)
         runner = Runner(protocol, recorder, display, responses, subject=subject, session=session,
                         procedure=procedure, realtime=realtime, progress=progress)
         return runner.run()

@@ -26,8 +26,10 @@ _EXPORTS = {
     "point_load_stress": "halfspace",
     "line_load_stress": "halfspace",
     "pressure_from_deflection": "halfspace",
+    "angular_wavenumbers": "halfspace",
     "to_engineering": "halfspace",
     "invariants": "halfspace",
+    "ReceptorHypothesis": "receptors",
     # contacts and surfaces
     "HertzContact": "contact",
     "interfacial_traction": "contact",

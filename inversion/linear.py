@@ -17,7 +17,6 @@ in a registry, :data:`METHODS`, and says which it used in the result:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -26,71 +25,14 @@ from scipy.sparse.linalg import aslinearoperator
 
 from .criteria import CRITERIA, CriteriaResult, SpectralForm, choose_lambda
 from .iterative_criteria import IterativeCriteria, NormalSolver, choose_lambda_iterative
+from .linear_common import DENSE_MAX, LinearInversionResult, check_data
 from .operators import FourierDiagonal
 from .penalties import PENALTIES, check_penalty, penalty_matrix, penalty_symbol
+from .tv import invert_tv
 
-DENSE_MAX = 1024
 PATHS = ("fft", "dense", "iterative")
 
 __all__ = ["invert_linear", "LinearInversionResult", "METHODS", "fft_form", "dense_form", "check_data"]
-
-
-@dataclass
-class LinearInversionResult:
-    """Result of :func:`invert_linear`.
-
-    Attributes
-    ----------
-    model : ndarray, shape ``dims``
-        Estimated model (load in Pa, or profile in m, as the operator maps).
-    method : str
-        Path used: ``"fft"``, ``"dense"`` or ``"iterative"``.
-    penalty : str
-        ``"identity"``, ``"gradient"``, ``"curvature"`` or ``"tv"``.
-    lam : float
-        Regularisation strength used.
-    lam_source : str
-        ``"given"`` or the criterion that chose it.
-    criteria : CriteriaResult or None
-        All criteria choices and curves (Tikhonov on the fft and dense paths).
-    residual_norm : float
-        ``||A m - d||`` in data units.
-    iterations : int
-        Solver iterations (0 for direct paths).
-    converged : bool
-        False when an iterative solver hit its iteration limit.
-    message : str
-        Human-readable account of what was done.
-    """
-
-    model: np.ndarray
-    method: str
-    penalty: str
-    lam: float
-    lam_source: str
-    criteria: CriteriaResult | None
-    residual_norm: float
-    iterations: int
-    converged: bool
-    message: str
-
-
-def check_data(data, n_expected: int, name: str = "data") -> np.ndarray:
-    """Flatten and validate data: finite reals of the expected size."""
-    arr = np.asarray(data)
-    if arr.dtype.kind not in "biuf":
-        raise ValueError(f"{name}: expected real numbers, got dtype {arr.dtype}")
-    arr = arr.astype(float).ravel()
-    if arr.size != n_expected:
-        raise ValueError(f"{name}: size mismatch, got {arr.size} values but the operator has {n_expected} outputs")
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise ValueError(
-            f"{name}: must be finite, found {arr[i]} at flat index {i} ({int(bad.sum())} bad values); "
-            "drop or interpolate the bad samples first"
-        )
-    return arr
 
 
 def _dims(op) -> tuple[int, ...]:
@@ -219,8 +161,6 @@ def invert_linear(
     LinearInversionResult
     """
     if penalty == "tv":
-        from .tv import invert_tv
-
         return invert_tv(operator, data, lam=lam, noise_std=noise_std, method=method, spacing=spacing,
                          tol=tol, max_iter=3000 if max_iter is None else max_iter, rng=rng)
     if penalty not in PENALTIES:

@@ -7,7 +7,8 @@ O(n log n) with real FFTs and carries ``dims`` / ``dimsd`` like PyLops operators
 
 Fourier convention (docs/theory.md section 1): ``f~(k) = sum_x f(x) exp(-i k x)``, angular
 wavenumbers ``k = 2 pi * fftfreq(n, dx)`` in rad/m. A multiplier is given on the FULL grid in
-``numpy.fft.fftfreq`` order (shape equal to the model shape); it must be Hermitian,
+``numpy.fft.fftfreq`` order (shape equal to the model shape; wavenumbers from
+:func:`tactilab.forward.halfspace.angular_wavenumbers`, x first); it must be Hermitian,
 ``H(-k) = conj(H(k))``, so that the operator maps real arrays to real arrays.
 """
 
@@ -16,43 +17,15 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
+from tactilab.forward.halfspace import angular_wavenumbers, transfer
+
 __all__ = [
     "rigid_surface_height_operator",
     "FourierDiagonal",
-    "angular_wavenumbers",
     "normal_pressure_to_szz_multiplier",
     "halfspace_fourier_operator",
     "dottest",
 ]
-
-
-def angular_wavenumbers(shape: tuple[int, ...], spacing) -> tuple[np.ndarray, ...]:
-    """Angular wavenumbers (rad/m) of a periodic grid, one array per axis, broadcastable.
-
-    Parameters
-    ----------
-    shape : tuple of int
-        Grid shape ``(nx,)`` or ``(ny, nx)``.
-    spacing : float or tuple of float
-        Grid spacing in m, ``dx`` or ``(dx, dy)``; for 2-D grids the order is (dx, dy) as in
-        :class:`tactilab.forward.halfspace.loads.SurfaceLoad`.
-
-    Returns
-    -------
-    tuple of ndarray
-        ``(xi,)`` of shape (nx,) in 1-D; ``(eta, xi)`` of shapes (ny, 1) and (1, nx) in 2-D,
-        in ``fftfreq`` order.
-    """
-    spacing = np.atleast_1d(np.asarray(spacing, dtype=float))
-    if spacing.size == 1:
-        spacing = np.repeat(spacing, len(shape))
-    if len(shape) == 1:
-        return (2 * np.pi * np.fft.fftfreq(shape[0], spacing[0]),)
-    if len(shape) == 2:
-        xi = 2 * np.pi * np.fft.fftfreq(shape[1], spacing[0])[None, :]
-        eta = 2 * np.pi * np.fft.fftfreq(shape[0], spacing[1])[:, None]
-        return eta, xi
-    raise ValueError(f"shape: expected a 1-D (nx,) or 2-D (ny, nx) grid, got {shape}")
 
 
 def normal_pressure_to_szz_multiplier(n: int, dx: float, depth: float) -> np.ndarray:
@@ -109,14 +82,12 @@ def halfspace_fourier_operator(shape, spacing, depth: float, nu: float = 0.5, lo
     component : str
         Stress component (Voigt name) the sensors measure, Pa.
     """
-    from tactilab.forward.halfspace import transfer
-
     shape = tuple(int(v) for v in shape)
     ks = angular_wavenumbers(shape, spacing)
     if len(shape) == 1:
         full = transfer(ks[0], None, depth, nu, load, (component,))[0]
     else:
-        eta, xi = np.broadcast_arrays(*ks)
+        xi, eta = np.broadcast_arrays(*ks)
         full = transfer(xi, eta, depth, nu, load, (component,))[0]
     full = np.array(full, dtype=complex)
     for axis, n in enumerate(shape):
@@ -208,7 +179,8 @@ class FourierDiagonal(LinearOperator):
 
     @property
     def wavenumbers(self) -> tuple[np.ndarray, ...]:
-        """Angular wavenumbers in rad/m on the full grid (see :func:`angular_wavenumbers`)."""
+        """Angular wavenumbers ``(xi,)`` or ``(xi, eta)`` in rad/m on the full grid, x first
+        (see :func:`tactilab.forward.halfspace.angular_wavenumbers`)."""
         return angular_wavenumbers(self.dims, self.spacing)
 
     def _apply(self, x: np.ndarray, mult: np.ndarray) -> np.ndarray:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .operators import angular_wavenumbers
+from tactilab.forward.halfspace import angular_wavenumbers
 
 PENALTIES = ("identity", "gradient", "curvature")
 
@@ -59,10 +59,8 @@ def penalty_symbol(penalty: str, shape: tuple[int, ...], spacing) -> np.ndarray:
         return np.ones(shape)
     ks = angular_wavenumbers(shape, spacing)
     d = _spacings(shape, spacing)
-    # axis order of ks is (eta, xi) in 2-D while spacing is (dx, dy)
-    steps = d[::-1] if len(shape) == 2 else d
     lap = np.zeros(shape)
-    for k, h in zip(ks, steps):
+    for k, h in zip(ks, d):  # both x first: (xi, eta) and (dx, dy)
         lap = lap + 4.0 * np.sin(k * h / 2.0) ** 2 / h**2
     return lap if penalty == "gradient" else lap**2
 

@@ -112,13 +112,19 @@ def test_every_depth_spelling_gives_the_same_si_value(depth, tmp_path):
     [
         ("200kPa", 'speed_mm_per_s = 20\nduration_ms = 500\nsampling_rate_khz = 2', 2e5, (0.02, 0.5, 2000.0)),
         ("0.2MPa", 'speed = "2cm/s"\nduration_s = 0.5\nsampling_rate_hz = 2000', 2e5, (0.02, 0.5, 2000.0)),
-        ("200000", 'speed_m_per_s = "20mm/s"\nduration = "0.5s"\nsampling_rate = "2000Hz"', 2e5, (0.02, 0.5, 2000.0)),
+        ("200000Pa", 'speed_m_per_s = "20mm/s"\nduration = "0.5s"\nsampling_rate = "2000Hz"', 2e5, (0.02, 0.5, 2000.0)),
     ],
 )
 def test_modulus_and_scan_spellings(E, scan, expected_E, expected_scan, tmp_path):
     s = load_scene(write_scene(tmp_path, E=E, scan=scan))
     assert s.material.young_modulus_pa == pytest.approx(expected_E, rel=1e-15)
     assert (s.scan.speed_m_per_s, s.scan.duration_s, s.scan.sampling_rate_hz) == pytest.approx(expected_scan, rel=1e-15)
+
+
+def test_a_bare_number_string_is_never_silently_si(tmp_path):
+    with pytest.raises(ValueError, match=r"young_modulus: '200000' has no unit, and a pressure needs one; "
+                                         r"write it with a unit, e\.g\. '200000kPa'"):
+        load_scene(write_scene(tmp_path, E="200000", scan='speed_mm_per_s = 20\nduration_ms = 500\nsampling_rate_khz = 2'))
 
 
 def test_strain_noise_is_dimensionless_and_stress_noise_a_pressure():

@@ -101,11 +101,11 @@ def test_json_export_is_the_whole_session(session, tmp_path):
 
 def test_parquet_without_pyarrow_names_the_missing_dependency(session, tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "pyarrow", None)  # makes `import pyarrow` fail
-    with pytest.raises(ValueError, match="--format parquet: needs the optional dependency pyarrow"):
+    with pytest.raises(ValueError, match="format: 'parquet' needs the optional dependency pyarrow"):
         export_session(session, tmp_path, "parquet")
     assert cli_main(["experiment", "export", str(session), "--format", "parquet"]) == 2
     assert "pip install pyarrow" in capsys.readouterr().err
-    with pytest.raises(ValueError, match="--format: must be one of"):
+    with pytest.raises(ValueError, match="format: must be one of"):
         export_session(session, tmp_path, "xlsx")
 
 
@@ -122,6 +122,11 @@ def test_user_mistakes_give_one_line_and_exit_2(session, tmp_path, capsys):
         (["run", str(toml), "--subject", "S02", "--out", str(toml / "x")], "--out: cannot create the output folder"),
         (["run", str(toml), "--subject", "S02", "--responses", "simulated", "--observer-threshold", "-1"],
          "--observer-threshold: must be a strain > 0"),
+        (["run", str(toml), "--subject", "S02", "--responses", "simulated", "--observer-strain", "skin"],
+         "--observer-strain: must be 'surface' or 'display'"),
+        (["run", str(toml), "--subject", "S02", "--display", "udp://h", "--responses", "simulated"],
+         "--display: expected udp://HOST:PORT"),
+        (["export", str(session), "--format", "xml"], "--format: must be one of"),
         (["run", str(toml), "--subject", "S02", "--responses", "simulated", "--observer-threshold", "2mm"],
          "--observer-threshold: unit 'mm' measures length"),
         (["run", str(toml), "--subject", "S01", "--session", "01", "--out", str(session.parent),
@@ -216,9 +221,9 @@ def test_make_responses_options():
 
     protocol = Protocol.from_toml(Path(__file__).resolve().parents[1] / "examples" / "protocol_psi.toml")
     udp_like = object()
-    with pytest.raises(ValueError, match="--observer-strain display: needs --display simulated"):
+    with pytest.raises(ValueError, match="strain: 'display' needs a SimulatedDisplay"):
         factory.make_responses("simulated", protocol, udp_like, strain="display")
-    with pytest.raises(ValueError, match="--observer-strain: must be 'surface' or 'display', got 'skin'"):
+    with pytest.raises(ValueError, match="strain: must be 'surface' or 'display', got 'skin'"):
         factory.make_responses("simulated", protocol, udp_like, strain="skin")
     with pytest.raises(ValueError, match="custom strain function: resume it from Python"):
         factory.make_responses("simulated", protocol, udp_like, recorded={"strain": "custom"})
@@ -233,7 +238,7 @@ def test_factory_specs(tmp_path):
     assert factory.description_from_spec(str(path)) == DisplayDescription.braille_row()
     for n in range(1, 1000):
         (tmp_path / f"sub-S9_ses-{n:02d}_task-t.sqlite").touch()
-    with pytest.raises(ValueError, match="--out: .* already holds 999 sessions"):
+    with pytest.raises(ValueError, match="folder: .* already holds 999 sessions"):
         factory.next_session_path(tmp_path, "S9", "t")
 
 
@@ -261,15 +266,15 @@ def test_factory_rejects_bad_specs(tmp_path):
     protocol_file.write_text(PROTOCOL)
     protocol = Protocol.from_toml(protocol_file)
     description = DisplayDescription.braille_row()
-    with pytest.raises(ValueError, match=r"--device: must be one of \['braille-row', 'stress2'\] .*got 'x.json'"):
+    with pytest.raises(ValueError, match=r"spec: must be one of \['braille-row', 'stress2'\] .*got 'x.json'"):
         factory.description_from_spec("x.json")  # no such file
-    with pytest.raises(ValueError, match="--display: must be 'simulated' or 'udp://HOST:PORT', got 'tcp://h:1'"):
+    with pytest.raises(ValueError, match="spec: must be 'simulated' or 'udp://HOST:PORT', got 'tcp://h:1'"):
         factory.display_from_spec("tcp://h:1", description)
-    with pytest.raises(ValueError, match="--responses: must be 'terminal' or 'simulated', got 'mind'"):
+    with pytest.raises(ValueError, match="spec: must be 'terminal' or 'simulated', got 'mind'"):
         factory.responses_from_spec("mind", protocol)
     display = factory.display_from_spec("simulated", description, realtime=False)
     try:
-        with pytest.raises(ValueError, match="--observer-threshold: must be a strain > 0, got '0'"):
+        with pytest.raises(ValueError, match="threshold: must be a strain > 0, got '0'"):
             factory.make_responses("simulated", protocol, display, threshold="0")
     finally:
         display.close()

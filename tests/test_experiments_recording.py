@@ -14,7 +14,7 @@ from tactilab.cli.main import main as cli_main
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
 from tactilab.experiments.display import Display, PlaybackReport
-from tactilab.experiments.procedures import make_procedure
+from tactilab.experiments.build import make_procedure
 from tactilab.experiments.recording import Recorder, RecordingError, SessionLockedError, SessionLog
 from tactilab.experiments.responses import SimulatedObserver
 from tactilab.experiments.resume import replay_session, resume_session, session_status

@@ -7,7 +7,8 @@ import pytest
 
 from tactilab.forward.halfspace.facade import HalfSpace
 from tactilab.forward.halfspace.loads import SurfaceLoad
-from tactilab.forward.halfspace.spectral import VOIGT, periodic_stress, pressure_from_deflection, transfer, wavenumbers
+from tactilab.forward.halfspace import angular_wavenumbers
+from tactilab.forward.halfspace.spectral import VOIGT, periodic_stress, pressure_from_deflection, transfer
 
 I6 = np.eye(6)
 
@@ -206,7 +207,7 @@ def test_sliding_sinusoid_strain_of_physics_md_4a():
 def test_transfer_matches_the_solver_and_validates(rng):
     n, h, z = 32, 1e-4, 4e-4
     load = SurfaceLoad(qx=rng.normal(size=n), spacing=h, periodic=True)
-    xi, _ = wavenumbers((n,), (h,))
+    (xi,) = angular_wavenumbers((n,), h, half=True)
     T = transfer(xi, None, z, 0.5, "qx", ("zz", "zx"))
     spec = np.fft.rfft(load.qx)
     T[:, -1] = T[:, -1].real  # Nyquist: the solver keeps the real (mirror-averaged) part
@@ -224,3 +225,38 @@ def test_transfer_matches_the_solver_and_validates(rng):
 def test_pressure_from_deflection_validates():
     with pytest.raises(ValueError, match="deflection"):
         pressure_from_deflection(np.array([0.0, np.nan]), 1e-4, 1e5, 0.5)
+
+
+def test_angular_wavenumbers_are_x_first_in_rad_per_m():
+    # an anisotropic grid: nx = 8 nodes at dx = 1 mm, ny = 4 nodes at dy = 3 mm
+    xi, eta = angular_wavenumbers((4, 8), (1e-3, 3e-3))
+    assert xi.shape == (1, 8) and eta.shape == (4, 1)
+    np.testing.assert_allclose(xi[0, 1], 2 * np.pi / (8 * 1e-3))   # fundamental along x, rad/m
+    np.testing.assert_allclose(eta[1, 0], 2 * np.pi / (4 * 3e-3))  # fundamental along y, rad/m
+    np.testing.assert_allclose(xi[0, 4], -np.pi / 1e-3)            # fftfreq order: Nyquist negative
+    half_xi, half_eta = angular_wavenumbers((4, 8), (1e-3, 3e-3), half=True)
+    np.testing.assert_allclose(half_xi[0], np.abs(xi[0, :5]))
+    np.testing.assert_array_equal(half_eta, eta)
+    (x_only,) = angular_wavenumbers((8,), 1e-3)
+    np.testing.assert_array_equal(x_only, xi[0])
+    # the wavenumbers diagonalise the grid's shift along x, not y
+    f = np.cos(2 * np.pi * np.arange(8) * 1e-3 / 8e-3)[None, :] * np.ones((4, 1))
+    spec = np.fft.fft2(f)
+    peak = np.unravel_index(np.argmax(np.abs(spec)), spec.shape)
+    assert np.hypot(xi[0, peak[1]], eta[peak[0], 0]) == pytest.approx(2 * np.pi / 8e-3)
+    assert eta[peak[0], 0] == 0.0
+
+
+def test_angular_wavenumbers_validation():
+    with pytest.raises(ValueError, match=r"shape: expected a 1-D \(nx,\) or 2-D"):
+        angular_wavenumbers((2, 2, 2), 1e-3)
+    with pytest.raises(ValueError, match=r"spacing: expected 2 finite grid spacing\(s\) > 0 m"):
+        angular_wavenumbers((4, 4), (1e-3, -1e-3))
+
+
+def test_inversion_and_solver_share_one_wavenumber_helper():
+    from tactilab.inversion import operators, penalties
+
+    assert operators.angular_wavenumbers is angular_wavenumbers
+    assert penalties.angular_wavenumbers is angular_wavenumbers
+    assert "def angular_wavenumbers" not in open(operators.__file__).read()

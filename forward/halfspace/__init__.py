@@ -24,7 +24,7 @@ from .kernels import (
 from .loads import LOAD_COMPONENTS, SurfaceLoad
 from .methods import METHODS, Method
 from .operator import LoadToSensor
-from .spectral import pressure_from_deflection, transfer
+from .spectral import angular_wavenumbers, pressure_from_deflection, transfer
 
 __all__ = [
     "AccuracyWarning",
@@ -38,6 +38,7 @@ __all__ = [
     "Method",
     "SHEAR_CONVENTION",
     "SurfaceLoad",
+    "angular_wavenumbers",
     "compliance_matrix",
     "invariants",
     "line_green",

@@ -23,7 +23,7 @@ from scipy.sparse.linalg import LinearOperator
 from .fields import check_components, output_weights
 from .kernels import line_green, point_green
 from .loads import LOAD_COMPONENTS, SurfaceLoad
-from .spectral import VOIGT, _Geometry, multiplier, wavenumbers
+from .spectral import VOIGT, _Geometry, multiplier, _half_wavenumbers
 
 _DIRECTION = {"p": "z", "qx": "x", "qy": "y"}
 
@@ -122,7 +122,7 @@ class LoadToSensor(LinearOperator):
     # -- precomputation -----------------------------------------------------------------------
     def _periodic_multipliers(self) -> np.ndarray:
         t = self.template
-        xi, eta = wavenumbers(t.shape, t.spacing)
+        xi, eta = _half_wavenumbers(t.shape, t.spacing)
         g = _Geometry(xi, eta, nyquist_x=t.shape[-1] % 2 == 0, nyquist_y=t.ndim == 2 and t.shape[0] % 2 == 0)
         return np.array([[multiplier(g, self.nu, name, row, self.depth) for name in self.loads]
                          for row in self.weights])
@@ -193,7 +193,7 @@ class LoadToSensor(LinearOperator):
     def _periodic_row(self, l: int, xy: np.ndarray) -> np.ndarray:
         t = self.template
         mult = self._periodic_multipliers_cached()[:, l]
-        xi, eta = wavenumbers(t.shape, t.spacing)
+        xi, eta = _half_wavenumbers(t.shape, t.spacing)
         phase = np.exp(1j * xi * xy[0]) if t.ndim == 1 else np.exp(1j * (xi * xy[0] + eta * xy[1]))
         # response at xy to a unit traction at node m = (1/N) sum_k M(k) e^{ik (xy - x_m)}
         axes = tuple(range(1, t.ndim + 1))
