@@ -34,11 +34,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="a frame whose transit exceeds the smallest by more than this is late (time; default 1ms)")
 
 
+#: library parameter -> the flag that sets it
+_FLAGS = {"port": "--port", "watchdog_s": "--watchdog", "max_seconds": "--max-seconds",
+          "late_after_s": "--late-after", "n_tractors": "--tractors"}
+
+
 def run(args: argparse.Namespace) -> int:
     watchdog = to_si(args.watchdog, "time", name="--watchdog")
     max_seconds = to_si(args.max_seconds, "time", name="--max-seconds", default_unit="s")
     late_after = to_si(args.late_after, "time", name="--late-after")
-    emulate(args.port, watchdog_s=watchdog, record=args.record, max_seconds=max_seconds,
-                      n_tractors=args.tractors, late_after_s=late_after,
-                      log=functools.partial(print, flush=True))
+    try:
+        emulate(args.port, watchdog_s=watchdog, record=args.record, max_seconds=max_seconds,
+                n_tractors=args.tractors, late_after_s=late_after, log=functools.partial(print, flush=True))
+    except ValueError as exc:
+        text = str(exc)
+        for parameter, flag in _FLAGS.items():
+            if text.startswith(parameter + ":"):
+                raise ValueError(flag + text[len(parameter):]) from None
+        raise
     return 0

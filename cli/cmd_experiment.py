@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import sys
 from pathlib import Path
 
 from .common import make_out
@@ -29,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     resume = sub.add_parser("resume", help="continue a killed or stopped session exactly (repeats the interrupted trial)")
     resume.add_argument("session", type=Path, help="session .sqlite file")
-    _device_args(resume)
+    _device_args(resume, resume=True)
     resume.add_argument("--responses", default=None,
                         help="'terminal' or 'simulated'; default: what the session was started with")
     _observer_args(resume)
@@ -44,11 +46,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     status.add_argument("session", type=Path, help="session .sqlite file")
 
 
-def _device_args(p: argparse.ArgumentParser) -> None:
+def _device_args(p: argparse.ArgumentParser, resume: bool = False) -> None:
     p.add_argument("--display", default="simulated",
                    help="'simulated' or 'udp://HOST:PORT' (frames of tractions in Pa at the device rate, 1 kHz default)")
-    p.add_argument("--device", default="braille-row",
-                   help="display description: 'braille-row', 'stress2' or a .json description file (limits in Pa, m, 1/s)")
+    p.add_argument("--device", default=None if resume else "braille-row",
+                   help="display description: 'braille-row', 'stress2' or a .json description file (limits in Pa, "
+                        "m, 1/s); " + ("default: the description the session recorded (another one is refused)"
+                                       if resume else "default braille-row"))
     p.add_argument("--no-wait", action="store_true",
                    help="do not wait in real time (inter-trial pauses, simulated playback): dry runs only")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -75,7 +79,65 @@ def _print_result(result, parameter: str) -> int:
     return 0
 
 
+#: library parameter (as it starts a library error) -> the flag that sets it, per call
+_DEVICE, _DISPLAY = {"spec": "--device"}, {"spec": "--display", "url": "--display"}
+_RESPONSES = {"spec": "--responses", "kind": "--responses", "threshold": "--observer-threshold",
+              "strain": "--observer-strain"}
+
+
+@contextlib.contextmanager
+def _flags(mapping: dict[str, str]):
+    """Re-word a library error that names a parameter so that it names the CLI flag instead."""
+    try:
+        yield
+    except ValueError as exc:
+        text = str(exc)
+        for parameter, flag in mapping.items():
+            if text.startswith(parameter + ":") or text.startswith(parameter + " "):
+                raise ValueError(flag + text[len(parameter):]) from None
+        raise
+
+
+def _zero_and_close(display, responses, report: bool) -> None:
+    """The last word to the display is ZERO, whatever happened. A ZERO that fails is reported on
+    stderr when ``report`` (the run ended normally); otherwise the error that ended the run goes on
+    alone, in one line."""
+    try:
+        try:
+            display.zero()
+        except Exception as exc:  # noqa: BLE001 - the device may be what failed
+            if report:
+                print(f"tactilab experiment: warning: final ZERO failed ({' '.join(str(exc).split())}); "
+                      "the device's watchdog zeroes it when frames stop", file=sys.stderr)
+    finally:
+        try:
+            responses.close()
+        finally:
+            display.close()
+
+
+class _Described:
+    """Just a description, to check it before any display is opened."""
+
+    def __init__(self, description) -> None:
+        self.description = description
+
+
+#: exit status of a run or resume stopped by a display fault (the trial was not scored)
+EXIT_DISPLAY_FAULT = 3
+
+
 def run(args: argparse.Namespace) -> int:
+    from tactilab.experiments.display import DisplayError
+
+    try:
+        return _run(args)
+    except DisplayError as exc:
+        print(f"tactilab experiment: display error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return EXIT_DISPLAY_FAULT
+
+
+def _run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas.experiment import Protocol, check_label
     from tactilab.experiments import factory
 
@@ -84,57 +146,68 @@ def run(args: argparse.Namespace) -> int:
         if args.session_label is not None:
             check_label(args.session_label, "--session")
         protocol = Protocol.from_toml(args.protocol)
-        description = factory.description_from_spec(args.device)
+        with _flags(_DEVICE):
+            description = factory.description_from_spec(args.device)
         make_out(args.out)
-        path, label = factory.next_session_path(args.out, args.subject, protocol.name)
+        with _flags({"folder": "--out"}):
+            path, label = factory.next_session_path(args.out, args.subject, protocol.name)
         if args.session_label is not None:
             label = args.session_label
             path = args.out / f"sub-{args.subject}_ses-{label}_task-{protocol.name}.sqlite"
-        display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
+        with _flags(_DISPLAY):
+            display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
         try:
-            responses = factory.make_responses(args.responses, protocol, display,
-                                               threshold=args.observer_threshold, strain=args.observer_strain)
+            with _flags(_RESPONSES):
+                responses = factory.make_responses(args.responses, protocol, display,
+                                                   threshold=args.observer_threshold, strain=args.observer_strain)
         except BaseException:
             display.close()
             raise
         from tactilab.experiments.runner import new_session
 
         print(f"session file: {path}", flush=True)
+        ended = False
         try:
             result = new_session(protocol, path, display, responses, subject=args.subject, session=label,
                                  realtime=not args.no_wait, progress=not args.quiet)
+            ended = True
         finally:
-            responses.close()
-            display.close()
+            _zero_and_close(display, responses, ended)
         return _print_result(result, protocol.procedure.parameter)
 
     if args.action == "resume":
-        from tactilab.experiments.resume import replay_session, resume_session
+        from tactilab.data_schemas.display import DisplayDescription
+        from tactilab.experiments.resume import check_same_display, replay_session, resume_session
 
         state = replay_session(args.session)
-        description = factory.description_from_spec(args.device)
-        if description.display_id != state.meta["display_id"]:
-            raise ValueError(
-                f"--device: the session was recorded on display {state.meta['display_id']!r}, but "
-                f"--device gives {description.display_id!r}; resume on the same display"
-            )
+        recorded_description = state.meta.get("display_description")
+        if args.device is None and recorded_description is not None:
+            description = DisplayDescription.model_validate(recorded_description)
+        else:
+            with _flags(_DEVICE):
+                description = factory.description_from_spec(args.device or "braille-row")
+        with _flags({"display": "--device"}):
+            check_same_display(state.meta, _Described(description), args.session)
         kind = args.responses or state.meta["responses"]
-        display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
+        with _flags(_DISPLAY):
+            display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
         recorded = state.meta.get("responses_config") if kind == state.meta["responses"] else None
         try:
-            responses = factory.make_responses(kind, state.protocol, display, threshold=args.observer_threshold,
-                                               strain=args.observer_strain, recorded=recorded)
+            with _flags(_RESPONSES):
+                responses = factory.make_responses(kind, state.protocol, display, threshold=args.observer_threshold,
+                                                   strain=args.observer_strain, recorded=recorded)
         except BaseException:
             display.close()
             raise
         print(f"resuming {args.session}: {len(state.trials)} trials done"
               + (f", repeating interrupted trial {next(iter(state.attempts))}" if state.attempts else ""), flush=True)
+        ended = False
         try:
             result = resume_session(args.session, display, responses, realtime=not args.no_wait,
                                     progress=not args.quiet)
+            ended = True
         finally:
-            responses.close()
-            display.close()
+            _zero_and_close(display, responses, ended)
         return _print_result(result, state.protocol.procedure.parameter)
 
     if args.action == "export":
@@ -143,7 +216,9 @@ def run(args: argparse.Namespace) -> int:
         out = args.out if args.out is not None else args.session.parent
         if args.out is not None and args.session.is_file():  # a missing session is reported by export_session
             make_out(args.out)
-        for path in export_session(args.session, out, args.format):
+        with _flags({"format": "--format"}):
+            written = export_session(args.session, out, args.format)
+        for path in written:
             print(f"wrote {path}")
         return 0
 

@@ -41,10 +41,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from tactilab.data_schemas.files import load_scene
+    from tactilab.data_schemas import load_scene, read_recording
     from tactilab.inversion.criteria import plot_criteria
     from tactilab.inversion.plots import plot_corner, plot_profile
-    from tactilab.forward.scene_simulation import read_recording
     from tactilab.inversion.scene_inversion import defect_profile, invert_defect_position
 
     if args.max_steps < 1:
@@ -52,7 +51,10 @@ def run(args: argparse.Namespace) -> int:
     if args.max_data < 10:
         raise ValueError(f"--max-data: must be >= 10 values, got {args.max_data}; e.g. 1500")
     scene = load_scene(args.scene)
-    recording = read_recording(args.recording)
+    try:
+        recording = read_recording(args.recording)
+    except (OSError, ValueError) as err:  # name the command-line argument
+        raise type(err)(f"RECORDING: {str(err).removeprefix('path: ')}") from None
     out = args.out if args.out is not None else Path(f"{args.recording.stem}-inversion")
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(args.seed)

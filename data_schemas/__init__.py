@@ -31,6 +31,9 @@ _EXPORTS = {
     "read_json_record": "files",
     "SkinMaterial": "material",
     "Recording": "recording",
+    "read_recording": "recording_io",
+    "write_recording": "recording_io",
+    "recording_dataset": "recording_io",
     "Contact": "scene",
     "Scan": "scene",
     "Scene": "scene",
@@ -42,6 +45,7 @@ _EXPORTS = {
     "IsolatedDefect": "surface",
     "HeightMap": "surface",
     "to_si": "units",
+    "parse_hypothesis": "hypothesis",
 }
 
 __version__ = package_version()

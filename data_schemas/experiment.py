@@ -16,12 +16,13 @@ import tomllib
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, ValidationError, model_validator
+from pydantic import Field, SerializeAsAny, ValidationError, field_validator, model_validator
 
 from .base import format_validation_error
 from .experiment_procedures import (  # noqa: F401 - the configs are part of this module's API
-    LIKELIHOOD_FAMILIES, PARAMETERS, TASKS, ConstantStimuliConfig, Frequency, Length, ProcedureConfig,
-    PsiConfig, Speed, StaircaseConfig, StaircaseTrack, Time, _finite, _Model, _positive, check_label)
+    LIKELIHOOD_FAMILIES, MAX_PLANNED_TRIALS, PARAMETERS, PROCEDURE_CONFIGS, TASKS, ConstantStimuliConfig,
+    Frequency, Length, ProcedureConfigBase, PsiConfig, Speed, StaircaseConfig, StaircaseTrack, Time, _finite,
+    _Model, _positive, check_label, check_name, procedure_config, register_procedure_config)
 
 
 class Stimulus(_Model):
@@ -173,8 +174,14 @@ class Protocol(_Model):
     task: Task
     stimulus: Stimulus
     reference: Stimulus | None = Field(None, description="comparison standard (2ifc, same_different)")
-    procedure: ProcedureConfig
+    procedure: SerializeAsAny[ProcedureConfigBase] = Field(
+        description="validated by the configuration class registered for its `method`")
     iti_s: Time = Field(0.5, description="inter-trial interval, s")
+
+    @field_validator("procedure", mode="before")
+    @classmethod
+    def _procedure(cls, value: Any) -> Any:
+        return procedure_config(value)
 
     @model_validator(mode="after")
     def _check(self) -> Protocol:
@@ -189,6 +196,12 @@ class Protocol(_Model):
             raise ValueError(
                 f"procedure.method: magnitude_estimation has no correct answer, so it needs "
                 f"constant_stimuli, got {proc.method!r}"
+            )
+        n_planned = proc.n_planned()
+        if n_planned > MAX_PLANNED_TRIALS:
+            raise ValueError(
+                f"procedure: plans {n_planned} trials, above the cap of {MAX_PLANNED_TRIALS}; "
+                "split the experiment into sessions"
             )
         for level in self.candidate_levels():
             try:  # every level the procedure can choose must give a valid stimulus
@@ -212,10 +225,7 @@ class Protocol(_Model):
 
     def candidate_levels(self) -> list[float]:
         """The levels (or the bounds of the range) the procedure may command, SI."""
-        proc = self.procedure
-        if proc.method == "staircase":
-            return [v for t in proc.tracks for v in (t.min_level, t.max_level)]
-        return list(proc.levels)
+        return self.procedure.candidate_levels()
 
     @classmethod
     def from_toml(cls, path: str | Path) -> Protocol:

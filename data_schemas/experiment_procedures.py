@@ -1,7 +1,9 @@
 """Procedure configurations of a protocol, and the validated field helpers they share.
 
-A protocol's ``[procedure]`` table is one of :class:`ConstantStimuliConfig`,
-:class:`StaircaseConfig` or :class:`PsiConfig` (``method`` picks it). Levels are read in the
+A protocol's ``[procedure]`` table is validated by the configuration class registered for its
+``method`` (:func:`register_procedure_config`; built in: :class:`ConstantStimuliConfig`,
+:class:`StaircaseConfig`, :class:`PsiConfig`). A file holds data only: a method or a
+likelihood is a registered NAME, never an import path. Levels are read in the
 unit of the varied stimulus ``parameter`` (``"20um"`` for ``amplitude_m``), converted to SI once
 with :func:`tactilab.data_schemas.units.to_si`; grids are lists or ``{start, stop, n, scale}``
 tables. :mod:`tactilab.data_schemas.experiment` builds the protocol from these.
@@ -11,7 +13,7 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationInfo, model_validator
@@ -28,7 +30,8 @@ PARAMETERS: dict[str, str] = {
 TASKS = ("2afc", "2ifc", "yes_no", "same_different", "magnitude_estimation")
 LIKELIHOOD_FAMILIES = ("weibull", "logistic", "normal_cdf", "gumbel")
 _LABEL = re.compile(r"^[A-Za-z0-9]{1,32}$")
-_IMPORT_PATH = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
+#: A registered name (likelihood family, custom likelihood, procedure method): never a path.
+NAME_RULE = re.compile(r"^[a-z][a-z0-9_]{0,63}$")
 
 
 def _quantity(dimension: str):
@@ -128,7 +131,47 @@ def _convert_levels(data: Any, fields: tuple[str, ...], grids: tuple[str, ...] =
     return out
 
 
-class ConstantStimuliConfig(_Model):
+def check_name(value: Any, name: str, what: str) -> str:
+    """Return ``value`` if it is a registered-name string (lower-case letters, digits, '_').
+
+    Import paths (``"package.module:function"``), file paths and anything else are refused:
+    protocol and session files are data and never name code.
+    """
+    if not isinstance(value, str) or not NAME_RULE.match(value):
+        raise ValueError(
+            f"{name}: must be the name of a registered {what} (1-64 lower-case letters, digits or "
+            f"'_', starting with a letter), got {value!r}; a protocol names registered code, it never "
+            "holds an import path (register custom code from Python, see docs/experiments.md)"
+        )
+    return value
+
+
+class ProcedureConfigBase(_Model):
+    """Base of every procedure configuration: ``method`` names the registered procedure and
+    ``parameter`` the stimulus field it varies. Subclasses add their own fields."""
+
+    method: str
+    parameter: str
+
+    def candidate_levels(self) -> list[float]:
+        """The levels (or the bounds of the range) the procedure may command, SI."""
+        return [float(v) for v in getattr(self, "levels")]
+
+    def n_planned(self) -> int:
+        """The most trials the procedure will run (capped by :data:`MAX_PLANNED_TRIALS`).
+
+        Default: ``n_trials`` if the configuration has it, else one trial per candidate level;
+        configurations of other procedures override it.
+        """
+        n_trials = getattr(self, "n_trials", None)
+        return int(n_trials) if n_trials is not None else len(self.candidate_levels())
+
+
+#: The most trials one protocol may plan (a session of 100 000 trials is already days long).
+MAX_PLANNED_TRIALS = 100_000
+
+
+class ConstantStimuliConfig(ProcedureConfigBase):
     """Method of constant stimuli: every level ``repeats_per_block`` times per block, shuffled."""
 
     method: Literal["constant_stimuli"]
@@ -141,6 +184,9 @@ class ConstantStimuliConfig(_Model):
     @classmethod
     def _units(cls, data: Any) -> Any:
         return _convert_levels(data, (), ("levels",))
+
+    def n_planned(self) -> int:
+        return len(self.levels) * self.repeats_per_block * self.n_blocks
 
 
 class StaircaseTrack(_Model):
@@ -178,7 +224,7 @@ class StaircaseTrack(_Model):
         return self
 
 
-class StaircaseConfig(_Model):
+class StaircaseConfig(ProcedureConfigBase):
     """One or several interleaved staircases; each trial runs a track drawn at random."""
 
     method: Literal["staircase"]
@@ -205,16 +251,24 @@ class StaircaseConfig(_Model):
             data["tracks"] = tracks
         return data
 
+    def candidate_levels(self) -> list[float]:
+        return [v for t in self.tracks for v in (t.min_level, t.max_level)]
 
-class PsiConfig(_Model):
+    def n_planned(self) -> int:
+        return sum(t.max_trials for t in self.tracks)
+
+
+class PsiConfig(ProcedureConfigBase):
     """Bayesian adaptive method (psi / QUEST+): pick the level that minimises expected entropy.
 
-    ``likelihood`` is a named family (``weibull``, ``logistic``, ``normal_cdf``, ``gumbel``;
-    parameters ``threshold`` in the varied parameter's unit, ``slope``, ``lapse``) or an import
-    path ``"package.module:function"`` to ANY callable ``f(level, **params) -> p(positive)``
-    broadcasting ``level`` of shape (n_levels, 1) against parameter grids of shape (1, n_theta).
-    The library API also takes the callable itself. ``parameters`` maps each parameter to its
-    grid; a grid named ``threshold`` is read in the varied parameter's unit.
+    ``likelihood`` is a NAME: a built-in family (``weibull``, ``logistic``, ``normal_cdf``,
+    ``gumbel``; parameters ``threshold`` in the varied parameter's unit, ``slope``, ``lapse``)
+    or a likelihood registered from Python with
+    ``tactilab.experiments.register_likelihood(name, f)`` (or by an installed plug-in), where
+    ``f(level, **params) -> p(positive)`` broadcasts ``level`` of shape (n_levels, 1) against
+    parameter grids of shape (1, n_theta). Never an import path: a protocol is data.
+    ``parameters`` maps each parameter to its grid; a grid named ``threshold`` is read in the
+    varied parameter's unit.
     """
 
     method: Literal["psi"]
@@ -239,11 +293,7 @@ class PsiConfig(_Model):
 
     @model_validator(mode="after")
     def _check(self) -> PsiConfig:
-        if self.likelihood not in LIKELIHOOD_FAMILIES and not _IMPORT_PATH.match(self.likelihood):
-            raise ValueError(
-                f"likelihood: must be one of {list(LIKELIHOOD_FAMILIES)} or an import path "
-                f"'package.module:function', got {self.likelihood!r}"
-            )
+        check_name(self.likelihood, "likelihood", f"likelihood (built in: {', '.join(LIKELIHOOD_FAMILIES)})")
         if self.likelihood in LIKELIHOOD_FAMILIES and set(self.parameters) != {"threshold", "slope", "lapse"}:
             raise ValueError(
                 f"parameters: the {self.likelihood!r} family needs grids for exactly threshold, slope "
@@ -264,6 +314,41 @@ class PsiConfig(_Model):
         return self
 
 
-ProcedureConfig = Annotated[
-    Union[ConstantStimuliConfig, StaircaseConfig, PsiConfig], Field(discriminator="method")
-]
+#: method name -> configuration class (the built-ins; experiments.register_procedure adds more)
+PROCEDURE_CONFIGS: dict[str, type[ProcedureConfigBase]] = {
+    "constant_stimuli": ConstantStimuliConfig, "staircase": StaircaseConfig, "psi": PsiConfig}
+
+
+def register_procedure_config(name: str, config_cls: type) -> None:
+    """Let protocols name ``method = name``, validated by ``config_cls``.
+
+    Raises
+    ------
+    ValueError
+        If ``name`` is not a registered-name string, is taken by another class, or
+        ``config_cls`` is not a :class:`ProcedureConfigBase` subclass.
+    """
+    check_name(name, "name", "procedure")
+    if not (isinstance(config_cls, type) and issubclass(config_cls, ProcedureConfigBase)):
+        raise ValueError(
+            f"config_cls: must be a subclass of tactilab.data_schemas.experiment_procedures."
+            f"ProcedureConfigBase, got {config_cls!r}; derive the configuration from it"
+        )
+    if PROCEDURE_CONFIGS.get(name, config_cls) is not config_cls:
+        raise ValueError(f"name: procedure {name!r} is already registered with "
+                         f"{PROCEDURE_CONFIGS[name].__name__}; choose another name")
+    PROCEDURE_CONFIGS[name] = config_cls
+
+
+def procedure_config(data: Any) -> Any:
+    """Validate a ``[procedure]`` table with the class registered for its ``method``."""
+    if isinstance(data, ProcedureConfigBase) or not isinstance(data, dict):
+        return data
+    method = data.get("method")
+    if not isinstance(method, str) or method not in PROCEDURE_CONFIGS:
+        raise ValueError(
+            f"method: must name a registered procedure, one of {sorted(PROCEDURE_CONFIGS)}, got "
+            f"{method!r}; register new procedures from Python with "
+            "tactilab.experiments.register_procedure(name, config_cls, factory)"
+        )
+    return PROCEDURE_CONFIGS[method].model_validate(data)

@@ -13,6 +13,7 @@ from tactilab.data_schemas._lazy import attach, package_version
 _EXPORTS = {
     "new_session": "runner",
     "RunResult": "runner",
+    "DisplayFault": "runner",
     "Runner": "runner",
     "resume_session": "resume",
     "session_status": "resume",
@@ -27,6 +28,10 @@ _EXPORTS = {
     "SafeDisplay": "safety",
     "SimulatedDisplay": "simulated_display",
     "UdpDisplay": "udp",
+    # the display UDP frame format (docs/udp-frame-format.md)
+    "FRAME": "udp",
+    "encode": "udp",
+    "decode": "udp",
     "emulate": "emulator",
     "SimulatedObserver": "responses",
     "TerminalResponses": "responses",
@@ -34,7 +39,22 @@ _EXPORTS = {
     "ConstantStimuli": "procedures",
     "Staircase": "procedures",
     "Psi": "psi",
-    "make_procedure": "procedures",
+    "make_procedure": "build",
+    "register_likelihood": "registry",
+    "register_procedure": "registry",
+    "UnregisteredError": "registry",
+    "Procedure": "procedures",
+    "PlannedLevel": "procedures",
+    "fit_psychometric": "psychometric",
+    "PsychometricFit": "psychometric",
+    "ParamSummary": "psychometric",
+    "SIGMOIDS": "psychometric",
+    "TransductionModel": "models",
+    "TransductionFit": "models",
+    "fit_transduction": "models",
+    "compare_models": "models",
+    "power_analysis": "models",
+    "PowerResult": "models",
 }
 
 __version__ = package_version()

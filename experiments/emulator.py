@@ -114,13 +114,13 @@ def emulate(port: int = 0, *, watchdog_s: float = 0.05, record: str | pathlib.Pa
         If a parameter is out of range.
     """
     if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port < 65536:
-        raise ValueError(f"--port: must be an integer in 0..65535 (0: any free port), got {port!r}; give e.g. 9000")
-    watchdog_s = _seconds(watchdog_s, "--watchdog")
-    max_seconds = _seconds(max_seconds, "--max-seconds")
-    late_after_s = _seconds(late_after_s, "--late-after")
+        raise ValueError(f"port: must be an integer in 0..65535 (0: any free port), got {port!r}; give e.g. 9000")
+    watchdog_s = _seconds(watchdog_s, "watchdog_s")
+    max_seconds = _seconds(max_seconds, "max_seconds")
+    late_after_s = _seconds(late_after_s, "late_after_s")
     if n_tractors is not None and (isinstance(n_tractors, bool) or not isinstance(n_tractors, int)
                                    or n_tractors < 1):
-        raise ValueError(f"--tractors: must be an integer >= 1, got {n_tractors!r}; give the display's tractor count")
+        raise ValueError(f"n_tractors: must be an integer >= 1, got {n_tractors!r}; give the display's tractor count")
     stop = stop or threading.Event()
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     previous = {}

@@ -1,4 +1,7 @@
-"""Build displays, response sources and session paths from the short specs the CLI takes.
+"""Build displays, response sources and session paths from short text specs.
+
+Errors name this module's parameters (``spec``, ``threshold``, ``strain``, ``folder``); the
+command line maps them to its own flags (``cli/cmd_experiment.py``).
 
 - display: ``"simulated"`` or ``"udp://HOST:PORT"``;
 - device description: a preset name (``"braille-row"``, ``"stress2"``) or a JSON file of a
@@ -27,7 +30,7 @@ def description_from_spec(spec: str) -> DisplayDescription:
     if path.suffix.lower() == ".json" and path.is_file():
         return DisplayDescription.load(path)
     raise ValueError(
-        f"--device: must be one of {sorted(DEVICE_PRESETS)} or an existing .json display "
+        f"spec: must be one of {sorted(DEVICE_PRESETS)} or an existing .json display "
         f"description, got {spec!r}"
     )
 
@@ -39,7 +42,7 @@ def display_from_spec(spec: str, description: DisplayDescription, *, realtime: b
 
         return SimulatedDisplay(description, realtime=realtime)
     if not spec.startswith("udp://"):
-        raise ValueError(f"--display: must be 'simulated' or 'udp://HOST:PORT', got {spec!r}")
+        raise ValueError(f"spec: must be 'simulated' or 'udp://HOST:PORT', got {spec!r}")
     from .udp import UdpDisplay
 
     return UdpDisplay.from_url(spec, description)
@@ -51,7 +54,7 @@ def responses_from_spec(spec: str, protocol: Protocol, **observer) -> ResponseSo
         return TerminalResponses(protocol)
     if spec == "simulated":
         return SimulatedObserver(protocol, **observer)
-    raise ValueError(f"--responses: must be 'terminal' or 'simulated', got {spec!r}")
+    raise ValueError(f"spec: must be 'terminal' or 'simulated', got {spec!r}")
 
 
 def make_responses(kind: str, protocol: Protocol, display: Display, *, threshold: str | float | None = None,
@@ -66,9 +69,9 @@ def make_responses(kind: str, protocol: Protocol, display: Display, *, threshold
         The (bare) display of the session; a simulated observer feeling the display's strain
         needs a :class:`~tactilab.experiments.simulated_display.SimulatedDisplay`.
     threshold : str or float, optional
-        ``--observer-threshold``: strain felt at d' = 1 (dimensionless, > 0).
+        Strain felt at d' = 1 (dimensionless, > 0).
     strain : {"surface", "display"}, optional
-        ``--observer-strain``: what the observer feels (default: recorded, else surface).
+        What the observer feels (default: recorded, else surface).
     recorded : dict, optional
         The observer configuration recorded with the session (resume); options override it.
     """
@@ -80,18 +83,18 @@ def make_responses(kind: str, protocol: Protocol, display: Display, *, threshold
     source = strain if strain is not None else config.pop("strain", "surface")
     config.pop("strain", None)
     if threshold is not None:
-        value = to_si(threshold, "dimensionless", name="--observer-threshold")
+        value = to_si(threshold, "dimensionless", name="threshold")
         if value <= 0:
-            raise ValueError(f"--observer-threshold: must be a strain > 0, got {threshold!r}; e.g. 2e-3")
+            raise ValueError(f"threshold: must be a strain > 0, got {threshold!r}; e.g. 2e-3")
         config["threshold_strain"] = value
     if source == "display":
         if not callable(getattr(display, "strain", None)):
-            raise ValueError("--observer-strain display: needs --display simulated (a display whose strain "
-                             "is computed); use --observer-strain surface with a real display")
+            raise ValueError("strain: 'display' needs a SimulatedDisplay (a display whose strain is computed); "
+                             "use strain='surface' with a real display")
         config["display"] = display
     elif source != "surface":
         raise ValueError(
-            f"--observer-strain: must be 'surface' or 'display', got {source!r}"
+            f"strain: must be 'surface' or 'display', got {source!r}"
             + ("; the session's observer used a custom strain function: resume it from Python"
                if source == "custom" else "")
         )
@@ -106,4 +109,4 @@ def next_session_path(folder: str | Path, subject: str, task: str) -> tuple[Path
         path = folder / f"sub-{subject}_ses-{label}_task-{task}.sqlite"
         if not path.exists():
             return path, label
-    raise ValueError(f"--out: {folder} already holds 999 sessions of sub-{subject}; use another folder")
+    raise ValueError(f"folder: {folder} already holds 999 sessions of sub-{subject}; use another folder")

@@ -1,5 +1,9 @@
 """Psychophysical procedures: constant stimuli, transformed staircases (psi / QUEST+ in ``psi``).
 
+Both register themselves (:func:`tactilab.experiments.registry.register_procedure`) under the
+``method`` names ``constant_stimuli`` and ``staircase``; build one with
+:func:`tactilab.experiments.build.make_procedure`.
+
 Every procedure keeps its STATE (what it needs to choose the next level, ``_STATE_KEYS``) apart
 from its HISTORY (what happened, ``_HISTORY_KEYS``), as CUQIpy's samplers do. The state is a
 pure function of the protocol, the seed and the history, so :func:`replay` rebuilds it exactly
@@ -19,7 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from tactilab.data_schemas.experiment import ConstantStimuliConfig, PsiConfig, StaircaseConfig
+from tactilab.data_schemas.experiment import ConstantStimuliConfig, StaircaseConfig
+
+from .registry import register_procedure
 
 Likelihood = Callable[..., np.ndarray]
 
@@ -252,19 +258,6 @@ class Staircase(Procedure):
                 **{f"threshold_track{i}": v for i, v in enumerate(per_track)}}
 
 
-def make_procedure(config: Any, guess_rate: float = 0.0, likelihood: Likelihood | None = None) -> Procedure:
-    """Build the procedure that a protocol's ``procedure`` table describes."""
-    if isinstance(config, ConstantStimuliConfig):
-        return ConstantStimuli(config, guess_rate)
-    if isinstance(config, StaircaseConfig):
-        return Staircase(config)
-    if isinstance(config, PsiConfig):
-        from .psi import Psi  # psi builds on this module
-
-        return Psi(config, guess_rate, likelihood)
-    raise ValueError(f"config: unknown procedure configuration {type(config).__name__}")
-
-
 def replay(procedure: Procedure, history: list[dict[str, Any]], rng_for: Callable[[int], np.random.Generator]) -> Procedure:
     """Rebuild ``procedure``'s state from a recorded history, checking every recorded level.
 
@@ -295,3 +288,8 @@ def replay(procedure: Procedure, history: list[dict[str, Any]], rng_for: Callabl
             )
         procedure.update(planned, entry["outcome"])
     return procedure
+
+
+register_procedure("constant_stimuli", ConstantStimuliConfig,
+                   lambda config, *, guess_rate=0.0: ConstantStimuli(config, guess_rate))
+register_procedure("staircase", StaircaseConfig, lambda config, *, guess_rate=0.0: Staircase(config))

@@ -1,14 +1,14 @@
 """Psi / QUEST+ with ANY likelihood, and the named psychometric families.
 
-The named families (for protocol files) are built by :func:`psychometric`; any other model is a
-callable ``f(level, **params) -> p(positive)``, given directly or as an import path
-``"package.module:function"`` (:func:`resolve_likelihood`), for example a transduction model
-that predicts detection from the strain at the receptors.
+The named families are built by :func:`psychometric`; any other model is a callable
+``f(level, **params) -> p(positive)`` (for example a transduction model that predicts detection
+from the strain at the receptors), given to :class:`Psi` directly or, for protocol files and
+sessions, registered by name with :func:`tactilab.experiments.register_likelihood`. A name is
+looked up (:func:`resolve_likelihood`), never imported. Psi registers itself as ``method = "psi"``.
 """
 
 from __future__ import annotations
 
-import importlib
 import math
 
 import numpy as np
@@ -17,6 +17,7 @@ from scipy.special import ndtr
 from tactilab.data_schemas.experiment import PsiConfig
 
 from .procedures import Likelihood, PlannedLevel, Procedure
+from .registry import get_likelihood, register_procedure
 
 def _weibull(x, threshold, slope):
     return -np.expm1(-np.power(np.clip(x, 0, None) / threshold, slope))
@@ -57,16 +58,17 @@ def psychometric(family: str, guess_rate: float) -> Likelihood:
     return likelihood
 
 
-def resolve_likelihood(name: str) -> Likelihood:
-    """Import ``"package.module:function"`` and return the callable."""
-    module_name, _, attr = name.partition(":")
-    try:
-        func = getattr(importlib.import_module(module_name), attr)
-    except (ImportError, AttributeError) as exc:
-        raise ValueError(f"likelihood: cannot import {name!r} ({exc}); check the import path") from None
-    if not callable(func):
-        raise ValueError(f"likelihood: {name!r} is not callable")
-    return func
+def resolve_likelihood(name: str, guess_rate: float = 0.0) -> Likelihood:
+    """The likelihood a protocol names: a built-in family (with ``guess_rate``) or a registered one.
+
+    Raises
+    ------
+    UnregisteredError
+        If ``name`` is neither a family nor registered (the message says how to register it).
+    """
+    if name in _CORES:
+        return psychometric(name, guess_rate)
+    return get_likelihood(name)
 
 
 class Psi(Procedure):
@@ -91,8 +93,7 @@ class Psi(Procedure):
         super().__init__(config)
         if likelihood is None:
             guess = config.guess_rate if config.guess_rate is not None else guess_rate
-            likelihood = psychometric(config.likelihood, guess) if config.likelihood in _CORES \
-                else resolve_likelihood(config.likelihood)
+            likelihood = resolve_likelihood(config.likelihood, guess)
         if not callable(likelihood):
             raise ValueError(f"likelihood: must be callable f(level, **params), got {likelihood!r}")
         self.names = list(config.parameters)
@@ -162,3 +163,6 @@ class Psi(Procedure):
         post = self.posterior()
         entropy = float(-np.sum(post[post > 0] * np.log(post[post > 0])))
         return {"n_trials": self.n_done, "entropy_nats": entropy, "estimate": self.estimate()}
+
+
+register_procedure("psi", PsiConfig, lambda config, *, guess_rate=0.0: Psi(config, guess_rate))

@@ -18,9 +18,9 @@ from typing import Any
 from tactilab.data_schemas.experiment import Protocol
 from tactilab.data_schemas.experiment_records import TrialRecord
 
-from .display import Display
-from .procedures import Likelihood, Procedure, make_procedure, replay
-from .psi import resolve_likelihood
+from .display import Display, description_differences, description_record
+from .build import make_procedure
+from .procedures import Procedure, replay
 from .recording import Recorder, SessionLog
 from .responses import ResponseSource
 from .runner import Runner, RunResult, trial_generators
@@ -39,16 +39,47 @@ class Replayed:
     events: list[dict[str, Any]]
 
 
-def _likelihood(meta: dict[str, Any], likelihood: Likelihood | None) -> Likelihood | None:
-    if likelihood is not None or not meta.get("likelihood"):
-        return likelihood
-    return resolve_likelihood(meta["likelihood"])
+def session_protocol(meta: dict[str, Any], path: Path | str) -> Protocol:
+    """The session's protocol, validated from its metadata (data only: names, never import paths).
+
+    Raises
+    ------
+    ValueError
+        If the metadata lacks a key, or the protocol or the recorded likelihood name is invalid
+        or inconsistent (an edited or foreign file); one line naming the file.
+    """
+    missing = [k for k in ("protocol", "subject", "session", "seed", "display_id", "responses")
+               if k not in meta]
+    if missing:
+        raise ValueError(f"session: {path} lacks the metadata {missing}; it is not a complete tactilab "
+                         "session (was it edited or cut short while being created?)")
+    try:
+        protocol = Protocol.model_validate(meta["protocol"])
+    except ValueError as exc:
+        raise ValueError(f"session: {path} holds an invalid protocol ({_one_line(exc)}); the file was "
+                         "edited or is damaged") from None
+    recorded = meta.get("likelihood")
+    if recorded is not None and recorded != getattr(protocol.procedure, "likelihood", None):
+        raise ValueError(
+            f"session: {path} records likelihood {str(recorded)[:80]!r}, which is not its protocol's; "
+            "the metadata was edited (a session names a registered likelihood, never code)"
+        )
+    return protocol
 
 
-def replay_log(log: SessionLog, likelihood: Likelihood | None = None) -> Replayed:
-    """Rebuild a session's procedure state and find its interrupted trial."""
+def _one_line(exc: Exception) -> str:
+    errors = getattr(exc, "errors", None)
+    if callable(errors):
+        first = errors()[0]
+        loc = ".".join(str(x) for x in first.get("loc", ()))
+        return f"{loc}: {str(first.get('msg', '')).removeprefix('Value error, ')}"[:300]
+    return str(exc).splitlines()[0][:300]
+
+
+def replay_log(log: SessionLog) -> Replayed:
+    """Rebuild a session's procedure state and find its interrupted trial (imports nothing)."""
     meta = log.meta()
-    protocol = Protocol.model_validate(meta["protocol"])
+    protocol = session_protocol(meta, log.path)
     trials, events = log.trials(), log.events()
     for expected, trial in enumerate(trials):
         if trial.trial_index != expected:
@@ -59,7 +90,7 @@ def replay_log(log: SessionLog, likelihood: Likelihood | None = None) -> Replaye
     kind = protocol.task.kind
     history = [{"trial_index": t.trial_index, "track": t.track, "level": t.level,
                 "outcome": outcome_of(kind, t.target, t.response)} for t in trials]
-    procedure = make_procedure(protocol.procedure, protocol.task.guess_rate, _likelihood(meta, likelihood))
+    procedure = make_procedure(protocol.procedure, protocol.task.guess_rate)
     replay(procedure, history, lambda i: trial_generators(protocol.seed, i)[0])
     pending = [e for e in events if e["trial_index"] == len(trials) and e["attempt"] is not None]
     attempts = {}
@@ -71,21 +102,23 @@ def replay_log(log: SessionLog, likelihood: Likelihood | None = None) -> Replaye
     return Replayed(meta, protocol, trials, procedure, attempts, events)
 
 
-def replay_session(path: str | Path, likelihood: Likelihood | None = None) -> Replayed:
-    """Read-only replay of a session file (no lock taken)."""
+def replay_session(path: str | Path) -> Replayed:
+    """Read-only replay of a session file (no lock taken, nothing imported)."""
     log = SessionLog(path)
     try:
-        return replay_log(log, likelihood)
+        return replay_log(log)
     finally:
         log.close()
 
 
 def resume_session(path: str | Path, display: Display, responses: ResponseSource, *,
-                   likelihood: Likelihood | None = None, realtime: bool = True,
+                   realtime: bool = True,
                    progress: bool = False) -> RunResult:
     """Continue a killed or stopped session where it left off (locks it first).
 
-    The log is replayed to rebuild the procedure's state; an interrupted trial is repeated.
+    The log is replayed to rebuild the procedure's state; an interrupted trial is repeated. A
+    session whose psi likelihood is a custom one needs it registered first
+    (:func:`tactilab.experiments.register_likelihood`); nothing is imported from the file.
 
     Parameters
     ----------
@@ -95,8 +128,6 @@ def resume_session(path: str | Path, display: Display, responses: ResponseSource
         A bare display of the same description the session was recorded on.
     responses : ResponseSource
         The same kind and configuration the session was recorded with.
-    likelihood : callable, optional
-        The custom likelihood the session used, if any.
     realtime, progress : bool
         As in :func:`tactilab.experiments.runner.new_session`.
 
@@ -115,11 +146,12 @@ def resume_session(path: str | Path, display: Display, responses: ResponseSource
     try:
         log = SessionLog(path)
         try:
-            state = replay_log(log, likelihood)
+            state = replay_log(log)
         finally:
             log.close()
         if any(e["kind"] == "session_complete" for e in state.events):
             raise ValueError(f"session: {path} is complete; nothing to resume (export it instead)")
+        check_same_display(state.meta, display, path)
         recorded = state.meta.get("responses_config")
         if responses.name == state.meta.get("responses") and recorded and dict(responses.config) != recorded:
             raise ValueError(
@@ -134,6 +166,31 @@ def resume_session(path: str | Path, display: Display, responses: ResponseSource
         return runner.run(state.attempts)
     finally:
         recorder.close()
+
+
+def check_same_display(meta: dict[str, Any], display: Display, path: str | Path) -> None:
+    """Refuse a display whose description differs from the one the session recorded.
+
+    Raises
+    ------
+    ValueError
+        Naming every field that differs (a laxer limit included); sessions recorded before
+        descriptions were stored are checked by ``display_id``.
+    """
+    given, sha256 = description_record(display.description)
+    recorded = meta.get("display_description")
+    if recorded is None:
+        if given["display_id"] != meta["display_id"]:
+            raise ValueError(f"display: {path} was recorded on display {meta['display_id']!r}, got "
+                             f"{given['display_id']!r}; resume on the same display")
+        return
+    if sha256 != meta.get("display_sha256"):
+        diff = description_differences(recorded, given) or ["the description hash"]
+        raise ValueError(
+            f"display: {path} was recorded with another description of display {meta['display_id']!r} "
+            f"({'; '.join(diff)}); resume with the recorded description (the default of `tactilab "
+            "experiment resume`), or start a new session"
+        )
 
 
 def session_status(path: str | Path) -> dict[str, Any]:
@@ -162,7 +219,9 @@ def session_status(path: str | Path) -> dict[str, Any]:
             "interrupted_was_presented": next(iter(state.attempts.values()), (0, False))[1],
             "safety_interventions": kinds.count("safety_intervention"),
             "estimate": state.procedure.estimate(), "seed": state.protocol.seed,
-            "display_id": state.meta["display_id"], "package_version": state.meta["package_version"],
+            "display_id": state.meta["display_id"], "display_sha256": state.meta.get("display_sha256"),
+            "owner": log.owner(),
+            "package_version": state.meta["package_version"],
         }
     finally:
         log.close()

@@ -14,6 +14,12 @@ uses its first spawned child, the task its second (the simulated observer uses
 ``[seed, i, 2]``). A resumed session therefore repeats an uninterrupted one exactly.
 If a write fails (disk full, read-only file), the display is zeroed and the run stops with a
 :class:`RecordingError` before the next stimulus; what was committed stays intact.
+
+A failed trial is never scored: when an interval's playback was stopped early, any frame was
+acknowledged with a status other than ``applied``, or more than :data:`MAX_UNACKED_FRACTION` of
+its frames got no acknowledgement, the display is zeroed, a ``display_fault`` event is logged
+(``alarm`` is true for ``stale`` acknowledgements: another sender is ahead in sequence on the
+link), the run stops with :class:`DisplayFault`, and the trial is repeated on resume.
 """
 
 from __future__ import annotations
@@ -35,11 +41,12 @@ import numpy as np
 from tactilab.data_schemas.experiment import Protocol, check_label
 from tactilab.data_schemas.experiment_records import TrialRecord
 
-from .display import Display, render_drive
-from .procedures import Likelihood, PlannedLevel, Procedure, make_procedure
+from .display import Display, DisplayError, PlaybackReport, description_record, render_drive
+from .build import make_procedure
+from .procedures import PlannedLevel, Procedure
 from .recording import Recorder, RecordingError, utc_now
 from .responses import ResponseSource
-from .safety import SafeDisplay
+from .safety import STOP_SIGNALS, SafeDisplay
 from .tasks import TrialPlan, plan_trial, score
 
 
@@ -56,6 +63,43 @@ def trial_generators(seed: int, trial_index: int) -> tuple[np.random.Generator, 
     """(procedure, task) generators of one trial, spawned from ``default_rng([seed, trial_index])``."""
     procedure_rng, task_rng = np.random.default_rng([seed, trial_index]).spawn(2)
     return procedure_rng, task_rng
+
+
+#: Fraction of a stimulus's frames that may go unacknowledged (a lost datagram on a busy link)
+#: before the trial is a display fault; any non-``applied`` acknowledgement is a fault at once.
+MAX_UNACKED_FRACTION = 0.01
+
+
+class DisplayFault(DisplayError):
+    """A stimulus did not reach the display as commanded; the trial was not scored."""
+
+
+def display_fault(report: PlaybackReport) -> dict[str, Any] | None:
+    """Why one interval's playback cannot be scored, or None when it reached the display.
+
+    Returns
+    -------
+    dict or None
+        ``reason`` (text), ``alarm`` (True for ``stale`` acknowledgements), and the counts
+        ``frames_sent``, ``stale``, ``rejected`` (non-``applied`` acknowledgements) and
+        ``unacknowledged``.
+    """
+    counts = {"frames_sent": report.frames_sent, "stale": report.stale, "rejected": report.rejected,
+              "unacknowledged": report.unacknowledged, "stopped": report.stopped}
+    allowed = int(MAX_UNACKED_FRACTION * report.frames_sent)
+    if report.stale:
+        reason = (f"ALARM: {report.stale} of {report.frames_sent} frames were acknowledged 'stale': the "
+                  "device had applied newer sequence numbers, so another sender is driving it")
+    elif report.rejected:
+        reason = f"{report.rejected} of {report.frames_sent} frames were refused by the device"
+    elif report.unacknowledged > allowed:
+        reason = (f"{report.unacknowledged} of {report.frames_sent} frames were never acknowledged (at most "
+                  f"{allowed} = {MAX_UNACKED_FRACTION:.0%} may be)")
+    elif report.stopped:
+        reason = f"playback stopped after {report.frames_sent} frames, before the end of the stimulus"
+    else:
+        return None
+    return {"reason": reason, "alarm": bool(report.stale), **counts}
 
 
 @dataclass(frozen=True)
@@ -115,7 +159,7 @@ class Runner:
         ``attempts`` maps an interrupted trial's index to ``(attempt, repeated)`` (from resume).
         """
         attempts = attempts or {}
-        previous_sigterm = _sigterm_as_interrupt()
+        previous_handlers = _stop_signals_as_interrupt()
         if self.progress:
             from tqdm.auto import tqdm
 
@@ -136,8 +180,8 @@ class Runner:
             self.display.zero()
             self.recorder.log("session_complete", payload={"estimate": self.procedure.estimate()})
             return RunResult(self.recorder.path, "complete", self.procedure.n_done, self.procedure.estimate())
-        except KeyboardInterrupt:
-            self._stop("session_stopped", "interrupted (Ctrl-C, q or SIGTERM)")
+        except KeyboardInterrupt as exc:
+            self._stop("session_stopped", f"interrupted ({exc.args[0] if exc.args else 'Ctrl-C or q'})")
             return RunResult(self.recorder.path, "interrupted", self.procedure.n_done, self.procedure.estimate())
         except RecordingError as exc:
             self._stop(None, "")
@@ -150,8 +194,8 @@ class Runner:
             raise
         finally:
             bar.close()
-            if previous_sigterm is not None:
-                signal.signal(signal.SIGTERM, previous_sigterm)
+            for sig, previous in previous_handlers.items():
+                signal.signal(sig, signal.SIG_DFL if previous is None else previous)
 
     def _stop(self, kind: str | None, reason: str) -> None:
         """Zero the display, then log why the run stopped (when the log itself still works)."""
@@ -189,7 +233,17 @@ class Runner:
             if k == 0:  # the response clock starts at the first stimulus onset
                 onset_ns = time.monotonic_ns()
                 self.responses.arm(plan, onset_ns)
-            reports.append(self.display.play())
+            report = self.display.play()
+            fault = display_fault(report)
+            if fault is not None:  # never scored: zero, log, stop; resume repeats the trial
+                self.display.zero()
+                self.recorder.log("display_fault", index, attempt, {**fault, "interval": k})
+                raise DisplayFault(
+                    f"display fault in trial {index}, interval {k}: {fault['reason']}. The display is "
+                    f"zeroed and the trial was not scored; fix the link or the device, then resume "
+                    f"{self.recorder.path} (the trial is repeated)"
+                )
+            reports.append(report)
         response = self.responses.collect(plan)
         correct, outcome = score(self.protocol, plan, response.label)
         self.recorder.log("response", index, attempt, {
@@ -213,15 +267,16 @@ class Runner:
         return record
 
 
-def _sigterm_as_interrupt():
-    """While a session runs, SIGTERM stops it like Ctrl-C: display zeroed, stop logged, lock released."""
+def _stop_signals_as_interrupt() -> dict:
+    """While a session runs, SIGTERM, SIGHUP, SIGQUIT and SIGUSR1 stop it like Ctrl-C: display
+    zeroed, stop logged (with the signal's name), lock released. Returns the previous handlers."""
     if threading.current_thread() is not threading.main_thread():
-        return None
+        return {}
 
     def handler(signum, frame):
-        raise KeyboardInterrupt("SIGTERM")
+        raise KeyboardInterrupt(signal.Signals(signum).name)
 
-    return signal.signal(signal.SIGTERM, handler)
+    return {sig: signal.signal(sig, handler) for sig in STOP_SIGNALS if sig != signal.SIGINT}
 
 
 class _NoBar:
@@ -256,8 +311,7 @@ DISPLAY_UNITS = {"amplitude_m": ("amplitude", 1e6, "um"), "pitch_m": ("pitch", 1
 
 
 def new_session(protocol: Protocol, path: str | Path, display: Display, responses: ResponseSource, *,
-                subject: str, session: str = "01", likelihood: Likelihood | None = None,
-                realtime: bool = True, progress: bool = False) -> RunResult:
+                subject: str, session: str = "01", realtime: bool = True, progress: bool = False) -> RunResult:
     """Create a session file at ``path`` and run the protocol to the end (or to an interruption).
 
     Parameters
@@ -272,8 +326,6 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
         Where responses come from (terminal or simulated observer); its ``config`` is recorded.
     subject, session : str
         BIDS labels (1-32 letters or digits; pseudonymous codes, never names).
-    likelihood : callable, optional
-        A custom psychometric likelihood for a psi procedure (recorded by import path).
     realtime : bool
         Wait in real time between trials and during playback (False: dry runs only).
     progress : bool
@@ -295,17 +347,19 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     """
     check_label(subject, "subject")
     check_label(session, "session")
+    description, description_sha256 = description_record(display.description)
     meta = {"session_id": uuid.uuid4().hex, "created_utc": utc_now(),
             "subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
             "seed": protocol.seed, "package_version": package_version(),
-            "display_id": str(display.description.display_id), "responses": responses.name,
+            "display_id": str(display.description.display_id), "display_description": description,
+            "display_sha256": description_sha256, "responses": responses.name,
             "responses_config": dict(responses.config),
-            "likelihood": None if likelihood is None else
-            f"{getattr(likelihood, '__module__', '?')}:{getattr(likelihood, '__qualname__', '?')}"}
+            "likelihood": getattr(protocol.procedure, "likelihood", None)}
+    # built before the file exists: an unregistered method or likelihood leaves no session behind
+    procedure = make_procedure(protocol.procedure, protocol.task.guess_rate)
     recorder = Recorder.create(path, meta)
     try:
         recorder.log("session_started", payload={"pid": os.getpid()})
-        procedure = make_procedure(protocol.procedure, protocol.task.guess_rate, likelihood)
         runner = Runner(protocol, recorder, display, responses, subject=subject, session=session,
                         procedure=procedure, realtime=realtime, progress=progress)
         return runner.run()

@@ -41,6 +41,7 @@ __all__ = ["UdpDisplay", "Message", "encode", "decode", "FrameFormatError", "MAG
 
 MAGIC = b"TLDF"
 VERSION = 1
+#: Message kinds of the display UDP frame format (docs/udp-frame-format.md)
 FRAME, ZERO, ACK = 1, 2, 3
 HEADER = struct.Struct("<4sBBHIQ")  # 20 bytes
 ACK_BODY = struct.Struct("<BBHI")  # 8 bytes
@@ -143,7 +144,7 @@ def parse_udp_url(url: str) -> tuple[str, int]:
     except ValueError:
         port = None
     if parsed.scheme != "udp" or not parsed.hostname or port is None or not 0 < port < 65536:
-        raise ValueError(f"--display: expected udp://HOST:PORT with a port in 1..65535, got {url!r}; "
+        raise ValueError(f"url: expected udp://HOST:PORT with a port in 1..65535, got {url!r}; "
                          "e.g. udp://127.0.0.1:9000")
     return parsed.hostname, port
 
@@ -327,4 +328,6 @@ class UdpDisplay(Display):
             late_acks=int(np.count_nonzero(rtt_s > self.ack_timeout_s)),
             send_intervals_s=np.diff(times) / 1e9,
             ack_rtt_s=rtt_s,
+            rejected=int(np.count_nonzero((status[:sent] >= 0) & (status[:sent] != STATUS_CODE["applied"]))),
+            stale=int(np.count_nonzero(status[:sent] == STATUS_CODE["stale"])),
         )

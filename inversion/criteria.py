@@ -308,12 +308,10 @@ def choose_lambda(
 
 def plot_criteria(result: CriteriaResult, path, title: str = "Regularisation criteria") -> None:
     """Plot GCV, L-curve, discrepancy residual and evidence with each choice marked (PNG)."""
-    import matplotlib
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(2, 2, figsize=(9, 7))
+    fig = Figure(figsize=(9, 7))
+    axes = fig.subplots(2, 2)
     g = result.grid
     colours = {"gcv": "C0", "lcurve": "C1", "discrepancy": "C2", "evidence": "C3"}
 
@@ -356,4 +354,3 @@ def plot_criteria(result: CriteriaResult, path, title: str = "Regularisation cri
     fig.suptitle(title if not result.errors else f"{title} (stochastic estimates, iterative path)")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)

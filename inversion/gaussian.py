@@ -24,7 +24,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.sparse.linalg import LinearOperator, aslinearoperator, cg
 
-from .linear import DENSE_MAX, check_data
+from .linear_common import DENSE_MAX, check_data
 from .operators import FourierDiagonal, angular_wavenumbers
 from .penalties import penalty_symbol
 

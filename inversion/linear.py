@@ -17,80 +17,26 @@ in a registry, :data:`METHODS`, and says which it used in the result:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 import scipy.linalg as sla
 from scipy.sparse.linalg import aslinearoperator
 
-from .criteria import CRITERIA, CriteriaResult, SpectralForm, choose_lambda
+from .criteria import CRITERIA, SpectralForm, choose_lambda
 from .iterative_criteria import IterativeCriteria, NormalSolver, choose_lambda_iterative
+from .linear_common import DENSE_MAX, LinearInversionResult, check_data
 from .operators import FourierDiagonal, as_fourier_diagonal, model_layout
 from .penalties import PENALTIES, check_penalty, penalty_matrix, penalty_symbol
+from .tv import invert_tv
 
-DENSE_MAX = 1024
 PATHS = ("fft", "dense", "iterative")
 
 __all__ = ["invert_linear", "LinearInversionResult", "METHODS", "fft_form", "dense_form", "check_data"]
 
 
-@dataclass
-class LinearInversionResult:
-    """Result of :func:`invert_linear`.
-
-    Attributes
-    ----------
-    model : ndarray, shape ``dims``, or ``(len(loads), *dims)`` for several load components
-        Estimated model (load in Pa, or profile in m, as the operator maps).
-    method : str
-        Path used: ``"fft"``, ``"dense"`` or ``"iterative"``.
-    penalty : str
-        ``"identity"``, ``"gradient"``, ``"curvature"`` or ``"tv"``.
-    lam : float
-        Regularisation strength used.
-    lam_source : str
-        ``"given"`` or the criterion that chose it.
-    criteria : CriteriaResult or None
-        All criteria choices and curves (Tikhonov on the fft and dense paths).
-    residual_norm : float
-        ``||A m - d||`` in data units.
-    iterations : int
-        Solver iterations (0 for direct paths).
-    converged : bool
-        False when an iterative solver hit its iteration limit.
-    message : str
-        Human-readable account of what was done.
-    """
-
-    model: np.ndarray
-    method: str
-    penalty: str
-    lam: float
-    lam_source: str
-    criteria: CriteriaResult | None
-    residual_norm: float
-    iterations: int
-    converged: bool
-    message: str
-
-
-def check_data(data, n_expected: int, name: str = "data") -> np.ndarray:
-    """Flatten and validate data: finite reals of the expected size."""
-    arr = np.asarray(data)
-    if arr.dtype.kind not in "biuf":
-        raise ValueError(f"{name}: expected real numbers, got dtype {arr.dtype}")
-    arr = arr.astype(float).ravel()
-    if arr.size != n_expected:
-        raise ValueError(f"{name}: size mismatch, got {arr.size} values but the operator has {n_expected} outputs")
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise ValueError(
-            f"{name}: must be finite, found {arr[i]} at flat index {i} ({int(bad.sum())} bad values); "
-            "drop or interpolate the bad samples first"
-        )
-    return arr
+def _dims(op) -> tuple[int, ...]:
+    return tuple(getattr(op, "dims", (op.shape[1],)))
 
 
 def fft_form(op: FourierDiagonal, data: np.ndarray, penalty: str):
@@ -219,8 +165,6 @@ def invert_linear(
     """
     operator = as_fourier_diagonal(operator)  # a circulant forward operator takes the fft path
     if penalty == "tv":
-        from .tv import invert_tv
-
         if model_layout(operator)[1] > 1:
             raise ValueError(f"penalty: 'tv' acts on one load component, the operator has {len(operator.loads)} "
                              f"({', '.join(operator.loads)}); use a Tikhonov penalty or one load per operator")

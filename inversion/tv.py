@@ -26,7 +26,7 @@ import scipy.linalg as sla
 from scipy.optimize import brentq
 from scipy.sparse.linalg import LinearOperator, aslinearoperator, cg
 
-from .linear import DENSE_MAX, LinearInversionResult, check_data
+from .linear_common import DENSE_MAX, LinearInversionResult, check_data
 from .operators import FourierDiagonal
 from .penalties import penalty_matrix, penalty_symbol
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sqlite3
 import sys
@@ -101,11 +102,11 @@ def test_json_export_is_the_whole_session(session, tmp_path):
 
 def test_parquet_without_pyarrow_names_the_missing_dependency(session, tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "pyarrow", None)  # makes `import pyarrow` fail
-    with pytest.raises(ValueError, match="--format parquet: needs the optional dependency pyarrow"):
+    with pytest.raises(ValueError, match="format: 'parquet' needs the optional dependency pyarrow"):
         export_session(session, tmp_path, "parquet")
     assert cli_main(["experiment", "export", str(session), "--format", "parquet"]) == 2
     assert "pip install pyarrow" in capsys.readouterr().err
-    with pytest.raises(ValueError, match="--format: must be one of"):
+    with pytest.raises(ValueError, match="format: must be one of"):
         export_session(session, tmp_path, "xlsx")
 
 
@@ -122,11 +123,17 @@ def test_user_mistakes_give_one_line_and_exit_2(session, tmp_path, capsys):
         (["run", str(toml), "--subject", "S02", "--out", str(toml / "x")], "--out: cannot create the output folder"),
         (["run", str(toml), "--subject", "S02", "--responses", "simulated", "--observer-threshold", "-1"],
          "--observer-threshold: must be a strain > 0"),
+        (["run", str(toml), "--subject", "S02", "--responses", "simulated", "--observer-strain", "skin"],
+         "--observer-strain: must be 'surface' or 'display'"),
+        (["run", str(toml), "--subject", "S02", "--display", "udp://h", "--responses", "simulated"],
+         "--display: expected udp://HOST:PORT"),
+        (["export", str(session), "--format", "xml"], "--format: must be one of"),
         (["run", str(toml), "--subject", "S02", "--responses", "simulated", "--observer-threshold", "2mm"],
          "--observer-threshold: unit 'mm' measures length"),
         (["run", str(toml), "--subject", "S01", "--session", "01", "--out", str(session.parent),
           "--responses", "simulated", "--no-wait"], "already exists; resume it"),
-        (["resume", str(session), "--device", "stress2"], "--device: the session was recorded on display"),
+        (["resume", str(session), "--device", "stress2"], "--device: "),
+        (["resume", str(session), "--device", "stress2"], "display_id: recorded 'VirtualBrailleRow', given 'STReSS2'"),
         (["resume", str(session), "--no-wait"], "is complete; nothing to resume"),
         (["status", str(tmp_path / "nope.sqlite")], "no session file"),
         (["export", str(session), "--out", str(session / "x")], "--out: cannot create the output folder"),
@@ -216,9 +223,9 @@ def test_make_responses_options():
 
     protocol = Protocol.from_toml(Path(__file__).resolve().parents[1] / "examples" / "protocol_psi.toml")
     udp_like = object()
-    with pytest.raises(ValueError, match="--observer-strain display: needs --display simulated"):
+    with pytest.raises(ValueError, match="strain: 'display' needs a SimulatedDisplay"):
         factory.make_responses("simulated", protocol, udp_like, strain="display")
-    with pytest.raises(ValueError, match="--observer-strain: must be 'surface' or 'display', got 'skin'"):
+    with pytest.raises(ValueError, match="strain: must be 'surface' or 'display', got 'skin'"):
         factory.make_responses("simulated", protocol, udp_like, strain="skin")
     with pytest.raises(ValueError, match="custom strain function: resume it from Python"):
         factory.make_responses("simulated", protocol, udp_like, recorded={"strain": "custom"})
@@ -233,12 +240,13 @@ def test_factory_specs(tmp_path):
     assert factory.description_from_spec(str(path)) == DisplayDescription.braille_row()
     for n in range(1, 1000):
         (tmp_path / f"sub-S9_ses-{n:02d}_task-t.sqlite").touch()
-    with pytest.raises(ValueError, match="--out: .* already holds 999 sessions"):
+    with pytest.raises(ValueError, match="folder: .* already holds 999 sessions"):
         factory.next_session_path(tmp_path, "S9", "t")
 
 
 def test_recorder_open_failures_are_recording_errors(tmp_path, monkeypatch):
-    lock = _FileLock(tmp_path / "m.lock")
+    (tmp_path / "m.sqlite").touch()
+    lock = _FileLock(tmp_path / "m.sqlite")
     with pytest.raises(RecordingError, match="cannot use WAL journaling"):
         Recorder._connect(Path(":memory:"), lock)
 
@@ -261,15 +269,51 @@ def test_factory_rejects_bad_specs(tmp_path):
     protocol_file.write_text(PROTOCOL)
     protocol = Protocol.from_toml(protocol_file)
     description = DisplayDescription.braille_row()
-    with pytest.raises(ValueError, match=r"--device: must be one of \['braille-row', 'stress2'\] .*got 'x.json'"):
+    with pytest.raises(ValueError, match=r"spec: must be one of \['braille-row', 'stress2'\] .*got 'x.json'"):
         factory.description_from_spec("x.json")  # no such file
-    with pytest.raises(ValueError, match="--display: must be 'simulated' or 'udp://HOST:PORT', got 'tcp://h:1'"):
+    with pytest.raises(ValueError, match="spec: must be 'simulated' or 'udp://HOST:PORT', got 'tcp://h:1'"):
         factory.display_from_spec("tcp://h:1", description)
-    with pytest.raises(ValueError, match="--responses: must be 'terminal' or 'simulated', got 'mind'"):
+    with pytest.raises(ValueError, match="spec: must be 'terminal' or 'simulated', got 'mind'"):
         factory.responses_from_spec("mind", protocol)
     display = factory.display_from_spec("simulated", description, realtime=False)
     try:
-        with pytest.raises(ValueError, match="--observer-threshold: must be a strain > 0, got '0'"):
+        with pytest.raises(ValueError, match="threshold: must be a strain > 0, got '0'"):
             factory.make_responses("simulated", protocol, display, threshold="0")
     finally:
         display.close()
+
+
+def test_a_resume_with_a_laxer_display_description_is_refused(tmp_path, capsys):
+    """Same display_id, 100 000 times the traction limit: refused, naming the field."""
+    toml = tmp_path / "p.toml"
+    toml.write_text(PROTOCOL)
+    argv = ["experiment", "run", str(toml), "--subject", "S01", "--responses", "simulated", "--no-wait", "--quiet",
+            "--out", str(tmp_path)]
+    path = tmp_path / "sub-S01_ses-01_task-cli.sqlite"
+    nominal = DisplayDescription.braille_row()
+    lax = tmp_path / "lax.json"
+    lax.write_text(nominal.model_copy(update={"max_traction_pa": nominal.max_traction_pa * 1e5}).model_dump_json())
+    # a session interrupted after its creation: cut it short by deleting its completion
+    assert cli_main(argv) == 0
+    with contextlib.closing(sqlite3.connect(path)) as db, db:
+        db.execute("DELETE FROM events WHERE kind = 'session_complete'")
+        db.execute("DELETE FROM trials WHERE trial_index >= 3")
+        db.execute("DELETE FROM events WHERE trial_index >= 3")
+    capsys.readouterr()
+    assert cli_main(["experiment", "resume", str(path), "--device", str(lax), "--no-wait", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "--device: " in err and "max_traction_pa: recorded 50000.0, given 5000000000.0" in err
+    from tactilab.experiments import SimulatedDisplay, SimulatedObserver, resume_session
+
+    protocol = replay_session(path).protocol
+    with pytest.raises(ValueError, match=r"display: .* \(max_traction_pa: recorded 50000.0, given 5000000000.0\)"):
+        resume_session(path, SimulatedDisplay(DisplayDescription.load(lax), realtime=False),
+                       SimulatedObserver(protocol), realtime=False)
+    # by default the resume uses the recorded description, and the export carries it with its hash
+    assert cli_main(["experiment", "resume", str(path), "--no-wait", "--quiet"]) == 0
+    meta = SessionLog(path).meta()
+    assert meta["display_description"] == nominal.model_dump(mode="json") and len(meta["display_sha256"]) == 64
+    export_session(path, tmp_path / "bids")
+    sidecar = json.loads(next((tmp_path / "bids").rglob("*_beh.json")).read_text())
+    assert sidecar["DisplayDescription"]["max_traction_pa"] == 50000.0
+    assert sidecar["DisplayDescriptionSHA256"] == meta["display_sha256"]

@@ -11,8 +11,10 @@ from scipy.optimize import brentq
 
 from tactilab.data_schemas.experiment import (
     ConstantStimuliConfig, Protocol, PsiConfig, StaircaseConfig)
-from tactilab.experiments.procedures import ConstantStimuli, PlannedLevel, Staircase, make_procedure, replay
+from tactilab.experiments.build import make_procedure
+from tactilab.experiments.procedures import ConstantStimuli, PlannedLevel, Staircase, replay
 from tactilab.experiments.psi import Psi, psychometric, resolve_likelihood
+from tactilab.experiments.registry import UnregisteredError, register_likelihood, register_procedure
 from tactilab.experiments.tasks import outcome_of, plan_trial, score
 
 
@@ -150,11 +152,12 @@ def strain_likelihood(level, gain, exponent):
     return 0.5 + 0.5 * (2 * ndtr(np.power(gain * level, exponent) / math.sqrt(2)) - 1)
 
 
-def test_psi_accepts_any_likelihood_callable_and_import_path():
+def test_psi_accepts_any_likelihood_callable_and_registered_name():
+    register_likelihood("test_strain_likelihood", strain_likelihood, replace=True)
     grid = {"gain": list(np.geomspace(5e4, 1e6, 30)), "exponent": [1.0, 2.0]}
-    config = psi_config(likelihood=f"{__name__}:strain_likelihood", parameters=grid, n_trials=150)
+    config = psi_config(likelihood="test_strain_likelihood", parameters=grid, n_trials=150)
     truth = dict(gain=2.5e5, exponent=2.0)
-    for proc in (Psi(config, likelihood=strain_likelihood), Psi(config)):  # callable, then import path
+    for proc in (Psi(config, likelihood=strain_likelihood), make_procedure(config, 0.5)):  # callable, then name
         rng = np.random.default_rng(2)
         while (planned := proc.next_trial(proc.n_done, rng)) is not None:
             proc.update(planned, bool(rng.random() < strain_likelihood(planned.level, **truth)))
@@ -173,13 +176,76 @@ def test_bad_likelihoods_are_refused(likelihood, match):
         Psi(psi_config(), likelihood=likelihood)
 
 
-def test_likelihood_import_errors():
-    with pytest.raises(ValueError, match="cannot import 'nopkg_xyz.mod:f'"):
-        resolve_likelihood("nopkg_xyz.mod:f")
-    with pytest.raises(ValueError, match="'math:pi' is not callable"):
+def test_likelihood_names_are_looked_up_never_imported():
+    with pytest.raises(UnregisteredError, match="'nopkg_xyz' is not registered in this process; register it"):
+        resolve_likelihood("nopkg_xyz")
+    with pytest.raises(ValueError, match="never holds an import path"):
         resolve_likelihood("math:pi")
     with pytest.raises(ValueError, match="family: must be one of"):
         psychometric("cubic", 0.5)
+
+
+@pytest.mark.parametrize("args,match", [
+    (("weibull", strain_likelihood), "'weibull' is a built-in psychometric family"),
+    (("Bad Name", strain_likelihood), "name: must be the name of a registered likelihood"),
+    (("fine_name", 3.0), "f: must be callable"),
+])
+def test_register_likelihood_validates(args, match):
+    with pytest.raises(ValueError, match=match):
+        register_likelihood(*args)
+
+
+def test_register_likelihood_refuses_to_replace_silently():
+    register_likelihood("test_once", strain_likelihood, replace=True)
+    register_likelihood("test_once", strain_likelihood)  # the same function again is fine
+    with pytest.raises(ValueError, match="already registered; pass replace=True"):
+        register_likelihood("test_once", lambda level, **p: level)
+
+
+def test_a_new_procedure_plugs_in_without_touching_the_runner():
+    """register_procedure: a protocol names the new method, the runner builds and runs it."""
+    from typing import Literal
+
+    from tactilab.data_schemas.experiment_procedures import ProcedureConfigBase
+
+    class FixedConfig(ProcedureConfigBase):
+        method: Literal["fixed_levels"]
+        levels: list[float]
+
+    class Fixed(ConstantStimuli.__mro__[1]):  # the Procedure base
+        def __init__(self, config):
+            super().__init__(config)
+
+        n_planned = property(lambda self: len(self.config.levels))
+        finished = property(lambda self: self.n_done >= len(self.config.levels))
+
+        def _next(self, rng):
+            return PlannedLevel(self.config.levels[self.n_done])
+
+        def _update(self, planned, outcome):
+            pass
+
+        def estimate(self):
+            return {"threshold": None}
+
+    register_procedure("fixed_levels", FixedConfig, lambda config, *, guess_rate: Fixed(config), replace=True)
+    fixed = Protocol.model_validate({
+        "name": "t", "seed": 1, "task": {"kind": "2ifc"},
+        "stimulus": {"amplitude_m": "5um", "pitch_m": "2mm", "speed_m_per_s": "40mm/s"},
+        "procedure": {"method": "fixed_levels", "parameter": "amplitude_m", "levels": [1e-6, 2e-6]}})
+    assert isinstance(fixed.procedure, FixedConfig)
+    assert Protocol.model_validate_json(fixed.to_json()).procedure == fixed.procedure
+    proc = make_procedure(fixed.procedure, 0.5)
+    assert [proc.next_trial(0, np.random.default_rng(0)).level] == [1e-6]
+    with pytest.raises(ValueError, match="procedure 'fixed_levels' is already registered"):
+        register_procedure("fixed_levels", FixedConfig, lambda config, *, guess_rate: None)
+    register_procedure("fixed_levels", FixedConfig, lambda config, *, guess_rate: object(), replace=True)
+    with pytest.raises(TypeError, match="returned object, not a tactilab.experiments.procedures.Procedure"):
+        make_procedure(fixed.procedure, 0.5)
+    with pytest.raises(ValueError, match="factory: must be callable"):
+        register_procedure("other_levels", FixedConfig, "nope")
+    with pytest.raises(ValueError, match="config_cls: must be a subclass"):
+        register_procedure("other_levels", dict, lambda config, *, guess_rate: None)
 
 
 @pytest.mark.parametrize("family,core", [
@@ -237,7 +303,7 @@ def test_procedure_guards():
     planned = proc.next_trial(0, rng)
     with pytest.raises(ValueError, match="outcome: must be True, False or None"):
         proc.update(planned, "yes")
-    with pytest.raises(ValueError, match="unknown procedure configuration"):
+    with pytest.raises(ValueError, match="procedure None is not registered"):
         make_procedure(object())
     proc.update(planned, True)
     with pytest.raises(ValueError, match="replay needs a fresh procedure"):

@@ -100,7 +100,7 @@ def test_linear_staircase_steps_take_units():
     ("task.keys", {"1": "a", "2": "a"}, "keys: need distinct single printable keys"),
     ("task.keys", {"1": "q", "2": "w"}, "other than space and 'q'"),
     ("task.alternatives", {"l": {}, "r": {}}, "only a 2afc task takes alternatives"),
-    ("procedure.method", "bisection", "does not match any of the expected tags"),
+    ("procedure.method", "bisection", "method: must name a registered procedure"),
     ("procedure.parameter", "colour", "parameter: must be one of"),
     ("procedure.tracks", [], "at least 1 item"),
     ("procedure.tracks.0.step_sizes", [], "step_sizes: need at least one finite step > 0"),
@@ -152,13 +152,15 @@ def _psi(**changes):
 
 
 @pytest.mark.parametrize("changes,match", [
-    ({"likelihood": "cubic"}, "likelihood: must be one of"),
+    ({"likelihood": "mymod:f"}, "likelihood: must be the name of a registered likelihood"),
+    ({"likelihood": "pickle:loads"}, "never holds an import path"),
+    ({"likelihood": "../evil"}, "never holds an import path"),
     ({"parameters": {"threshold": ["1um"], "slope": [2.0]}}, "needs grids for exactly threshold, slope"),
     ({"parameters": {"threshold": ["1um"], "slope": [2.0], "lapse": [0.6]}}, "lapse: values must lie in"),
     ({"parameters": {"threshold": ["1um"], "slope": [-2.0], "lapse": [0.0]}}, "slope: values must be > 0"),
     ({"parameters": {"threshold": ["1um"], "slope": [2.0], "lapse": [0.0]}, "guess_rate": 1.0}, "guess_rate: must lie"),
-    ({"likelihood": "mymod:f", "parameters": {"a": [float("nan")]}}, "parameters.a\\[0\\]: must be finite"),
-    ({"likelihood": "mymod:f", "parameters": {"a": {"start": 0, "stop": 1, "n": 10000},
+    ({"likelihood": "mymodel", "parameters": {"a": [float("nan")]}}, "parameters.a\\[0\\]: must be finite"),
+    ({"likelihood": "mymodel", "parameters": {"a": {"start": 0, "stop": 1, "n": 10000},
                                                "b": {"start": 0, "stop": 1, "n": 1000}}}, "above 5e6"),
 ])
 def test_psi_configuration_is_validated(changes, match):
@@ -167,7 +169,7 @@ def test_psi_configuration_is_validated(changes, match):
 
 
 def test_psi_custom_likelihood_grids_are_dimensionless_except_threshold():
-    protocol = Protocol.model_validate(_psi(likelihood="mypkg.models:strain_likelihood",
+    protocol = Protocol.model_validate(_psi(likelihood="strain_likelihood",
                                             parameters={"threshold": ["2um"], "gain": [1, 2]}))
     assert protocol.procedure.parameters == {"threshold": [2e-6], "gain": [1.0, 2.0]}
 

@@ -123,7 +123,7 @@ def test_encode_rejects():
 
 @pytest.mark.parametrize("url", ["tcp://127.0.0.1:9000", "udp://127.0.0.1", "udp://:9000", "udp://h:99999"])
 def test_parse_udp_url_rejects(url):
-    with pytest.raises(ValueError, match="--display: expected udp://HOST:PORT"):
+    with pytest.raises(ValueError, match="url: expected udp://HOST:PORT"):
         parse_udp_url(url)
 
 
@@ -344,12 +344,12 @@ def test_emulator_statuses_gaps_and_rearming(thread_emulator):
 
 
 @pytest.mark.parametrize("kwargs,match", [
-    ({"port": 70000}, r"--port: must be an integer in 0..65535"),
-    ({"watchdog_s": 0.0}, "--watchdog: must be a finite number of seconds > 0"),
-    ({"max_seconds": float("inf")}, "--max-seconds: must be a finite number of seconds > 0"),
-    ({"max_seconds": 1e300}, r"--max-seconds: must be at most 1e\+07 s .*, got 1e\+300"),
-    ({"late_after_s": -1.0}, "--late-after: must be a finite number of seconds > 0"),
-    ({"n_tractors": 0}, "--tractors: must be an integer >= 1"),
+    ({"port": 70000}, r"port: must be an integer in 0..65535"),
+    ({"watchdog_s": 0.0}, "watchdog_s: must be a finite number of seconds > 0"),
+    ({"max_seconds": float("inf")}, "max_seconds: must be a finite number of seconds > 0"),
+    ({"max_seconds": 1e300}, r"max_seconds: must be at most 1e\+07 s .*, got 1e\+300"),
+    ({"late_after_s": -1.0}, "late_after_s: must be a finite number of seconds > 0"),
+    ({"n_tractors": 0}, "n_tractors: must be an integer >= 1"),
 ])
 def test_emulate_rejects_bad_arguments(kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -361,6 +361,8 @@ def test_cli_reports_bad_options_in_one_line(capsys):
     assert "--watchdog: must be a finite number of seconds > 0" in capsys.readouterr().err
     assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "1e300"]) == 2  # was OverflowError
     assert "--max-seconds: must be at most" in capsys.readouterr().err
+    assert cli_main(["device", "emulate", "--port", "0", "--tractors", "0"]) == 2
+    assert "--tractors: must be an integer >= 1" in capsys.readouterr().err
 
 
 def test_cli_emulator_stops_on_its_own_after_max_seconds(tmp_path, capsys):

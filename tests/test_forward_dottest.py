@@ -63,7 +63,10 @@ def test_dottest_validation():
         dottest(aslinearoperator(np.eye(3)), n_columns=0)
 
 
-def test_inversion_uses_the_solvers_dottest():
+def test_inversion_uses_the_solvers_dottest(monkeypatch):
     from tactilab.inversion import operators
 
-    assert operators.dottest is dottest
+    seen = []
+    monkeypatch.setattr(operators, "_solver_dottest", lambda op, rng, rtol: seen.append(rtol) or 0.0)
+    assert operators.dottest(aslinearoperator(np.eye(2)), rtol=1e-9) == 0.0 and seen == [1e-9]
+    assert "def dottest" in open(operators.__file__).read().split("_solver_dottest(op")[0]

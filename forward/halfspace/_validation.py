@@ -27,6 +27,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+#: Voigt order of stress and strain components (tensor shear in the last three), docs/theory.md section 1
 COMPONENTS = ("xx", "yy", "zz", "yz", "zx", "xy")
 #: alternative spellings of the symmetric shear entries
 COMPONENT_ALIASES = {"xz": "zx", "zy": "yz", "yx": "xy"}

@@ -16,6 +16,7 @@ import xarray as xr
 from . import _validation as check
 from ._validation import COMPONENTS as VOIGT
 
+#: The shear convention of every strain tactilab returns (recorded in result attributes)
 SHEAR_CONVENTION = "tensor shear eps_ij (engineering gamma_ij = 2 eps_ij; see to_engineering)"
 INVARIANTS = ("volumetric", "von_mises", "energy_density", "principal", "max_shear")
 _PAIRS = {"xx": (0, 0), "yy": (1, 1), "zz": (2, 2), "yz": (1, 2), "zx": (2, 0), "xy": (0, 1)}

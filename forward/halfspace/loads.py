@@ -15,6 +15,7 @@ import numpy as np
 
 from . import _validation as check
 
+#: Surface traction components: normal pressure p (pushes in) and tangential qx, qy (Pa)
 LOAD_COMPONENTS = ("p", "qx", "qy")
 
 

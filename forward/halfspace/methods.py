@@ -293,6 +293,7 @@ class ClosedForm(Method):
         return values
 
 
+#: Method registry: name -> Method subclass; HalfSpace.stress/strain look ``method`` up here
 METHODS: dict[str, type[Method]] = {"closed_form": ClosedForm, "spectral": Spectral, "dcfft": DCFFT}
 
 

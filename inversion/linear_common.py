@@ -1,0 +1,76 @@
+"""What the linear inversion paths share: the result record, the data check and the dense limit.
+
+:mod:`tactilab.inversion.linear` (Tikhonov) and :mod:`tactilab.inversion.tv` (total variation)
+both import from here, so neither needs the other at import time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .criteria import CriteriaResult
+
+#: largest model size for which the "auto" path builds a dense matrix
+DENSE_MAX = 1024
+
+__all__ = ["DENSE_MAX", "LinearInversionResult", "check_data"]
+
+
+@dataclass
+class LinearInversionResult:
+    """Result of :func:`invert_linear`.
+
+    Attributes
+    ----------
+    model : ndarray, shape ``dims``, or ``(len(loads), *dims)`` for several load components
+        Estimated model (load in Pa, or profile in m, as the operator maps).
+    method : str
+        Path used: ``"fft"``, ``"dense"`` or ``"iterative"``.
+    penalty : str
+        ``"identity"``, ``"gradient"``, ``"curvature"`` or ``"tv"``.
+    lam : float
+        Regularisation strength used.
+    lam_source : str
+        ``"given"`` or the criterion that chose it.
+    criteria : CriteriaResult or None
+        All criteria choices and curves (Tikhonov on the fft and dense paths).
+    residual_norm : float
+        ``||A m - d||`` in data units.
+    iterations : int
+        Solver iterations (0 for direct paths).
+    converged : bool
+        False when an iterative solver hit its iteration limit.
+    message : str
+        Human-readable account of what was done.
+    """
+
+    model: np.ndarray
+    method: str
+    penalty: str
+    lam: float
+    lam_source: str
+    criteria: CriteriaResult | None
+    residual_norm: float
+    iterations: int
+    converged: bool
+    message: str
+
+
+def check_data(data, n_expected: int, name: str = "data") -> np.ndarray:
+    """Flatten and validate data: finite reals of the expected size."""
+    arr = np.asarray(data)
+    if arr.dtype.kind not in "biuf":
+        raise ValueError(f"{name}: expected real numbers, got dtype {arr.dtype}")
+    arr = arr.astype(float).ravel()
+    if arr.size != n_expected:
+        raise ValueError(f"{name}: size mismatch, got {arr.size} values but the operator has {n_expected} outputs")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(
+            f"{name}: must be finite, found {arr[i]} at flat index {i} ({int(bad.sum())} bad values); "
+            "drop or interpolate the bad samples first"
+        )
+    return arr
