@@ -84,12 +84,29 @@ def test_select_method_warns_when_no_method_meets_tol():
 def test_select_method_forced_and_bad_names():
     problem = _problem(_gaussian())
     with warnings.catch_warnings():
-        warnings.simplefilter("error")
+        warnings.simplefilter("error")  # forced methods that meet tol say nothing
         assert select_method(problem, 1e-6, "closed_form")[0].name == "closed_form"
-        assert select_method(problem, 1e-6, Spectral)[1] == "forced by the caller"
+        assert select_method(problem, 1e-6, DCFFT)[1] == "forced by the caller"
+        assert select_method(_problem(_gaussian(periodic=True)), 1e-6, Spectral())[0].name == "spectral"
     with pytest.raises(ValueError, match="method: unknown method 'magic'"):
         select_method(problem, 1e-6, "magic")
     with pytest.raises(ValueError, match="method: expected 'auto', a method name or a Method subclass"):
         select_method(problem, 1e-6, 3)
     with pytest.raises(ValueError, match="method: 'dcfft' cannot run here"):
         select_method(_problem(_gaussian(periodic=True)), 1e-6, "dcfft")
+
+
+def test_a_forced_method_that_misses_tol_warns_and_names_the_better_method():
+    """``method="dcfft"`` at 1e-3 grid spacings deep returned -4.8e9 Pa for a -1e4 Pa field in
+    silence; only ``auto`` warned although the method's own estimate knew."""
+    load = _gaussian()
+    hs = HalfSpace(1e6)
+    with pytest.warns(AccuracyWarning, match=r"method 'dcfft' was forced, but its error estimate .* exceeds "
+                                             r"tol=1e-06; no method meets it; 'spectral' is more accurate"):
+        result = hs.stress(load, 1e-3 * 1e-4, components=("zz",), method="dcfft")
+    assert result.error_estimate > 0.1  # and the result says so
+    with pytest.warns(AccuracyWarning, match=r"method 'spectral' was forced, but its error estimate .* exceeds "
+                                             r"tol=1e-06; 'dcfft' meets it \(estimate .*\): use method='dcfft'"):
+        hs.stress(load, 3e-4, components=("zz",), method="spectral")
+    with pytest.warns(AccuracyWarning, match=r"tol=1e-09; no registered method does better: refine"):
+        hs.stress(load, 3e-4, components=("zz",), method="closed_form", tol=1e-9)

@@ -309,6 +309,39 @@ def _instance(method) -> Method:
     raise ValueError(f"method: expected 'auto', a method name or a Method subclass, got {method!r}")
 
 
+def _rank(problem: Problem) -> tuple[dict, list]:
+    """Every registered method's (estimate, cost), or the reason it cannot run."""
+    candidates: dict = {}
+    runnable = []
+    for name, cls in METHODS.items():
+        m = cls()
+        why = m.applicable(problem)
+        if why is not None:
+            candidates[name] = why
+            continue
+        err, cost = m.error_estimate(problem), m.cost(problem)
+        candidates[name] = (err, cost)
+        runnable.append((m, err, cost))
+    return candidates, runnable
+
+
+def _warn_forced(chosen: Method, err: float, tol: float, runnable: list) -> None:
+    """A forced method whose own estimate exceeds tol: say so, and name the better method."""
+    others = [r for r in runnable if r[0].name != chosen.name]
+    meeting = [r for r in others if r[1] <= tol]
+    if meeting:
+        better, better_err, _ = min(meeting, key=lambda r: r[2])
+        advice = f"{better.name!r} meets it (estimate {better_err:.1e}): use method={better.name!r}"
+    elif others and min(r[1] for r in others) < err:
+        better, better_err, _ = min(others, key=lambda r: r[1])
+        advice = (f"no method meets it; {better.name!r} is more accurate (estimate {better_err:.1e}): use "
+                  f"method={better.name!r}, refine the grid spacing below the depth, or loosen tol")
+    else:
+        advice = "no registered method does better: refine the grid spacing below the depth, or loosen tol"
+    warnings.warn(f"method {chosen.name!r} was forced, but its error estimate {err:.1e} exceeds tol={tol:.0e}; "
+                  f"{advice}", AccuracyWarning, stacklevel=4)
+
+
 def select_method(problem: Problem, tol: float, method="auto") -> tuple[Method, str, dict]:
     """The method to run: the one forced by the caller, or the cheapest whose estimate meets tol.
 
@@ -333,25 +366,19 @@ def select_method(problem: Problem, tol: float, method="auto") -> tuple[Method, 
     Warns
     -----
     AccuracyWarning
-        When no method meets ``tol`` (the most accurate one is used).
+        When no method meets ``tol`` (the most accurate one is used), or when a forced method's
+        own estimate exceeds ``tol`` (the warning names the better method, if there is one).
     """
     if not (isinstance(method, str) and method == "auto"):
         chosen = _instance(method)
         why = chosen.applicable(problem)
         if why is not None:
             raise ValueError(f"method: {chosen.name!r} cannot run here: {why}")
+        err = chosen.error_estimate(problem)
+        if err > tol:
+            _warn_forced(chosen, err, tol, _rank(problem)[1])
         return chosen, "forced by the caller", {}
-    candidates: dict = {}
-    runnable = []
-    for name, cls in METHODS.items():
-        m = cls()
-        why = m.applicable(problem)
-        if why is not None:
-            candidates[name] = why
-            continue
-        err, cost = m.error_estimate(problem), m.cost(problem)
-        candidates[name] = (err, cost)
-        runnable.append((m, err, cost))
+    candidates, runnable = _rank(problem)
     good = [r for r in runnable if r[1] <= tol]
     if good:
         m, err, _ = min(good, key=lambda r: r[2])
