@@ -13,6 +13,7 @@ dispatch; subclasses implement only ``_compute``, ``_error`` and ``_cost`` and d
 
 from __future__ import annotations
 
+import functools
 import warnings
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
@@ -22,7 +23,7 @@ import numpy as np
 from .dcfft import alias_error, nodal_dcfft_stress
 from .kernels import nodal_stress
 from .loads import SurfaceLoad
-from .spectral import VOIGT, periodic_stress
+from .spectral import VOIGT, angular_wavenumbers, periodic_stress
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,11 @@ class Problem:
     @property
     def n_eval(self) -> int:
         return int(np.prod(self.load.shape)) if self.points is None else len(self.points)
+
+    @functools.cached_property
+    def load_width(self) -> float:
+        """Length in m over which the load varies: :func:`load_width` of the load (cached)."""
+        return load_width(self.load)
 
     @property
     def stress_rows(self) -> list[int]:
@@ -212,9 +218,34 @@ def image_error(load: SurfaceLoad, depths: np.ndarray) -> float:
     return float(8.0 * (2 * a / L) ** 2)
 
 
+def load_width(load: SurfaceLoad) -> float:
+    """The length in m over which a load varies, from its spectrum (the narrowest component).
+
+    For each component, ``w = sqrt(ndim / (2 <|k|^2>))`` with ``<|k|^2>`` the power-weighted
+    mean squared angular wavenumber of the grid values, zero-padded (the load is zero outside
+    the grid, so a load cut off by the grid edge shows its edge): exactly the standard deviation of a
+    Gaussian bump (measured within 1 % from 1 grid spacing up, 0.47 spacings for one of 0.5).
+    Sharp edges and sub-grid detail raise ``<|k|^2>``, so the width errs small (the estimate
+    that uses it errs large). ``inf`` for a uniform or zero load.
+    """
+    widths = [np.inf]
+    padded = tuple(2 * n for n in load.shape)  # zero outside the grid: a cut-off load has edges
+    ks = angular_wavenumbers(padded, load.spacing)
+    k2 = sum(k**2 for k in ks)
+    for values in load.components.values():
+        power = np.abs(np.fft.fftn(values, s=padded, axes=tuple(range(load.ndim)))) ** 2
+        total = float(power.sum())
+        mean_k2 = float((k2 * power).sum()) / total if total > 0 else 0.0
+        if mean_k2 > 0:
+            widths.append(float(np.sqrt(load.ndim / (2.0 * mean_k2))))
+    return min(widths)
+
+
 def _sampling_error(problem: Problem) -> float:
-    """Kernel-sampling (alias) error of the nodal-force methods at the deepest-hit depth."""
-    return max(alias_error(problem.load.spacing, float(z), problem.dtype, float(z)) for z in problem.depths)
+    """Kernel-sampling (alias) error of the nodal-force methods, at every depth, for the load's
+    own width (never wider than the depth: the estimator's calibrated default)."""
+    w = problem.load_width
+    return max(alias_error(problem.load.spacing, float(z), problem.dtype, min(float(z), w)) for z in problem.depths)
 
 
 class DCFFT(Method):
