@@ -27,6 +27,7 @@ _EXPORTS = {
     "line_load_stress": "halfspace",
     "pressure_from_deflection": "halfspace",
     "angular_wavenumbers": "halfspace",
+    "dottest": "halfspace",
     "to_engineering": "halfspace",
     "invariants": "halfspace",
     "ReceptorHypothesis": "receptors",

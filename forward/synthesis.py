@@ -31,7 +31,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from .tractors import _positive, array_phi_psi, check_pairs
+from .halfspace import positive as _positive
+from .tractors import array_phi_psi, check_pairs
 
 _GAUSS = np.polynomial.legendre.leggauss(8)
 
