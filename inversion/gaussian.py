@@ -433,7 +433,7 @@ def gaussian_posterior(
     is_matrix = isinstance(operator, np.ndarray)
     dims = (operator.shape[1],) if is_matrix else tuple(getattr(operator, "dims", (operator.shape[1],)))
     spacing = spacing if spacing is not None else getattr(operator, "spacing", 1.0)
-    d = check_data(data, operator.shape[0])
+    d = check_data(data, operator.shape[0], shape=getattr(operator, "dimsd", None))
     lam_full = _prior_spectrum(prior, dims, spacing)
     m0 = prior.mean if isinstance(prior, StationaryPrior) else 0.0
     if method == "auto":
