@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft as sfft
 
-from .metamer_families import FamilyStimulus, GridLoadFamily, _check_hypothesis, require_linear, resolve_receptors
+from .metamer_families import FamilyStimulus, _check_hypothesis, require_linear, resolve_receptors
+from .metamer_grids import GridLoadFamily
 from .metamer_plots import plot_spectrum
 
 

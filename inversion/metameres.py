@@ -30,12 +30,11 @@ from tactilab.forward import ReceptorHypothesis
 from .metamer_families import (
     VOIGT,
     FamilyStimulus,
-    GridLoadFamily,
     SinusoidFamily,
     _check_hypothesis,
-    require_linear,
     resolve_receptors,
 )
+from .metamer_grids import GridLoadFamily
 from .metamer_plots import plot_pair
 from .metamer_spectra import Ambiguity, Subspace, metamer_ambiguity, resolvable_subspace
 
