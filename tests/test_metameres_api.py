@@ -106,6 +106,13 @@ def test_2d_per_mode_spectrum_and_basis(rng):
     np.testing.assert_allclose(b.T @ b, np.eye(b.shape[1]), atol=1e-10)
     bs = slow.basis("resolvable")
     np.testing.assert_allclose(b @ b.T, bs @ bs.T, atol=1e-8)
+    target = fam.stimulus(rng.normal(size=fam.n_params) * 1e3)
+    amb = metamer_ambiguity(target, fam, h, 1e3)
+    dense = metamer_ambiguity(target, fam, h, 1e3, receptors=fam.default_receptors()[::-1])
+    np.testing.assert_allclose(amb.posterior.mean, dense.posterior.mean, rtol=1e-7, atol=1e-6)
+    np.testing.assert_allclose(amb.posterior.std, dense.posterior.std, rtol=1e-7)
+    draws = np.array([d.params for d in amb.sample(3000, rng)])
+    np.testing.assert_allclose(draws.std(axis=0).mean(), amb.posterior.std.mean(), rtol=0.05)
 
 
 def test_metamer_pair_fields_and_per_mode_solve_equals_dense(rng):
