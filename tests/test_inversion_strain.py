@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from tactilab.data_schemas.files import load_example
-from tactilab.data_schemas.recording_io import read_recording
 from tactilab.data_schemas.scene import Scan
 from tactilab.data_schemas.sensors import SensorArray
 from tactilab.forward.halfspace import compliance_matrix
+from tactilab.data_schemas import read_recording
 from tactilab.forward.scene_simulation import simulate_scene
 from tactilab.inversion import (
     DefectScanModel, dottest, halfspace_fourier_operator, halfspace_strain_operator, invert_defect_position,
