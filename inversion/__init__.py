@@ -38,6 +38,8 @@ _EXPORTS = {
     "dottest": "operators",
     "plot_profile": "plots",
     "plot_corner": "plots",
+    "invert_many": "batch",
+    "recording_keys": "batch",
 }
 
 __version__ = package_version()

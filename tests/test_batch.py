@@ -1,14 +1,22 @@
-"""The generic batch layer (tactilab.data_schemas.batch): per-key seeds, atomic results, resume,
-errors.tsv, killed workers and clients, missing extra, unreachable scheduler.
+"""Batches: the generic layer (tactilab.data_schemas.batch), the batch inversion
+(tactilab.inversion.batch.invert_many) and its CLI options (tactilab.cli.batch_options).
 
-One two-worker LocalCluster (processes) is shared by the module; the task functions below are
-pickled by value so that the worker processes need not import this test module.
+Generic layer: per-key seeds, atomic results, resume, errors.tsv, killed workers and clients,
+missing extra, unreachable scheduler. Inversion: two simulated defect-scan recordings (the defect
+at x = -0.4 mm and +0.4 mm) and one corrupt file; few MCMC steps keep it fast (convergence is not
+the point; bitwise identity for 0, 1 and 2 workers, resume and error handling are).
+
+One two-worker LocalCluster (processes) is shared by the module (starting one and importing the
+inversion stack in its workers takes several seconds); the task functions below are pickled by
+value so that the worker processes need not import this test module.
 """
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -21,8 +29,12 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from tactilab.cli.batch_options import add_batch_options, run_invert_batch
+from tactilab.data_schemas import Scan, SensorArray, load_example, read_recording
 from tactilab.data_schemas import batch as B
 from tactilab.data_schemas.batch import read_result, result_path, run_batch, stable_hash, task_rng
+from tactilab.forward import simulate_scene
+from tactilab.inversion.batch import invert_many, recording_keys
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])
 
@@ -176,3 +188,129 @@ def test_unreachable_scheduler_is_one_clear_error(tmp_path, monkeypatch):
     monkeypatch.setattr(B, "CONNECT_TIMEOUT_S", 1.0)
     with pytest.raises(OSError, match=r"scheduler: cannot reach the Dask scheduler at 'tcp://127.0.0.1:9' within 1 s"):
         run_batch(draw, {"a": "a"}, seed=0, out_dir=tmp_path, scheduler="tcp://127.0.0.1:9", progress=False)
+
+
+# ----------------------------------------------------------------------------- batch inversion
+FAST = dict(n_walkers=8, check_every=20, max_steps=20, n_start=8)
+TRUTH = {"a/recording.nc": -0.4e-3, "b/recording.nc": 0.4e-3}
+
+
+def small_scene(x0=0.0):
+    base = load_example("fingertip_defect")
+    sensors = SensorArray(positions_m=np.array([[0.0, 0.0], [1e-3, 0.0], [-1e-3, 1e-3]]), depth_m=2e-3,
+                          components=("zz",), noise_std=20.0)
+    scan = Scan(speed_m_per_s=0.02, duration_s=0.4, sampling_rate_hz=75.0, start_position_m=-4e-3)
+    surface = base.surface.model_copy(update={"position_m": (x0, 0.0)})
+    return base.model_copy(update={"sensors": sensors, "scan": scan, "surface": surface})
+
+
+@pytest.fixture(scope="module")
+def recs(tmp_path_factory):
+    root = tmp_path_factory.mktemp("scans")
+    for i, (key, x0) in enumerate(TRUTH.items()):
+        simulate_scene(small_scene(x0), root / key.split("/")[0], rng=np.random.default_rng(i), plots=False)
+    (root / "corrupt.nc").write_bytes(b"this is not a netCDF file")
+    return root
+
+
+@pytest.fixture(scope="module")
+def serial(recs, tmp_path_factory):
+    out = tmp_path_factory.mktemp("serial")
+    return out, invert_many(recs, small_scene(), seed=4, out_dir=out, workers=0, sampler_options=FAST, n_grid=40,
+                            progress=False)
+
+
+def _same(t1: xr.DataTree, t2: xr.DataTree) -> bool:
+    return all(t1[g].to_dataset().identical(t2[g].to_dataset()) for g in ("position", "profile"))
+
+
+def test_serial_batch_recovers_positions_and_records_the_corrupt_file(serial, recs):
+    out, tree = serial
+    assert list(tree["recording"].values) == list(TRUTH)
+    assert (tree.attrs["n_run"], tree.attrs["n_skipped"], tree.attrs["n_failed"]) == (2, 0, 1)
+    errors = (out / "errors.tsv").read_text().splitlines()
+    assert errors[0] == "key\treason" and errors[1].startswith("corrupt.nc\tOSError") and len(errors) == 2
+    pos = tree["position"].to_dataset()
+    for key, x0 in TRUTH.items():
+        est = pos.sel(recording=key, parameter="x0")
+        assert abs(float(est["mean"]) - x0) < 0.05e-3  # the defect is found (mean within 50 um)
+        assert float(est["lower"]) < float(est["mean"]) < float(est["upper"])
+    prof = tree["profile"].to_dataset()
+    peaks = prof["x"].values[prof["mean"].argmax("x").values]
+    assert np.allclose(peaks, list(TRUTH.values()), atol=0.35e-3)  # the profile peaks at the defect
+    assert np.all(prof["upper"] > prof["lower"])
+    on_disk = xr.open_datatree(out / "invert_many.nc", engine="h5netcdf").load()
+    assert _same(on_disk, tree)
+
+
+def test_same_bits_for_0_1_and_2_workers(serial, recs, tmp_path, client):
+    out0, tree0 = serial
+    lines = []
+    tree1 = invert_many(recs, small_scene(), seed=4, out_dir=tmp_path / "w1", workers=1, sampler_options=FAST,
+                        n_grid=40, progress=False, echo=lines.append)
+    assert lines and lines[0].startswith("dask: LocalCluster of 1 worker process(es) x 1 thread, dashboard http")
+    tree2 = invert_many(sorted(recs.rglob("recording.nc"), reverse=True), small_scene(), seed=4,
+                        out_dir=tmp_path / "w2", client=client, sampler_options=FAST, n_grid=40, progress=False)
+    assert tree1.attrs["n_failed"] == 1 and tree2.attrs["n_failed"] == 0  # the list form holds no corrupt file
+    assert _same(tree0, tree1)
+    assert _same(tree0, tree2.sel(recording=list(TRUTH)))
+
+    for key in TRUTH:  # the emcee draws themselves, bit for bit
+        draws = [read_result(d, key)["posterior"].to_dataset() for d in (out0, tmp_path / "w1", tmp_path / "w2")]
+        assert draws[0].identical(draws[1]) and draws[0].identical(draws[2])
+
+
+def test_rerun_resumes_and_cli_summary(serial, recs, tmp_path, capsys):
+    out0, tree0 = serial
+    out = tmp_path / "resumed"
+    shutil.copytree(out0, out)
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--scene")
+    parser.add_argument("--out")
+    add_batch_options(parser)
+    args = parser.parse_args(["--batch", str(recs), "--workers", "0", "--out", str(out)])
+    args.scene = small_scene()
+    args.quiet = True
+    assert run_invert_batch(args) == 1  # the corrupt file fails again
+    text = capsys.readouterr().out
+    assert "0 recording(s) inverted, 2 skipped (done before), 1 failed" in text
+    assert "errors.tsv (failed: corrupt.nc)" in text and "invert_many.nc (gathered)" in text
+    again = xr.open_datatree(out / "invert_many.nc", engine="h5netcdf").load()
+    assert _same(again, tree0)
+
+
+def test_cli_option_errors(recs, tmp_path):
+    parser = argparse.ArgumentParser()
+    add_batch_options(parser)
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--workers", "-1"])
+    args = parser.parse_args(["--batch", str(tmp_path / "missing")])
+    with pytest.raises(ValueError, match="--batch: must be a folder of recording files"):
+        run_invert_batch(args)
+    args = parser.parse_args(["--batch", str(recs), "--workers", "0"])
+    args.max_steps = 0
+    with pytest.raises(ValueError, match="--max-steps: must be >= 1 step, got 0"):
+        run_invert_batch(args)
+
+
+def test_recording_keys_and_bad_input(recs, tmp_path):
+    keys = recording_keys(recs)
+    assert list(keys) == ["a/recording.nc", "b/recording.nc", "corrupt.nc"]
+    assert keys["corrupt.nc"] == str((recs / "corrupt.nc").resolve())
+    rec = read_recording(recs / "a" / "recording.nc")
+    mixed = recording_keys([recs / "b" / "recording.nc", rec, recs / "a" / "recording.nc"])
+    assert list(mixed) == ["b/recording.nc", "recording-00001", "a/recording.nc"] and mixed["recording-00001"] is rec
+    assert list(recording_keys({"left": rec})) == ["left"]
+    assert list(recording_keys(recs, exclude=recs / "a")) == ["b/recording.nc", "corrupt.nc"]
+    with pytest.raises(ValueError, match="recordings: .* is not a folder"):
+        recording_keys(recs / "corrupt.nc")
+    with pytest.raises(ValueError, match="recordings: no recording files"):
+        recording_keys(tmp_path)
+    with pytest.raises(ValueError, match="recordings: empty"):
+        recording_keys([])
+    with pytest.raises(ValueError, match="recordings: 'a/recording.nc' appears twice"):
+        recording_keys([recs / "a" / "recording.nc", recs / "b" / "recording.nc", recs / "a" / "recording.nc"])
+    with pytest.raises(ValueError, match="scene: the defect inversion needs a finger contact and an isolated defect"):
+        invert_many(recs, load_example("sliding_grating"), seed=0, out_dir=tmp_path, workers=0)
+    with pytest.raises(ValueError, match="criterion: must be one of gcv"):
+        invert_many(recs, small_scene(), seed=0, out_dir=tmp_path, workers=0, criterion="aic")
