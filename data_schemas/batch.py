@@ -9,7 +9,8 @@ keys and imports nothing from forward, inversion or experiments. The rules it en
   :func:`stable_hash` is a SHA-256 digest (never Python's salted ``hash``), so a result does
   not depend on the worker count, the chunking or the order in which tasks run.
 - **One result file per key, written atomically**: ``<out_dir>/results/<quoted key>.nc``
-  (netCDF4 via h5netcdf) is written under a temporary name and renamed (``os.replace``), so a
+  (netCDF4 via h5netcdf; root attributes ``batch_key``, ``batch_seed`` and ``batch_compute_s``,
+  the seconds the callable took) is written under a temporary name and renamed (``os.replace``), so a
   killed worker or client never leaves a half-written result.
 - **Resume, never overwrite**: keys whose result file exists are skipped (also inside a task
   that Dask re-runs after a worker died), so a rerun with the same ``out_dir`` finishes the
@@ -85,7 +86,7 @@ def read_result(out_dir, key: str):
         return tree.load()
 
 
-def _write_atomic(result, path: pathlib.Path, key: str, seed: int) -> None:
+def _write_atomic(result, path: pathlib.Path, key: str, seed: int, compute_s: float) -> None:
     import xarray as xr
 
     if isinstance(result, xr.Dataset):
@@ -93,7 +94,7 @@ def _write_atomic(result, path: pathlib.Path, key: str, seed: int) -> None:
     if not isinstance(result, xr.DataTree):
         raise TypeError(f"task result: must be an xarray Dataset or DataTree, got {type(result).__name__}")
     result = result.copy()
-    result.attrs.update(batch_key=key, batch_seed=int(seed))
+    result.attrs.update(batch_key=key, batch_seed=int(seed), batch_compute_s=float(compute_s))
     tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex}.tmp")
     try:
         result.to_netcdf(tmp, engine="h5netcdf")
@@ -133,7 +134,9 @@ def _run_chunk(func: Callable, chunk: list, seed: int, out_dir: str, shared: dic
                 out.append((key, "done", ""))
                 continue
             try:
-                _write_atomic(func(item, task_rng(seed, key), **shared), path, key, seed)
+                t0 = time.perf_counter()
+                result = func(item, task_rng(seed, key), **shared)
+                _write_atomic(result, path, key, seed, time.perf_counter() - t0)
             except Exception as exc:  # noqa: BLE001 - a failing item is recorded, never fatal
                 out.append((key, "failed", _one_line(exc)))
             else:
