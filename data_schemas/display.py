@@ -278,3 +278,27 @@ class DisplayDescription(Record):
         )
         values.update(overrides)
         return cls(**values)
+
+    @classmethod
+    def wh2008(cls, **overrides) -> DisplayDescription:
+        """The row of 10 line tractors of Wang & Hayward (2008): centres at +-1, +-3, ..., +-9 mm.
+
+        Five tractor pairs with half spacing d = 1 mm (pitch 2 mm along x), as in the tactile
+        synthesis design of docs/theory.md section 4a (p = 4 d = 4 mm). The paper treats the
+        tractors as line loads; a contact width is required here, so the footprint is the
+        NOMINAL 1 mm (d, half the pitch) and the limits are the toolkit's nominal values (not
+        from the paper): pass ``overrides`` to use a device's own numbers.
+        """
+        values = dict(
+            display_id="WH2008",
+            rows=1,
+            columns=10,
+            pitch_x_m=2e-3,
+            tractor_width_m=1e-3,
+            tractor_length_m=6e-3,
+            **_NOMINAL_LIMITS,
+            description=("Wang & Hayward 2008 tractor row: 10 tractors at +-1, +-3, ..., +-9 mm (5 pairs, "
+                         "d = 1 mm); footprint, limits and frame rate are nominal values"),
+        )
+        values.update(overrides)
+        return cls(**values)

@@ -35,8 +35,8 @@ _EXPORTS = {
     "interfacial_traction": "contact",
     "stick_radius": "contact",
     "Surface": "surfaces",
-    "Bump": "surfaces",
-    "Step": "surfaces",
+    "Feature": "surfaces",
+    "RecordFeature": "surfaces",
     "RandomSquareWaveGrating": "surfaces",
     "rigid_surface_pressure": "surfaces",
     # the biomimetic finger and scans

@@ -25,6 +25,8 @@ __all__ = [
     "normal_pressure_to_szz_multiplier",
     "halfspace_fourier_operator",
     "dottest",
+    "model_layout",
+    "as_fourier_diagonal",
 ]
 
 
@@ -118,6 +120,54 @@ def rigid_surface_height_operator(n: int, spacing: float, depth: float, young_mo
     (k,) = angular_wavenumbers((int(n),), spacing)
     p_to_szz = halfspace_fourier_operator((int(n),), spacing, depth, poisson_ratio).multiplier
     return FourierDiagonal(p_to_szz * young_modulus * np.abs(k) / (2 * (1 - poisson_ratio**2)), spacing)
+
+
+def model_layout(operator) -> tuple[tuple[int, ...], int]:
+    """Grid shape and number of load components of an operator's model vector.
+
+    The convention shared with the forward solver's
+    :class:`~tactilab.forward.halfspace.LoadToSensor`: ``dims`` is the grid shape, an optional
+    ``loads`` attribute names the load components, and the model vector is load-major (all
+    nodes of the first load, then the next). Operators without ``dims`` (matrices, plain
+    LinearOperators) are one field on a 1-D grid of ``shape[1]`` nodes.
+
+    Returns
+    -------
+    dims : tuple of int
+        The grid shape, ``(nx,)`` or ``(ny, nx)``.
+    n_fields : int
+        ``len(operator.loads)``, else 1.
+
+    Raises
+    ------
+    ValueError
+        When ``len(loads) * prod(dims)`` is not the operator's model size.
+    """
+    n_model = int(operator.shape[1])
+    dims = getattr(operator, "dims", None)
+    if dims is None or isinstance(operator, np.ndarray):
+        return (n_model,), 1
+    dims = tuple(int(v) for v in dims)
+    n_fields = len(getattr(operator, "loads", ("model",)))
+    if len(dims) not in (1, 2) or n_fields * int(np.prod(dims)) != n_model:
+        raise ValueError(
+            f"operator: dims {dims} with {n_fields} load component(s) do not make its {n_model} model values; "
+            "dims must be the grid shape (nx,) or (ny, nx), with the loads stacked load-major")
+    return dims, n_fields
+
+
+def as_fourier_diagonal(operator):
+    """The :class:`FourierDiagonal` form of an operator when it has one, else ``operator``.
+
+    A forward :class:`~tactilab.forward.halfspace.LoadToSensor` that is circulant (periodic
+    grid, a sensor at every node) with one load and one component is the same map as a
+    FourierDiagonal with its exact multiplier, so the inversion can take the fft path.
+    """
+    if isinstance(operator, FourierDiagonal) or not getattr(operator, "circulant", False):
+        return operator
+    if len(operator.loads) != 1 or len(operator.components) != 1:
+        return operator
+    return FourierDiagonal(operator.fourier_multiplier()[0, 0], operator.spacing)
 
 
 def _half(full: np.ndarray) -> np.ndarray:

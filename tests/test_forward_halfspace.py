@@ -158,7 +158,7 @@ def test_operator_dot_test_and_agreement(rng, periodic, sensors, ndim):
     assert abs(lhs - rhs) <= 1e-12 * max(abs(lhs), 1e-300) * 10
     batch = op @ x
     np.testing.assert_allclose(batch[:, 1], op @ x[:, 1], rtol=1e-12, atol=1e-30)
-    load = SurfaceLoad(**dict(zip(loads, x[:, 0].reshape(op.dims))), spacing=spacing, periodic=periodic)
+    load = SurfaceLoad(**dict(zip(loads, x[:, 0].reshape(op.model_shape))), spacing=spacing, periodic=periodic)
     ref = HS.strain(load, 3e-4, points=pts, components=("zz", "zx", "xx"),
                     method="spectral" if periodic else "closed_form").data["strain"].values[0]
     got = (op @ x[:, 0]).reshape(op.dimsd)

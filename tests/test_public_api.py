@@ -142,3 +142,40 @@ def test_docs_code_runs(path, tmp_path, monkeypatch):
     for i, code in enumerate(_blocks(path)):
         exec(compile(code, f"{path.relative_to(ROOT)} block {i + 1}", "exec"), namespace)  # noqa: S102
     assert os.getcwd() == str(tmp_path)
+
+
+# ----------------------------------------------------------------------------- plotting etiquette
+LIBRARY = ("data_schemas", "forward", "inversion", "experiments", "demo", "cli")
+
+
+def test_library_code_never_switches_the_matplotlib_backend():
+    """Figures are built as matplotlib.figure.Figure; no matplotlib.use(...) and no pyplot."""
+    found = []
+    for part in LIBRARY:
+        for path in sorted((ROOT / part).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "use" \
+                        and isinstance(node.func.value, ast.Name) and node.func.value.id == "matplotlib":
+                    found.append(f"{path.relative_to(ROOT)}:{node.lineno} matplotlib.use")
+                names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                         else [f"{node.module}.{a.name}" for a in node.names] if isinstance(node, ast.ImportFrom)
+                         else [])
+                found += [f"{path.relative_to(ROOT)}:{node.lineno} {n}" for n in names if "pyplot" in n]
+    assert not found, found
+
+
+def test_plotting_keeps_the_callers_backend(tmp_path):
+    code = (
+        "import matplotlib\n"
+        "matplotlib.use('svg')\n"
+        "import numpy as np, xarray as xr\n"
+        "from tactilab.forward import plot_field\n"
+        "da = xr.DataArray(np.ones((1, 1, 4)), dims=('depth', 'component', 'x'),\n"
+        "                  coords={'depth': [1e-3], 'component': ['zz'], 'x': np.arange(4) * 1e-4},\n"
+        "                  attrs={'quantity': 'stress'})\n"
+        f"plot_field(da, {str(tmp_path / 'f.png')!r})\n"
+        "print(matplotlib.get_backend())\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "svg" and (tmp_path / "f.png").stat().st_size > 0

@@ -5,6 +5,7 @@ This package is the solver's one door. Scene, display and synthesis code in
 The theory is in ``docs/theory.md``.
 """
 
+from .dcfft import dcfft_convolve, dcfft_correlate, dcfft_kernel_spectrum, dcfft_stress, padded_shape
 from .facade import AccuracyWarning, FieldResult, HalfSpace
 from .fields import (
     INVARIANTS,
@@ -40,10 +41,15 @@ __all__ = [
     "SurfaceLoad",
     "angular_wavenumbers",
     "compliance_matrix",
+    "dcfft_convolve",
+    "dcfft_correlate",
+    "dcfft_kernel_spectrum",
+    "dcfft_stress",
     "invariants",
     "line_green",
     "line_load_stress",
     "output_weights",
+    "padded_shape",
     "point_green",
     "point_load_stress",
     "pressure_from_deflection",

@@ -33,7 +33,8 @@ from .kernel_formulas import line_geometry, line_unit, point_geometry, point_uni
 from .kernels import COMPONENTS, active_pairs, check_components, check_nu
 from .loads import SurfaceLoad
 
-__all__ = ["dcfft_stress", "dcfft_error_estimate", "padded_shape"]
+__all__ = ["dcfft_stress", "dcfft_error_estimate", "padded_shape", "dcfft_kernel_spectrum", "dcfft_convolve",
+           "dcfft_correlate"]
 
 # load component name -> direction of the force it applies
 _LOAD_DIRECTION = {"qx": "x", "qy": "y", "p": "z"}
@@ -282,6 +283,118 @@ def dcfft_stress(load: SurfaceLoad, depths: Sequence[float], nu: float = 0.5,
             if directions:
                 out[d, c] = _inverse_crop(acc, padded, shape, workers)
         del geometry
+    return out
+
+
+def dcfft_kernel_spectrum(shape: Sequence[int], spacing: Sequence[float], depth: float, nu: float,
+                    weights: np.ndarray, directions: Sequence[str], dtype=np.float64,
+                    workers: int | None = None) -> np.ndarray:
+    """Spectra of the sampled kernels on the padded grid: the engine's precomputed operator.
+
+    The same sampling, padding (:func:`padded_shape`) and symmetric transforms as
+    :func:`dcfft_stress`, for maps that are applied many times (the load-to-sensor operator,
+    batched scan maps): output ``o`` at depth ``depth`` per unit traction along ``direction``
+    at a node, ``weights[o] @ sigma_voigt`` of the point (1-D: line) kernel times the cell area.
+
+    Parameters
+    ----------
+    shape : (nx,) or (ny, nx)
+        Load grid shape.
+    spacing : (dx,) or (dx, dy)
+        Grid spacing in m, x first.
+    depth : float
+        Depth Z > 0 in m.
+    nu : float
+        Poisson's ratio.
+    weights : ndarray, shape (n_out, 6)
+        Output rows over the Voigt stress (identity rows: stress in Pa; Hooke rows: strain).
+    directions : sequence of {"x", "y", "z"}
+        Force direction of each load component (qx, qy, p).
+    dtype : float64 or float32
+        Precision.
+    workers : int, optional
+        Passed to ``scipy.fft``.
+
+    Returns
+    -------
+    ndarray, complex, shape ``(n_out, len(directions), *padded[:-1], padded[-1] // 2 + 1)``
+        The rfftn spectra of the kernels on the zero-padded grid (see :func:`dcfft_convolve`).
+    """
+    shape = tuple(int(n) for n in shape)
+    spacing = tuple(float(h) for h in spacing)
+    dtype = _check_dtype(dtype)
+    weights = np.atleast_2d(np.asarray(weights, dtype=float))
+    padded = padded_shape(shape)
+    spectrum_shape = (*padded[:-1], padded[-1] // 2 + 1)
+    cdtype = np.result_type(dtype, np.complex64)
+    out = np.zeros((weights.shape[0], len(directions), *spectrum_shape), dtype=cdtype)
+    quad = np.zeros(shape[:-1] + (padded[-1] // 2 + 1,), dtype=dtype)
+    rows = np.zeros((padded[0] // 2 + 1, padded[1] // 2 + 1), dtype=dtype) if len(shape) == 2 else None
+    ones = np.ones(spectrum_shape, dtype=cdtype)
+    acc = np.empty(spectrum_shape, dtype=cdtype)
+    axis_names = ("y", "x") if len(shape) == 2 else ("x",)
+    geometry = _quadrant_geometry(shape, spacing, float(depth))
+    for k, direction in enumerate(directions):
+        for j, comp in enumerate(COMPONENTS):
+            col = weights[:, j]
+            if not np.any(col) or not active_pairs([comp], [direction], len(shape)):
+                continue
+            _sample_quadrant(quad, geometry, comp, direction, float(np.prod(spacing)), nu)
+            odd = [_is_odd(comp, direction, name) for name in axis_names]
+            real, start = _symmetric_spectrum(quad, odd, rows, shape[0], workers)
+            _add_kernel_product(acc, ones, real, start, odd, True)
+            for o in np.flatnonzero(col):
+                out[o, k] += col[o] * acc
+    return out
+
+
+def _crop(full: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    return full[(Ellipsis, *[slice(0, n) for n in shape])]
+
+
+def dcfft_convolve(spectrum: np.ndarray, values: np.ndarray, workers: int | None = None) -> np.ndarray:
+    """Apply :func:`dcfft_kernel_spectrum`: the isolated field of nodal tractions on the load grid.
+
+    Parameters
+    ----------
+    spectrum : ndarray, shape (n_out, n_dir, ...)
+        From :func:`dcfft_kernel_spectrum`.
+    values : ndarray, shape (..., n_dir, *shape)
+        Tractions in Pa per direction (leading axes are batches, e.g. frames).
+
+    Returns
+    -------
+    ndarray, shape (..., n_out, *shape)
+        Outputs at the grid nodes (linear convolution: no periodic images).
+    """
+    ndim = spectrum.ndim - 2
+    shape = values.shape[-ndim:]
+    padded = padded_shape(shape)
+    axes = tuple(range(-ndim, 0))
+    spec = sfft.rfftn(values, s=padded, axes=axes, workers=workers)
+    mixed = _mix(spectrum, spec, ndim)
+    return _crop(sfft.irfftn(mixed, s=padded, axes=axes, workers=workers), shape)
+
+
+def dcfft_correlate(spectrum: np.ndarray, data: np.ndarray, workers: int | None = None) -> np.ndarray:
+    """The adjoint of :func:`dcfft_convolve`: outputs (..., n_out, *shape) -> tractions (..., n_dir, *shape)."""
+    ndim = spectrum.ndim - 2
+    shape = data.shape[-ndim:]
+    padded = padded_shape(shape)
+    axes = tuple(range(-ndim, 0))
+    spec = sfft.rfftn(data, s=padded, axes=axes, workers=workers)
+    mixed = _mix(np.conj(np.swapaxes(spectrum, 0, 1)), spec, ndim)
+    return _crop(sfft.irfftn(mixed, s=padded, axes=axes, workers=workers), shape)
+
+
+def _mix(spectrum: np.ndarray, spec: np.ndarray, ndim: int) -> np.ndarray:
+    """out[..., o, k] = sum_l spectrum[o, l, k] * spec[..., l, k]."""
+    n_out, n_in = spectrum.shape[:2]
+    out = np.zeros(spec.shape[:-ndim - 1] + (n_out,) + spec.shape[-ndim:], dtype=np.result_type(spectrum, spec))
+    rest = (slice(None),) * ndim
+    for o in range(n_out):
+        for i in range(n_in):
+            out[(Ellipsis, o) + rest] += spectrum[o, i] * spec[(Ellipsis, i) + rest]
     return out
 
 

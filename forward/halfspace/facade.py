@@ -160,9 +160,9 @@ class HalfSpace:
         return self._field(load, depth, points, components, method, tol, "strain", invariants)
 
     def pressure_from_deflection(self, deflection: np.ndarray, spacing) -> SurfaceLoad:
-        """Pressure (Pa) imposing a normal deflection (m) on a frictionless periodic surface."""
-        load = pressure_from_deflection(deflection, spacing, self.E, self.nu)
-        return SurfaceLoad(p=load.p, spacing=load.spacing, periodic=True)
+        """Pressure (Pa) imposing a normal deflection (m) on a frictionless periodic surface;
+        the load is marked periodic (see :func:`pressure_from_deflection`)."""
+        return pressure_from_deflection(deflection, spacing, self.E, self.nu)
 
     def operator(self, shape, spacing, sensors=None, depth: float = 1e-3, components=("zz",),
                  loads=("p",), quantity: str = "stress", periodic: bool = False):

@@ -391,8 +391,10 @@ def pressure_from_deflection(deflection: np.ndarray, spacing, young_modulus: flo
     Returns
     -------
     SurfaceLoad
-        The normal pressure (mean zero: a uniform deflection needs no pressure on an
-        infinite half-space, so the mean is a free contact-force parameter).
+        The normal pressure, marked ``periodic=True`` (the grid is one period: the solver then
+        uses the exact periodic method and its error estimate holds). Mean zero: a uniform
+        deflection needs no pressure on an infinite half-space, so the mean is a free
+        contact-force parameter.
     """
     h = np.asarray(deflection, dtype=float)
     if not np.all(np.isfinite(h)):
@@ -403,4 +405,4 @@ def pressure_from_deflection(deflection: np.ndarray, spacing, young_modulus: flo
     axes = tuple(range(-h.ndim, 0))
     spec = sfft.rfftn(h, axes=axes) * (young_modulus * rho / (2 * (1 - nu**2)))
     p = sfft.irfftn(spec, s=h.shape, axes=axes)
-    return SurfaceLoad(p=p, spacing=template.spacing)
+    return SurfaceLoad(p=p, spacing=template.spacing, periodic=True)
