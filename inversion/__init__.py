@@ -61,6 +61,8 @@ _EXPORTS = {
     "Subspace": "metamer_spectra",
     "metamer_ambiguity": "metamer_spectra",
     "Ambiguity": "metamer_spectra",
+    "invert_many": "batch",
+    "recording_keys": "batch",
 }
 
 __version__ = package_version()
