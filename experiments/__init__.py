@@ -55,6 +55,8 @@ _EXPORTS = {
     "compare_models": "models",
     "power_analysis": "models",
     "PowerResult": "models",
+    "power_sweep": "batch",
+    "design_sweep": "batch",
 }
 
 __version__ = package_version()

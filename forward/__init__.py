@@ -22,6 +22,7 @@ _EXPORTS = {
     "LOAD_COMPONENTS": "halfspace",
     "SHEAR_CONVENTION": "halfspace",
     "point_green": "halfspace",
+    "transfer": "halfspace",
     "line_green": "halfspace",
     "point_load_stress": "halfspace",
     "line_load_stress": "halfspace",

@@ -1,6 +1,6 @@
 """Tactile synthesis design: the tractor spacing that best renders a sliding grating at depth.
 
-Physics.md section 4a. An array of ``pairs`` tractor pairs (half spacing d, pair centres
+docs/theory.md section 4a. An array of ``pairs`` tractor pairs (half spacing d, pair centres
 ``4 n d``) driven with alternating tangential line loads produces at depth Z the strain
 ``eps_xx = 3 q S_Phi / (pi E)`` and ``gamma_zx = 3 q S_Psi / (pi E)`` (ENGINEERING shear). A
 sinusoidal surface of pitch ``p = 4 d`` sliding over the finger produces ``eps_xx`` and

@@ -47,8 +47,8 @@ _EXPORTS = {
     "plot_corner": "plots",
     "StimulusFamily": "metamer_families",
     "SinusoidFamily": "metamer_families",
-    "IndentationFamily": "metamer_families",
-    "GridLoadFamily": "metamer_families",
+    "IndentationFamily": "metamer_grids",
+    "GridLoadFamily": "metamer_grids",
     "TractorFamily": "metamer_families",
     "FamilyStimulus": "metamer_families",
     "metamer_pair": "metameres",
@@ -61,6 +61,8 @@ _EXPORTS = {
     "Subspace": "metamer_spectra",
     "metamer_ambiguity": "metamer_spectra",
     "Ambiguity": "metamer_spectra",
+    "invert_many": "batch",
+    "recording_keys": "batch",
 }
 
 __version__ = package_version()
