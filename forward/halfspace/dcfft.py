@@ -24,6 +24,7 @@ so the peak is about ``output + (n_load + 3)`` padded spectra (measured in docs/
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 
 import numpy as np
@@ -440,7 +441,13 @@ def dcfft_error_estimate(spacing, depth: float, dtype=np.float64, load_width: fl
 
 
 def alias_error(h: tuple[float, ...], depth: float, dtype: np.dtype, width: float) -> float:
-    """:func:`dcfft_error_estimate` on inputs already checked by the caller."""
+    """:func:`dcfft_error_estimate` on inputs already checked by the caller (cached: the facade
+    asks once to choose and once to report, and the lattice sum can reach 801^2 terms)."""
+    return _alias_error(tuple(float(v) for v in h), float(depth), np.dtype(dtype), float(width))
+
+
+@functools.lru_cache(maxsize=256)
+def _alias_error(h: tuple[float, ...], depth: float, dtype: np.dtype, width: float) -> float:
     h = np.asarray(h, dtype=float)
     c = (depth / width) ** 2
     floor = 30.0 * np.finfo(dtype).eps

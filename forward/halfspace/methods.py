@@ -169,7 +169,9 @@ class Spectral(Method):
     exact_for = "periodic loads"
 
     def _error(self, problem: Problem) -> float:
-        rounding = 1e-14 if problem.dtype == np.float64 else 0.0
+        # the FFTs' rounding grows like log2(N) (measured 1.8e-14 on 128 nodes): 30 eps log2(N)
+        n = int(np.prod(problem.load.shape))
+        rounding = 30.0 * np.finfo(np.float64).eps * np.log2(max(n, 2)) if problem.dtype == np.float64 else 0.0
         if problem.load.periodic:
             return rounding
         return rounding + image_error(problem.load, problem.depths)
