@@ -6,7 +6,6 @@ import argparse
 import functools
 
 from tactilab.data_schemas.units import to_si
-from tactilab.experiments.emulator import emulate
 
 NAME = "device"
 HELP = "tactile display devices: run an emulator of the UDP frame protocol on 127.0.0.1"
@@ -40,6 +39,8 @@ _FLAGS = {"port": "--port", "watchdog_s": "--watchdog", "max_seconds": "--max-se
 
 
 def run(args: argparse.Namespace) -> int:
+    from tactilab.experiments.emulator import emulate  # here, so that --help stays light
+
     watchdog = to_si(args.watchdog, "time", name="--watchdog")
     max_seconds = to_si(args.max_seconds, "time", name="--max-seconds", default_unit="s")
     late_after = to_si(args.late_after, "time", name="--late-after")
