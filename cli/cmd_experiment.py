@@ -9,12 +9,15 @@ from pathlib import Path
 
 from .common import make_out
 
+from .experiment_analysis import add_subcommands as add_analysis_subcommands
+
 NAME = "experiment"
 HELP = "run, resume, export or inspect a psychophysics session (SQLite log, SI units)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
+    add_analysis_subcommands(sub)  # fit, compare, power: cli/experiment_analysis.py
 
     run = sub.add_parser("run", help="run a protocol file (TOML; quantities take unit suffixes: 20um, 40mm/s, 500ms)")
     run.add_argument("protocol", type=Path, help="protocol TOML file")
@@ -31,7 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     resume = sub.add_parser("resume", help="continue a killed or stopped session exactly (repeats the interrupted trial)")
     resume.add_argument("session", type=Path, help="session .sqlite file")
-    _device_args(resume)
+    _device_args(resume, resume=True)
     resume.add_argument("--responses", default=None,
                         help="'terminal' or 'simulated'; default: what the session was started with")
     _observer_args(resume)
@@ -46,11 +49,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     status.add_argument("session", type=Path, help="session .sqlite file")
 
 
-def _device_args(p: argparse.ArgumentParser) -> None:
+def _device_args(p: argparse.ArgumentParser, resume: bool = False) -> None:
     p.add_argument("--display", default="simulated",
                    help="'simulated' or 'udp://HOST:PORT' (frames of tractions in Pa at the device rate, 1 kHz default)")
-    p.add_argument("--device", default="braille-row",
-                   help="display description: 'braille-row', 'stress2' or a .json description file (limits in Pa, m, 1/s)")
+    p.add_argument("--device", default=None if resume else "braille-row",
+                   help="display description: 'braille-row', 'stress2' or a .json description file (limits in Pa, "
+                        "m, 1/s); " + ("default: the description the session recorded (another one is refused)"
+                                       if resume else "default braille-row"))
     p.add_argument("--no-wait", action="store_true",
                    help="do not wait in real time (inter-trial pauses, simulated playback): dry runs only")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -96,6 +101,31 @@ def _flags(mapping: dict[str, str]):
         raise
 
 
+def _zero_and_close(display, responses, report: bool) -> None:
+    """The last word to the display is ZERO, whatever happened. A ZERO that fails is reported on
+    stderr when ``report`` (the run ended normally); otherwise the error that ended the run goes on
+    alone, in one line."""
+    try:
+        try:
+            display.zero()
+        except Exception as exc:  # noqa: BLE001 - the device may be what failed
+            if report:
+                print(f"tactilab experiment: warning: final ZERO failed ({' '.join(str(exc).split())}); "
+                      "the device's watchdog zeroes it when frames stop", file=sys.stderr)
+    finally:
+        try:
+            responses.close()
+        finally:
+            display.close()
+
+
+class _Described:
+    """Just a description, to check it before any display is opened."""
+
+    def __init__(self, description) -> None:
+        self.description = description
+
+
 #: exit status of a run or resume stopped by a display fault (the trial was not scored)
 EXIT_DISPLAY_FAULT = 3
 
@@ -139,25 +169,28 @@ def _run(args: argparse.Namespace) -> int:
         from tactilab.experiments.runner import new_session
 
         print(f"session file: {path}", flush=True)
+        ended = False
         try:
             result = new_session(protocol, path, display, responses, subject=args.subject, session=label,
                                  realtime=not args.no_wait, progress=not args.quiet)
+            ended = True
         finally:
-            responses.close()
-            display.close()
+            _zero_and_close(display, responses, ended)
         return _print_result(result, protocol.procedure.parameter)
 
     if args.action == "resume":
-        from tactilab.experiments.resume import replay_session, resume_session
+        from tactilab.data_schemas.display import DisplayDescription
+        from tactilab.experiments.resume import check_same_display, replay_session, resume_session
 
         state = replay_session(args.session)
-        with _flags(_DEVICE):
-            description = factory.description_from_spec(args.device)
-        if description.display_id != state.meta["display_id"]:
-            raise ValueError(
-                f"--device: the session was recorded on display {state.meta['display_id']!r}, but "
-                f"--device gives {description.display_id!r}; resume on the same display"
-            )
+        recorded_description = state.meta.get("display_description")
+        if args.device is None and recorded_description is not None:
+            description = DisplayDescription.model_validate(recorded_description)
+        else:
+            with _flags(_DEVICE):
+                description = factory.description_from_spec(args.device or "braille-row")
+        with _flags({"display": "--device"}):
+            check_same_display(state.meta, _Described(description), args.session)
         kind = args.responses or state.meta["responses"]
         with _flags(_DISPLAY):
             display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
@@ -171,12 +204,13 @@ def _run(args: argparse.Namespace) -> int:
             raise
         print(f"resuming {args.session}: {len(state.trials)} trials done"
               + (f", repeating interrupted trial {next(iter(state.attempts))}" if state.attempts else ""), flush=True)
+        ended = False
         try:
             result = resume_session(args.session, display, responses, realtime=not args.no_wait,
                                     progress=not args.quiet)
+            ended = True
         finally:
-            responses.close()
-            display.close()
+            _zero_and_close(display, responses, ended)
         return _print_result(result, state.protocol.procedure.parameter)
 
     if args.action == "export":

@@ -46,6 +46,13 @@ _EXPORTS = {
     "HeightMap": "surface",
     "to_si": "units",
     "parse_hypothesis": "hypothesis",
+    "stable_hash": "batch",
+    "task_rng": "batch",
+    "result_path": "batch",
+    "read_result": "batch",
+    "BatchReport": "batch",
+    "batch_client": "batch",
+    "run_batch": "batch",
 }
 
 __version__ = package_version()

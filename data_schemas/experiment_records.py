@@ -89,6 +89,9 @@ class Session(BaseModel):
     seed: int
     package_version: str
     display_id: str
+    display_description: dict[str, Any] | None = Field(
+        None, description="the full display description (geometry and limits) the session ran on")
+    display_sha256: str | None = Field(None, description="SHA-256 of the description's canonical JSON")
     responses: str = Field(description="response source: 'terminal', 'simulated', ...")
     created_utc: datetime
     status: Literal["running", "interrupted", "complete", "failed"]

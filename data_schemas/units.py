@@ -12,6 +12,8 @@ import math
 import re
 from decimal import Decimal
 
+from .plausibility import check_plausible
+
 # unit -> (dimension, factor to SI)
 UNITS: dict[str, tuple[str, float]] = {
     "m": ("length", 1.0),
@@ -155,7 +157,7 @@ def to_si(value: str | float | int, dimension: str, *, name: str = "value",
         raise ValueError(f"{name}: must be finite, got {value!r}; give a finite number with a unit, "
                          f"e.g. '1.5{SI_UNIT[dimension]}'")
     f = factor(unit, dimension, name=name)
-    if f == 1.0:
-        return number
     # decimal product, so "1.25mm" gives exactly the float nearest 1.25e-3
-    return float(Decimal(repr(number)) * Decimal(repr(f)))
+    si = number if f == 1.0 else float(Decimal(repr(number)) * Decimal(repr(f)))
+    check_plausible(si, name, SI_UNIT[dimension])
+    return si

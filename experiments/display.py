@@ -25,6 +25,8 @@ position x_n follows the height of the virtual surface as the display scans it,
 from __future__ import annotations
 
 import abc
+import hashlib
+import json
 import math
 import threading
 from dataclasses import dataclass, field
@@ -36,7 +38,8 @@ from .display_limits import check_frames, limit_violations, resolve_command
 from .display_strain import strain_gain_line_load
 
 __all__ = [
-    "Display", "DisplayError", "PlaybackReport", "render_drive", "virtual_height",
+    "Display", "DisplayError", "PlaybackReport", "render_drive", "virtual_height", "description_record",
+    "description_differences",
     "DEFAULT_DEPTH_M", "DEFAULT_YOUNG_MODULUS_PA",
 ]
 
@@ -221,6 +224,22 @@ class Display(abc.ABC):
     @abc.abstractmethod
     def _zero(self) -> None:
         """Set the outputs to zero."""
+
+
+def description_record(description) -> tuple[dict, str]:
+    """The full display description as JSON data and its SHA-256 (hex) over canonical JSON.
+
+    A session records both, so that a resume on a display with other limits is refused.
+    """
+    data = description.model_dump(mode="json")
+    canonical = json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return data, hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def description_differences(recorded: dict, given: dict) -> list[str]:
+    """``"field: recorded X, given Y"`` for every field that differs between two descriptions."""
+    return [f"{key}: recorded {recorded.get(key)!r}, given {given.get(key)!r}"
+            for key in sorted(set(recorded) | set(given)) if recorded.get(key) != given.get(key)]
 
 
 def virtual_height(x_m: np.ndarray, *, surface: Literal["sinusoid", "square"], amplitude_m: float,

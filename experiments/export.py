@@ -2,7 +2,8 @@
 
 The BIDS layout is ``<out>/sub-<subject>/ses-<session>/beh/sub-<subject>_ses-<session>_task-<task>_beh.tsv``
 with ``n/a`` for missing values and a sidecar describing each column (with units) and the
-provenance (seed, package version, display id, the protocol).
+provenance (seed, package version, display id, the full display description and its SHA-256,
+the protocol).
 """
 
 from __future__ import annotations
@@ -61,7 +62,8 @@ def session_record(path: str | Path) -> Session:
     status = session_status(path)["status"]
     return Session(session_id=meta["session_id"], subject=meta["subject"], session=meta["session"],
                    protocol=meta["protocol"], seed=meta["seed"], package_version=meta["package_version"],
-                   display_id=meta["display_id"], responses=meta["responses"], created_utc=meta["created_utc"],
+                   display_id=meta["display_id"], display_description=meta.get("display_description"),
+                   display_sha256=meta.get("display_sha256"), responses=meta["responses"], created_utc=meta["created_utc"],
                    status=status, trials=trials)
 
 
@@ -135,6 +137,8 @@ def export_session(path: str | Path, out: str | Path, format: str = "bids") -> l
         "SoftwareName": "tactilab",
         "SoftwareVersion": meta["package_version"],
         "DisplayID": meta["display_id"],
+        "DisplayDescription": meta.get("display_description"),
+        "DisplayDescriptionSHA256": meta.get("display_sha256"),
         "ResponseSource": meta["responses"],
         "Seed": meta["seed"],
         "Protocol": meta["protocol"],

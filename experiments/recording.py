@@ -10,17 +10,26 @@ BEFORE the display is driven), ``response``, ``trial_complete``, ``safety_interv
 did not reach the display as commanded: the trial is not scored and is repeated on resume).
 
 Table ``trials`` holds one validated :class:`TrialRecord` (JSON) per completed trial, written
-in the same transaction as its ``trial_complete`` event. A session is locked while a runner
-holds it: an OS file lock (``flock``) on ``<file>.lock``, released by the kernel even when the
-process is killed, so a second runner is refused and a killed one never leaves a stale lock.
+in the same transaction as its ``trial_complete`` event.
+
+One owner per session: a runner holds an OS lock (``flock``) on the database file itself,
+released by the kernel even when the process is killed (no lock file to delete or leave behind),
+and records itself in the ``owner`` table (a random token, its pid and host, a heartbeat). Every
+commit checks, inside its own transaction, that the token is still its own and moves the
+heartbeat; a runner that finds another owner stops (:class:`SessionTakenOverError`) before the
+next stimulus. When a runner closes the session it checkpoints the log into the database and
+leaves WAL mode, so a finished or stopped session is ONE self-contained file (no ``-wal`` or
+``-shm``), readable from read-only media.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import socket
 import sqlite3
 import time
+import uuid
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -33,6 +42,9 @@ CREATE TABLE IF NOT EXISTS events (
     id INTEGER PRIMARY KEY AUTOINCREMENT, kind TEXT NOT NULL, trial_index INTEGER,
     attempt INTEGER, utc TEXT NOT NULL, monotonic_ns INTEGER NOT NULL, payload TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS trials (trial_index INTEGER PRIMARY KEY, record TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS owner (
+    id INTEGER PRIMARY KEY CHECK (id = 1), token TEXT NOT NULL, pid INTEGER NOT NULL,
+    host TEXT NOT NULL, since_utc TEXT NOT NULL, heartbeat_utc TEXT NOT NULL);
 """
 EVENT_KINDS = ("session_started", "session_resumed", "trial_planned", "stimulus_presented",
                "response", "trial_complete", "safety_intervention", "session_stopped",
@@ -52,37 +64,52 @@ def utc_now() -> str:
     return datetime.now(UTC).isoformat(timespec="microseconds")
 
 
-class _FileLock:
-    """An exclusive, non-blocking OS lock on ``path`` (flock; msvcrt on Windows)."""
+class SessionTakenOverError(RecordingError):
+    """Another runner became the session's owner; this one must stop writing (and driving)."""
 
-    def __init__(self, path: Path) -> None:
+
+class _FileLock:
+    """An exclusive, non-blocking OS lock on the session database file itself (flock; msvcrt on
+    Windows). SQLite's own locks are POSIX record locks, independent of ``flock``; the kernel
+    releases the lock when the process dies, and there is no separate lock file to delete."""
+
+    def __init__(self, path: Path, shared: bool = False) -> None:
         self.path = path
-        self.handle = open(path, "a+")  # noqa: SIM115 - held for the session's life
+        self.handle = open(path, "rb")  # noqa: SIM115 - held for the session's life
         try:
             if os.name == "nt":  # pragma: no cover - exercised on Windows only
                 import msvcrt
 
-                msvcrt.locking(self.handle.fileno(), msvcrt.LK_NBLCK, 1)
+                msvcrt.locking(self.handle.fileno(), msvcrt.LK_NBRLCK if shared else msvcrt.LK_NBLCK, 1)
             else:
                 import fcntl
 
-                fcntl.flock(self.handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+                fcntl.flock(self.handle.fileno(), (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
         except OSError:
-            self.handle.seek(0)
-            holder = self.handle.read().strip() or "another process"
             self.handle.close()
             raise SessionLockedError(
-                f"session: {path.with_suffix('')} is locked by a running runner ({holder}); wait "
-                "for it to finish or stop it, then resume"
+                f"session: {path} is locked by a running runner ({_owner_text(path)}); wait for it "
+                "to finish or stop it, then resume"
             ) from None
-        self.handle.seek(0)
-        self.handle.truncate()
-        self.handle.write(f"pid {os.getpid()} since {utc_now()}")
-        self.handle.flush()
 
     def release(self) -> None:
         if not self.handle.closed:
             self.handle.close()  # closing the descriptor releases the lock
+
+
+def _owner_text(path: Path) -> str:
+    """``pid N on HOST since T, heartbeat H`` from the session's owner row (best effort)."""
+    try:
+        connection = sqlite3.connect(f"file:{path}?mode=ro", uri=True, timeout=0.5)
+        try:
+            row = connection.execute("SELECT pid, host, since_utc, heartbeat_utc FROM owner").fetchone()
+        finally:
+            connection.close()
+    except sqlite3.Error:
+        row = None
+    if row is None:
+        return "another process"
+    return f"pid {row[0]} on {row[1]} since {row[2]}, last heartbeat {row[3]}"
 
 
 class Recorder:
@@ -94,6 +121,15 @@ class Recorder:
 
     def __init__(self, path: Path, connection: sqlite3.Connection, lock: _FileLock) -> None:
         self.path, self.connection, self._lock = path, connection, lock
+        self.token = uuid.uuid4().hex
+        now = utc_now()
+        try:
+            connection.execute("INSERT OR REPLACE INTO owner VALUES (1, ?, ?, ?, ?, ?)",
+                               (self.token, os.getpid(), socket.gethostname(), now, now))
+        except sqlite3.Error as exc:
+            self.close()
+            raise RecordingError(f"session: cannot record the owner of {path} ({exc}); check that the "
+                                 "file is writable and the disk has space") from None
 
     @staticmethod
     def _connect(path: Path, lock: _FileLock) -> sqlite3.Connection:
@@ -128,11 +164,12 @@ class Recorder:
                 f"{path}` or choose another --out / --session"
             )
         path.parent.mkdir(parents=True, exist_ok=True)
-        lock = _FileLock(lock_path(path))
         partial = path.with_name(path.name + ".partial")
+        lock = None
         try:
             partial.unlink(missing_ok=True)
             connection = sqlite3.connect(partial, isolation_level=None)
+            lock = _FileLock(partial)  # the same inode as `path` once linked: locked before it appears
             connection.execute("PRAGMA journal_mode=WAL")
             connection.executescript(SCHEMA)
             connection.execute("BEGIN IMMEDIATE")
@@ -144,13 +181,15 @@ class Recorder:
             partial.unlink()
             _fsync_folder(path.parent)
         except sqlite3.Error as exc:
-            lock.release()
+            if lock is not None:
+                lock.release()
             raise RecordingError(
                 f"session: cannot create {path} ({exc}); check that the folder is writable and "
                 "the disk has space"
             ) from None
         except BaseException:
-            lock.release()
+            if lock is not None:
+                lock.release()
             raise
         return cls(path, cls._connect(path, lock), lock)
 
@@ -160,12 +199,21 @@ class Recorder:
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"session: no session file {path}; give the .sqlite file that `experiment run` printed")
-        lock = _FileLock(lock_path(path))
+        lock = _FileLock(path)
         return cls(path, cls._connect(path, lock), lock)
 
     def _write(self, statements: list[tuple[str, tuple]]) -> None:
         try:
             self.connection.execute("BEGIN IMMEDIATE")
+            owner = self.connection.execute("SELECT token, pid, host, heartbeat_utc FROM owner").fetchone()
+            if owner is None or owner[0] != self.token:
+                self.connection.execute("ROLLBACK")
+                raise SessionTakenOverError(
+                    f"recording: {self.path} is now owned by another runner "
+                    f"({'none' if owner is None else f'pid {owner[1]} on {owner[2]}, heartbeat {owner[3]}'}); "
+                    "this runner stopped writing; check which process drives the display"
+                )
+            self.connection.execute("UPDATE owner SET heartbeat_utc = ? WHERE id = 1", (utc_now(),))
             for sql, params in statements:
                 self.connection.execute(sql, params)
             self.connection.execute("COMMIT")
@@ -195,8 +243,20 @@ class Recorder:
                  extra=[("INSERT INTO trials VALUES (?, ?)", (record.trial_index, record.model_dump_json()))])
 
     def close(self) -> None:
-        """Close the database and release the lock."""
+        """Checkpoint the log into the database file, leave WAL mode, close, release the lock.
+
+        The session is then one self-contained file (no ``-wal``/``-shm``), readable from
+        read-only media; a resume switches it back to WAL. If a reader holds the file open the
+        switch is skipped (the data are safe either way).
+        """
         try:
+            for _ in range(10):  # a reader (status, export) may hold the file for a moment
+                try:
+                    self.connection.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+                    self.connection.execute("PRAGMA journal_mode=DELETE")
+                    break
+                except sqlite3.Error:
+                    time.sleep(0.02)
             self.connection.close()
         finally:
             self._lock.release()
@@ -221,11 +281,6 @@ def _fsync_folder(folder: Path) -> None:
         os.close(fd)
 
 
-def lock_path(path: Path) -> Path:
-    """The lock file of a session file."""
-    return path.with_name(path.name + ".lock")
-
-
 class SessionLog:
     """Read-only view of a session file (safe while a runner writes: WAL readers do not block)."""
 
@@ -239,6 +294,14 @@ class SessionLog:
         except sqlite3.Error as exc:
             raise ValueError(f"session: {self.path} is not a tactilab session database ({exc}); give the .sqlite "
                              "file that `experiment run` printed") from None
+
+    def owner(self) -> dict[str, Any] | None:
+        """The last owner's pid, host, start and heartbeat (UTC), or None for an older session."""
+        try:
+            row = self.connection.execute("SELECT pid, host, since_utc, heartbeat_utc FROM owner").fetchone()
+        except sqlite3.Error:
+            return None
+        return None if row is None else dict(zip(("pid", "host", "since_utc", "heartbeat_utc"), row))
 
     def meta(self) -> dict[str, Any]:
         """The session's metadata, decoded."""
@@ -260,7 +323,7 @@ class SessionLog:
     def is_locked(self) -> bool:
         """Whether a runner holds the session now."""
         try:
-            _FileLock(lock_path(self.path)).release()
+            _FileLock(self.path, shared=True).release()
         except SessionLockedError:
             return True
         return False

@@ -18,7 +18,7 @@ from typing import Any
 from tactilab.data_schemas.experiment import Protocol
 from tactilab.data_schemas.experiment_records import TrialRecord
 
-from .display import Display
+from .display import Display, description_differences, description_record
 from .build import make_procedure
 from .procedures import Procedure, replay
 from .recording import Recorder, SessionLog
@@ -151,6 +151,7 @@ def resume_session(path: str | Path, display: Display, responses: ResponseSource
             log.close()
         if any(e["kind"] == "session_complete" for e in state.events):
             raise ValueError(f"session: {path} is complete; nothing to resume (export it instead)")
+        check_same_display(state.meta, display, path)
         recorded = state.meta.get("responses_config")
         if responses.name == state.meta.get("responses") and recorded and dict(responses.config) != recorded:
             raise ValueError(
@@ -165,6 +166,31 @@ def resume_session(path: str | Path, display: Display, responses: ResponseSource
         return runner.run(state.attempts)
     finally:
         recorder.close()
+
+
+def check_same_display(meta: dict[str, Any], display: Display, path: str | Path) -> None:
+    """Refuse a display whose description differs from the one the session recorded.
+
+    Raises
+    ------
+    ValueError
+        Naming every field that differs (a laxer limit included); sessions recorded before
+        descriptions were stored are checked by ``display_id``.
+    """
+    given, sha256 = description_record(display.description)
+    recorded = meta.get("display_description")
+    if recorded is None:
+        if given["display_id"] != meta["display_id"]:
+            raise ValueError(f"display: {path} was recorded on display {meta['display_id']!r}, got "
+                             f"{given['display_id']!r}; resume on the same display")
+        return
+    if sha256 != meta.get("display_sha256"):
+        diff = description_differences(recorded, given) or ["the description hash"]
+        raise ValueError(
+            f"display: {path} was recorded with another description of display {meta['display_id']!r} "
+            f"({'; '.join(diff)}); resume with the recorded description (the default of `tactilab "
+            "experiment resume`), or start a new session"
+        )
 
 
 def session_status(path: str | Path) -> dict[str, Any]:
@@ -193,7 +219,9 @@ def session_status(path: str | Path) -> dict[str, Any]:
             "interrupted_was_presented": next(iter(state.attempts.values()), (0, False))[1],
             "safety_interventions": kinds.count("safety_intervention"),
             "estimate": state.procedure.estimate(), "seed": state.protocol.seed,
-            "display_id": state.meta["display_id"], "package_version": state.meta["package_version"],
+            "display_id": state.meta["display_id"], "display_sha256": state.meta.get("display_sha256"),
+            "owner": log.owner(),
+            "package_version": state.meta["package_version"],
         }
     finally:
         log.close()

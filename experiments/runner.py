@@ -41,12 +41,12 @@ import numpy as np
 from tactilab.data_schemas.experiment import Protocol, check_label
 from tactilab.data_schemas.experiment_records import TrialRecord
 
-from .display import Display, DisplayError, PlaybackReport, render_drive
+from .display import Display, DisplayError, PlaybackReport, description_record, render_drive
 from .build import make_procedure
 from .procedures import PlannedLevel, Procedure
 from .recording import Recorder, RecordingError, utc_now
 from .responses import ResponseSource
-from .safety import SafeDisplay
+from .safety import STOP_SIGNALS, SafeDisplay
 from .tasks import TrialPlan, plan_trial, score
 
 
@@ -159,7 +159,7 @@ class Runner:
         ``attempts`` maps an interrupted trial's index to ``(attempt, repeated)`` (from resume).
         """
         attempts = attempts or {}
-        previous_sigterm = _sigterm_as_interrupt()
+        previous_handlers = _stop_signals_as_interrupt()
         if self.progress:
             from tqdm.auto import tqdm
 
@@ -180,8 +180,8 @@ class Runner:
             self.display.zero()
             self.recorder.log("session_complete", payload={"estimate": self.procedure.estimate()})
             return RunResult(self.recorder.path, "complete", self.procedure.n_done, self.procedure.estimate())
-        except KeyboardInterrupt:
-            self._stop("session_stopped", "interrupted (Ctrl-C, q or SIGTERM)")
+        except KeyboardInterrupt as exc:
+            self._stop("session_stopped", f"interrupted ({exc.args[0] if exc.args else 'Ctrl-C or q'})")
             return RunResult(self.recorder.path, "interrupted", self.procedure.n_done, self.procedure.estimate())
         except RecordingError as exc:
             self._stop(None, "")
@@ -194,8 +194,8 @@ class Runner:
             raise
         finally:
             bar.close()
-            if previous_sigterm is not None:
-                signal.signal(signal.SIGTERM, previous_sigterm)
+            for sig, previous in previous_handlers.items():
+                signal.signal(sig, signal.SIG_DFL if previous is None else previous)
 
     def _stop(self, kind: str | None, reason: str) -> None:
         """Zero the display, then log why the run stopped (when the log itself still works)."""
@@ -267,15 +267,16 @@ class Runner:
         return record
 
 
-def _sigterm_as_interrupt():
-    """While a session runs, SIGTERM stops it like Ctrl-C: display zeroed, stop logged, lock released."""
+def _stop_signals_as_interrupt() -> dict:
+    """While a session runs, SIGTERM, SIGHUP, SIGQUIT and SIGUSR1 stop it like Ctrl-C: display
+    zeroed, stop logged (with the signal's name), lock released. Returns the previous handlers."""
     if threading.current_thread() is not threading.main_thread():
-        return None
+        return {}
 
     def handler(signum, frame):
-        raise KeyboardInterrupt("SIGTERM")
+        raise KeyboardInterrupt(signal.Signals(signum).name)
 
-    return signal.signal(signal.SIGTERM, handler)
+    return {sig: signal.signal(sig, handler) for sig in STOP_SIGNALS if sig != signal.SIGINT}
 
 
 class _NoBar:
@@ -346,10 +347,12 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     """
     check_label(subject, "subject")
     check_label(session, "session")
+    description, description_sha256 = description_record(display.description)
     meta = {"session_id": uuid.uuid4().hex, "created_utc": utc_now(),
             "subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
             "seed": protocol.seed, "package_version": package_version(),
-            "display_id": str(display.description.display_id), "responses": responses.name,
+            "display_id": str(display.description.display_id), "display_description": description,
+            "display_sha256": description_sha256, "responses": responses.name,
             "responses_config": dict(responses.config),
             "likelihood": getattr(protocol.procedure, "likelihood", None)}
     # built before the file exists: an unregistered method or likelihood leaves no session behind

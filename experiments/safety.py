@@ -17,10 +17,11 @@ The limits hold exactly for the float32 values of the wire format: the limiter w
 margins of ``2**-22`` of full scale, larger than float32 rounding.
 
 The wrapped display is zeroed on any exception during ``load`` or ``play``, on Ctrl-C
-(SIGINT) and on SIGTERM; the signal handlers are installed only while playing (from the
-main thread) and the previous ones are restored afterwards, then the signal is re-delivered
-to them (so SIGINT still raises ``KeyboardInterrupt`` and an un-handled SIGTERM still ends
-the process, after the display is at zero).
+(SIGINT) and on SIGTERM, SIGHUP, SIGQUIT and SIGUSR1 (:data:`STOP_SIGNALS`); the signal
+handlers are installed only while playing (from the main thread) and the previous ones are
+restored afterwards, then the signal is re-delivered to them (so SIGINT still raises
+``KeyboardInterrupt`` and an un-handled SIGTERM still ends the process, after the display is at
+zero). SIGKILL and power loss cannot be caught: only the device's watchdog covers them.
 
 Every intervention is reported to ``on_event`` as a dict with the keys ``kind``, ``tractor``,
 ``frame``, ``requested``, ``applied``, ``time`` (UTC, ISO 8601), ``monotonic_s``, ``limit``,
@@ -46,13 +47,17 @@ import numpy as np
 from .display import Display, PlaybackReport
 from .display_limits import check_frames, limits
 
-__all__ = ["SafeDisplay", "PlaybackInterrupted", "limit_drive", "MARGIN"]
+__all__ = ["SafeDisplay", "PlaybackInterrupted", "limit_drive", "MARGIN", "STOP_SIGNALS"]
 
 #: Margin, as a fraction of full scale, kept inside the amplitude and slew limits so that
 #: float32 rounding on the wire (at most 2**-24 relative) can never cross them.
 MARGIN = 2.0**-22
 
-_SIGNAL_KIND = {signal.SIGINT: "zero_on_sigint", signal.SIGTERM: "zero_on_sigterm"}
+#: The stop signals: each zeroes the display at once (SIGKILL and power loss cannot be caught:
+#: only the device's own watchdog covers them).
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT", "SIGUSR1")
+                     if hasattr(signal, name))
+_SIGNAL_KIND = {sig: "zero_on_" + signal.Signals(sig).name.lower() for sig in STOP_SIGNALS}
 
 
 class PlaybackInterrupted(RuntimeError):

@@ -17,8 +17,9 @@ from tactilab.data_schemas.recording_io import FORMATS, write_recording
 
 from .finger import BiomimeticFinger
 from .finger_plots import plot_field_maps, plot_receptive_fields, plot_spectrum, plot_time_series
-from .scanning import (RecordFeature, check_scan, reference_height, scan_outputs, scanned_surface,
-                       scene_finger)
+from .scanning import check_scan, reference_height, scan_outputs, scanned_surface, scene_finger
+from .surfaces import RecordFeature
+
 
 def _finger_attrs(finger: BiomimeticFinger) -> dict:
     """The finger's scalar parameters, SI, for the recording file's attributes."""

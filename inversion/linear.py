@@ -26,17 +26,13 @@ from scipy.sparse.linalg import aslinearoperator
 from .criteria import CRITERIA, CriteriaResult, SpectralForm, choose_lambda
 from .iterative_criteria import IterativeCriteria, NormalSolver, choose_lambda_iterative
 from .linear_common import DENSE_MAX, LinearInversionResult, check_data
-from .operators import FourierDiagonal
+from .operators import FourierDiagonal, as_fourier_diagonal, model_layout
 from .penalties import PENALTIES, check_penalty, penalty_matrix, penalty_symbol
 from .tv import invert_tv
 
 PATHS = ("fft", "dense", "iterative")
 
 __all__ = ["invert_linear", "LinearInversionResult", "METHODS", "fft_form", "dense_form", "check_data"]
-
-
-def _dims(op) -> tuple[int, ...]:
-    return tuple(getattr(op, "dims", (op.shape[1],)))
 
 
 def _data_scale(data: np.ndarray) -> float:
@@ -153,7 +149,10 @@ def invert_linear(
     Parameters
     ----------
     operator : FourierDiagonal, LinearOperator or ndarray, shape (n_data, n_model)
-        Forward map. Its ``dims`` (model grid shape) are used by the penalties when present.
+        Forward map. Its ``dims`` (the grid shape) are used by the penalties when present; with
+        a ``loads`` attribute the model is load-major and the penalty acts per load component.
+        A circulant forward operator (periodic, a sensor at every node, one load and one
+        component) is converted to its FourierDiagonal form and takes the fft path.
     data : array_like, n_data values
         Observations, finite (data units: Pa for stress, or strain).
     penalty : {"identity", "gradient", "curvature", "tv"}
@@ -186,7 +185,12 @@ def invert_linear(
     -------
     LinearInversionResult
     """
+    operator = as_fourier_diagonal(operator)  # a circulant forward operator takes the fft path
     if penalty == "tv":
+        if model_layout(operator)[1] > 1:
+            raise ValueError(f"penalty: 'tv' acts on one load component, the operator has {len(operator.loads)} "
+                             f"({', '.join(operator.loads)}); use a Tikhonov penalty or one load per operator")
+
         return invert_tv(operator, data, lam=lam, noise_std=noise_std, method=method, spacing=spacing,
                          tol=tol, max_iter=3000 if max_iter is None else max_iter, rng=rng)
     if penalty not in PENALTIES:
@@ -200,7 +204,8 @@ def invert_linear(
     keep = isinstance(operator, FourierDiagonal) or (isinstance(operator, np.ndarray) and path == "dense")
     op = operator if keep else aslinearoperator(operator)
     d = check_data(data, operator.shape[0], shape=getattr(operator, "dimsd", None))
-    dims = _dims(operator) if not isinstance(operator, np.ndarray) else (operator.shape[1],)
+    dims, n_fields = model_layout(operator)  # grid shape; loads stacked load-major
+    model_shape = dims if n_fields == 1 else (n_fields, *dims)
     spacing = spacing if spacing is not None else getattr(operator, "spacing", 1.0)
     crit = None
     penalises_nothing = ValueError(f"penalty: {penalty!r} penalises nothing on a model grid of shape {dims} "
@@ -211,7 +216,7 @@ def invert_linear(
             raise penalises_nothing
     elif path == "dense":
         a = op if isinstance(op, np.ndarray) else op.matmat(np.eye(op.shape[1]))
-        lmat = penalty_matrix(penalty, dims, spacing, periodic=False).toarray()
+        lmat = penalty_matrix(penalty, dims, spacing, periodic=False, n_fields=n_fields).toarray()
         if not np.any(lmat):
             raise penalises_nothing
         form, aux = dense_form(np.asarray(a, dtype=float), d, lmat)
@@ -226,7 +231,7 @@ def invert_linear(
         else:
             lam_used, source = float(lam), "given"
         model, iters, ok = METHODS[path](op, d, penalty, lam_used, aux)
-        model = np.asarray(model).reshape(dims)
+        model = np.asarray(model).reshape(model_shape)
         resid = form.residual_norm(lam_used)
     else:
         rng = rng if rng is not None else np.random.default_rng(0)
@@ -234,7 +239,7 @@ def invert_linear(
         max_iter = 2000 if max_iter is None else max_iter
         if int(n_probes) != n_probes or n_probes < 2:
             raise ValueError(f"n_probes: need an integer >= 2 probes for a standard error, got {n_probes!r}; e.g. 8")
-        solver = NormalSolver(op, penalty, dims, spacing, rng, tol, max_iter)
+        solver = NormalSolver(op, penalty, dims, spacing, rng, tol, max_iter, n_fields=n_fields)
         x0 = None
         # CG and the criteria run on data / max|data| (no overflow of squared norms at 1e200)
         scale = _data_scale(d)
@@ -253,7 +258,7 @@ def invert_linear(
             lam_used, source = float(lam), "given"
         x, iters, ok = _solve_iterative(op, d_s, penalty, lam_used, (solver, x0))
         resid = scale * float(np.linalg.norm(op.matvec(x) - d_s))
-        model = (x * scale).reshape(dims)
+        model = (x * scale).reshape(model_shape)
     msg = (f"path={path}, penalty={penalty}, lam={lam_used:.4g} ({source}), residual={resid:.4g}"
            + (f", {iters} CG iterations{'' if ok else ' (NOT converged)'}" if path == "iterative" else "")
            + (f"; criteria: {crit.estimator}" if crit is not None and crit.errors else ""))

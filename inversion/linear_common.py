@@ -24,7 +24,7 @@ class LinearInversionResult:
 
     Attributes
     ----------
-    model : ndarray, shape ``dims``
+    model : ndarray, shape ``dims``, or ``(len(loads), *dims)`` for several load components
         Estimated model (load in Pa, or profile in m, as the operator maps).
     method : str
         Path used: ``"fft"``, ``"dense"`` or ``"iterative"``.

@@ -1,4 +1,5 @@
-"""Linear operators used by the inversions: a Fourier-diagonal (circulant) operator and a dot test.
+"""Linear operators used by the inversions: a Fourier-diagonal (circulant) operator (the dot test
+is the solver's, :func:`tactilab.forward.halfspace.dottest`, re-exported here).
 
 The forward map from a surface load to sensors at depth is, on a periodic grid with a sensor at
 every node, a convolution: it is diagonal in Fourier space with a multiplier ``H(k)`` (the
@@ -17,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
-from tactilab.forward.halfspace import angular_wavenumbers, transfer
+from tactilab.forward.halfspace import angular_wavenumbers, dottest, transfer  # noqa: F401 (dottest: re-export)
 
 __all__ = [
     "rigid_surface_height_operator",
@@ -25,6 +26,8 @@ __all__ = [
     "normal_pressure_to_szz_multiplier",
     "halfspace_fourier_operator",
     "dottest",
+    "model_layout",
+    "as_fourier_diagonal",
 ]
 
 
@@ -118,6 +121,54 @@ def rigid_surface_height_operator(n: int, spacing: float, depth: float, young_mo
     (k,) = angular_wavenumbers((int(n),), spacing)
     p_to_szz = halfspace_fourier_operator((int(n),), spacing, depth, poisson_ratio).multiplier
     return FourierDiagonal(p_to_szz * young_modulus * np.abs(k) / (2 * (1 - poisson_ratio**2)), spacing)
+
+
+def model_layout(operator) -> tuple[tuple[int, ...], int]:
+    """Grid shape and number of load components of an operator's model vector.
+
+    The convention shared with the forward solver's
+    :class:`~tactilab.forward.halfspace.LoadToSensor`: ``dims`` is the grid shape, an optional
+    ``loads`` attribute names the load components, and the model vector is load-major (all
+    nodes of the first load, then the next). Operators without ``dims`` (matrices, plain
+    LinearOperators) are one field on a 1-D grid of ``shape[1]`` nodes.
+
+    Returns
+    -------
+    dims : tuple of int
+        The grid shape, ``(nx,)`` or ``(ny, nx)``.
+    n_fields : int
+        ``len(operator.loads)``, else 1.
+
+    Raises
+    ------
+    ValueError
+        When ``len(loads) * prod(dims)`` is not the operator's model size.
+    """
+    n_model = int(operator.shape[1])
+    dims = getattr(operator, "dims", None)
+    if dims is None or isinstance(operator, np.ndarray):
+        return (n_model,), 1
+    dims = tuple(int(v) for v in dims)
+    n_fields = len(getattr(operator, "loads", ("model",)))
+    if len(dims) not in (1, 2) or n_fields * int(np.prod(dims)) != n_model:
+        raise ValueError(
+            f"operator: dims {dims} with {n_fields} load component(s) do not make its {n_model} model values; "
+            "dims must be the grid shape (nx,) or (ny, nx), with the loads stacked load-major")
+    return dims, n_fields
+
+
+def as_fourier_diagonal(operator):
+    """The :class:`FourierDiagonal` form of an operator when it has one, else ``operator``.
+
+    A forward :class:`~tactilab.forward.halfspace.LoadToSensor` that is circulant (periodic
+    grid, a sensor at every node) with one load and one component is the same map as a
+    FourierDiagonal with its exact multiplier, so the inversion can take the fft path.
+    """
+    if isinstance(operator, FourierDiagonal) or not getattr(operator, "circulant", False):
+        return operator
+    if len(operator.loads) != 1 or len(operator.components) != 1:
+        return operator
+    return FourierDiagonal(operator.fourier_multiplier()[0, 0], operator.spacing)
 
 
 def _half(full: np.ndarray) -> np.ndarray:
@@ -219,32 +270,3 @@ def _rfft_weights(shape: tuple[int, ...]) -> np.ndarray:
     if n_last % 2 == 0:
         w[-1] = 1.0
     return np.broadcast_to(w, (*shape[:-1], half)).copy()
-
-
-def dottest(op: LinearOperator, rng: np.random.Generator, rtol: float = 1e-10) -> float:
-    """Dot test of an operator's adjoint: ``|<A x, y> - <x, A^T y>| / scale``.
-
-    Parameters
-    ----------
-    op : LinearOperator
-        Real operator with matvec and rmatvec.
-    rng : numpy.random.Generator
-        Source of the random test vectors.
-    rtol : float
-        Relative tolerance; a ValueError is raised when the mismatch exceeds it.
-
-    Returns
-    -------
-    float
-        Relative mismatch.
-    """
-    m, n = op.shape
-    x = rng.standard_normal(n)
-    y = rng.standard_normal(m)
-    lhs = float(np.dot(op.matvec(x), y))
-    rhs = float(np.dot(x, op.rmatvec(y)))
-    scale = max(abs(lhs), abs(rhs), np.finfo(float).tiny)
-    err = abs(lhs - rhs) / scale
-    if not err <= rtol:
-        raise ValueError(f"dottest: adjoint mismatch {err:.3e} exceeds rtol={rtol:g}: <Ax,y>={lhs!r}, <x,A^T y>={rhs!r}")
-    return err

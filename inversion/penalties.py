@@ -91,17 +91,43 @@ def difference_matrix(n: int, dx: float, order: int, periodic: bool) -> sp.csr_m
     return (mat / dx**order).tocsr()
 
 
-def penalty_matrix(penalty: str, shape: tuple[int, ...], spacing, periodic: bool = False) -> sp.csr_matrix:
+def penalty_matrix(penalty: str, shape: tuple[int, ...], spacing, periodic: bool = False,
+                   n_fields: int = 1) -> sp.csr_matrix:
     """Sparse penalty matrix ``L`` acting on the flattened model (C order).
 
     With ``periodic=True`` ``L.T @ L`` is the circulant matrix of :func:`penalty_symbol`.
 
+    Parameters
+    ----------
+    penalty : {"identity", "gradient", "curvature"}
+    shape : tuple of int
+        Grid shape ``(nx,)`` or ``(ny, nx)`` (an operator's ``dims``).
+    spacing : float or (float, float)
+        Grid spacing in m, ``dx`` or ``(dx, dy)``.
+    periodic : bool
+        Wrap the differences around the grid (else free ends).
+    n_fields : int
+        Load components stacked load-major in the model (an operator's ``len(loads)``): the
+        penalty acts on each separately (block diagonal), never across components.
+
     Returns
     -------
-    scipy.sparse.csr_matrix, shape (n_rows, prod(shape))
+    scipy.sparse.csr_matrix, shape (n_fields * n_rows, n_fields * prod(shape))
     """
     check_penalty(penalty)
+    if int(n_fields) != n_fields or n_fields < 1:
+        raise ValueError(f"n_fields: need a whole number >= 1 of load components, got {n_fields!r}; e.g. len(op.loads)")
+    one = _grid_penalty_matrix(penalty, shape, spacing, periodic)
+    if n_fields == 1:
+        return one
+    return sp.block_diag([one] * int(n_fields), format="csr")
+
+
+def _grid_penalty_matrix(penalty: str, shape, spacing, periodic: bool) -> sp.csr_matrix:
     shape = tuple(int(s) for s in shape)
+    if len(shape) not in (1, 2):
+        raise ValueError(f"shape: penalties act on a 1-D (nx,) or 2-D (ny, nx) grid, got {shape}; "
+                         "pass the grid shape (an operator's dims), not the stacked model shape")
     d = _spacings(shape, spacing)
     n = int(np.prod(shape))
     if penalty == "identity":

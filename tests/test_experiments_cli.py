@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sqlite3
 import sys
@@ -131,7 +132,8 @@ def test_user_mistakes_give_one_line_and_exit_2(session, tmp_path, capsys):
          "--observer-threshold: unit 'mm' measures length"),
         (["run", str(toml), "--subject", "S01", "--session", "01", "--out", str(session.parent),
           "--responses", "simulated", "--no-wait"], "already exists; resume it"),
-        (["resume", str(session), "--device", "stress2"], "--device: the session was recorded on display"),
+        (["resume", str(session), "--device", "stress2"], "--device: "),
+        (["resume", str(session), "--device", "stress2"], "display_id: recorded 'VirtualBrailleRow', given 'STReSS2'"),
         (["resume", str(session), "--no-wait"], "is complete; nothing to resume"),
         (["status", str(tmp_path / "nope.sqlite")], "no session file"),
         (["export", str(session), "--out", str(session / "x")], "--out: cannot create the output folder"),
@@ -243,7 +245,8 @@ def test_factory_specs(tmp_path):
 
 
 def test_recorder_open_failures_are_recording_errors(tmp_path, monkeypatch):
-    lock = _FileLock(tmp_path / "m.lock")
+    (tmp_path / "m.sqlite").touch()
+    lock = _FileLock(tmp_path / "m.sqlite")
     with pytest.raises(RecordingError, match="cannot use WAL journaling"):
         Recorder._connect(Path(":memory:"), lock)
 
@@ -278,3 +281,39 @@ def test_factory_rejects_bad_specs(tmp_path):
             factory.make_responses("simulated", protocol, display, threshold="0")
     finally:
         display.close()
+
+
+def test_a_resume_with_a_laxer_display_description_is_refused(tmp_path, capsys):
+    """Same display_id, 100 000 times the traction limit: refused, naming the field."""
+    toml = tmp_path / "p.toml"
+    toml.write_text(PROTOCOL)
+    argv = ["experiment", "run", str(toml), "--subject", "S01", "--responses", "simulated", "--no-wait", "--quiet",
+            "--out", str(tmp_path)]
+    path = tmp_path / "sub-S01_ses-01_task-cli.sqlite"
+    nominal = DisplayDescription.braille_row()
+    lax = tmp_path / "lax.json"
+    lax.write_text(nominal.model_copy(update={"max_traction_pa": nominal.max_traction_pa * 1e5}).model_dump_json())
+    # a session interrupted after its creation: cut it short by deleting its completion
+    assert cli_main(argv) == 0
+    with contextlib.closing(sqlite3.connect(path)) as db, db:
+        db.execute("DELETE FROM events WHERE kind = 'session_complete'")
+        db.execute("DELETE FROM trials WHERE trial_index >= 3")
+        db.execute("DELETE FROM events WHERE trial_index >= 3")
+    capsys.readouterr()
+    assert cli_main(["experiment", "resume", str(path), "--device", str(lax), "--no-wait", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "--device: " in err and "max_traction_pa: recorded 50000.0, given 5000000000.0" in err
+    from tactilab.experiments import SimulatedDisplay, SimulatedObserver, resume_session
+
+    protocol = replay_session(path).protocol
+    with pytest.raises(ValueError, match=r"display: .* \(max_traction_pa: recorded 50000.0, given 5000000000.0\)"):
+        resume_session(path, SimulatedDisplay(DisplayDescription.load(lax), realtime=False),
+                       SimulatedObserver(protocol), realtime=False)
+    # by default the resume uses the recorded description, and the export carries it with its hash
+    assert cli_main(["experiment", "resume", str(path), "--no-wait", "--quiet"]) == 0
+    meta = SessionLog(path).meta()
+    assert meta["display_description"] == nominal.model_dump(mode="json") and len(meta["display_sha256"]) == 64
+    export_session(path, tmp_path / "bids")
+    sidecar = json.loads(next((tmp_path / "bids").rglob("*_beh.json")).read_text())
+    assert sidecar["DisplayDescription"]["max_traction_pa"] == 50000.0
+    assert sidecar["DisplayDescriptionSHA256"] == meta["display_sha256"]

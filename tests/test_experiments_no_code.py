@@ -3,6 +3,7 @@ refused, and a canary module proves that nothing was imported (issue: a protocol
 
 from __future__ import annotations
 
+import contextlib
 import json
 import pickle
 import sqlite3
@@ -119,7 +120,7 @@ def _session(tmp_path, likelihood="weibull") -> Path:
 
 
 def _edit_meta(path: Path, key: str, value) -> None:
-    with sqlite3.connect(path) as db:
+    with contextlib.closing(sqlite3.connect(path)) as db, db:
         db.execute("UPDATE meta SET value = ? WHERE key = ?", (json.dumps(value), key))
 
 
@@ -136,7 +137,7 @@ def _every_reader(path: Path, tmp_path: Path) -> list[Exception]:
 
 
 def replay_protocol(path: Path) -> Protocol:
-    with sqlite3.connect(path) as db:
+    with contextlib.closing(sqlite3.connect(path)) as db, db:
         meta = json.loads(db.execute("SELECT value FROM meta WHERE key = 'protocol'").fetchone()[0])
     meta["procedure"]["likelihood"] = "weibull"
     return Protocol.model_validate(meta)
@@ -148,7 +149,7 @@ def test_an_edited_session_meta_never_imports(tmp_path, canary):
     _edit_meta(path, "likelihood", f"{CANARY}:f")  # the recorded likelihood
     for err in _every_reader(path, tmp_path):
         assert "the metadata was edited" in str(err)
-    with sqlite3.connect(path) as db:  # the protocol itself
+    with contextlib.closing(sqlite3.connect(path)) as db, db:  # the protocol itself
         protocol = json.loads(db.execute("SELECT value FROM meta WHERE key = 'protocol'").fetchone()[0])
     protocol["procedure"]["likelihood"] = f"{CANARY}:f"
     _edit_meta(path, "protocol", protocol)
@@ -164,7 +165,7 @@ def strain_likelihood(level, threshold, slope, lapse):
 def test_a_registered_likelihood_is_recorded_by_name_and_replay_needs_it_registered(tmp_path):
     register_likelihood("test_custom_psy", strain_likelihood, replace=True)
     path = _session(tmp_path, "test_custom_psy")
-    with sqlite3.connect(path) as db:
+    with contextlib.closing(sqlite3.connect(path)) as db, db:
         assert json.loads(db.execute("SELECT value FROM meta WHERE key = 'likelihood'").fetchone()[0]) \
             == "test_custom_psy"
     assert replay_session(path).procedure.n_done == 4

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -40,7 +41,7 @@ class CheckingDisplay(Display):
 
     def _play(self, frames, frame_rate_hz):
         self.plays += 1
-        with sqlite3.connect(f"file:{self.path}?mode=ro", uri=True) as reader:
+        with contextlib.closing(sqlite3.connect(f"file:{self.path}?mode=ro", uri=True)) as reader:
             kind, index = reader.execute(
                 "SELECT kind, trial_index FROM events WHERE kind != 'safety_intervention' "
                 "ORDER BY id DESC LIMIT 1").fetchone()
@@ -177,23 +178,27 @@ def test_completed_session_cannot_be_resumed(tmp_path):
         resume_session(path, CheckingDisplay(path), SimulatedObserver(protocol), realtime=False)
 
 
-def test_sigterm_during_a_stimulus_zeroes_and_stops_cleanly(tmp_path):
-    """SIGTERM mid-stimulus: the safety layer zeroes the display, the runner logs the stop and
-    returns 'interrupted' with the lock released; resuming repeats the interrupted trial."""
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT, signal.SIGUSR1])
+def test_a_stop_signal_during_a_stimulus_zeroes_and_stops_cleanly(tmp_path, signum):
+    """SIGTERM, SIGHUP, SIGQUIT or SIGUSR1 mid-stimulus: the safety layer zeroes the display, the
+    runner logs the stop and returns 'interrupted' with the lock released; resuming repeats the
+    interrupted trial."""
 
     def hook(display):
         if display.plays == 3:
-            os.kill(os.getpid(), signal.SIGTERM)
+            os.kill(os.getpid(), signum)
 
-    previous = signal.getsignal(signal.SIGTERM)
+    previous = signal.getsignal(signum)
     runner, recorder, display, path = _runner(tmp_path, hook)
     result = runner.run()
     recorder.close()
-    assert signal.getsignal(signal.SIGTERM) == previous
+    assert signal.getsignal(signum) == previous
     assert result.status == "interrupted" and result.n_completed == 1 and display.zeros >= 1
     events = SessionLog(path).events()
     assert events[-1]["kind"] == "session_stopped"
-    assert any(e["kind"] == "safety_intervention" and e["payload"]["kind"] == "zero_on_sigterm" for e in events)
+    assert signal.Signals(signum).name in events[-1]["payload"]["reason"]
+    kind = "zero_on_" + signal.Signals(signum).name.lower()
+    assert any(e["kind"] == "safety_intervention" and e["payload"]["kind"] == kind for e in events)
     status = session_status(path)
     assert status["status"] == "interrupted" and status["interrupted_trial"] == 1 and status["stopped_cleanly"]
 
@@ -227,3 +232,52 @@ def test_an_unexpected_display_error_zeroes_logs_and_is_reported_as_failed(tmp_p
     protocol = Protocol.model_validate(PROTOCOL)
     assert resume_session(path, CheckingDisplay(path), SimulatedObserver(protocol), realtime=False).status == "complete"
     assert session_status(path)["status"] == "complete"
+
+
+# ----- one owner per session ------------------------------------------------------------------
+def test_the_lock_is_on_the_database_itself_so_deleting_files_never_admits_a_second_runner(tmp_path):
+    runner, recorder, _, path = _runner(tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("s.sqlite-")) == ["s.sqlite"]
+    for stray in (path.with_name(path.name + ".lock"), path.with_name(path.name + ".partial")):
+        stray.unlink(missing_ok=True)  # what an audit did to the old separate lock file
+    with pytest.raises(SessionLockedError, match=r"is locked by a running runner \(pid \d+ on .* heartbeat"):
+        Recorder.open(path)
+    recorder.close()
+    Recorder.open(path).close()
+
+
+def test_a_runner_that_lost_ownership_stops_before_the_next_stimulus(tmp_path):
+    """Another process became the owner (it bypassed the lock): the next commit finds a foreign
+    token, and the runner zeroes the display and stops; nothing more is written or played."""
+
+    def take_over(display):
+        if display.plays == 3:
+            with contextlib.closing(sqlite3.connect(display.path)) as other, other:
+                other.execute("UPDATE owner SET token = 'intruder', pid = 4242")
+
+    runner, recorder, display, path = _runner(tmp_path, take_over)
+    with pytest.raises(RecordingError, match="now owned by another runner \\(pid 4242 on .*stopped writing"):
+        runner.run()
+    recorder.close()
+    assert display.plays == 4 and display.zeros >= 1  # the trial's two intervals, then nothing
+    log = SessionLog(path)
+    try:
+        assert len(log.trials()) == 1 and log.owner()["pid"] == 4242
+    finally:
+        log.close()
+
+
+def test_a_closed_session_is_one_self_contained_file(tmp_path):
+    """No -wal, -shm, .lock or .partial is left, and the file is in rollback-journal mode (header
+    bytes 18-19 = 1, not WAL's 2): readable from read-only media without a -shm file."""
+    runner, recorder, _, path = _runner(tmp_path)
+    runner.run()
+    recorder.close()
+    assert [p.name for p in tmp_path.iterdir()] == ["s.sqlite"]
+    assert path.read_bytes()[18:20] == b"\x01\x01"
+    with contextlib.closing(sqlite3.connect(f"file:{path}?immutable=1", uri=True)) as frozen:  # read-only medium
+        assert frozen.execute("SELECT count(*) FROM trials").fetchone()[0] == 8
+    status = session_status(path)
+    assert status["status"] == "complete" and status["completed"] == 8
+    assert status["owner"]["pid"] == os.getpid()
+    assert [p.name for p in tmp_path.iterdir()] == ["s.sqlite"], "reading leaves nothing behind"
