@@ -92,7 +92,6 @@ def _invert_recording(item, rng: np.random.Generator, *, scene, options: dict):
 
     from tactilab.data_schemas.recording_io import read_recording
 
-
     rec = item if isinstance(item, Recording) else read_recording(item)
     res, info = invert_defect_position(scene, rec, rng, sample=options["sample"], max_data=options["max_data"],
                                        **options["sampler"])
