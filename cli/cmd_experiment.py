@@ -53,6 +53,10 @@ def _device_args(p: argparse.ArgumentParser, resume: bool = False) -> None:
                    help="display description: 'braille-row', 'stress2' or a .json description file (limits in Pa, "
                         "m, 1/s); " + ("default: the description the session recorded (another one is refused)"
                                        if resume else "default braille-row"))
+    p.add_argument("--max-skipped", type=float, default=0.01,
+                   help="udp: fraction (0-1) of a stimulus's frames that may be skipped because the host fell more "
+                        "than half a period behind (late frames are never sent in a burst); beyond it the trial "
+                        "aborts as a display fault (default 0.01)")
     p.add_argument("--no-wait", action="store_true",
                    help="do not wait in real time (inter-trial pauses, simulated playback): dry runs only")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -80,7 +84,8 @@ def _print_result(result, parameter: str) -> int:
 
 
 #: library parameter (as it starts a library error) -> the flag that sets it, per call
-_DEVICE, _DISPLAY = {"spec": "--device"}, {"spec": "--display", "url": "--display"}
+_DEVICE, _DISPLAY = {"spec": "--device"}, {"spec": "--display", "url": "--display",
+                                     "max_skipped_fraction": "--max-skipped"}
 _RESPONSES = {"spec": "--responses", "kind": "--responses", "threshold": "--observer-threshold",
               "strain": "--observer-strain"}
 
@@ -155,7 +160,8 @@ def _run(args: argparse.Namespace) -> int:
             label = args.session_label
             path = args.out / f"sub-{args.subject}_ses-{label}_task-{protocol.name}.sqlite"
         with _flags(_DISPLAY):
-            display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
+            display = factory.display_from_spec(args.display, description, realtime=not args.no_wait,
+                                                 max_skipped_fraction=args.max_skipped)
         try:
             with _flags(_RESPONSES):
                 responses = factory.make_responses(args.responses, protocol, display,
@@ -190,7 +196,8 @@ def _run(args: argparse.Namespace) -> int:
             check_same_display(state.meta, _Described(description), args.session)
         kind = args.responses or state.meta["responses"]
         with _flags(_DISPLAY):
-            display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
+            display = factory.display_from_spec(args.display, description, realtime=not args.no_wait,
+                                                 max_skipped_fraction=args.max_skipped)
         recorded = state.meta.get("responses_config") if kind == state.meta["responses"] else None
         try:
             with _flags(_RESPONSES):

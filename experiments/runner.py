@@ -85,7 +85,7 @@ def display_fault(report: PlaybackReport) -> dict[str, Any] | None:
         ``unacknowledged``.
     """
     counts = {"frames_sent": report.frames_sent, "stale": report.stale, "rejected": report.rejected,
-              "unacknowledged": report.unacknowledged, "stopped": report.stopped}
+              "unacknowledged": report.unacknowledged, "skipped": report.skipped, "stopped": report.stopped}
     allowed = int(MAX_UNACKED_FRACTION * report.frames_sent)
     if report.stale:
         reason = (f"ALARM: {report.stale} of {report.frames_sent} frames were acknowledged 'stale': the "
@@ -96,7 +96,9 @@ def display_fault(report: PlaybackReport) -> dict[str, Any] | None:
         reason = (f"{report.unacknowledged} of {report.frames_sent} frames were never acknowledged (at most "
                   f"{allowed} = {MAX_UNACKED_FRACTION:.0%} may be)")
     elif report.stopped:
-        reason = f"playback stopped after {report.frames_sent} frames, before the end of the stimulus"
+        reason = (f"playback stopped after {report.frames_sent} frames, before the end of the stimulus"
+                  + (f" ({report.skipped} frames were due more than half a period ago and skipped: the host "
+                     "could not keep the frame rate)" if report.skipped else ""))
     else:
         return None
     return {"reason": reason, "alarm": bool(report.stale), **counts}
@@ -260,7 +262,7 @@ class Runner:
             monotonic_response_ns=response.monotonic_ns, seed=self.protocol.seed,
             package_version=package_version(), display_id=self.display_id,
             frames_sent=sum(r.frames_sent for r in reports), frames_late=sum(r.late for r in reports),
-            frames_missing=sum(r.missing for r in reports),
+            frames_missing=sum(r.missing for r in reports), frames_skipped=sum(r.skipped for r in reports),
             safety_interventions=self._interventions - before)
         self.recorder.complete_trial(record, {"outcome": outcome, "correct": correct})
         self._current = (None, None)
