@@ -183,9 +183,9 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.action == "resume":
         from tactilab.data_schemas.display import DisplayDescription
-        from tactilab.experiments.resume import check_same_display, replay_session, resume_session
+        from tactilab.experiments.resume import check_same_display, resume_session, session_header
 
-        state = replay_session(args.session)
+        state = session_header(args.session)  # no replay here: resume_session replays once
         recorded_description = state.meta.get("display_description")
         if args.device is None and recorded_description is not None:
             description = DisplayDescription.model_validate(recorded_description)
@@ -206,8 +206,9 @@ def _run(args: argparse.Namespace) -> int:
         except BaseException:
             display.close()
             raise
-        print(f"resuming {args.session}: {len(state.trials)} trials done"
-              + (f", repeating interrupted trial {next(iter(state.attempts))}" if state.attempts else ""), flush=True)
+        print(f"resuming {args.session}: {state.n_completed} trials done"
+              + (f", repeating interrupted trial {state.interrupted_trial}"
+                 if state.interrupted_trial is not None else ""), flush=True)
         ended = False
         try:
             result = resume_session(args.session, display, responses, realtime=not args.no_wait,

@@ -1,13 +1,16 @@
-"""The psychophysics runner: plan, record, present, respond, record -- one commit per step.
+"""The psychophysics runner: plan, record, present, respond, record -- two commits per trial.
 
-Per trial, in this order, each event committed (fsynced) before the next step:
+Per trial, in this order:
 
-1. ``trial_planned``: the procedure picks the level, the task builds the stimuli;
-2. ``stimulus_presented``: written BEFORE the display is driven, so a crash during the stimulus
-   still shows that it may have been felt;
+1. the procedure picks the level, the task builds the stimuli (after the inter-trial interval);
+2. ``trial_planned`` and ``stimulus_presented`` are committed (fsynced) together, BEFORE the
+   display is driven, so a crash during the stimulus still shows that it may have been felt;
 3. the display plays each interval through :class:`~tactilab.experiments.safety.SafeDisplay`
    (which no stimulus bypasses; its interventions are logged as ``safety_intervention``);
-4. ``response``; 5. ``trial_complete`` with the full :class:`TrialRecord`.
+4. ``response`` and ``trial_complete`` with the full :class:`TrialRecord` are committed together.
+
+A crash before step 2 leaves no trace of the trial (it was never shown: it simply runs on
+resume); a crash between 2 and 4 leaves a presented, incomplete trial that resume repeats.
 
 All randomness of trial ``i`` comes from ``np.random.default_rng([seed, i])``: the procedure
 uses its first spawned child, the task its second (the simulated observer uses
@@ -217,14 +220,15 @@ class Runner:
         plan = plan_trial(self.protocol, index, planned, task_rng)
         self._current = (index, attempt)
         commanded = [s.model_dump() for s in plan.stimuli]
-        self.recorder.log("trial_planned", index, attempt, {
-            "block": plan.block, "track": plan.track, "parameter": plan.parameter, "level": plan.level,
-            "target": plan.target, "stimuli": commanded})
-        utc_planned = _utc(self.recorder)
         if self.realtime and index > 0:
             self.sleep(self.protocol.iti_s)
-        self.recorder.log("stimulus_presented", index, attempt, {"stimuli": commanded})
-        utc_presented = _utc(self.recorder)
+        # ONE commit (one fsync) for the plan and the presentation, BEFORE the display is driven
+        planned_utc, presented_utc = self.recorder.log_events([
+            ("trial_planned", index, attempt, {
+                "block": plan.block, "track": plan.track, "parameter": plan.parameter, "level": plan.level,
+                "target": plan.target, "stimuli": commanded}),
+            ("stimulus_presented", index, attempt, {"stimuli": commanded})])
+        utc_planned, utc_presented = datetime.fromisoformat(planned_utc), datetime.fromisoformat(presented_utc)
         before = self._interventions
         reports, onset_ns = [], 0
         for k, stimulus in enumerate(plan.stimuli):
@@ -248,9 +252,9 @@ class Runner:
             reports.append(report)
         response = self.responses.collect(plan)
         correct, outcome = score(self.protocol, plan, response.label)
-        self.recorder.log("response", index, attempt, {
-            "response": response.label, "rt_s": response.rt_s, "monotonic_ns": response.monotonic_ns})
-        utc_response = _utc(self.recorder)
+        response_payload = {"response": response.label, "rt_s": response.rt_s,
+                            "monotonic_ns": response.monotonic_ns}
+        utc_response = datetime.fromisoformat(utc_now())
         self.procedure.update(planned, outcome)
         record = TrialRecord(
             subject=self.subject, session=self.session, block=plan.block, trial_index=index,
@@ -264,7 +268,8 @@ class Runner:
             frames_sent=sum(r.frames_sent for r in reports), frames_late=sum(r.late for r in reports),
             frames_missing=sum(r.missing for r in reports), frames_skipped=sum(r.skipped for r in reports),
             safety_interventions=self._interventions - before)
-        self.recorder.complete_trial(record, {"outcome": outcome, "correct": correct})
+        # ONE commit (one fsync) for the response, the completion and the trial row
+        self.recorder.complete_trial(record, {"outcome": outcome, "correct": correct}, response_payload)
         self._current = (None, None)
         return record
 
@@ -290,12 +295,6 @@ class _NoBar:
 
     def close(self) -> None:
         pass
-
-
-def _utc(recorder: Recorder) -> datetime:
-    """The UTC time of the event just committed (read back, so records match the log)."""
-    row = recorder.connection.execute("SELECT utc FROM events ORDER BY id DESC LIMIT 1").fetchone()
-    return datetime.fromisoformat(row[0])
 
 
 def format_estimate(estimate: dict[str, Any], parameter: str) -> str:

@@ -281,3 +281,20 @@ def test_a_closed_session_is_one_self_contained_file(tmp_path):
     assert status["status"] == "complete" and status["completed"] == 8
     assert status["owner"]["pid"] == os.getpid()
     assert [p.name for p in tmp_path.iterdir()] == ["s.sqlite"], "reading leaves nothing behind"
+
+
+def test_a_trial_costs_two_commits(tmp_path, monkeypatch):
+    """Plan with presentation, response with completion: two fsynced transactions per trial."""
+    runner, recorder, _, path = _runner(tmp_path)
+    commits = []
+    original = Recorder._write
+    monkeypatch.setattr(Recorder, "_write", lambda self, statements: (commits.append(
+        [sql.split()[0] + (" " + params[0] if sql.startswith("INSERT INTO events") else "")
+         for sql, params in statements]), original(self, statements))[1])
+    runner.run()
+    recorder.close()
+    trial_commits = [c for c in commits if any("trial_planned" in x or "trial_complete" in x for x in c)]
+    assert len(trial_commits) == 2 * 8
+    assert trial_commits[0] == ["INSERT trial_planned", "INSERT stimulus_presented"]
+    assert trial_commits[1] == ["INSERT response", "INSERT trial_complete", "INSERT"]
+    assert len(commits) == 2 * 8 + 1  # and session_complete
