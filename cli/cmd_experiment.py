@@ -19,7 +19,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run = sub.add_parser("run", help="run a protocol file (TOML; quantities take unit suffixes: 20um, 40mm/s, 500ms)")
     run.add_argument("protocol", type=Path, help="protocol TOML file")
     run.add_argument("--subject", required=True,
-                     help="pseudonymous subject code, letters and digits only (never a name), e.g. S01")
+                     help="pseudonymous subject code, letters and digits only (never a name), e.g. S01; codes that "
+                          "look like names or dates (JaneDoe, 19850412) are refused")
+    run.add_argument("--subject-pattern", default=None, metavar="REGEX",
+                     help="the lab's own subject-code pattern (a regular expression the whole code must match, e.g. "
+                          "'S[0-9]{3}'); replaces the name and date checks")
     _device_args(run)
     run.add_argument("--responses", default="terminal",
                      help="'terminal' (single keypresses) or 'simulated' (model observer); default terminal")
@@ -143,11 +147,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from tactilab.data_schemas.experiment import Protocol, check_label
+    from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
     from tactilab.experiments import factory
 
     if args.action == "run":
-        check_label(args.subject, "--subject")
+        check_subject(args.subject, "--subject", args.subject_pattern)
         if args.session_label is not None:
             check_label(args.session_label, "--session")
         protocol = Protocol.from_toml(args.protocol)
@@ -175,6 +179,7 @@ def _run(args: argparse.Namespace) -> int:
         ended = False
         try:
             result = new_session(protocol, path, display, responses, subject=args.subject, session=label,
+                                 subject_pattern=args.subject_pattern,
                                  realtime=not args.no_wait, progress=not args.quiet)
             ended = True
         finally:

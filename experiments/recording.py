@@ -327,22 +327,44 @@ class SessionLog:
             return None
         return None if row is None else dict(zip(("pid", "host", "since_utc", "heartbeat_utc"), row))
 
+    def _damaged(self, exc: Exception) -> ValueError:
+        return ValueError(f"session: {self.path} is damaged or not a tactilab session ({' '.join(str(exc).split())[:200]}); "
+                          "restore it from a copy, or give the .sqlite file that `experiment run` printed")
+
     def meta(self) -> dict[str, Any]:
-        """The session's metadata, decoded."""
-        return {k: json.loads(v) for k, v in self.connection.execute("SELECT key, value FROM meta")}
+        """The session's metadata, decoded.
+
+        Raises
+        ------
+        ValueError
+            If the file is torn, foreign or its metadata is not JSON (one line naming the file).
+        """
+        try:
+            return {k: json.loads(v) for k, v in self.connection.execute("SELECT key, value FROM meta")}
+        except (sqlite3.Error, ValueError) as exc:
+            raise self._damaged(exc) from None
 
     def events(self, kind: str | None = None) -> list[dict[str, Any]]:
         """Events in order, each a dict with id, kind, trial_index, attempt, utc, monotonic_ns, payload."""
         sql = "SELECT id, kind, trial_index, attempt, utc, monotonic_ns, payload FROM events"
-        rows = self.connection.execute(sql + (" WHERE kind = ?" if kind else "") + " ORDER BY id",
-                                       (kind,) if kind else ())
+        try:
+            rows = self.connection.execute(sql + (" WHERE kind = ?" if kind else "") + " ORDER BY id",
+                                           (kind,) if kind else ()).fetchall()
+        except sqlite3.Error as exc:
+            raise self._damaged(exc) from None
         keys = ("id", "kind", "trial_index", "attempt", "utc", "monotonic_ns", "payload")
-        return [{**dict(zip(keys, r)), "payload": json.loads(r[-1])} for r in rows]
+        try:
+            return [{**dict(zip(keys, r)), "payload": json.loads(r[-1])} for r in rows]
+        except (sqlite3.Error, ValueError) as exc:
+            raise self._damaged(exc) from None
 
     def trials(self) -> list[TrialRecord]:
         """Completed trials, validated, in trial order."""
-        rows = self.connection.execute("SELECT record FROM trials ORDER BY trial_index")
-        return [TrialRecord.model_validate_json(r[0]) for r in rows]
+        try:
+            rows = self.connection.execute("SELECT record FROM trials ORDER BY trial_index").fetchall()
+            return [TrialRecord.model_validate_json(r[0]) for r in rows]
+        except (sqlite3.Error, ValueError) as exc:
+            raise self._damaged(exc) from None
 
     def is_locked(self) -> bool:
         """Whether a runner holds the session now."""

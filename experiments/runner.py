@@ -41,7 +41,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from tactilab.data_schemas.experiment import Protocol, check_label
+from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
 from tactilab.data_schemas.experiment_records import TrialRecord
 
 from .display import Display, DisplayError, PlaybackReport, description_record, render_drive
@@ -312,7 +312,7 @@ DISPLAY_UNITS = {"amplitude_m": ("amplitude", 1e6, "um"), "pitch_m": ("pitch", 1
 
 
 def new_session(protocol: Protocol, path: str | Path, display: Display, responses: ResponseSource, *,
-                subject: str, session: str = "01", realtime: bool = True, progress: bool = False) -> RunResult:
+                subject: str, session: str = "01", subject_pattern: str | None = None, realtime: bool = True, progress: bool = False) -> RunResult:
     """Create a session file at ``path`` and run the protocol to the end (or to an interruption).
 
     Parameters
@@ -326,7 +326,12 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     responses : ResponseSource
         Where responses come from (terminal or simulated observer); its ``config`` is recorded.
     subject, session : str
-        BIDS labels (1-32 letters or digits; pseudonymous codes, never names).
+        BIDS labels (1-32 letters or digits; pseudonymous codes, never names: a subject code
+        that looks like a name or a date is refused, see
+        :func:`tactilab.data_schemas.experiment_procedures.check_subject`).
+    subject_pattern : str, optional
+        The lab's own subject-code pattern (a regular expression the whole code must match),
+        replacing the name and date heuristics.
     realtime : bool
         Wait in real time between trials and during playback (False: dry runs only).
     progress : bool
@@ -341,13 +346,19 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     ------
     FileExistsError
         If ``path`` exists (resume it instead).
+    DisplayError
+        If the display does not answer a ZERO (no session file is created then).
     SessionLockedError
         If another runner holds it.
     RecordingError
         If a write fails; the run stops before the next stimulus.
     """
-    check_label(subject, "subject")
+    check_subject(subject, "subject", subject_pattern)
     check_label(session, "session")
+    # before any file exists: the device answers (a ZERO round trip: it is there and at rest)
+    # and the first stimulus renders, so no empty or failed session litters the folder
+    display.zero()
+    render_drive(display.description, **protocol.stimulus.model_dump())
     description, description_sha256 = description_record(display.description)
     meta = {"session_id": uuid.uuid4().hex, "created_utc": utc_now(),
             "subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
