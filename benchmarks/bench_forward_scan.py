@@ -22,6 +22,7 @@ import time
 
 import numpy as np
 
+from tactilab.data_schemas import IsolatedDefect
 from tactilab.data_schemas.sensors import SensorArray
 from tactilab.forward.contact import HertzContact
 from tactilab.forward.finger import BiomimeticFinger
@@ -29,7 +30,7 @@ from tactilab.forward.halfspace.facade import HalfSpace
 from tactilab.forward.halfspace.loads import SurfaceLoad
 from tactilab.forward.scan_maps import ScanMaps
 from tactilab.forward.scanning import scan_outputs
-from tactilab.forward.surfaces import Bump, RandomSquareWaveGrating, Surface
+from tactilab.forward.surfaces import RandomSquareWaveGrating, Surface
 
 RADIUS, E, DEPTH, SPEED, RATE, FRAMES = 0.1, 2e6, 3e-3, 0.02, 1000.0, 1000
 
@@ -48,7 +49,8 @@ def make(n_side: int, spacing: float) -> tuple[BiomimeticFinger, Surface, np.nda
     u = -10e-3 + SPEED * np.arange(FRAMES) / RATE
     texture = RandomSquareWaveGrating.from_rng(np.random.default_rng(1), 400, 0.2e-3, 5e-6, start=-20e-3)
     surface = Surface(length=40e-3, width=20e-3, x_start=-20e-3,
-                      features=(texture, Bump(0.0, 0.3e-3, 0.6e-3, 5e-6)))
+                      features=(texture, IsolatedDefect(shape="bump", size_m=0.6e-3, height_m=5e-6,
+                                                         position_m=(0.0, 0.3e-3))))
     return finger, surface, u
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from .batch_options import add_batch_options, run_invert_batch
+
 NAME = "invert"
 HELP = ("invert a sensor recording (recording.nc or .json, stress in Pa) of a defect scene: defect position "
         "(x0, y0 in mm) by emcee and the load profile along the scan (mm^2/mm) with its credible band; "
@@ -14,8 +16,9 @@ METHODS = ("all", "mcmc", "profile")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("recording", type=Path, help="recording file written by tactilab simulate (.nc, Pa) or a "
-                                                     "Recording JSON (SI units)")
+    parser.add_argument("recording", type=Path, nargs="?", default=None,
+                        help="recording file written by tactilab simulate (.nc, Pa) or a Recording JSON (SI units); "
+                             "omit it with --batch DIR")
     parser.add_argument("--scene", type=Path, required=True,
                         help="scene file (.toml with units such as 0.8N, 3mm; or .json in SI) that produced it")
     parser.add_argument("--method", choices=METHODS, default="all",
@@ -36,15 +39,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=None, help="output folder (default: ./<recording stem>-inversion)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the samplers (integer)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_batch_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.batch is not None:
+        return run_invert_batch(args)
+    if args.recording is None:
+        raise ValueError("recording: give one recording file, or --batch DIR for a folder of them")
     import numpy as np
 
-    from tactilab.data_schemas.files import load_scene
+    from tactilab.data_schemas import load_scene, read_recording
     from tactilab.inversion.criteria import plot_criteria
     from tactilab.inversion.plots import plot_corner, plot_profile
-    from tactilab.forward.scene_simulation import read_recording
     from tactilab.inversion.scene_inversion import defect_profile, invert_defect_position
 
     if args.max_steps < 1:
@@ -52,7 +59,10 @@ def run(args: argparse.Namespace) -> int:
     if args.max_data < 10:
         raise ValueError(f"--max-data: must be >= 10 values, got {args.max_data}; e.g. 1500")
     scene = load_scene(args.scene)
-    recording = read_recording(args.recording)
+    try:
+        recording = read_recording(args.recording)
+    except (OSError, ValueError) as err:  # name the command-line argument
+        raise type(err)(f"RECORDING: {str(err).removeprefix('path: ')}") from None
     out = args.out if args.out is not None else Path(f"{args.recording.stem}-inversion")
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(args.seed)

@@ -18,6 +18,7 @@ import argparse
 import importlib
 import pkgutil
 import sys
+import warnings
 from importlib import metadata
 from types import ModuleType
 
@@ -62,6 +63,8 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     parser.add_argument("--version", action="version", version=f"tactilab {_version()}")
+    parser.add_argument("--strict", action="store_true",
+                        help="treat implausible values (e.g. a 50 m grid spacing, a 1 Pa modulus) as errors")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
     for module in _command_modules():
         p = sub.add_parser(module.NAME, help=module.HELP, description=module.HELP)
@@ -97,14 +100,24 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(args, "_run", None) is None:
         parser.print_help()
         return EXIT_USER_ERROR
-    try:
-        status = args._run(args)
-    except KeyboardInterrupt:
-        print("tactilab: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except (ValueError, OSError) as exc:
-        print(f"tactilab {args.command}: error: {one_line(exc)}", file=sys.stderr)
-        return EXIT_USER_ERROR
+    from tactilab.data_schemas.plausibility import PlausibilityWarning
+
+    def one_line_warning(message, category, filename, lineno, file=None, line=None):
+        # users see one line per warning, never the warnings module's source line
+        print(f"tactilab {args.command}: warning: {one_line(Warning(str(message)))}", file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.showwarning = one_line_warning
+        if args.strict:
+            warnings.simplefilter("error", PlausibilityWarning)
+        try:
+            status = args._run(args)
+        except KeyboardInterrupt:
+            print("tactilab: interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        except (ValueError, OSError, PlausibilityWarning) as exc:
+            print(f"tactilab {args.command}: error: {one_line(exc)}", file=sys.stderr)
+            return EXIT_USER_ERROR
     return int(status or 0)
 
 

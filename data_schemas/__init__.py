@@ -31,6 +31,9 @@ _EXPORTS = {
     "read_json_record": "files",
     "SkinMaterial": "material",
     "Recording": "recording",
+    "read_recording": "recording_io",
+    "write_recording": "recording_io",
+    "recording_dataset": "recording_io",
     "Contact": "scene",
     "Scan": "scene",
     "Scene": "scene",
@@ -42,6 +45,14 @@ _EXPORTS = {
     "IsolatedDefect": "surface",
     "HeightMap": "surface",
     "to_si": "units",
+    "parse_hypothesis": "hypothesis",
+    "stable_hash": "batch",
+    "task_rng": "batch",
+    "result_path": "batch",
+    "read_result": "batch",
+    "BatchReport": "batch",
+    "batch_client": "batch",
+    "run_batch": "batch",
 }
 
 __version__ = package_version()

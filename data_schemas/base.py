@@ -22,7 +22,7 @@ from __future__ import annotations
 import json
 import math
 import pathlib
-from typing import Annotated, Any, Self
+from typing import Annotated, Any, Self, TypeVar
 
 import numpy as np
 from pydantic import (
@@ -35,6 +35,8 @@ from pydantic import (
     ValidationInfo,
     WithJsonSchema,
 )
+
+from .unit_keys import convert_units
 
 # Longest suffix first: "_m_per_s" must win over "_s".
 _SUFFIX_UNITS: tuple[tuple[str, str], ...] = (
@@ -292,8 +294,6 @@ class Record(BaseModel):
             Invalid JSON, an unknown unit or an invalid field, in one line that starts with
             ``where`` (e.g. the file name) when given.
         """
-        from .files import record_from_dict  # the file edge (units, one-line errors) lives there
-
         prefix = f"{where}: " if where else ""
         try:
             data = json.loads(text)
@@ -331,3 +331,37 @@ class Record(BaseModel):
         data = {k: getattr(self, k) for k in type(self).model_fields}
         data.update(changes)
         return type(self).model_validate(data)
+
+
+R = TypeVar("R", bound=Record)
+
+
+def record_from_dict(model: type[R], data: dict, where: str = "") -> R:
+    """Convert a raw file table to SI and validate it as ``model``.
+
+    Used by :meth:`Record.from_json` and by the TOML readers of :mod:`.files`.
+
+    Parameters
+    ----------
+    model : type of Record
+        The record to build.
+    data : dict
+        The raw table, as read from TOML or JSON; quantities may carry units.
+    where : str
+        Where the table came from (file name, table path), put at the start of errors.
+
+    Raises
+    ------
+    ValueError
+        One line naming ``where``, the key, the rule, the value and the fix.
+    """
+    prefix = f"{where}: " if where else ""
+    if not isinstance(data, dict):
+        raise ValueError(f"{prefix}a {model.__name__} must be a table, got {type(data).__name__}; "
+                         "write key = value pairs")
+    try:
+        return model.model_validate(convert_units(model, data))
+    except ValidationError as err:
+        raise ValueError(format_validation_error(err, where or model.__name__)) from None
+    except ValueError as err:
+        raise ValueError(f"{prefix}{err}") from None

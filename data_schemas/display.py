@@ -7,7 +7,7 @@ across it; SI units throughout (m, Pa, s, Hz).
 
 Tractor ``(row, column)`` sits at ``x = center_x + (column - (columns - 1) / 2) * pitch_x_m``,
 ``y = center_y + (row - (rows - 1) / 2) * pitch_y_m``; arrays over tractors are row-major,
-shape ``(rows, columns)``. In the plane model of the physics brief a tractor pair spaced
+shape ``(rows, columns)``. In the plane model of docs/theory.md 4a a tractor pair spaced
 ``2 d`` apart is a uniform row with ``pitch_x_m = 2 d`` (:attr:`DisplayDescription.half_spacing_m`).
 """
 
@@ -125,7 +125,7 @@ class DisplayDescription(Record):
 
     @property
     def half_spacing_m(self) -> float:
-        """Half the tractor spacing along x, ``d = pitch_x_m / 2`` (m), as in the physics brief."""
+        """Half the tractor spacing along x, ``d = pitch_x_m / 2`` (m), as in docs/theory.md 4a."""
         return self.pitch_x_m / 2.0
 
     @property
@@ -262,7 +262,7 @@ class DisplayDescription(Record):
         """A one-row virtual Braille display: ``n_tractors`` tractors along x.
 
         A single row of laterally moving tractors driven as a travelling wave renders virtual
-        Braille dots (the "virtual Braille display" of the physics brief). Pitch, footprint
+        Braille dots (the "virtual Braille display" of docs/theory.md 4a). Pitch, footprint
         and limits are NOMINAL values (the STReSS2 spacing along x); pass ``overrides`` to
         change any field.
         """
@@ -275,6 +275,30 @@ class DisplayDescription(Record):
             tractor_length_m=6e-3,
             **_NOMINAL_LIMITS,
             description="one-row virtual Braille display; pitch, footprint and limits are nominal",
+        )
+        values.update(overrides)
+        return cls(**values)
+
+    @classmethod
+    def wh2008(cls, **overrides) -> DisplayDescription:
+        """The row of 10 line tractors of Wang & Hayward (2008): centres at +-1, +-3, ..., +-9 mm.
+
+        Five tractor pairs with half spacing d = 1 mm (pitch 2 mm along x), as in the tactile
+        synthesis design of docs/theory.md section 4a (p = 4 d = 4 mm). The paper treats the
+        tractors as line loads; a contact width is required here, so the footprint is the
+        NOMINAL 1 mm (d, half the pitch) and the limits are the toolkit's nominal values (not
+        from the paper): pass ``overrides`` to use a device's own numbers.
+        """
+        values = dict(
+            display_id="WH2008",
+            rows=1,
+            columns=10,
+            pitch_x_m=2e-3,
+            tractor_width_m=1e-3,
+            tractor_length_m=6e-3,
+            **_NOMINAL_LIMITS,
+            description=("Wang & Hayward 2008 tractor row: 10 tractors at +-1, +-3, ..., +-9 mm (5 pairs, "
+                         "d = 1 mm); footprint, limits and frame rate are nominal values"),
         )
         values.update(overrides)
         return cls(**values)

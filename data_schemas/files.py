@@ -10,7 +10,7 @@ Built-in examples (package data in ``data_schemas/examples/``):
 ``fingertip_defect``  a fingertip (0.8 N, radius 10 mm, E = 1 MPa, nu = 0.5) sliding at
                       20 mm/s over one 50 um bump, sensed by 10 x 10 stress sensors at 3 mm.
 ``sliding_grating``   a frictionless finger sliding at 20 mm/s over a 2 mm sinusoidal grating,
-                      sensed by a line of strain sensors at 1 mm (physics brief, 4a).
+                      sensed by a line of strain sensors at 1 mm (docs/theory.md 4a).
 ``tractor_display``   a STReSS2-like 6 x 10 tractor display rendering a virtual grating,
                       sensed by a line of strain sensors at 1 mm.
 """
@@ -21,47 +21,12 @@ import errno
 import importlib.resources
 import pathlib
 import tomllib
-from typing import TypeVar
 
-from pydantic import ValidationError
-
-from .base import Record, format_validation_error
+from .base import R, record_from_dict
 from .scene import Scene
-from .unit_keys import convert_units
-
-R = TypeVar("R", bound=Record)
 
 _EXAMPLES_PACKAGE = "tactilab.data_schemas"
 _EXAMPLES_DIR = "examples"
-
-
-def record_from_dict(model: type[R], data: dict, where: str = "") -> R:
-    """Convert a raw file table to SI and validate it as ``model``.
-
-    Parameters
-    ----------
-    model : type of Record
-        The record to build.
-    data : dict
-        The raw table, as read from TOML or JSON.
-    where : str
-        Where the table came from (file name, table path), put at the start of errors.
-
-    Raises
-    ------
-    ValueError
-        One line naming ``where``, the key, the rule, the value and the fix.
-    """
-    prefix = f"{where}: " if where else ""
-    if not isinstance(data, dict):
-        raise ValueError(f"{prefix}a {model.__name__} must be a table, got {type(data).__name__}; "
-                         "write key = value pairs")
-    try:
-        return model.model_validate(convert_units(model, data))
-    except ValidationError as err:
-        raise ValueError(format_validation_error(err, where or model.__name__)) from None
-    except ValueError as err:
-        raise ValueError(f"{prefix}{err}") from None
 
 
 def read_toml_record(path: str | pathlib.Path, model: type[R], *, table: str | None = None) -> R:

@@ -38,6 +38,8 @@ def _xy(x, y) -> tuple[np.ndarray, np.ndarray]:
             f"x and y must broadcast together, got shapes {np.shape(x)} and {np.shape(y)}; "
             "give arrays of the same shape (or y=None for a profile along x)"
         ) from None
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+        raise ValueError("x, y: surface points must be finite (no NaN or inf), in m")
     return x, y
 
 

@@ -12,6 +12,8 @@ import math
 import re
 from decimal import Decimal
 
+from .plausibility import check_plausible
+
 # unit -> (dimension, factor to SI)
 UNITS: dict[str, tuple[str, float]] = {
     "m": ("length", 1.0),
@@ -56,6 +58,18 @@ SI_UNIT = {
     "dimensionless": "1",
 }
 
+# the unit a researcher most likely meant, for the fix in error messages
+_EXAMPLE_UNIT = {
+    "length": "mm",
+    "pressure": "kPa",
+    "force": "N",
+    "time": "ms",
+    "frequency": "Hz",
+    "speed": "mm/s",
+    "line_load": "N/m",
+    "wavenumber": "rad/mm",
+}
+
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?inf|nan)\s*(\S*)\s*$")
 
 
@@ -93,8 +107,10 @@ def to_si(value: str | float | int, dimension: str, *, name: str = "value",
     Parameters
     ----------
     value : str or float
-        A number with a unit suffix (``"1.25mm"``), or a bare number. A bare number is
-        taken in ``default_unit`` if given, else it must already be SI.
+        A number with a unit suffix (``"1.25mm"``), or a number. A Python number (int or
+        float) is taken in ``default_unit`` if given, else it is SI. A string without a unit
+        (``"1.25"``) is an error for a dimensional quantity unless ``default_unit`` is given:
+        at the edges (options, files) a bare number is never silently SI.
     dimension : str
         What the value measures: one of ``SI_UNIT``'s keys.
     name : str
@@ -122,14 +138,26 @@ def to_si(value: str | float | int, dimension: str, *, name: str = "value",
                 f"e.g. '1.5{SI_UNIT[dimension]}'"
             )
         number = float(match.group(1))
-        unit = match.group(2) or (default_unit if default_unit is not None else SI_UNIT[dimension])
+        unit = match.group(2)
+        if not unit:
+            if default_unit is not None:
+                unit = default_unit
+            elif dimension == "dimensionless" or not math.isfinite(number):
+                unit = SI_UNIT[dimension]  # non-finite values get their own message below
+            else:
+                # A bare number at an edge is never silently SI: '--depth 1.25' is not 1.25 m.
+                raise ValueError(
+                    f"{name}: {value.strip()!r} has no unit, and a {dimension} needs one; "
+                    f"write it with a unit, e.g. '{value.strip()}{_EXAMPLE_UNIT[dimension]}' "
+                    f"(units: {_known_units(dimension)})"
+                )
     else:
         raise ValueError(f"{name}: expected a number or a string like '1.5mm', got {type(value).__name__}")
     if not math.isfinite(number):
         raise ValueError(f"{name}: must be finite, got {value!r}; give a finite number with a unit, "
                          f"e.g. '1.5{SI_UNIT[dimension]}'")
     f = factor(unit, dimension, name=name)
-    if f == 1.0:
-        return number
     # decimal product, so "1.25mm" gives exactly the float nearest 1.25e-3
-    return float(Decimal(repr(number)) * Decimal(repr(f)))
+    si = number if f == 1.0 else float(Decimal(repr(number)) * Decimal(repr(f)))
+    check_plausible(si, name, SI_UNIT[dimension])
+    return si

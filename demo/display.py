@@ -44,10 +44,7 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
     str
         Lines to print: the design, the drive, the match errors and where the files are.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     from tqdm import tqdm
 
     report_dir = pathlib.Path(report_dir)
@@ -106,7 +103,8 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
            f"{array.pitch_y_m * 1e3:g} mm) vs the plane-strain row model on the centre line: "
            f"max |eps_zx| difference {diff:.3f} of the peak (gaps between rows and finite row length)")
 
-    fig, axes = plt.subplots(3, 1, figsize=(8, 9), sharex=True)
+    fig = Figure(figsize=(8, 9))
+    axes = fig.subplots(3, 1, sharex=True)
     xmm = x * 1e3
     for ax, (label, c) in zip(axes[:2], (("eps_xx", 0), ("eps_zx (tensor shear)", 4))):
         ax.plot(xmm, aligned[:, c], "k-", label="real sliding grating")
@@ -125,7 +123,6 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
     fig.tight_layout()
     png = report_dir / "display_strain.png"
     fig.savefig(png, dpi=110)
-    plt.close(fig)
     csv = report_dir / "display_strain.csv"
     table = np.column_stack([x, aligned[:, 0], aligned[:, 4], rendered[0, :, 0], rendered[0, :, 4],
                              _rms(real[:, :, 4]), _rms(rendered[:, :, 4])])

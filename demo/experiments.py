@@ -38,12 +38,10 @@ DEMO_PROTOCOL = {
 
 def plot_track(trials, truth_m: float, estimate_m: float, path: pathlib.Path) -> None:
     """Staircase track: level (um) per trial, correct / wrong, per track, with the true 70.7 % point."""
-    import matplotlib
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig = Figure(figsize=(7, 4))
+    ax = fig.subplots()
     for track, colour in ((0, "tab:blue"), (1, "tab:orange")):
         rows = [t for t in trials if t.track == track]
         ax.plot([t.trial_index for t in rows], [t.level * 1e6 for t in rows], "-", color=colour, lw=1,
@@ -65,7 +63,6 @@ def plot_track(trials, truth_m: float, estimate_m: float, path: pathlib.Path) ->
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:

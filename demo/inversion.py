@@ -72,7 +72,8 @@ def _defect_section(out: pathlib.Path, rng, progress: bool) -> Iterator[str]:
     from tactilab.data_schemas.files import load_example
     from tactilab.data_schemas.scene import Scan
     from tactilab.data_schemas.sensors import SensorArray
-    from tactilab.forward.scene_simulation import read_recording, simulate_scene
+    from tactilab.data_schemas.recording_io import read_recording
+    from tactilab.forward.scene_simulation import simulate_scene
 
     from tactilab.inversion.plots import plot_corner
     from tactilab.inversion.scene_inversion import invert_defect_position

@@ -17,12 +17,10 @@ from tactilab.data_schemas.scene import Scene
 
 
 def _plot_scene(scene: Scene, path: pathlib.Path) -> None:
-    import matplotlib
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, (ax_h, ax_s) = plt.subplots(1, 2, figsize=(12, 4))
+    fig = Figure(figsize=(12, 4))
+    ax_h, ax_s = fig.subplots(1, 2)
     scan = scene.scan
     lo = min(scan.positions_m[0], scan.positions_m[-1]) - 5e-3
     hi = max(scan.positions_m[0], scan.positions_m[-1]) + 5e-3
@@ -44,7 +42,6 @@ def _plot_scene(scene: Scene, path: pathlib.Path) -> None:
     ax_s.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:

@@ -29,7 +29,7 @@ from tactilab.forward.halfspace import HalfSpace
 from tactilab.forward.halfspace import SurfaceLoad
 from tactilab.forward.scanning import scene_finger
 from tactilab.forward.scene_simulation import simulate_scene
-from tactilab.forward.surfaces import Bump
+from tactilab.forward.surfaces import RecordFeature
 
 
 def demo_scene() -> Scene:
@@ -54,7 +54,7 @@ def receptive_field_check(scene: Scene, positions=(-1.5e-3, 0.0, 1.0e-3)) -> flo
     h = finger.spacing
     p, q = finger.traction(X, Y, cell=(h, h))
     d = scene.surface
-    bump = Bump(d.position_m[0], d.position_m[1], d.size_m, 1.0)
+    bump = RecordFeature(d.replace(height_m=1.0))  # unit height: the modulation is h / h_ref
     hs = HalfSpace(finger.contact.young_modulus, finger.contact.poisson_ratio)
     pts, comps = finger.sensors.positions_m, finger.sensors.components
     base = hs.stress(SurfaceLoad(p=p, qx=q, spacing=h), finger.depth, points=pts, components=comps).data["stress"]

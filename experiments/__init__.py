@@ -28,6 +28,10 @@ _EXPORTS = {
     "SafeDisplay": "safety",
     "SimulatedDisplay": "simulated_display",
     "UdpDisplay": "udp",
+    # the display UDP frame format (docs/udp-frame-format.md)
+    "FRAME": "udp",
+    "encode": "udp",
+    "decode": "udp",
     "emulate": "emulator",
     "SimulatedObserver": "responses",
     "TerminalResponses": "responses",
@@ -41,6 +45,18 @@ _EXPORTS = {
     "UnregisteredError": "registry",
     "Procedure": "procedures",
     "PlannedLevel": "procedures",
+    "fit_psychometric": "psychometric",
+    "PsychometricFit": "psychometric",
+    "ParamSummary": "psychometric",
+    "SIGMOIDS": "psychometric",
+    "TransductionModel": "models",
+    "TransductionFit": "models",
+    "fit_transduction": "models",
+    "compare_models": "models",
+    "power_analysis": "models",
+    "PowerResult": "models",
+    "power_sweep": "batch",
+    "design_sweep": "batch",
 }
 
 __version__ = package_version()

@@ -239,7 +239,7 @@ class SimulatedObserver(ResponseSource):
     def __init__(self, protocol: Protocol, *, seed: int | None = None, threshold_strain: float = 2e-3,
                  exponent: float = 1.0, criterion: float = 1.0, frequency_acuity: float = 2.0,
                  magnitude_gain: float = 2.0, depth_m: float = 1e-3, display=None,
-                 strain_fn: Callable[[Stimulus], float] | None = None) -> None:
+                 strain_fn: Callable[[Stimulus], float] | None = None, lapse: float = 0.0) -> None:
         for name, value in (("threshold_strain", threshold_strain), ("exponent", exponent),
                             ("depth_m", depth_m)):
             if not (math.isfinite(value) and value > 0):
@@ -248,6 +248,9 @@ class SimulatedObserver(ResponseSource):
                             ("magnitude_gain", magnitude_gain)):
             if not math.isfinite(value):
                 raise ValueError(f"{name}: must be finite, got {value!r}")
+        if not (math.isfinite(lapse) and 0 <= lapse < 0.5):
+            raise ValueError(f"lapse: must lie in [0, 0.5) (the drop of the upper asymptote), got {lapse!r}")
+        self.lapse = float(lapse)
         self.protocol = protocol
         self.seed = protocol.seed if seed is None else int(seed)
         self.threshold_strain, self.exponent, self.criterion = threshold_strain, exponent, criterion
@@ -272,7 +275,8 @@ class SimulatedObserver(ResponseSource):
         return {"strain": self.strain_source, "seed": self.seed, "threshold_strain": self.threshold_strain,
                 "exponent": self.exponent,
                 "criterion": self.criterion, "frequency_acuity": self.frequency_acuity,
-                "magnitude_gain": self.magnitude_gain, "depth_m": self.depth_m}
+                "magnitude_gain": self.magnitude_gain, "depth_m": self.depth_m,
+                **({"lapse": self.lapse} if self.lapse else {})}
 
     def drive(self, stimulus: Stimulus) -> float:
         """Noise-free transducer output ``d`` of a stimulus (units of the noise sd)."""
@@ -313,8 +317,26 @@ class SimulatedObserver(ResponseSource):
             value = task.magnitude_min + self.magnitude_gain * obs[0][0]
             rating = int(min(max(round(value), task.magnitude_min), task.magnitude_max))
             margin, label = 1.0, str(rating)
+        if self.lapse and task.kind in ("2ifc", "2afc", "yes_no") and rng.random() < 2 * self.lapse:
+            label = task.labels[int(rng.integers(2))]  # a lapse: a guess (P(correct) <= 1 - lapse)
         rt_s = (0.3 + 0.4 * math.exp(-abs(margin))) * math.exp(0.2 * rng.standard_normal())
         return Response(label, rt_s, self._onset_ns + int(rt_s * 1e9))
+
+    @classmethod
+    def from_model(cls, protocol: Protocol, model, threshold_strain: float, exponent: float = 1.0,
+                   lapse: float = 0.0, seed: int | None = None) -> SimulatedObserver:
+        """An observer that reads a transduction model (``tactilab.experiments.models.TransductionModel``).
+
+        Its drive is ``d = (model.statistic_of(s) / threshold_strain) ** exponent``; it lapses
+        (guesses) on a share ``2 lapse`` of 2IFC, 2AFC and yes/no trials, so that 2IFC P(correct)
+        = 1/2 + (1/2 - lapse)(2 Phi(delta_d / sqrt 2) - 1), the model's own link; its yes/no
+        criterion is 1 (false-alarm rate Phi(-1) = 0.159 without lapses).
+        """
+        if not callable(getattr(model, "statistic_of", None)):
+            raise ValueError(f"model: expected a TransductionModel (with statistic_of), got {type(model).__name__}")
+        return cls(protocol, seed=seed, threshold_strain=threshold_strain, exponent=exponent,
+                   strain_fn=model.statistic_of, lapse=lapse)
+
 
 def true_threshold_2ifc(observer: SimulatedObserver, protocol: Protocol, p_correct: float = 2 ** -0.5) -> float:
     """Amplitude (m) at which the observer is correct with ``p_correct`` in 2IFC against a blank.

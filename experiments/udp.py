@@ -41,6 +41,7 @@ __all__ = ["UdpDisplay", "Message", "encode", "decode", "FrameFormatError", "MAG
 
 MAGIC = b"TLDF"
 VERSION = 1
+#: Message kinds of the display UDP frame format (docs/udp-frame-format.md)
 FRAME, ZERO, ACK = 1, 2, 3
 HEADER = struct.Struct("<4sBBHIQ")  # 20 bytes
 ACK_BODY = struct.Struct("<BBHI")  # 8 bytes

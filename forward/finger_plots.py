@@ -1,7 +1,7 @@
 """Figures of biomimetic-finger scenes: stress/strain maps, receptive fields, time series.
 
 Axes in mm, stress in kPa, strain dimensionless (tensor shear, as the sensors report it).
-matplotlib is imported inside the functions with the Agg backend.
+Figures are ``matplotlib.figure.Figure`` objects saved directly (no pyplot, no backend switch).
 """
 
 from __future__ import annotations
@@ -18,13 +18,11 @@ from .halfspace import SurfaceLoad
 from .surfaces import Surface
 
 
-def _pyplot():
-    import matplotlib
+def _figure(**kwargs):
+    """A new ``matplotlib.figure.Figure`` (matplotlib is imported on first use, never pyplot)."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return Figure(**kwargs)
 
 
 def _unit(quantity: str) -> tuple[float, str]:
@@ -53,7 +51,6 @@ def plot_field_maps(finger: BiomimeticFinger, path, *, surface: Surface | None =
 
     Returns the PNG path and the half-space method that computed the maps.
     """
-    plt = _pyplot()
     load = frame_load(finger, surface, position, reference_height_m)
     hs = HalfSpace(finger.contact.young_modulus, finger.contact.poisson_ratio)
     quantity = finger.sensors.quantity
@@ -62,7 +59,8 @@ def plot_field_maps(finger: BiomimeticFinger, path, *, surface: Surface | None =
     field = result.data[quantity].isel(depth=0)
     scale, unit = _unit(quantity)
     ext = 1e3 * np.array([load.x[0], load.x[-1], load.y[0], load.y[-1]])
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4), constrained_layout=True)
+    fig = _figure(figsize=(13, 4), layout="constrained")
+    axes = fig.subplots(1, 3)
     panels = [(load.components["p"] * 1e-3, "interfacial pressure p (kPa)", "viridis")]
     for comp in ("zz", "zx"):
         panels.append((field.sel(component=comp).values * scale,
@@ -78,7 +76,6 @@ def plot_field_maps(finger: BiomimeticFinger, path, *, surface: Surface | None =
     fig.suptitle(title or f"contact centre at x = {position * 1e3:.2f} mm; maps by {result.method}")
     path = pathlib.Path(path)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path, result.method
 
 
@@ -96,14 +93,13 @@ def receptive_field_maps(finger: BiomimeticFinger, sensors, strength: float = 1e
 def plot_receptive_fields(finger: BiomimeticFinger, path, *, strength: float = 1e-8, max_sensors: int = 4,
                           component: int = 0) -> pathlib.Path:
     """Receptive-field maps of up to ``max_sensors`` sensors spread over the array (PNG)."""
-    plt = _pyplot()
     ns = finger.sensors.n_sensors
     chosen = sorted(set(np.linspace(0, ns - 1, min(max_sensors, ns)).round().astype(int).tolist()))
     xi, rf = receptive_field_maps(finger, chosen, strength)
     scale, unit = _unit(finger.sensors.quantity)
     comp = finger.sensors.components[component]
-    fig, axes = plt.subplots(1, len(chosen), figsize=(3.6 * len(chosen), 3.6), constrained_layout=True,
-                             squeeze=False)
+    fig = _figure(figsize=(3.6 * len(chosen), 3.6), layout="constrained")
+    axes = fig.subplots(1, len(chosen), squeeze=False)
     ext = 1e3 * np.array([xi[0], xi[-1], xi[0], xi[-1]])
     for ax, k, img in zip(axes[0], chosen, rf[..., component] * scale):
         lim = np.abs(img).max() or 1.0
@@ -117,7 +113,6 @@ def plot_receptive_fields(finger: BiomimeticFinger, path, *, strength: float = 1
                  f"depth {finger.depth * 1e3:.2f} mm (+: sensor)")
     path = pathlib.Path(path)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
@@ -126,11 +121,11 @@ def plot_time_series(recording: Recording, path, *, max_lines: int = 8, position
 
     ``positions`` (m, world x of the contact centre per sample) adds a finger-position axis.
     """
-    plt = _pyplot()
     scale, unit = _unit(recording.quantity)
     t = recording.times_s
     nc = recording.n_components
-    fig, axes = plt.subplots(2, nc, figsize=(6 * nc, 6.5), constrained_layout=True, squeeze=False)
+    fig = _figure(figsize=(6 * nc, 6.5), layout="constrained")
+    axes = fig.subplots(2, nc, squeeze=False)
     chosen = np.unique(np.linspace(0, recording.n_sensors - 1, min(max_lines, recording.n_sensors)).round().astype(int))
     for c, comp in enumerate(recording.components):
         values = recording.values[:, :, c] * scale
@@ -155,7 +150,6 @@ def plot_time_series(recording: Recording, path, *, max_lines: int = 8, position
             top.set_xlabel("contact centre x (mm)")
     path = pathlib.Path(path)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
@@ -163,10 +157,10 @@ def plot_spectrum(recording: Recording, path, *, max_lines: int = 8) -> pathlib.
     """Welch power spectra of a few sensors' outputs, (kPa^2 or strain^2) per Hz vs Hz (PNG)."""
     from scipy import signal
 
-    plt = _pyplot()
     scale, unit = _unit(recording.quantity)
     nc = recording.n_components
-    fig, axes = plt.subplots(1, nc, figsize=(6 * nc, 4), constrained_layout=True, squeeze=False)
+    fig = _figure(figsize=(6 * nc, 4), layout="constrained")
+    axes = fig.subplots(1, nc, squeeze=False)
     chosen = np.unique(np.linspace(0, recording.n_sensors - 1, min(max_lines, recording.n_sensors)).round().astype(int))
     nper = max(16, recording.n_times // 4)
     for c, comp in enumerate(recording.components):
@@ -179,17 +173,16 @@ def plot_spectrum(recording: Recording, path, *, max_lines: int = 8) -> pathlib.
         axes[0, c].legend(fontsize=7)
     path = pathlib.Path(path)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
 def plot_rendered_vs_real(sensors, rendered: np.ndarray, real: np.ndarray, path) -> pathlib.Path:
     """Strain profiles at the first frame and the central sensor's time course, display vs real (PNG)."""
-    plt = _pyplot()
     x = sensors.positions_m[:, 0] * 1e3
     order = np.argsort(x)
     nc = len(sensors.components)
-    fig, axes = plt.subplots(2, nc, figsize=(5 * nc, 6.5), constrained_layout=True, squeeze=False)
+    fig = _figure(figsize=(5 * nc, 6.5), layout="constrained")
+    axes = fig.subplots(2, nc, squeeze=False)
     centre = int(np.argmin(np.abs(sensors.positions_m[:, 0])))
     for c, comp in enumerate(sensors.components):
         axes[0, c].plot(x[order], rendered[0, order, c], label="display")
@@ -201,15 +194,14 @@ def plot_rendered_vs_real(sensors, rendered: np.ndarray, real: np.ndarray, path)
         axes[1, c].set(title=f"{comp} at x = {x[centre]:.2f} mm (strain)", xlabel="frame", ylabel=f"{comp} (strain)")
     path = pathlib.Path(path)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
 def plot_fingerprint_spectra(freqs, ridged, smooth, peak_hz: float, path, *, unit: str = "kPa",
                              scale: float = 1e-3) -> pathlib.Path:
     """PSDs of one sensor scanning a random texture with ridged and smooth skin (PNG)."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6.5, 4), constrained_layout=True)
+    fig = _figure(figsize=(6.5, 4), layout="constrained")
+    ax = fig.subplots()
     ax.semilogy(freqs[1:], ridged[1:] * scale ** 2, label="ridged skin (fingerprint)")
     ax.semilogy(freqs[1:], smooth[1:] * scale ** 2, label="smooth skin")
     ax.axvline(peak_hz, color="k", ls=":", label=f"v / lambda = {peak_hz:g} Hz")
@@ -217,7 +209,6 @@ def plot_fingerprint_spectra(freqs, ridged, smooth, peak_hz: float, path, *, uni
     ax.legend(fontsize=8)
     path = pathlib.Path(path)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
@@ -227,8 +218,8 @@ def plot_wiener_kernels(x, true_kernel, estimates: dict, path, *, unit: str = "k
 
     ``x`` in m (finger frame), kernels per bit in Pa (or strain); ``estimates`` maps a label to an array.
     """
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6.5, 4), constrained_layout=True)
+    fig = _figure(figsize=(6.5, 4), layout="constrained")
+    ax = fig.subplots()
     for label, est in estimates.items():
         ax.plot(x * 1e3, est * scale, lw=1, label=label)
     ax.plot(x * 1e3, true_kernel * scale, "k--", lw=2, label="true kernel p(x) g(x - x0), binned")
@@ -237,5 +228,4 @@ def plot_wiener_kernels(x, true_kernel, estimates: dict, path, *, unit: str = "k
     ax.legend(fontsize=8)
     path = pathlib.Path(path)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path

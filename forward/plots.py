@@ -1,7 +1,7 @@
 """Figures of fields at depth: maps (2-D) and profiles (1-D), axes in mm, stress in kPa.
 
-matplotlib is imported inside the functions with the Agg backend, so importing tactilab
-never touches a display.
+Figures are ``matplotlib.figure.Figure`` objects saved directly: no pyplot, no backend switch,
+so the caller's matplotlib backend is never changed.
 """
 
 from __future__ import annotations
@@ -12,13 +12,11 @@ import numpy as np
 import xarray as xr
 
 
-def _pyplot():
-    import matplotlib
+def _figure(**kwargs):
+    """A new ``matplotlib.figure.Figure`` (matplotlib is imported on first use, never pyplot)."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return Figure(**kwargs)
 
 
 def _scale(da: xr.DataArray) -> tuple[float, str]:
@@ -40,13 +38,12 @@ def plot_field(da: xr.DataArray, path: str | pathlib.Path, title: str = "") -> p
     title : str
         Figure title.
     """
-    plt = _pyplot()
     if "component" not in da.dims:
         da = da.expand_dims(component=[da.name or "value"])
     factor, unit = _scale(da)
     depths, comps = da["depth"].values, list(da["component"].values)
-    fig, axes = plt.subplots(len(depths), len(comps), figsize=(3.2 * len(comps) + 0.8, 2.8 * len(depths)),
-                             squeeze=False, constrained_layout=True)
+    fig = _figure(figsize=(3.2 * len(comps) + 0.8, 2.8 * len(depths)), layout="constrained")
+    axes = fig.subplots(len(depths), len(comps), squeeze=False)
     x_mm = da["x"].values * 1e3
     for i, z in enumerate(depths):
         for j, comp in enumerate(comps):
@@ -69,5 +66,4 @@ def plot_field(da: xr.DataArray, path: str | pathlib.Path, title: str = "") -> p
         fig.suptitle(title)
     path = pathlib.Path(path)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path

@@ -23,68 +23,18 @@ from numpy.typing import ArrayLike
 from tactilab.data_schemas.recording import Recording
 
 from .finger import BiomimeticFinger
-from .surfaces import Feature, Surface
+from .surfaces import Feature, RecordFeature, Surface, as_feature
 
 if TYPE_CHECKING:  # type hints only
     from tactilab.data_schemas.scene import Scene
     from tactilab.data_schemas.surface import Surface as SurfaceRecord
 
 
-class RecordFeature(Feature):
-    """A data_schemas surface record (``height_at``) seen as a surface :class:`Feature`."""
-
-    def __init__(self, record):
-        if not hasattr(record, "height_at") or not hasattr(record, "kind"):
-            raise ValueError(f"surface: expected a data_schemas surface record (with kind and height_at), "
-                             f"got {type(record).__name__}")
-        self.record = record
-        shape = getattr(record, "shape", None)
-        self.label = f"{record.kind} {shape}" if isinstance(shape, str) else str(record.kind)
-
-    def height(self, x, y=None):
-        return self.record.height_at(x, y)
-
-    def bounds(self):
-        r = self.record
-        if r.kind == "defect":
-            x0, y0 = r.position_m
-            h = r.size_m / 2
-            if r.shape == "edge_step":
-                return (x0 - h, x0 + h, -math.inf, math.inf)
-            return (x0 - h, x0 + h, y0 - h, y0 + h)
-        return None  # extended textures (gratings, height maps) may exceed the scanned strip
-
-    def peak(self) -> float:
-        """Largest |height| in m (the default reference height)."""
-        r = self.record
-        if r.kind in ("sinusoidal_grating", "square_wave_grating"):
-            return float(r.amplitude_m)
-        if r.kind == "defect":
-            return abs(float(r.height_m))
-        if r.kind == "height_map":
-            return float(np.max(np.abs(r.heights_m)))
-        return 0.0
-
-    def integral(self) -> float:
-        r = self.record
-        if r.kind == "defect" and r.shape == "bump":
-            b = r.size_m / 2
-            return r.height_m * b * b * (math.pi / 2 - 2 / math.pi)
-        if r.kind == "defect" and r.shape == "dot":
-            return r.height_m * math.pi * (r.size_m / 2) ** 2
-        return 0.0
-
-
 def feature_peak(feature: Feature) -> float:
-    """Largest |height| (m) of a feature, from its amplitude when it has one."""
+    """Largest |height| (m) of a feature: a record's peak, or a texture's amplitude."""
     if isinstance(feature, RecordFeature):
         return feature.peak()
-    for name in ("amplitude", "height_m"):
-        if hasattr(feature, name):
-            return abs(float(getattr(feature, name)))
-    if hasattr(feature, "heights"):
-        return float(np.max(np.abs(feature.heights)))
-    return 0.0
+    return abs(float(getattr(feature, "amplitude", 0.0)))
 
 
 def scanned_surface(record_or_features: SurfaceRecord | Feature | Iterable[Feature], positions: ArrayLike,
@@ -95,7 +45,7 @@ def scanned_surface(record_or_features: SurfaceRecord | Feature | Iterable[Featu
 
     Parameters
     ----------
-    record_or_features : data_schemas surface record, Feature, or iterable of Features
+    record_or_features : data_schemas surface record, Feature, or iterable of them
     positions : ndarray
         World x of the contact centre per frame, m.
     finger : BiomimeticFinger
@@ -107,7 +57,7 @@ def scanned_surface(record_or_features: SurfaceRecord | Feature | Iterable[Featu
     elif hasattr(record_or_features, "height_at"):
         feats = (RecordFeature(record_or_features),)
     elif isinstance(record_or_features, Iterable):
-        feats = tuple(record_or_features)
+        feats = tuple(as_feature(f) for f in record_or_features)
     else:
         raise ValueError(f"surface: expected a surface record or Feature(s), got {type(record_or_features).__name__}")
     x, _ = finger.grid()

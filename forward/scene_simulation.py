@@ -1,103 +1,31 @@
 """Simulate a finger scene to files: the sensors' recording (netCDF or Parquet) and PNG plots.
 
 Used by ``tactilab simulate SCENE.toml``; everything is SI inside, the figures use mm / kPa.
+The recording files are written and read by :mod:`tactilab.data_schemas.recording_io`.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import pathlib
 import time
 
 import numpy as np
-import xarray as xr
 
 from tactilab.data_schemas.recording import Recording
+from tactilab.data_schemas.recording_io import FORMATS, write_recording
 
 from .finger import BiomimeticFinger
 from .finger_plots import plot_field_maps, plot_receptive_fields, plot_spectrum, plot_time_series
-from .scanning import (RecordFeature, check_scan, reference_height, scan_outputs, scanned_surface,
-                       scene_finger)
-
-FORMATS = ("netcdf", "parquet")
+from .scanning import check_scan, reference_height, scan_outputs, scanned_surface, scene_finger
+from .surfaces import RecordFeature
 
 
-def recording_dataset(recording: Recording, finger: BiomimeticFinger | None = None, positions=None) -> xr.Dataset:
-    """The recording as an xarray Dataset: ``values`` (time, sensor, component) with SI coords/attrs."""
-    ds = xr.Dataset(
-        {"values": (("time", "sensor", "component"), recording.values)},
-        coords={"time": ("time", recording.times_s, {"units": "s"}),
-                "sensor": list(recording.sensor_ids), "component": list(recording.components)},
-        attrs=dict(quantity=recording.quantity, unit=recording.unit, sampling_rate_hz=recording.sampling_rate_hz,
-                   start_time_s=recording.start_time_s, description=recording.description,
-                   shear_convention="tensor shear eps_ij (engineering gamma = 2 eps)"),
-    )
-    ds["values"].attrs["units"] = recording.unit
-    if finger is not None:
-        pos = finger.sensors.positions_m
-        ds = ds.assign_coords(sensor_x=("sensor", pos[:, 0], {"units": "m", "frame": "finger"}),
-                              sensor_y=("sensor", pos[:, 1], {"units": "m", "frame": "finger"}))
-        ds.attrs.update(depth_m=finger.depth, contact_radius_m=finger.contact.contact_radius,
-                        normal_force_n=finger.contact.normal_force, friction=finger.friction,
-                        adhesion=finger.adhesion, grid_spacing_m=finger.spacing)
-    if positions is not None:
-        ds = ds.assign_coords(contact_x=("time", np.asarray(positions, float), {"units": "m", "frame": "world"}))
-    return ds
-
-
-def write_recording(recording: Recording, out_dir, fmt: str = "netcdf", *, finger=None, positions=None) -> pathlib.Path:
-    """Write ``recording.nc`` (netCDF4 via h5netcdf) or ``recording.parquet`` (tidy form) into out_dir."""
-    if fmt not in FORMATS:
-        raise ValueError(f"format: must be one of {FORMATS}, got {fmt!r}")
-    out_dir = pathlib.Path(out_dir)
-    if fmt == "parquet":
-        if importlib.util.find_spec("pyarrow") is None:
-            raise ValueError("format: 'parquet' needs the optional package pyarrow (pip install pyarrow); "
-                             "or use --format netcdf")
-        path = out_dir / "recording.parquet"
-        df = recording.to_dataframe()
-        df.to_parquet(path)
-        return path
-    path = out_dir / "recording.nc"
-    recording_dataset(recording, finger, positions).to_netcdf(path, engine="h5netcdf")
-    return path
-
-
-def read_recording(path) -> Recording:
-    """Read a Recording written by :func:`write_recording` (``.nc`` or ``.parquet``) or a JSON record.
-
-    The inverse of :func:`write_recording`: values in SI (Pa or strain, tensor shear), the
-    sampling rate, start time, quantity, unit, description, and the sensor and component order.
-    """
-    path = pathlib.Path(path)
-    if not path.exists():
-        raise OSError(f"RECORDING: file {str(path)!r} not found; give the recording.nc, .parquet or .json "
-                      "written by tactilab simulate")
-    if path.suffix == ".json":
-        return Recording.load(path)
-    if path.suffix == ".parquet":
-        if importlib.util.find_spec("pyarrow") is None:
-            raise ValueError(f"RECORDING: reading {path} needs the optional package pyarrow (pip install pyarrow); "
-                             "or write the recording with --format netcdf")
-        import pandas as pd
-
-        df = pd.read_parquet(path)
-        # pandas keeps DataFrame.attrs in the Parquet metadata; tuples come back as lists
-        order = {k: tuple(df.attrs[k]) for k in ("sensor_ids", "components") if k in df.attrs}
-        return Recording.from_dataframe(df, **order)
-    if path.suffix != ".nc":
-        raise ValueError(f"RECORDING: unsupported file type {path.suffix!r} ({path}); use .nc, .parquet or .json")
-    with xr.open_dataset(path, engine="h5netcdf") as ds:
-        if "values" not in ds:
-            raise ValueError(f"RECORDING: {path} has no 'values' variable (time, sensor, component); "
-                             "write it with tactilab simulate")
-        return Recording(values=ds["values"].values, sampling_rate_hz=float(ds.attrs["sampling_rate_hz"]),
-                         sensor_ids=tuple(str(s) for s in ds["sensor"].values),
-                         components=tuple(str(c) for c in ds["component"].values),
-                         quantity=str(ds.attrs.get("quantity", "stress")), unit=str(ds.attrs.get("unit", "Pa")),
-                         start_time_s=float(ds.attrs.get("start_time_s", 0.0)),
-                         description=str(ds.attrs.get("description", "")))
+def _finger_attrs(finger: BiomimeticFinger) -> dict:
+    """The finger's scalar parameters, SI, for the recording file's attributes."""
+    return dict(depth_m=finger.depth, contact_radius_m=finger.contact.contact_radius,
+                normal_force_n=finger.contact.normal_force, friction=finger.friction,
+                adhesion=finger.adhesion, grid_spacing_m=finger.spacing)
 
 
 def simulate_scene(scene, out_dir, *, fmt: str = "netcdf", rng: np.random.Generator | None = None,
@@ -141,7 +69,8 @@ def simulate_scene(scene, out_dir, *, fmt: str = "netcdf", rng: np.random.Genera
                                  description=f"tactilab simulate: {scene.name or 'scene'}. {scene.description}")
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    path = write_recording(rec, out, fmt, finger=finger, positions=u)
+    path = write_recording(rec, out, fmt, positions_m=u, sensor_positions_m=finger.sensors.positions_m,
+                           attrs=_finger_attrs(finger))
     c = finger.contact
     scale = 1e-3 if rec.quantity == "stress" else 1.0
     unit = "kPa" if rec.quantity == "stress" else "strain"
@@ -190,7 +119,7 @@ def _simulate_display(scene, out: pathlib.Path, fmt: str, rng, plots: bool) -> l
     rec = Recording.from_sensors(scene.sensors, values, s.sampling_rate_hz,
                                  description=f"tactilab simulate (display): {scene.name or 'scene'}. {scene.description}")
     out.mkdir(parents=True, exist_ok=True)
-    path = write_recording(rec, out, fmt, positions=s.positions_m)
+    path = write_recording(rec, out, fmt, positions_m=s.positions_m)
     d = scene.display
     limit = d.max_traction_pa
     lines = [

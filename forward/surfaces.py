@@ -1,9 +1,16 @@
-"""Touched surfaces: gratings, random textures, isolated defects, height maps.
+"""The physics of touched surfaces: heights on the skin's scan strip, and the loads they make.
 
-A surface is a height field ``h(x, y)`` in m in the SURFACE frame (x along the scanning
-direction, y across it); positive heights stick out towards the skin. Each feature below
-is mostly its formula; :class:`Surface` places features on a finite rectangle and checks
-that every isolated defect lies on it.
+The surface MODEL is the data_schemas records (:mod:`tactilab.data_schemas.surface`:
+``FlatSurface``, ``SinusoidalGrating``, ``SquareWaveGrating``, ``IsolatedDefect``, ``HeightMap``),
+heights in m in the world frame (x along the scan, y across it; positive heights stick out
+towards the skin). This module holds what the forward model does with them:
+
+- :class:`RecordFeature`: a record on a :class:`Surface`, with its extent (isolated defects),
+  peak height and height integral;
+- :class:`RandomSquareWaveGrating`: a random +-1 texture drawn from an ``rng`` and repeating
+  periodically, the input of the Wiener-kernel identification (docs/theory.md 4b);
+- :class:`Surface`: features on a finite rectangle; it checks that every isolated defect lies
+  on it.
 
 Two ways turn heights into loads on the skin:
 
@@ -67,49 +74,6 @@ class Feature(abc.ABC):
 
 
 @dataclass(frozen=True)
-class SinusoidalGrating(Feature):
-    """``h = A sin(2 pi (x cos t + y sin t) / period + phase)``; A, period in m, t = orientation in rad."""
-
-    period: float
-    amplitude: float
-    phase: float = 0.0
-    orientation: float = 0.0
-
-    def __post_init__(self):
-        _pos(self.period, "period")
-        _finite(self.amplitude, "amplitude")
-        _finite(self.phase, "phase", "rad")
-        _finite(self.orientation, "orientation", "rad")
-
-    def height(self, x, y=None):
-        x, y = _xy(x, y)
-        s = x * math.cos(self.orientation) + y * math.sin(self.orientation)
-        return self.amplitude * np.sin(2 * math.pi * s / self.period + self.phase)
-
-
-@dataclass(frozen=True)
-class SquareWaveGrating(Feature):
-    """A regular +-amplitude square wave along x: ``+A`` on a fraction ``duty`` of each period."""
-
-    period: float
-    amplitude: float
-    duty: float = 0.5
-    offset: float = 0.0
-
-    def __post_init__(self):
-        _pos(self.period, "period")
-        _finite(self.amplitude, "amplitude")
-        if not 0.0 < float(self.duty) < 1.0:
-            raise ValueError(f"duty: the ridge fraction must lie in (0, 1), got {self.duty!r}")
-        _finite(self.offset, "offset")
-
-    def height(self, x, y=None):
-        x, _ = _xy(x, y)
-        phase = np.mod(x - self.offset, self.period) / self.period
-        return np.where(phase < self.duty, self.amplitude, -self.amplitude)
-
-
-@dataclass(frozen=True)
 class RandomSquareWaveGrating(Feature):
     """A random +-amplitude square wave along x, one fair coin per bit of length ``bit_length``.
 
@@ -150,116 +114,78 @@ class RandomSquareWaveGrating(Feature):
         return self.amplitude * self.bits[index]
 
 
-@dataclass(frozen=True)
-class Bump(Feature):
-    """An isolated dot: a raised-cosine cap of diameter ``size`` and ``height`` centred at (x, y), m."""
+class RecordFeature(Feature):
+    """A data_schemas surface record (``kind`` and ``height_at``) as a feature of a :class:`Surface`.
 
-    x: float
-    y: float
-    size: float
-    height_m: float
-
-    def __post_init__(self):
-        _finite(self.x, "x")
-        _finite(self.y, "y")
-        _pos(self.size, "size")
-        _finite(self.height_m, "height")
-
-    def height(self, x, y=None):
-        x, y = _xy(x, y)
-        r = np.hypot(x - self.x, y - self.y) / (self.size / 2)
-        return np.where(r < 1.0, 0.5 * self.height_m * (1.0 + np.cos(math.pi * np.minimum(r, 1.0))), 0.0)
-
-    def bounds(self):
-        h = self.size / 2
-        return (self.x - h, self.x + h, self.y - h, self.y + h)
-
-    def integral(self) -> float:
-        # iint 0.5 h (1 + cos(pi r / b)) 2 pi r dr over r < b = h b^2 (pi/2 - 2/pi)
-        b = self.size / 2
-        return self.height_m * b * b * (math.pi / 2 - 2 / math.pi)
-
-
-@dataclass(frozen=True)
-class Step(Feature):
-    """An edge across the scan at ``x``: the height rises by ``height_m`` over a ramp ``width`` (m; 0 = sharp)."""
-
-    x: float
-    height_m: float
-    width: float = 0.0
-
-    def __post_init__(self):
-        _finite(self.x, "x")
-        _finite(self.height_m, "height")
-        if not math.isfinite(self.width) or self.width < 0:
-            raise ValueError(f"width: the ramp width must be finite and >= 0 m, got {self.width!r}")
-
-    def height(self, x, y=None):
-        x, _ = _xy(x, y)
-        if self.width == 0:
-            return np.where(x >= self.x, self.height_m, 0.0)
-        t = np.clip((x - self.x) / self.width + 0.5, 0.0, 1.0)
-        return self.height_m * t * t * (3 - 2 * t)
-
-    def bounds(self):
-        return (self.x - self.width / 2, self.x + self.width / 2, -math.inf, math.inf)
-
-
-@dataclass(frozen=True)
-class HeightMap(Feature):
-    """An arbitrary height map ``heights[iy, ix]`` in m on a grid of ``spacing`` (dx, dy) from ``origin``.
-
-    Bilinear interpolation inside; 0 outside the map. A 1-D array is a profile along x.
+    Parameters
+    ----------
+    record : FlatSurface, SinusoidalGrating, SquareWaveGrating, IsolatedDefect or HeightMap
+        From :mod:`tactilab.data_schemas`; heights in m, world frame.
     """
 
-    heights: np.ndarray
-    spacing: tuple[float, float] | float
-    origin: tuple[float, float] = (0.0, 0.0)
-
-    def __post_init__(self):
-        h = np.asarray(self.heights, dtype=float)
-        if h.ndim == 1:
-            h = h[None, :]
-        if h.ndim != 2 or h.shape[-1] < 2:
-            raise ValueError(f"heights: need shape (nx,) or (ny, nx) with nx >= 2, got {np.shape(self.heights)}")
-        if not np.all(np.isfinite(h)):
-            raise ValueError("heights: the height map contains NaN or inf; fill the gaps first")
-        sp = np.atleast_1d(np.asarray(self.spacing, dtype=float))
-        sp = np.repeat(sp, 2) if sp.size == 1 else sp
-        for v, nm in zip(sp, ("dx", "dy")):
-            _pos(v, f"spacing ({nm})")
-        h.setflags(write=False)
-        object.__setattr__(self, "heights", h)
-        object.__setattr__(self, "spacing", (float(sp[0]), float(sp[1])))
+    def __init__(self, record):
+        if not hasattr(record, "height_at") or not hasattr(record, "kind"):
+            raise ValueError(f"surface: expected a data_schemas surface record (with kind and height_at), "
+                             f"got {type(record).__name__}")
+        self.record = record
+        shape = getattr(record, "shape", None)
+        self.label = f"{record.kind} {shape}" if isinstance(shape, str) else str(record.kind)
 
     def height(self, x, y=None):
+        """Height in m at surface points (x, y) in m (y defaults to 0)."""
         x, y = _xy(x, y)
-        ny, nx = self.heights.shape
-        fx = (x - self.origin[0]) / self.spacing[0]
-        fy = (y - self.origin[1]) / self.spacing[1] if ny > 1 else np.zeros_like(x)
-        inside = (fx >= 0) & (fx <= nx - 1) & (fy >= 0) & (fy <= ny - 1)
-        ix = np.clip(np.floor(fx).astype(np.int64), 0, max(nx - 2, 0))
-        iy = np.clip(np.floor(fy).astype(np.int64), 0, max(ny - 2, 0))
-        tx = np.clip(fx - ix, 0.0, 1.0)
-        h = self.heights
-        if ny == 1:
-            val = (1 - tx) * h[0, ix] + tx * h[0, ix + 1]
-        else:
-            ty = np.clip(fy - iy, 0.0, 1.0)
-            val = ((1 - ty) * ((1 - tx) * h[iy, ix] + tx * h[iy, ix + 1])
-                   + ty * ((1 - tx) * h[iy + 1, ix] + tx * h[iy + 1, ix + 1]))
-        return np.where(inside, val, 0.0)
+        return self.record.height_at(x, y)
 
+    def bounds(self):
+        """``(xmin, xmax, ymin, ymax)`` in m of an isolated defect (an edge spans all y); else None."""
+        r = self.record
+        if r.kind == "defect":
+            x0, y0 = r.position_m
+            h = r.size_m / 2
+            if r.shape == "edge_step":
+                return (x0 - h, x0 + h, -math.inf, math.inf)
+            return (x0 - h, x0 + h, y0 - h, y0 + h)
+        return None  # extended textures (gratings, height maps) may exceed the scanned strip
+
+    def peak(self) -> float:
+        """Largest |height| in m (the default reference height)."""
+        r = self.record
+        if r.kind in ("sinusoidal_grating", "square_wave_grating"):
+            return float(r.amplitude_m)
+        if r.kind == "defect":
+            return abs(float(r.height_m))
+        if r.kind == "height_map":
+            return float(np.max(np.abs(r.heights_m)))
+        return 0.0
+
+    def integral(self) -> float:
+        """``iint h dA`` in m^3 of a bump or dot defect (0 for other kinds)."""
+        r = self.record
+        if r.kind == "defect" and r.shape == "bump":
+            # iint 0.5 h (1 + cos(pi r / b)) 2 pi r dr over r < b = h b^2 (pi/2 - 2/pi)
+            b = r.size_m / 2
+            return r.height_m * b * b * (math.pi / 2 - 2 / math.pi)
+        if r.kind == "defect" and r.shape == "dot":
+            return r.height_m * math.pi * (r.size_m / 2) ** 2
+        return 0.0
+
+
+def as_feature(item) -> Feature:
+    """A :class:`Feature` as is, or a data_schemas surface record wrapped in :class:`RecordFeature`."""
+    return item if isinstance(item, Feature) else RecordFeature(item)
 
 
 @dataclass(frozen=True)
 class Surface:
     """Features on a finite rectangle ``x in [x_start, x_start + length]``, ``|y| <= width / 2`` (m).
 
+    ``features`` holds data_schemas surface records (wrapped in :class:`RecordFeature`) or
+    :class:`Feature` objects such as :class:`RandomSquareWaveGrating`.
+
     Raises
     ------
     ValueError
-        If an isolated feature (a defect, step or height map) lies outside the surface.
+        If an isolated feature (a defect or an edge) lies outside the surface.
     """
 
     length: float
@@ -271,12 +197,16 @@ class Surface:
         _pos(self.length, "length")
         _pos(self.width, "width")
         _finite(self.x_start, "x_start")
-        feats = tuple(self.features)
+        feats = []
+        for i, f in enumerate(self.features):
+            try:
+                feats.append(as_feature(f))
+            except ValueError:
+                raise ValueError(f"features[{i}]: expected a data_schemas surface record or a surface Feature "
+                                 f"(e.g. RandomSquareWaveGrating), got {type(f).__name__}") from None
+        feats = tuple(feats)
         x0, x1 = self.x_start, self.x_start + self.length
         for i, f in enumerate(feats):
-            if not isinstance(f, Feature):
-                raise ValueError(f"features[{i}]: expected a surface Feature (Bump, Step, grating, "
-                                 f"HeightMap), got {type(f).__name__}")
             b = f.bounds()
             if b is None:
                 continue

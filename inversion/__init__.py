@@ -1,7 +1,8 @@
 """tactilab.inversion: from sensor or receptor data back to the surface, with uncertainty.
 
 Regularised inversion (:func:`invert_linear`), the exact Gaussian posterior
-(:func:`gaussian_posterior`), MCMC over scene parameters (:func:`sample_scene_posterior`) and
+(:func:`gaussian_posterior`), MCMC over any model object (:func:`sample_posterior`, :class:`PosteriorModel`), over scene
+parameters (:func:`sample_scene_posterior`) and
 defect localisation. Import from here::
 
     from tactilab.inversion import invert_linear, gaussian_posterior, StationaryPrior
@@ -23,6 +24,10 @@ _EXPORTS = {
     "gaussian_posterior": "gaussian",
     "tikhonov_prior_spectrum": "gaussian",
     "MCMCResult": "mcmc",
+    "DefectPosterior": "mcmc",
+    "PosteriorModel": "sampler",
+    "sample_posterior": "sampler",
+    "mcmc_diagnostics": "sampler",
     "sample_scene_posterior": "mcmc",
     "invert_defect_position": "scene_inversion",
     "defect_profile": "scene_inversion",
@@ -36,8 +41,28 @@ _EXPORTS = {
     "rigid_surface_height_operator": "operators",
     "FourierDiagonal": "operators",
     "dottest": "operators",
+    "halfspace_strain_operator": "strain_operators",
+    "rigid_surface_height_strain_operator": "strain_operators",
     "plot_profile": "plots",
     "plot_corner": "plots",
+    "StimulusFamily": "metamer_families",
+    "SinusoidFamily": "metamer_families",
+    "IndentationFamily": "metamer_grids",
+    "GridLoadFamily": "metamer_grids",
+    "TractorFamily": "metamer_families",
+    "FamilyStimulus": "metamer_families",
+    "metamer_pair": "metameres",
+    "MetamerPair": "metameres",
+    "PairScore": "metameres",
+    "compare_stimuli": "metameres",
+    "metamer_classes": "metameres",
+    "MetamerClasses": "metameres",
+    "resolvable_subspace": "metamer_spectra",
+    "Subspace": "metamer_spectra",
+    "metamer_ambiguity": "metamer_spectra",
+    "Ambiguity": "metamer_spectra",
+    "invert_many": "batch",
+    "recording_keys": "batch",
 }
 
 __version__ = package_version()

@@ -51,10 +51,11 @@ class NormalSolver:
     """
 
     def __init__(self, op: LinearOperator, penalty: str, dims, spacing, rng: np.random.Generator,
-                 tol: float, max_iter: int):
+                 tol: float, max_iter: int, n_fields: int = 1):
         self.op, self.dims, self.tol, self.max_iter = op, tuple(dims), float(tol), int(max_iter)
         self.n = op.shape[1]
-        lmat = penalty_matrix(penalty, self.dims, spacing, periodic=False)
+        self.model_shape = (int(n_fields), *self.dims)  # load-major: one grid per load component
+        lmat = penalty_matrix(penalty, self.dims, spacing, periodic=False, n_fields=n_fields)
         self.lmat = lmat.tocsr()
         self.ltl = (lmat.T @ lmat).tocsc()
         # the dense path's eps I, so that log det and the null-space modes match it
@@ -63,7 +64,7 @@ class NormalSolver:
         az = np.column_stack([op.matvec(z[:, j]) for j in range(8)])
         self.c = float(np.sum(az * az) / (self.n * 8))
         self.l2 = penalty_symbol(penalty, self.dims, spacing)[..., : self.dims[-1] // 2 + 1]
-        self.axes = tuple(range(len(self.dims)))
+        self.axes = tuple(range(1, len(self.dims) + 1))
         self.iterations = 0
 
     def normal(self, lam: float) -> LinearOperator:
@@ -74,7 +75,7 @@ class NormalSolver:
         den = self.c + lam * self.l2
 
         def precondition(v):
-            spec = np.fft.rfftn(np.asarray(v).reshape(self.dims), axes=self.axes) / den
+            spec = np.fft.rfftn(np.asarray(v).reshape(self.model_shape), axes=self.axes) / den
             return np.fft.irfftn(spec, s=self.dims, axes=self.axes).ravel()
 
         count = [0]

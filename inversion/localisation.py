@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .mcmc import sample_scene_posterior
 from .scene_params import NONLINEAR, DefectScanModel, Normal, Uniform
 
 __all__ = ["cramer_rao", "square_sensors", "localisation_study", "plot_localisation", "DEFAULT_SCENE"]
@@ -96,8 +97,6 @@ def localisation_study(n_sides=(1, 2, 3, 4), components_sets=(("zz",), ("zx", "z
             row = {"n_sensors": n_side**2, "components": "+".join(comps), "crb_sd_x0_um": crb["sd_x0"] * 1e6,
                    "crb_sd_y0_um": crb["sd_y0"] * 1e6}
             if mcmc:
-                from .mcmc import sample_scene_posterior
-
                 data = model.simulate(params, area).ravel() + rng.normal(0, noise_std, model.n_data)
                 priors = dict(params, x0=Uniform(-3e-3, 3e-3), y0=Uniform(-2e-3, 2e-3))
                 res = sample_scene_posterior(model, data, noise_std, priors, Normal(0.0, 10 * area), rng=rng,
@@ -112,12 +111,10 @@ def localisation_study(n_sides=(1, 2, 3, 4), components_sets=(("zz",), ("zx", "z
 
 def plot_localisation(table, path) -> None:
     """CRB (lines) and posterior sd (markers, if present) of x0 and y0 vs number of sensors (PNG)."""
-    import matplotlib
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    fig = Figure(figsize=(10, 4))
+    axes = fig.subplots(1, 2, sharey=True)
     for ax, coord in zip(axes, ("x0", "y0")):
         for i, (comps, grp) in enumerate(table.groupby("components", sort=False)):
             ax.loglog(grp["n_sensors"], grp[f"crb_sd_{coord}_um"], "-", color=f"C{i}", label=f"CRB, {comps}")
@@ -128,4 +125,3 @@ def plot_localisation(table, path) -> None:
         ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)

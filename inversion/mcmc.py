@@ -1,4 +1,5 @@
-"""Posterior sampling of scene parameters with emcee, convergence judged across ensembles by arviz.
+"""Posterior of the defect scene parameters: a :class:`~tactilab.inversion.sampler.PosteriorModel`
+sampled by :func:`~tactilab.inversion.sampler.sample_posterior`.
 
 Model: ``d = S g(theta) + e``, ``e ~ N(0, sigma^2 I)``, with ``theta`` the nonlinear scene
 parameters (priors stated in the call, fixed ones not sampled) and ``S`` a linear amplitude
@@ -6,38 +7,28 @@ parameters (priors stated in the call, fixed ones not sampled) and ``S`` a linea
 
     log p(d | theta) = log N(d; m_S g, sigma^2 I + s_S^2 g g^T)      (Sherman-Morrison)
 
-and drawn afterwards from its exact conditional ``p(S | theta, d)`` for every kept sample, so the
-output holds joint posterior draws of ``(theta, S)``.
+and drawn afterwards from its exact conditional ``p(S | theta, d)`` for every kept draw, so the
+output holds joint posterior draws of ``(theta, S)``; the per-observation log-likelihood
+``log N(d_i; S g_i(theta), sigma^2)`` of each joint draw fills the tree's ``log_likelihood`` group.
 
-Sampling: ``n_ensembles`` (>= 4) independent ``emcee.EnsembleSampler`` runs with
-``vectorize=True``. Each ensemble starts in a small ball around its OWN MAP estimate (best of a
-prior multistart with its own rng, polished by Nelder-Mead), so ensembles that find different
-modes disagree visibly. Every ``check_every`` steps, on the second half of the chains:
-
-- rank-normalised split R-hat (arviz) between ensembles (each ensemble's draws, step by step
-  over its walkers, pooled as one chain) < ``rhat_target``; the R-hat with every walker as a
-  chain is reported too (walkers of one ensemble are not independent chains, so it is not a
-  stopping rule);
-- bulk and tail ESS (arviz, every walker a chain) >= ``min_ess``;
-- chain length >= ``tau_factor`` x the integrated autocorrelation time (emcee, per ensemble).
-Sampling stops when all hold (``converged=True``) or at ``max_steps`` (``converged=False``, the
-failing checks listed in ``message``). Parameters whose posterior sd exceeds
-``flat_ratio`` x their prior sd AND whose marginal is close to the prior (two-sample KS statistic
-against prior draws < 0.1; a bimodal posterior is wide but not prior-like) are reported as flat.
+Sampling, starts at each ensemble's MAP, R-hat / ESS / autocorrelation stopping: see
+:mod:`tactilab.inversion.sampler`. Parameters whose posterior sd exceeds ``flat_ratio`` x their
+prior sd AND whose marginal is close to the prior (two-sample KS statistic against prior draws
+< 0.1; a bimodal posterior is wide but not prior-like) are reported as flat.
 """
 
 from __future__ import annotations
 
-import math
+import json
 from dataclasses import dataclass, field
 
-import emcee
 import numpy as np
-from scipy.optimize import minimize
+from scipy.stats import ks_2samp
 
+from .sampler import sample_posterior
 from .scene_params import NONLINEAR, Normal, check_prior
 
-__all__ = ["sample_scene_posterior", "MCMCResult"]
+__all__ = ["sample_scene_posterior", "MCMCResult", "DefectPosterior"]
 
 
 @dataclass
@@ -79,16 +70,46 @@ class MCMCResult:
         self.tree.to_netcdf(path, engine="h5netcdf")
 
 
-class _LogPosterior:
-    """Picklable, vectorised log posterior of the sampled parameters (amplitude integrated out)."""
+class DefectPosterior:
+    """The defect model as a :class:`~tactilab.inversion.sampler.PosteriorModel` (picklable, vectorised).
+
+    Parameters
+    ----------
+    model : DefectScanModel or any object with ``design(params) -> (W, n_data)`` and ``n_data``
+    data : ndarray, shape (n_data,)
+        Observations, Pa (stress) or strain, as the model predicts.
+    noise_std : float
+        Noise standard deviation, data units.
+    priors : dict
+        Every name in ``NONLINEAR`` -> a prior (sampled) or a float (fixed).
+    amplitude_prior : Normal
+        Gaussian prior of the linear amplitude ``S`` (m^2), integrated out.
+    """
+
+    vectorized = True
+    marginalised_names = ("amplitude",)
+    units = "x0, y0, depth: m; young_modulus: Pa; normal_force: N; amplitude: m^2"
 
     def __init__(self, model, data, noise_std, priors, amplitude_prior):
         self.model = model
-        self.data = data
-        self.s2 = noise_std**2
+        self.data = np.asarray(data, dtype=float)
+        self.noise_std = float(noise_std)
+        self.s2 = self.noise_std**2
         self.priors = priors
         self.sampled = tuple(k for k in NONLINEAR if not isinstance(priors[k], float))
         self.amp = amplitude_prior
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return self.sampled
+
+    @property
+    def observed(self) -> np.ndarray:
+        return self.data
+
+    @property
+    def scale(self) -> np.ndarray:
+        return np.array([self.priors[k].std for k in self.sampled])
 
     def params(self, theta):
         theta = np.atleast_2d(theta)
@@ -115,62 +136,38 @@ class _LogPosterior:
         cmean = (g @ self.data / self.s2 + m / v) / prec
         return ll, cmean, 1.0 / prec
 
-    def __call__(self, theta):
-        theta = np.atleast_2d(theta)
+    def _design(self, theta):
         params = self.params(theta)
-        lp = np.zeros(theta.shape[0])
+        return np.concatenate([self.model.design({q: v[i:i + 256] for q, v in params.items()})
+                               for i in range(0, theta.shape[0], 256)])
+
+    def log_prior(self, theta):
+        """Sum of the sampled parameters' log priors, theta shape (W, P) -> (W,)."""
+        params = self.params(theta)
+        lp = np.zeros(params[NONLINEAR[0]].shape[0])
         for k in self.sampled:
             lp = lp + self.priors[k].logpdf(params[k])
-        ok = np.isfinite(lp)
-        out = np.full(theta.shape[0], -np.inf)
-        if ok.any():
-            g = self.model.design({k: v[ok] for k, v in params.items()})
-            ll, _, _ = self.marginal(g)
-            out[ok] = lp[ok] + ll
-        return out
+        return lp
 
+    def log_marginal_likelihood(self, theta):
+        """``log p(d | theta)`` with the amplitude integrated out, theta (W, P) -> (W,)."""
+        return self.marginal(self._design(np.atleast_2d(theta)))[0]
 
-def _map_start(logp: _LogPosterior, rng, n_start: int):
-    """Best of a prior multistart, polished by Nelder-Mead in prior-scaled coordinates."""
-    cand = np.column_stack([logp.priors[k].sample(rng, n_start) for k in logp.sampled])
-    vals = logp(cand)
-    best = cand[int(np.argmax(vals))]
-    scale = np.array([logp.priors[k].std for k in logp.sampled])
-    res = minimize(lambda z: -float(logp((best + z * scale)[None, :])[0]), np.zeros(best.size),
-                   method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-3, "maxfev": 600})
-    polished = best + res.x * scale
-    return polished if np.isfinite(logp(polished[None, :])[0]) else best
+    def initial(self, rng, n):
+        """``n`` prior draws, shape (n, P)."""
+        return np.column_stack([self.priors[k].sample(rng, n) for k in self.sampled])
 
+    def draw_marginalised(self, theta, rng):
+        """The amplitude from its exact conditional given each row of theta (N, P)."""
+        _, cmean, cvar = self.marginal(self._design(np.atleast_2d(theta)))
+        return {"amplitude": cmean + np.sqrt(cvar) * rng.standard_normal(cmean.size)}
 
-def _diagnostics(chains: np.ndarray, tau_factor: float, rhat_target: float, min_ess: float) -> dict:
-    """chains: (K, steps, W, P) of the kept half."""
-    import arviz_stats as azs
-
-    k, n, w, p = chains.shape
-    per_walker = chains.transpose(0, 2, 1, 3).reshape(k * w, n, p)
-    per_ensemble = chains.reshape(k, n * w, p)
-    rhat = np.atleast_1d(azs.rhat(per_walker, chain_axis=0, draw_axis=1))
-    rhat_between = np.atleast_1d(azs.rhat(per_ensemble, chain_axis=0, draw_axis=1))
-    ess_bulk = np.atleast_1d(azs.ess(per_walker, method="bulk", chain_axis=0, draw_axis=1))
-    ess_tail = np.atleast_1d(azs.ess(per_walker, method="tail", prob=(0.05, 0.95), chain_axis=0, draw_axis=1))
-    # tol=0: no emcee warning; the length check against tau_factor x tau is ours, below
-    tau = max(float(np.max(emcee.autocorr.integrated_time(chains[i], c=5, tol=0))) for i in range(k))
-    diag = {
-        "rhat_max": float(np.max(rhat)), "rhat_between_max": float(np.max(rhat_between)),
-        "ess_bulk_min": float(np.min(ess_bulk)), "ess_tail_min": float(np.min(ess_tail)),
-        "tau_max": tau, "n_kept": n,
-    }
-    failed = []
-    if not diag["rhat_between_max"] < rhat_target:
-        failed.append(f"R-hat between ensembles {diag['rhat_between_max']:.4f} >= {rhat_target}")
-    if not diag["ess_bulk_min"] >= min_ess:
-        failed.append(f"bulk ESS {diag['ess_bulk_min']:.0f} < {min_ess}")
-    if not diag["ess_tail_min"] >= min_ess:
-        failed.append(f"tail ESS {diag['ess_tail_min']:.0f} < {min_ess}")
-    if not n >= tau_factor * tau:
-        failed.append(f"kept chain {n} steps < {tau_factor} x autocorrelation time {tau:.1f}")
-    diag["failed"] = failed
-    return diag
+    def log_likelihood(self, theta):
+        """Per-observation ``log N(d_i; S g_i, sigma^2)``; theta (W, P + 1), amplitude last -> (W, n_data)."""
+        theta = np.atleast_2d(theta)
+        g = self._design(theta[:, :-1])
+        resid = self.data[None, :] - theta[:, -1:] * g
+        return -0.5 * (resid / self.noise_std) ** 2 - np.log(self.noise_std * np.sqrt(2 * np.pi))
 
 
 def sample_scene_posterior(
@@ -193,6 +190,9 @@ def sample_scene_posterior(
     flat_ratio: float = 0.8,
     burn_fraction: float = 0.25,
     progress: bool = False,
+    pool=None,
+    backend=None,
+    info_tol: float | None = None,
 ) -> MCMCResult:
     """Sample the posterior of scene parameters with emcee (see module docstring).
 
@@ -224,12 +224,15 @@ def sample_scene_posterior(
         quarter is ample); diagnostics and output use the rest.
     progress : bool
         tqdm progress bar over convergence checks.
+    pool, backend, info_tol
+        Passed to :func:`~tactilab.inversion.sampler.sample_posterior` (a ``pool`` with ``map``,
+        an emcee backend for checkpointing, the no-information threshold of the log-likelihood
+        group).
 
     Returns
     -------
     MCMCResult
     """
-    import arviz_base as azb
     import arviz_stats as azs
 
     d = np.asarray(data, dtype=float).ravel()
@@ -247,100 +250,36 @@ def sample_scene_posterior(
     priors = {k: check_prior(k, v) for k, v in priors.items()}
     if not isinstance(amplitude_prior, Normal):
         raise ValueError(f"amplitude_prior: must be a Normal prior (integrated out exactly), got {amplitude_prior!r}")
-    if not (0.0 <= burn_fraction <= 0.9):
-        raise ValueError(f"burn_fraction: must lie in [0, 0.9], got {burn_fraction!r}")
-    if int(n_ensembles) < 4:
-        raise ValueError(f"n_ensembles: need at least 4 independent ensembles to judge convergence, got {n_ensembles}")
-    logp = _LogPosterior(model, d, float(noise_std), priors, amplitude_prior)
-    sampled = logp.sampled
+    defect = DefectPosterior(model, d, float(noise_std), priors, amplitude_prior)
+    sampled = defect.sampled
     if not sampled:
         raise ValueError("priors: every parameter is fixed; give at least one a prior (e.g. x0=Uniform(-5e-3, 5e-3))")
-    ndim = len(sampled)
-    n_walkers = int(n_walkers) if n_walkers is not None else max(16, 4 * ndim)
-    n_walkers += n_walkers % 2
-    if n_walkers < 2 * ndim:
-        raise ValueError(f"n_walkers: emcee needs at least 2 x n_parameters = {2 * ndim} walkers, got {n_walkers}")
-    seeds = rng.spawn(int(n_ensembles))
-    samplers, starts, maps = [], [], []
-    scale = np.array([priors[k].std for k in sampled])
-    for sub in seeds:
-        best = _map_start(logp, sub, n_start)
-        maps.append(dict(zip(sampled, best.tolist())))
-        p0 = best + 1e-3 * scale * sub.standard_normal((n_walkers, ndim))
-        bad = ~np.isfinite(logp(p0))
-        p0[bad] = best
-        starts.append(p0)
-        sampler = emcee.EnsembleSampler(n_walkers, ndim, logp, vectorize=True)
-        # emcee draws its proposals from a legacy RandomState: seed it from this ensemble's rng
-        sampler.random_state = np.random.RandomState(int(sub.integers(2**31))).get_state()
-        samplers.append(sampler)
-    n_checks = max(1, math.ceil(max_steps / check_every))
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=n_checks * check_every, desc="emcee (all ensembles)", unit="step")
-    diag = None
-    steps = 0
-    for _ in range(n_checks):
-        chunk = min(check_every, max_steps - steps)
-        for i, s in enumerate(samplers):
-            s.run_mcmc(starts[i] if steps == 0 else None, chunk, progress=False)
-        steps += chunk
-        if bar is not None:
-            bar.update(chunk)
-        chains = np.stack([s.get_chain() for s in samplers])[:, int(steps * burn_fraction):]
-        diag = _diagnostics(chains, tau_factor, rhat_target, min_ess)
-        if not diag["failed"] or steps >= max_steps:
-            break
-    if bar is not None:
-        bar.close()
-    converged = not diag["failed"]
-    diag.update(n_steps=steps, n_walkers=n_walkers, n_ensembles=int(n_ensembles), burn_in=int(steps * burn_fraction))
-    burn = int(steps * burn_fraction)
-    kept = np.stack([s.get_chain() for s in samplers])[:, burn:]  # (K, n, W, P)
-    lps = np.stack([s.get_log_prob() for s in samplers])[:, burn:]
-    k, n, w, _ = kept.shape
-    # one DataTree chain per ensemble; its draws run step by step over the walkers
-    kept, lps = kept.reshape(k, n * w, ndim), lps.reshape(k, n * w)
-    stride = max(1, math.ceil(k * n * w / max_draws))
-    kept, lps = kept[:, ::stride], lps[:, ::stride]
-    n = kept.shape[1]
-    flat = kept.reshape(k * n, ndim)
-    params = logp.params(flat)
-    g = np.concatenate([model.design({q: v[i:i + 256] for q, v in params.items()})
-                        for i in range(0, flat.shape[0], 256)])
-    _, cmean, cvar = logp.marginal(g)
-    amp = cmean + np.sqrt(cvar) * rng.standard_normal(cmean.size)
-    resid = d[None, :] - amp[:, None] * g
-    pointwise = -0.5 * (resid / noise_std) ** 2 - np.log(noise_std * np.sqrt(2 * np.pi))
-    shape = (k, n)
-    posterior = {name: flat[:, j].reshape(shape) for j, name in enumerate(sampled)}
-    posterior["amplitude"] = amp.reshape(shape)
-    attrs = {key: (float(v) if not isinstance(v, list) else "; ".join(v)) for key, v in diag.items()}
-    attrs.update(converged=int(converged), fixed=", ".join(f"{q}={priors[q]:.6g}" for q in NONLINEAR if q not in sampled),
+    tree = sample_posterior(defect, rng, n_ensembles=n_ensembles, n_walkers=n_walkers, max_steps=max_steps,
+                            check_every=check_every, rhat_target=rhat_target, min_ess=min_ess,
+                            tau_factor=tau_factor, n_start=n_start, max_draws=max_draws,
+                            burn_fraction=burn_fraction, info_tol=info_tol, progress=progress, pool=pool,
+                            backend=backend)
+    attrs = tree.attrs
+    converged = bool(attrs["converged"])
+    diag = {key: attrs[key] for key in ("rhat_max", "rhat_between_max", "ess_bulk_min", "ess_tail_min", "tau_max",
+                                        "n_kept", "n_steps", "n_walkers", "n_ensembles", "burn_in")}
+    for key in ("n_kept", "n_steps", "n_walkers", "n_ensembles", "burn_in"):
+        diag[key] = int(diag[key])
+    diag["failed"] = [f for f in attrs["failed"].split("; ") if f]
+    attrs.update(fixed=", ".join(f"{q}={priors[q]:.6g}" for q in NONLINEAR if q not in sampled),
                  priors="; ".join(f"{q}={priors[q]!r}" for q in sampled), amplitude_prior=repr(amplitude_prior),
-                 noise_std=float(noise_std), units="x0, y0, depth: m; young_modulus: Pa; normal_force: N; amplitude: m^2")
-    tree = azb.from_dict(
-        {"posterior": posterior,
-         "log_likelihood": {"obs": pointwise.reshape(*shape, d.size)},
-         "observed_data": {"obs": d},
-         "sample_stats": {"lp": lps}},
-        dims={"obs": ["obs_id"]}, attrs={"/": attrs})
+                 noise_std=float(noise_std))
     summary = azs.summary(tree, round_to="none")
-    from scipy.stats import ks_2samp
+    posterior = tree["posterior"]
 
     def prior_like(q):
-        draws = posterior[q].ravel()
+        draws = posterior[q].values.ravel()
         return ks_2samp(draws, priors[q].sample(rng, draws.size)).statistic < 0.1
 
-    flats = [q for q in sampled if posterior[q].std() > flat_ratio * priors[q].std and prior_like(q)]
-    lines = [("converged" if converged else "did NOT converge") + f" after {steps} steps x {w} walkers x {k} ensembles",
-             f"R-hat max {diag['rhat_max']:.4f} (walkers), {diag['rhat_between_max']:.4f} (between ensembles); "
-             f"ESS bulk {diag['ess_bulk_min']:.0f}, tail {diag['ess_tail_min']:.0f}; tau {diag['tau_max']:.1f} steps"]
-    if diag["failed"]:
-        lines.append("failing checks: " + "; ".join(diag["failed"]))
+    flats = [q for q in sampled if posterior[q].values.std() > flat_ratio * priors[q].std and prior_like(q)]
+    message = attrs["message"]
     if flats:
-        lines.append("flat likelihood (posterior ~ prior, data uninformative) in: " + ", ".join(flats))
+        message += "\nflat likelihood (posterior ~ prior, data uninformative) in: " + ", ".join(flats)
+    attrs["message"] = message
     return MCMCResult(tree=tree, converged=converged, diagnostics=diag, summary=summary, flat_parameters=flats,
-                      map_estimates=maps, message="\n".join(lines), sampled=sampled)
+                      map_estimates=json.loads(attrs["map_estimates"]), message=message, sampled=sampled)

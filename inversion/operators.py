@@ -1,4 +1,5 @@
-"""Linear operators used by the inversions: a Fourier-diagonal (circulant) operator and a dot test.
+"""Linear operators used by the inversions: a Fourier-diagonal (circulant) operator (the dot test
+is the solver's, :func:`tactilab.forward.halfspace.dottest`, re-exported here).
 
 The forward map from a surface load to sensors at depth is, on a periodic grid with a sensor at
 every node, a convolution: it is diagonal in Fourier space with a multiplier ``H(k)`` (the
@@ -7,7 +8,8 @@ O(n log n) with real FFTs and carries ``dims`` / ``dimsd`` like PyLops operators
 
 Fourier convention (docs/theory.md section 1): ``f~(k) = sum_x f(x) exp(-i k x)``, angular
 wavenumbers ``k = 2 pi * fftfreq(n, dx)`` in rad/m. A multiplier is given on the FULL grid in
-``numpy.fft.fftfreq`` order (shape equal to the model shape); it must be Hermitian,
+``numpy.fft.fftfreq`` order (shape equal to the model shape; wavenumbers from
+:func:`tactilab.forward.halfspace.angular_wavenumbers`, x first); it must be Hermitian,
 ``H(-k) = conj(H(k))``, so that the operator maps real arrays to real arrays.
 """
 
@@ -16,43 +18,17 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
+from tactilab.forward.halfspace import angular_wavenumbers, dottest, transfer  # noqa: F401 (dottest: re-export)
+
 __all__ = [
     "rigid_surface_height_operator",
     "FourierDiagonal",
-    "angular_wavenumbers",
     "normal_pressure_to_szz_multiplier",
     "halfspace_fourier_operator",
     "dottest",
+    "model_layout",
+    "as_fourier_diagonal",
 ]
-
-
-def angular_wavenumbers(shape: tuple[int, ...], spacing) -> tuple[np.ndarray, ...]:
-    """Angular wavenumbers (rad/m) of a periodic grid, one array per axis, broadcastable.
-
-    Parameters
-    ----------
-    shape : tuple of int
-        Grid shape ``(nx,)`` or ``(ny, nx)``.
-    spacing : float or tuple of float
-        Grid spacing in m, ``dx`` or ``(dx, dy)``; for 2-D grids the order is (dx, dy) as in
-        :class:`tactilab.forward.halfspace.loads.SurfaceLoad`.
-
-    Returns
-    -------
-    tuple of ndarray
-        ``(xi,)`` of shape (nx,) in 1-D; ``(eta, xi)`` of shapes (ny, 1) and (1, nx) in 2-D,
-        in ``fftfreq`` order.
-    """
-    spacing = np.atleast_1d(np.asarray(spacing, dtype=float))
-    if spacing.size == 1:
-        spacing = np.repeat(spacing, len(shape))
-    if len(shape) == 1:
-        return (2 * np.pi * np.fft.fftfreq(shape[0], spacing[0]),)
-    if len(shape) == 2:
-        xi = 2 * np.pi * np.fft.fftfreq(shape[1], spacing[0])[None, :]
-        eta = 2 * np.pi * np.fft.fftfreq(shape[0], spacing[1])[:, None]
-        return eta, xi
-    raise ValueError(f"shape: expected a 1-D (nx,) or 2-D (ny, nx) grid, got {shape}")
 
 
 def normal_pressure_to_szz_multiplier(n: int, dx: float, depth: float) -> np.ndarray:
@@ -109,14 +85,12 @@ def halfspace_fourier_operator(shape, spacing, depth: float, nu: float = 0.5, lo
     component : str
         Stress component (Voigt name) the sensors measure, Pa.
     """
-    from tactilab.forward.halfspace import transfer
-
     shape = tuple(int(v) for v in shape)
     ks = angular_wavenumbers(shape, spacing)
     if len(shape) == 1:
         full = transfer(ks[0], None, depth, nu, load, (component,))[0]
     else:
-        eta, xi = np.broadcast_arrays(*ks)
+        xi, eta = np.broadcast_arrays(*ks)
         full = transfer(xi, eta, depth, nu, load, (component,))[0]
     full = np.array(full, dtype=complex)
     for axis, n in enumerate(shape):
@@ -147,6 +121,54 @@ def rigid_surface_height_operator(n: int, spacing: float, depth: float, young_mo
     (k,) = angular_wavenumbers((int(n),), spacing)
     p_to_szz = halfspace_fourier_operator((int(n),), spacing, depth, poisson_ratio).multiplier
     return FourierDiagonal(p_to_szz * young_modulus * np.abs(k) / (2 * (1 - poisson_ratio**2)), spacing)
+
+
+def model_layout(operator) -> tuple[tuple[int, ...], int]:
+    """Grid shape and number of load components of an operator's model vector.
+
+    The convention shared with the forward solver's
+    :class:`~tactilab.forward.halfspace.LoadToSensor`: ``dims`` is the grid shape, an optional
+    ``loads`` attribute names the load components, and the model vector is load-major (all
+    nodes of the first load, then the next). Operators without ``dims`` (matrices, plain
+    LinearOperators) are one field on a 1-D grid of ``shape[1]`` nodes.
+
+    Returns
+    -------
+    dims : tuple of int
+        The grid shape, ``(nx,)`` or ``(ny, nx)``.
+    n_fields : int
+        ``len(operator.loads)``, else 1.
+
+    Raises
+    ------
+    ValueError
+        When ``len(loads) * prod(dims)`` is not the operator's model size.
+    """
+    n_model = int(operator.shape[1])
+    dims = getattr(operator, "dims", None)
+    if dims is None or isinstance(operator, np.ndarray):
+        return (n_model,), 1
+    dims = tuple(int(v) for v in dims)
+    n_fields = len(getattr(operator, "loads", ("model",)))
+    if len(dims) not in (1, 2) or n_fields * int(np.prod(dims)) != n_model:
+        raise ValueError(
+            f"operator: dims {dims} with {n_fields} load component(s) do not make its {n_model} model values; "
+            "dims must be the grid shape (nx,) or (ny, nx), with the loads stacked load-major")
+    return dims, n_fields
+
+
+def as_fourier_diagonal(operator):
+    """The :class:`FourierDiagonal` form of an operator when it has one, else ``operator``.
+
+    A forward :class:`~tactilab.forward.halfspace.LoadToSensor` that is circulant (periodic
+    grid, a sensor at every node) with one load and one component is the same map as a
+    FourierDiagonal with its exact multiplier, so the inversion can take the fft path.
+    """
+    if isinstance(operator, FourierDiagonal) or not getattr(operator, "circulant", False):
+        return operator
+    if len(operator.loads) != 1 or len(operator.components) != 1:
+        return operator
+    return FourierDiagonal(operator.fourier_multiplier()[0, 0], operator.spacing)
 
 
 def _half(full: np.ndarray) -> np.ndarray:
@@ -208,7 +230,8 @@ class FourierDiagonal(LinearOperator):
 
     @property
     def wavenumbers(self) -> tuple[np.ndarray, ...]:
-        """Angular wavenumbers in rad/m on the full grid (see :func:`angular_wavenumbers`)."""
+        """Angular wavenumbers ``(xi,)`` or ``(xi, eta)`` in rad/m on the full grid, x first
+        (see :func:`tactilab.forward.halfspace.angular_wavenumbers`)."""
         return angular_wavenumbers(self.dims, self.spacing)
 
     def _apply(self, x: np.ndarray, mult: np.ndarray) -> np.ndarray:
@@ -247,32 +270,3 @@ def _rfft_weights(shape: tuple[int, ...]) -> np.ndarray:
     if n_last % 2 == 0:
         w[-1] = 1.0
     return np.broadcast_to(w, (*shape[:-1], half)).copy()
-
-
-def dottest(op: LinearOperator, rng: np.random.Generator, rtol: float = 1e-10) -> float:
-    """Dot test of an operator's adjoint: ``|<A x, y> - <x, A^T y>| / scale``.
-
-    Parameters
-    ----------
-    op : LinearOperator
-        Real operator with matvec and rmatvec.
-    rng : numpy.random.Generator
-        Source of the random test vectors.
-    rtol : float
-        Relative tolerance; a ValueError is raised when the mismatch exceeds it.
-
-    Returns
-    -------
-    float
-        Relative mismatch.
-    """
-    m, n = op.shape
-    x = rng.standard_normal(n)
-    y = rng.standard_normal(m)
-    lhs = float(np.dot(op.matvec(x), y))
-    rhs = float(np.dot(x, op.rmatvec(y)))
-    scale = max(abs(lhs), abs(rhs), np.finfo(float).tiny)
-    err = abs(lhs - rhs) / scale
-    if not err <= rtol:
-        raise ValueError(f"dottest: adjoint mismatch {err:.3e} exceeds rtol={rtol:g}: <Ax,y>={lhs!r}, <x,A^T y>={rhs!r}")
-    return err

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .operators import angular_wavenumbers
+from tactilab.forward.halfspace import angular_wavenumbers
 
 PENALTIES = ("identity", "gradient", "curvature")
 
@@ -59,10 +59,8 @@ def penalty_symbol(penalty: str, shape: tuple[int, ...], spacing) -> np.ndarray:
         return np.ones(shape)
     ks = angular_wavenumbers(shape, spacing)
     d = _spacings(shape, spacing)
-    # axis order of ks is (eta, xi) in 2-D while spacing is (dx, dy)
-    steps = d[::-1] if len(shape) == 2 else d
     lap = np.zeros(shape)
-    for k, h in zip(ks, steps):
+    for k, h in zip(ks, d):  # both x first: (xi, eta) and (dx, dy)
         lap = lap + 4.0 * np.sin(k * h / 2.0) ** 2 / h**2
     return lap if penalty == "gradient" else lap**2
 
@@ -93,17 +91,43 @@ def difference_matrix(n: int, dx: float, order: int, periodic: bool) -> sp.csr_m
     return (mat / dx**order).tocsr()
 
 
-def penalty_matrix(penalty: str, shape: tuple[int, ...], spacing, periodic: bool = False) -> sp.csr_matrix:
+def penalty_matrix(penalty: str, shape: tuple[int, ...], spacing, periodic: bool = False,
+                   n_fields: int = 1) -> sp.csr_matrix:
     """Sparse penalty matrix ``L`` acting on the flattened model (C order).
 
     With ``periodic=True`` ``L.T @ L`` is the circulant matrix of :func:`penalty_symbol`.
 
+    Parameters
+    ----------
+    penalty : {"identity", "gradient", "curvature"}
+    shape : tuple of int
+        Grid shape ``(nx,)`` or ``(ny, nx)`` (an operator's ``dims``).
+    spacing : float or (float, float)
+        Grid spacing in m, ``dx`` or ``(dx, dy)``.
+    periodic : bool
+        Wrap the differences around the grid (else free ends).
+    n_fields : int
+        Load components stacked load-major in the model (an operator's ``len(loads)``): the
+        penalty acts on each separately (block diagonal), never across components.
+
     Returns
     -------
-    scipy.sparse.csr_matrix, shape (n_rows, prod(shape))
+    scipy.sparse.csr_matrix, shape (n_fields * n_rows, n_fields * prod(shape))
     """
     check_penalty(penalty)
+    if int(n_fields) != n_fields or n_fields < 1:
+        raise ValueError(f"n_fields: need a whole number >= 1 of load components, got {n_fields!r}; e.g. len(op.loads)")
+    one = _grid_penalty_matrix(penalty, shape, spacing, periodic)
+    if n_fields == 1:
+        return one
+    return sp.block_diag([one] * int(n_fields), format="csr")
+
+
+def _grid_penalty_matrix(penalty: str, shape, spacing, periodic: bool) -> sp.csr_matrix:
     shape = tuple(int(s) for s in shape)
+    if len(shape) not in (1, 2):
+        raise ValueError(f"shape: penalties act on a 1-D (nx,) or 2-D (ny, nx) grid, got {shape}; "
+                         "pass the grid shape (an operator's dims), not the stacked model shape")
     d = _spacings(shape, spacing)
     n = int(np.prod(shape))
     if penalty == "identity":

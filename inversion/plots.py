@@ -13,13 +13,11 @@ __all__ = ["plot_profile", "plot_corner"]
 def plot_profile(x, mean, std, path, *, truth=None, ylabel="load density (mm^2 / mm)", yscale=1e3,
                  title="Profile with 95% credible band", true_label="truth") -> None:
     """Posterior mean with a pointwise 95% band (mean +- 1.96 std) against x in mm."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     x_mm = np.asarray(x) * 1e3
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig = Figure(figsize=(8, 4))
+    ax = fig.subplots()
     lo, hi = (np.asarray(mean) - 1.96 * np.asarray(std)) * yscale, (np.asarray(mean) + 1.96 * np.asarray(std)) * yscale
     ax.fill_between(x_mm, lo, hi, color="C0", alpha=0.3, label="95% credible band")
     ax.plot(x_mm, np.asarray(mean) * yscale, "C0-", label="posterior mean")
@@ -29,15 +27,11 @@ def plot_profile(x, mean, std, path, *, truth=None, ylabel="load density (mm^2 /
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
 
 
 def plot_corner(tree, path, *, truth: dict | None = None, bins: int = 30) -> None:
     """Corner plot of every posterior variable of an arviz DataTree (units from SCALE)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     post = tree["posterior"]
     names = list(post.data_vars)
@@ -46,7 +40,8 @@ def plot_corner(tree, path, *, truth: dict | None = None, bins: int = 30) -> Non
     for n in names:
         s, _ = SCALE.get(n, (1.0, ""))
         vals[n] = np.asarray(post[n].values).ravel() * s
-    fig, axes = plt.subplots(k, k, figsize=(2.4 * k + 1, 2.4 * k + 1), squeeze=False)
+    fig = Figure(figsize=(2.4 * k + 1, 2.4 * k + 1))
+    axes = fig.subplots(k, k, squeeze=False)
     for i, yi in enumerate(names):
         for j, xj in enumerate(names):
             ax = axes[i, j]
@@ -70,4 +65,3 @@ def plot_corner(tree, path, *, truth: dict | None = None, bins: int = 30) -> Non
     fig.suptitle("Posterior (emcee, all ensembles)")
     fig.tight_layout()
     fig.savefig(path, dpi=90)
-    plt.close(fig)

@@ -2,7 +2,7 @@
 along the scan line by the exact linear-Gaussian posterior.
 
 Data preparation (:func:`defect_problem`): the recording must match the scene's sensors (ids,
-components, quantity "stress") and scan (number of samples); the contact's own stress is constant
+components; quantity "stress" in Pa or "strain", tensor strain) and scan (number of samples); the contact's own stress is constant
 in the finger frame, so it is removed by subtracting each channel's median over time (the
 defect passes in a small share of the scan); the sensors with the largest signal are kept and
 the time axis is decimated to keep at most ``max_data`` values.
@@ -34,9 +34,9 @@ def defect_problem(scene, recording: Recording, max_data: int = 1500, max_sensor
     Returns
     -------
     model : DefectScanModel
-    data : ndarray, shape (model.n_data,), Pa (baseline removed)
+    data : ndarray, shape (model.n_data,), Pa or strain as recorded (baseline removed)
     info : dict
-        ``sensor_ids`` kept, ``time_stride``, ``noise_std`` (Pa), ``truth`` (the scene's defect
+        ``sensor_ids`` kept, ``time_stride``, ``noise_std`` (Pa or strain), ``quantity``, ``truth`` (the scene's defect
         position, for reports), ``contact_radius`` (m).
     """
     if scene.contact is None:
@@ -45,9 +45,9 @@ def defect_problem(scene, recording: Recording, max_data: int = 1500, max_sensor
         raise ValueError(f"scene.surface: the defect inversion needs an isolated defect surface, got kind "
                          f"{getattr(scene.surface, 'kind', None)!r}")
     recording.check_matches(scene.sensors)
-    if recording.quantity != "stress":
-        raise ValueError(f"recording.quantity: the defect model predicts stress (Pa), got {recording.quantity!r}; "
-                         "record stress sensors")
+    if recording.quantity not in ("stress", "strain"):
+        raise ValueError(f"recording.quantity: the defect model predicts stress (Pa) or tensor strain, got "
+                         f"{recording.quantity!r}; record stress or strain sensors")
     n = scene.scan.n_samples
     if recording.n_times != n:
         raise ValueError(f"recording: {recording.n_times} samples, but the scene's scan has {n} "
@@ -60,8 +60,8 @@ def defect_problem(scene, recording: Recording, max_data: int = 1500, max_sensor
                          f"{idx}; drop or interpolate bad samples")
     noise = float(scene.sensors.noise_std)
     if noise <= 0:
-        raise ValueError("scene.sensors.noise_std: the likelihood needs the noise level (Pa) > 0, got 0; "
-                         "set noise_std in the scene's [sensors] table")
+        raise ValueError(f"scene.sensors.noise_std: the likelihood needs the noise level ({recording.unit}) > 0, "
+                         "got 0; set noise_std in the scene's [sensors] table")
     signal = values - np.median(values, axis=0, keepdims=True)
     energy = np.sqrt(np.mean(signal**2, axis=(0, 2)))
     keep = np.sort(np.argsort(energy)[::-1][:max_sensors])
@@ -70,12 +70,14 @@ def defect_problem(scene, recording: Recording, max_data: int = 1500, max_sensor
     u = scene.scan.positions_m[::stride]
     c = scene.contact
     model = DefectScanModel(u, scene.sensors.positions_m[keep], recording.components,
-                            finger_radius=c.finger_radius_m, poisson_ratio=scene.material.poisson_ratio)
+                            finger_radius=c.finger_radius_m, poisson_ratio=scene.material.poisson_ratio,
+                            quantity=recording.quantity)
     from tactilab.forward.contact import HertzContact
 
     hertz = HertzContact(normal_force=c.normal_force_n, finger_radius=c.finger_radius_m,
                          young_modulus=scene.material.young_modulus_pa, poisson_ratio=scene.material.poisson_ratio)
     info = {"sensor_ids": [recording.sensor_ids[i] for i in keep], "time_stride": stride, "noise_std": noise,
+            "quantity": recording.quantity,
             "truth": tuple(scene.surface.position_m), "contact_radius": hertz.contact_radius}
     return model, signal[::stride][:, keep, :].ravel(), info
 

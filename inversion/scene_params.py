@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tactilab.forward.halfspace import point_green
+from tactilab.forward.halfspace import output_weights, point_green
 
 NONLINEAR = ("x0", "y0", "friction", "depth", "young_modulus", "normal_force")
 
@@ -129,20 +129,25 @@ class DefectScanModel:
     sensors : array_like, shape (n_sensors, 2)
         Finger-frame sensor positions (x, y), m.
     components : sequence of str
-        Stress components observed (Voigt names, e.g. ``("zz",)`` or ``("zx", "zz")``).
+        Components observed (Voigt names, e.g. ``("zz",)`` or ``("zx", "zz")``).
     finger_radius : float
         Fingertip radius of curvature, m.
     poisson_ratio : float
         Skin nu in [0, 0.5].
+    quantity : {"stress", "strain"}
+        What the sensors record: stress (Pa) or TENSOR strain (dimensionless, eps_ij; engineering
+        shear is 2 eps_ij). Strain is the stress at the sensor through the compliance rows of
+        :func:`tactilab.forward.halfspace.output_weights`, with the walker's ``young_modulus``.
 
     Notes
     -----
     :meth:`design` returns ``g(theta)``, shape ``(n_walkers, n_times * n_sensors * n_components)``
-    in Pa per m^2 of defect area, ordered (time, sensor, component) like a Recording's values.
+    in Pa (stress) or strain per m^2 of defect area, ordered (time, sensor, component) like a
+    Recording's values.
     """
 
     def __init__(self, scan_positions, sensors, components=("zz",), finger_radius: float = 0.01,
-                 poisson_ratio: float = 0.5):
+                 poisson_ratio: float = 0.5, quantity: str = "stress"):
         u = np.asarray(scan_positions, dtype=float).ravel()
         if u.size < 1 or not np.all(np.isfinite(u)):
             raise ValueError(f"scan_positions: need at least one finite position in m, got {scan_positions!r}")
@@ -157,6 +162,11 @@ class DefectScanModel:
             raise ValueError(f"finger_radius: must be > 0 m, got {finger_radius!r}")
         if not (0.0 <= poisson_ratio <= 0.5):
             raise ValueError(f"poisson_ratio: must lie in [0, 0.5], got {poisson_ratio!r}")
+        if quantity not in ("stress", "strain"):
+            raise ValueError(f"quantity: must be 'stress' (Pa) or 'strain' (tensor strain), got {quantity!r}")
+        self.quantity = quantity
+        # stress -> output rows with E = 1 Pa (strain rows scale as 1/E, applied per walker)
+        self._weights = output_weights(quantity, comps, 1.0, float(poisson_ratio))
         self.scan_positions = u
         self.sensors = s
         self.components = comps
@@ -197,14 +207,20 @@ class DefectScanModel:
         dx = self.sensors[None, None, :, 0] - xd
         dy = self.sensors[None, None, :, 1] - yd
         z = np.broadcast_to(p["depth"], dx.shape)
-        out = []
-        for comp in self.components:
-            gz = point_green(comp, "z", dx, dy, z, nu)
-            gx = point_green(comp, "x", dx, dy, z, nu)
-            out.append(pressure * (gz + p["friction"] * gx))
+        voigt = ("xx", "yy", "zz", "yz", "zx", "xy")
+        needed = [j for j in range(6) if np.any(self._weights[:, j] != 0.0)]
+        stress = {}
+        for j in needed:
+            gz = point_green(voigt[j], "z", dx, dy, z, nu)
+            gx = point_green(voigt[j], "x", dx, dy, z, nu)
+            stress[j] = pressure * (gz + p["friction"] * gx)
+        out = [sum(self._weights[c, j] * stress[j] for j in needed if self._weights[c, j] != 0.0)
+               for c in range(len(self.components))]
         sig = np.stack(out, axis=-1)  # (W, T, S, C)
+        if self.quantity == "strain":
+            sig = sig / p["young_modulus"][..., None]
         return sig.reshape(w, -1)
 
     def simulate(self, params: dict, area: float) -> np.ndarray:
-        """Noise-free signal for one parameter set, shape ``data_shape`` (Pa)."""
+        """Noise-free signal for one parameter set, shape ``data_shape`` (Pa, or strain)."""
         return (area * self.design(params)[0]).reshape(self.data_shape)

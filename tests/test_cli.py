@@ -102,7 +102,7 @@ def test_stress_command_reports_accuracy_warning_in_one_line(tmp_path, capsys):
     """A depth far below the grid spacing cannot meet tol: one 'warning:' line, no source line."""
     load = tmp_path / "load.npz"
     np.savez(load, p=np.ones((8, 8)), spacing=1e-4)
-    assert main(["stress", str(load), "--depth", "1nm", "--out", str(tmp_path / "o")]) == 0
+    assert main(["stress", str(load), "--depth", "1um", "--out", str(tmp_path / "o")]) == 0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("tactilab stress: warning: no method meets tol=1e-06")
 

@@ -114,7 +114,8 @@ def test_simulate_user_mistakes_exit_2(tmp_path, capsys):
 
 def test_write_recording_rejects_unknown_format(tmp_path):
     from tactilab.data_schemas.recording import Recording
-    from tactilab.forward.scene_simulation import simulate_scene, write_recording
+    from tactilab.data_schemas.recording_io import write_recording
+    from tactilab.forward.scene_simulation import simulate_scene
 
     rec = Recording(values=np.zeros((2, 1, 1)), sampling_rate_hz=10.0, sensor_ids=("s0",), components=("zz",))
     with pytest.raises(ValueError, match="format: must be one of"):

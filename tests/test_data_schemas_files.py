@@ -112,13 +112,19 @@ def test_every_depth_spelling_gives_the_same_si_value(depth, tmp_path):
     [
         ("200kPa", 'speed_mm_per_s = 20\nduration_ms = 500\nsampling_rate_khz = 2', 2e5, (0.02, 0.5, 2000.0)),
         ("0.2MPa", 'speed = "2cm/s"\nduration_s = 0.5\nsampling_rate_hz = 2000', 2e5, (0.02, 0.5, 2000.0)),
-        ("200000", 'speed_m_per_s = "20mm/s"\nduration = "0.5s"\nsampling_rate = "2000Hz"', 2e5, (0.02, 0.5, 2000.0)),
+        ("200000Pa", 'speed_m_per_s = "20mm/s"\nduration = "0.5s"\nsampling_rate = "2000Hz"', 2e5, (0.02, 0.5, 2000.0)),
     ],
 )
 def test_modulus_and_scan_spellings(E, scan, expected_E, expected_scan, tmp_path):
     s = load_scene(write_scene(tmp_path, E=E, scan=scan))
     assert s.material.young_modulus_pa == pytest.approx(expected_E, rel=1e-15)
     assert (s.scan.speed_m_per_s, s.scan.duration_s, s.scan.sampling_rate_hz) == pytest.approx(expected_scan, rel=1e-15)
+
+
+def test_a_bare_number_string_is_never_silently_si(tmp_path):
+    with pytest.raises(ValueError, match=r"young_modulus: '200000' has no unit, and a pressure needs one; "
+                                         r"write it with a unit, e\.g\. '200000kPa'"):
+        load_scene(write_scene(tmp_path, E="200000", scan='speed_mm_per_s = 20\nduration_ms = 500\nsampling_rate_khz = 2'))
 
 
 def test_strain_noise_is_dimensionless_and_stress_noise_a_pressure():
@@ -205,3 +211,19 @@ def test_file_level_errors(tmp_path):
         SkinMaterial.from_json('{"young_modulus_pa": 3, "poisson_ratio": 0.7}')
     with pytest.raises(ValueError, match=r"here: a SkinMaterial must be a table, got list"):
         record_from_dict(SkinMaterial, [1], "here")
+
+
+def test_base_and_files_import_at_module_level_only():
+    """base.py and files.py form no import cycle: neither hides an import inside a function."""
+    import ast
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / "data_schemas"
+    for name in ("base.py", "files.py"):
+        tree = ast.parse((root / name).read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                inner = [n for n in ast.walk(node) if isinstance(n, (ast.Import, ast.ImportFrom))]
+                assert not inner, f"data_schemas/{name}: {node.name} imports inside the function"
+    base = (root / "base.py").read_text()
+    assert "from .files" not in base and "import files" not in base

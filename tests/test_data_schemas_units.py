@@ -10,7 +10,7 @@ from tactilab.data_schemas.units import factor, to_si
 @pytest.mark.parametrize("text,dimension,expected", [
     ("1.25mm", "length", 1.25e-3), ("0.1 mm", "length", 1e-4), ("50um", "length", 50e-6),
     ("20kPa", "pressure", 2e4), ("1.5MPa", "pressure", 1.5e6), ("5ms", "time", 5e-3),
-    ("0.8N", "force", 0.8), ("5cm/s", "speed", 0.05), ("1kHz", "frequency", 1e3), ("2", "length", 2.0),
+    ("0.8N", "force", 0.8), ("5cm/s", "speed", 0.05), ("1kHz", "frequency", 1e3), ("2m", "length", 2.0), (2, "length", 2.0),
 ])
 def test_to_si_is_exact(text, dimension, expected):
     assert to_si(text, dimension) == expected
@@ -41,3 +41,15 @@ def test_factor_names_the_argument():
     with pytest.raises(ValueError, match="^--speed: unknown unit"):
         factor("mph", "speed", name="--speed")
     assert math.isclose(factor("mm/s", "speed"), 1e-3)
+
+
+@pytest.mark.parametrize("text,dimension,fix", [
+    ("1.25", "length", "'1.25mm'"), ("50", "pressure", "'50kPa'"), ("5", "time", "'5ms'"),
+])
+def test_a_bare_number_string_needs_a_unit(text, dimension, fix):
+    with pytest.raises(ValueError, match=rf"--opt: '{text}' has no unit, and a {dimension} needs one; "
+                                         rf"write it with a unit, e\.g\. {fix}"):
+        to_si(text, dimension, name="--opt")
+    assert to_si(text, "dimensionless") == float(text)  # dimensionless values stay bare
+    assert to_si(text, dimension, default_unit="m" if dimension == "length" else "Pa" if dimension == "pressure"
+                 else "s") == float(text)  # a file key that names its unit (depth_m) takes a bare number

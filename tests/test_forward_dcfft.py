@@ -194,20 +194,20 @@ def test_error_estimate_behaviour():
 # ----------------------------------------------------------------------------- bad input
 def test_dcfft_bad_input_raises():
     load = SurfaceLoad(p=np.ones((3, 3)), spacing=1e-4)
-    with pytest.raises(ValueError, match="depths: depth must be > 0"):
+    with pytest.raises(ValueError, match=r"depths: every depth must be finite and > 0 m .*got -0.001 at index 1"):
         dcfft_stress(load, [1e-3, -1e-3])
-    with pytest.raises(ValueError, match="depths: depth must be > 0"):
+    with pytest.raises(ValueError, match="depths: every depth must be finite and > 0 m"):
         dcfft_stress(load, [0.0])
-    with pytest.raises(ValueError, match="depths: depths must be finite"):
+    with pytest.raises(ValueError, match="depths: every depth must be finite and > 0 m"):
         dcfft_stress(load, [np.nan])
-    with pytest.raises(ValueError, match="depths: expected a non-empty 1-D"):
+    with pytest.raises(ValueError, match="depths: expected one depth or a non-empty 1-D"):
         dcfft_stress(load, [])
-    with pytest.raises(ValueError, match="depths: expected a non-empty 1-D"):
+    with pytest.raises(ValueError, match="depths: expected one depth or a non-empty 1-D"):
         dcfft_stress(load, [[1e-3, 2e-3]])
-    with pytest.raises(ValueError, match="depths: expected a sequence"):
+    with pytest.raises(ValueError, match="depths: expected one depth or a 1-D sequence"):
         dcfft_stress(load, ["deep"])
-    with pytest.raises(ValueError, match="components: unknown stress component 'zy'"):
-        dcfft_stress(load, [1e-3], components=("zz", "zy"))
+    with pytest.raises(ValueError, match="components: unknown stress component 'qq'"):
+        dcfft_stress(load, [1e-3], components=("zz", "qq"))
     with pytest.raises(ValueError, match="nu: Poisson's ratio must lie"):
         dcfft_stress(load, [1e-3], nu=-1.0)
     with pytest.raises(ValueError, match="dtype: expected float32 or float64, got complex128"):
@@ -218,11 +218,57 @@ def test_dcfft_bad_input_raises():
         dcfft_stress(np.ones((3, 3)), [1e-3])
     with pytest.raises(ValueError, match="spacing: expected"):
         dcfft_error_estimate((1e-4, 1e-4, 1e-4), 1e-3)
-    with pytest.raises(ValueError, match="spacing: expected"):
+    with pytest.raises(ValueError, match="spacing: grid spacing must be finite and > 0 m"):
         dcfft_error_estimate(-1e-4, 1e-3)
-    with pytest.raises(ValueError, match="spacing: expected"):
+    with pytest.raises(ValueError, match="spacing: grid spacing must be finite and > 0 m"):
         dcfft_error_estimate(("a", 1e-4), 1e-3)
-    with pytest.raises(ValueError, match="depths: depth must be > 0"):
+    with pytest.raises(ValueError, match="depth: every depth must be finite and > 0 m"):
         dcfft_error_estimate(1e-4, -1e-3)
-    with pytest.raises(ValueError, match="load_width: must be a finite length"):
+    with pytest.raises(ValueError, match="load_width: must be finite and > 0 m"):
         dcfft_error_estimate(1e-4, 1e-3, load_width=0.0)
+
+
+def test_one_engine_three_routes_agree(rng):
+    """dcfft_stress, the operator's fft-padded path and the scan maps run the same DC-FFT
+    engine (one padding rule) and agree with the direct sum over nodes."""
+    from tactilab.data_schemas.sensors import SensorArray
+    from tactilab.forward import HalfSpace, HertzContact
+    from tactilab.forward.finger import BiomimeticFinger
+    from tactilab.forward.halfspace import compliance_matrix
+    from tactilab.forward.halfspace import dcfft_kernel_spectrum
+    from tactilab.forward.scan_maps import ScanMaps
+
+    comps = ("zz", "zx", "xx")
+    # route 1 and 2: the same random load through dcfft_stress and the operator
+    shape, spacing, depth, nu = (11, 14), (1e-4, 1.2e-4), 2.5e-4, 0.45
+    p, qx = rng.normal(size=(2, *shape))
+    load = SurfaceLoad(p=p, qx=qx, spacing=spacing)
+    direct = direct_stress(load, _nodes(load, depth), nu=nu, components=comps).T.reshape((len(comps),) + shape)
+    via_stress = dcfft_stress(load, [depth], nu, comps)[0]
+    op = HalfSpace(1e6, nu).operator(shape, spacing, depth=depth, components=comps, loads=("p", "qx"))
+    assert op.path == "fft-padded"
+    # one padding rule, one kernel sampling: the operator holds the engine's spectra
+    padded = padded_shape(shape)
+    assert op._spectra.shape[-2:] == (padded[0], padded[1] // 2 + 1)
+    np.testing.assert_array_equal(op._spectra, dcfft_kernel_spectrum(shape, spacing, depth, nu, op.weights, ("z", "x")))
+    via_operator = (op @ np.concatenate([p.ravel(), qx.ravel()])).reshape(len(comps), *shape)
+    scale = np.abs(direct).max()
+    np.testing.assert_allclose(via_stress, direct, atol=1e-12 * scale)
+    np.testing.assert_allclose(via_operator, direct, atol=1e-12 * scale)
+    # route 3: the scan maps of a finger's (modulated) contact tractions, as strain
+    sensors = SensorArray(positions_m=[[0.0, 0.0]], depth_m=1e-3, components=comps, quantity="strain")
+    finger = BiomimeticFinger(HertzContact(0.8), sensors, friction=0.4, grid_spacing=0.25e-3)
+    maps = ScanMaps(finger)
+    modulation = 1 + 0.3 * rng.normal(size=(maps.n, maps.n))
+    got = maps.apply(modulation)
+    assert maps.kernel.shape[-2:] == (padded_shape((maps.n,) * 2)[0], padded_shape((maps.n,) * 2)[1] // 2 + 1)
+    fp, fq = maps.tractions * modulation
+    contact = SurfaceLoad(p=fp, qx=fq, spacing=finger.spacing)
+    E, nu_f = finger.contact.young_modulus, finger.contact.poisson_ratio
+    stress = dcfft_stress(contact, [finger.depth], nu_f)[0]  # all six, Voigt order
+    strain = np.einsum("ij,j...->i...", compliance_matrix(E, nu_f), stress)[[COMPONENTS.index(c) for c in comps]]
+    np.testing.assert_allclose(got, strain, atol=1e-12 * np.abs(strain).max())
+    op_f = HalfSpace(E, nu_f).operator((maps.n, maps.n), finger.spacing, depth=finger.depth, components=comps,
+                                       loads=("p", "qx"), quantity="strain")
+    np.testing.assert_allclose((op_f @ np.concatenate([fp.ravel(), fq.ravel()])).reshape(got.shape), got,
+                               atol=1e-12 * np.abs(strain).max())

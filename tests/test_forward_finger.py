@@ -15,9 +15,14 @@ from tactilab.forward.finger import BiomimeticFinger, Fingerprint
 from tactilab.forward.halfspace.facade import HalfSpace
 from tactilab.forward.halfspace.loads import SurfaceLoad
 from tactilab.forward.scanning import scan_outputs, scan_recording, scanned_surface
-from tactilab.forward.surfaces import Bump, Surface
+from tactilab.forward.surfaces import RecordFeature, Surface
 
 COMPS = ("zz", "zx", "xx")
+
+
+def _bump(x, y, size, height):
+    """A raised-cosine bump (data_schemas record) as a surface feature, all in m."""
+    return RecordFeature(IsolatedDefect(shape="bump", size_m=size, height_m=height, position_m=(x, y)))
 
 
 def _finger(friction=0.5, spacing=None, components=("zz",), quantity="stress", **kw):
@@ -35,7 +40,7 @@ def test_receptive_field_matches_brute_force_superposition(adhesion):
     X, Y = np.meshgrid(x, y)
     h = f.spacing
     p, q = f.traction(X, Y, cell=(h, h))
-    bump = Bump(0.0, 0.0, 0.2e-3, 1.0)
+    bump = _bump(0.0, 0.0, 0.2e-3, 1.0)
     hs = HalfSpace(2e6, 0.5)
     pts = f.sensors.positions_m
     base = hs.stress(SurfaceLoad(p=p, qx=q, spacing=h), 3e-3, points=pts, components=COMPS).data["stress"]
@@ -51,7 +56,7 @@ def test_scan_equals_receptive_field_for_a_small_defect():
     """The batched scan (one matrix product) minus the flat-surface baseline reproduces the RF."""
     f = _finger(spacing=0.05e-3)
     u = np.linspace(-5e-3, 5e-3, 41)
-    bump = Bump(0.0, 0.2e-3, 0.25e-3, 30e-6)
+    bump = _bump(0.0, 0.2e-3, 0.25e-3, 30e-6)
     surf = scanned_surface(bump, u, f)
     flat = scanned_surface([], u, f)
     out = scan_outputs(f, surf, u) - scan_outputs(f, flat, u, reference_height_m=30e-6)
@@ -247,7 +252,7 @@ def test_scan_maps_fft_equals_matrix_scan_and_strip_path():
                           components=("zz", "zx"))
     f = BiomimeticFinger(HertzContact(0.8), sensors, friction=0.4, adhesion=0.3, grid_spacing=h)
     surface = Surface(length=20e-3, width=20e-3, x_start=-10e-3,
-                      features=(Bump(0.3e-3, 0.2e-3, 0.8e-3, 1e-5), Bump(-1e-3, -0.5e-3, 1.2e-3, -5e-6)))
+                      features=(_bump(0.3e-3, 0.2e-3, 0.8e-3, 1e-5), _bump(-1e-3, -0.5e-3, 1.2e-3, -5e-6)))
     u = np.arange(-30, 31, 3) * h  # on the grid: strip path
     ref = scan_outputs(f, surface, u)
     sm = ScanMaps(f)
@@ -272,8 +277,7 @@ def test_scene_and_record_guards(monkeypatch, tmp_path):
     from types import SimpleNamespace
 
     from tactilab.data_schemas.recording import Recording
-    from tactilab.forward import scene_simulation
-    from tactilab.forward.scanning import RecordFeature
+    from tactilab.data_schemas import recording_io
 
     with pytest.raises(ValueError, match="scene.contact: the scene has no finger contact"):
         BiomimeticFinger.from_scene(SimpleNamespace(contact=None))
@@ -281,10 +285,10 @@ def test_scene_and_record_guards(monkeypatch, tmp_path):
         RecordFeature(object())
     with pytest.raises(ValueError, match="defect_x: must be finite"):
         _finger().receptive_field([0.0], np.nan)
-    monkeypatch.setattr(scene_simulation.importlib.util, "find_spec", lambda name: None)
+    monkeypatch.setattr(recording_io.importlib.util, "find_spec", lambda name: None)
     rec = Recording(values=np.zeros((2, 1, 1)), sampling_rate_hz=10.0, sensor_ids=("s0",), components=("zz",))
     with pytest.raises(ValueError, match="format: 'parquet' needs the optional package pyarrow"):
-        scene_simulation.write_recording(rec, tmp_path, "parquet")
+        recording_io.write_recording(rec, tmp_path, "parquet")
 
 
 def test_partial_slip_finger_spans_no_load_to_sliding():
@@ -360,7 +364,7 @@ def test_scan_without_the_surface_strip_matches_the_strip(monkeypatch):
     f = _finger(spacing=0.1e-3)
     h = f.spacing
     u = np.arange(-20, 21) * h  # frames on grid nodes: the strip path
-    surface = scanned_surface(Bump(0.3e-3, 0.0, 0.5e-3, 20e-6), u, f)
+    surface = scanned_surface(_bump(0.3e-3, 0.0, 0.5e-3, 20e-6), u, f)
     ref = scan_outputs(f, surface, u)
     monkeypatch.setattr(scanning, "MAX_OUTPUT_VALUES", ref.size)  # outputs fit, the strip does not
     np.testing.assert_allclose(scan_outputs(f, surface, u), ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())

@@ -1,4 +1,5 @@
-"""Surfaces: gratings, random square waves, defects, height maps, rigid sliding-surface pressure."""
+"""Surfaces on the scan strip: data_schemas surface records as features, random square waves,
+the finite Surface, and the rigid sliding-surface pressure."""
 
 from __future__ import annotations
 
@@ -7,8 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from tactilab.forward.surfaces import (Bump, HeightMap, RandomSquareWaveGrating, SinusoidalGrating,
-                                       SquareWaveGrating, Step, Surface, rigid_surface_pressure)
+from tactilab.data_schemas import (FlatSurface, HeightMap, IsolatedDefect, SinusoidalGrating,
+                                   SquareWaveGrating)
+from tactilab.forward.surfaces import (RandomSquareWaveGrating, RecordFeature, Surface, as_feature,
+                                       rigid_surface_pressure)
 
 
 @pytest.mark.parametrize("nu", [0.5, 0.3])
@@ -17,13 +20,13 @@ def test_rigid_surface_pressure_sinusoid(nu):
     p, A, E, n = 2e-3, 20e-6, 1.5e6, 64
     dx = p / 16
     x = np.arange(n) * dx
-    pres = rigid_surface_pressure(SinusoidalGrating(p, A).height(x), dx, E, nu)
+    pres = rigid_surface_pressure(SinusoidalGrating(period_m=p, amplitude_m=A).height_at(x), dx, E, nu)
     k = 2 * math.pi / p
     np.testing.assert_allclose(pres, E * k * A / (2 * (1 - nu ** 2)) * np.sin(k * x), atol=1e-9 * E * k * A)
     X, Y = np.meshgrid(x, x)
-    g = SinusoidalGrating(p * math.sqrt(2), A, orientation=math.pi / 4)
-    pres2 = rigid_surface_pressure(g.height(X, Y), (dx, dx), E, nu)
-    np.testing.assert_allclose(pres2, E * k / math.sqrt(2) / (2 * (1 - nu ** 2)) * g.height(X, Y),
+    oblique = A * np.sin(math.pi * (X + Y) / p)  # period p sqrt(2) along the diagonal: rho = k / sqrt(2)
+    pres2 = rigid_surface_pressure(oblique, (dx, dx), E, nu)
+    np.testing.assert_allclose(pres2, E * k / math.sqrt(2) / (2 * (1 - nu ** 2)) * oblique,
                                atol=1e-9 * E * k * A)
 
 
@@ -63,11 +66,12 @@ def test_sliding_sinusoid_strain_matches_physics_4a():
 
 
 def test_gratings_and_random_square_wave(rng):
-    sq = SquareWaveGrating(period=1e-3, amplitude=5e-6, duty=0.25)
+    sq = RecordFeature(SquareWaveGrating(element_width_m=0.5e-3, amplitude_m=5e-6))
     x = np.linspace(0, 10e-3, 10001)[:-1]
     h = sq.height(x)
     assert set(np.unique(h)) == {-5e-6, 5e-6}
-    assert np.mean(h > 0) == pytest.approx(0.25, abs=1e-3)
+    assert np.mean(h > 0) == pytest.approx(0.5, abs=1e-3)
+    assert sq.peak() == 5e-6 and sq.bounds() is None and sq.integral() == 0.0
     seed = int(rng.integers(1 << 30))
     g1 = RandomSquareWaveGrating.from_rng(np.random.default_rng(seed), 1000, 0.1e-3, 2e-6)
     g2 = RandomSquareWaveGrating.from_rng(np.random.default_rng(seed), 1000, 0.1e-3, 2e-6)
@@ -79,62 +83,60 @@ def test_gratings_and_random_square_wave(rng):
 
 
 def test_defects_and_height_map():
-    b = Bump(x=5e-3, y=1e-3, size=0.4e-3, height_m=30e-6)
+    bump = IsolatedDefect(shape="bump", size_m=0.4e-3, height_m=30e-6, position_m=(5e-3, 1e-3))
+    b = as_feature(bump)
     h = 1e-6
     xs = np.arange(4.7e-3, 5.3e-3, h)
     ys = np.arange(0.7e-3, 1.3e-3, h)
     X, Y = np.meshgrid(xs, ys)
     assert b.height(X, Y).sum() * h * h == pytest.approx(b.integral(), rel=1e-3)
     assert b.height(5e-3, 1e-3) == pytest.approx(30e-6)
-    s = Step(x=2e-3, height_m=1e-5, width=0.0)
-    assert s.height(1.999e-3) == 0 and s.height(2e-3) == 1e-5
-    ramp = Step(x=2e-3, height_m=1e-5, width=1e-4)
-    assert ramp.height(2e-3) == pytest.approx(0.5e-5)
+    assert b.bounds() == pytest.approx((4.8e-3, 5.2e-3, 0.8e-3, 1.2e-3)) and b.label == "defect bump"
+    dot = as_feature(IsolatedDefect(shape="dot", size_m=0.4e-3, height_m=30e-6, position_m=(5e-3, 1e-3)))
+    assert dot.height(X, Y).sum() * h * h == pytest.approx(dot.integral(), rel=1e-2)
+    s = RecordFeature(IsolatedDefect(shape="edge_step", size_m=1e-4, height_m=1e-5, position_m=(2e-3, 0.0)))
+    assert s.height(1.9e-3) == 0 and s.height(2.1e-3) == 1e-5
+    assert s.height(2e-3) == pytest.approx(0.5e-5) and s.bounds()[2:] == (-math.inf, math.inf)
     heights = np.add.outer(np.arange(5) * 2.0, np.arange(7) * 3.0) * 1e-6  # 3 x + 2 y (in cells)
-    hm = HeightMap(heights, spacing=1e-4, origin=(1e-3, 0.0))
+    hm = RecordFeature(HeightMap(heights_m=heights, spacing_x_m=1e-4, spacing_y_m=1e-4, origin_m=(1e-3, 0.0)))
     px, py = 1e-3 + 2.3e-4, 1.7e-4
     assert hm.height(px, py) == pytest.approx((3 * 2.3 + 2 * 1.7) * 1e-6)
-    assert hm.height(0.0, 0.0) == 0.0
-    prof = HeightMap(np.array([0.0, 1e-6, 0.0]), spacing=1e-4)
+    assert hm.height(0.0, 0.0) == 0.0 and hm.peak() == pytest.approx(heights.max())
+    prof = RecordFeature(HeightMap(heights_m=[0.0, 1e-6, 0.0], spacing_x_m=1e-4))
     assert prof.height(0.5e-4, 7.0) == pytest.approx(0.5e-6)
-    surf = Surface(length=10e-3, width=4e-3, features=(b, s, hm))
+    # records go on a Surface as they are (wrapped in RecordFeature)
+    surf = Surface(length=10e-3, width=4e-3, features=(bump, s.record, hm.record))
+    assert all(isinstance(f, RecordFeature) for f in surf.features)
     assert surf.height(5e-3, 1e-3) == pytest.approx(30e-6 + 1e-5)
     assert surf.height(-1e-3, 0.0) == 0.0
     mod = surf.modulation(np.array([5e-3, 1e-3]), np.array([1e-3, 0.0]), reference_height=1e-5)
     np.testing.assert_allclose(mod, [1 + 4.0, 1.0])
-    neg = Surface(length=1e-2, features=(Bump(5e-3, 0.0, 1e-3, -3e-5),))
+    neg = Surface(length=1e-2, features=(bump.replace(height_m=-3e-5, position_m=(5e-3, 0.0)),))
     assert neg.modulation(5e-3, 0.0, reference_height=1e-5) == 0.0
 
 
 def test_bad_input_raises():
-    with pytest.raises(ValueError, match="features\\[0\\]: Bump spans .* outside the surface"):
-        Surface(length=10e-3, features=(Bump(x=12e-3, y=0.0, size=1e-3, height_m=1e-5),))
+    def bump(x, y):
+        return IsolatedDefect(shape="bump", size_m=1e-3, height_m=1e-5, position_m=(x, y))
+
+    with pytest.raises(ValueError, match="features\\[0\\]: defect bump spans .* outside the surface"):
+        Surface(length=10e-3, features=(bump(12e-3, 0.0),))
     with pytest.raises(ValueError, match="outside the surface"):
-        Surface(length=10e-3, width=2e-3, features=(Bump(x=5e-3, y=1.5e-3, size=1e-3, height_m=1e-5),))
-    with pytest.raises(ValueError, match="features\\[0\\]: expected a surface Feature"):
+        Surface(length=10e-3, width=2e-3, features=(bump(5e-3, 1.5e-3),))
+    with pytest.raises(ValueError, match="features\\[0\\]: expected a data_schemas surface record or a surface Feature"):
         Surface(length=1e-2, features=("bump",))
-    with pytest.raises(ValueError, match="period: must be finite and > 0"):
-        SinusoidalGrating(period=0.0, amplitude=1e-6)
+    with pytest.raises(ValueError, match="surface: expected a data_schemas surface record"):
+        RecordFeature(object())
     with pytest.raises(ValueError, match="amplitude: must be finite"):
-        SquareWaveGrating(period=1e-3, amplitude=math.nan)
-    with pytest.raises(ValueError, match="duty: the ridge fraction"):
-        SquareWaveGrating(period=1e-3, amplitude=1e-6, duty=1.0)
+        RandomSquareWaveGrating(bit_length=1e-4, amplitude=math.nan, bits=np.array([1.0, -1.0]))
+    with pytest.raises(ValueError, match="bit_length: must be finite and > 0"):
+        RandomSquareWaveGrating(bit_length=0.0, amplitude=1e-6, bits=np.array([1.0, -1.0]))
     with pytest.raises(ValueError, match="bits: need a 1-D array"):
         RandomSquareWaveGrating(bit_length=1e-4, amplitude=1e-6, bits=np.array([1.0, 0.5]))
     with pytest.raises(ValueError, match="rng: expected a numpy.random.Generator"):
         RandomSquareWaveGrating.from_rng(42, 10, 1e-4, 1e-6)
     with pytest.raises(ValueError, match="n_bits: must be an integer >= 2"):
         RandomSquareWaveGrating.from_rng(np.random.default_rng(0), 1, 1e-4, 1e-6)
-    with pytest.raises(ValueError, match="size: must be finite and > 0"):
-        Bump(0.0, 0.0, -1e-3, 1e-5)
-    with pytest.raises(ValueError, match="width: the ramp width"):
-        Step(0.0, 1e-5, width=-1.0)
-    with pytest.raises(ValueError, match="heights: the height map contains NaN"):
-        HeightMap(np.array([0.0, np.nan]), spacing=1e-4)
-    with pytest.raises(ValueError, match="heights: need shape"):
-        HeightMap(np.zeros((2, 2, 2)), spacing=1e-4)
-    with pytest.raises(ValueError, match="spacing \\(dy\\): must be finite"):
-        HeightMap(np.zeros((3, 3)), spacing=(1e-4, 0.0))
     with pytest.raises(ValueError, match="reference_height: must be finite and > 0"):
         Surface(length=1e-2).modulation(0.0, reference_height=0.0)
     with pytest.raises(ValueError, match="x, y: surface points must be finite"):
@@ -154,26 +156,24 @@ def test_bad_input_raises():
 
 
 @pytest.mark.parametrize("feature", [
-    SinusoidalGrating(period=1e-3, amplitude=1e-6),
-    SquareWaveGrating(period=1e-3, amplitude=1e-6),
+    SinusoidalGrating(period_m=1e-3, amplitude_m=1e-6),
+    SquareWaveGrating(element_width_m=0.5e-3, amplitude_m=1e-6),
+    SquareWaveGrating(pattern="random", element_width_m=1e-4, amplitude_m=1e-6, length_m=1e-3, seed=3),
     RandomSquareWaveGrating(bit_length=1e-4, amplitude=1e-6, bits=np.array([1.0, -1.0, 1.0])),
-    Bump(0.0, 0.0, 1e-3, 1e-5),
-    Step(0.0, 1e-5, width=1e-4),
-    HeightMap(np.zeros((3, 3)), spacing=(1e-4, 1e-4)),
-], ids=lambda f: type(f).__name__)
+    IsolatedDefect(shape="bump", size_m=1e-3, height_m=1e-5),
+    IsolatedDefect(shape="edge_step", size_m=1e-4, height_m=1e-5),
+    HeightMap(heights_m=np.zeros((3, 3)), spacing_x_m=1e-4, spacing_y_m=1e-4),
+    FlatSurface(),
+], ids=lambda f: getattr(f, "kind", type(f).__name__))
 def test_every_feature_rejects_non_finite_points(feature):
-    """NaN positions used to come back as NaN heights from the features (only Surface checked)."""
+    """NaN positions used to come back as NaN heights from the features (only Surface checked);
+    the records' own ``height_at`` checks them too."""
+    if not isinstance(feature, RandomSquareWaveGrating):
+        with pytest.raises(ValueError, match="x, y: surface points must be finite"):
+            feature.height_at(np.array([0.0, np.nan]), np.array([0.0, 0.0]))
+        feature = as_feature(feature)
     assert np.all(np.isfinite(feature.height(np.array([0.0, 1e-4]), np.array([0.0, 0.0]))))
     with pytest.raises(ValueError, match="x, y: surface points must be finite"):
         feature.height(np.array([0.0, np.nan]), np.array([0.0, 0.0]))
     with pytest.raises(ValueError, match="x, y: surface points must be finite"):
         feature.height(np.array([0.0, 1e-4]), np.array([np.inf, 0.0]))
-
-
-def test_grating_angles_and_offset_must_be_finite():
-    with pytest.raises(ValueError, match=r"phase: must be finite \(rad\), got nan"):
-        SinusoidalGrating(period=1e-3, amplitude=1e-6, phase=math.nan)
-    with pytest.raises(ValueError, match=r"orientation: must be finite \(rad\), got inf"):
-        SinusoidalGrating(period=1e-3, amplitude=1e-6, orientation=math.inf)
-    with pytest.raises(ValueError, match=r"offset: must be finite \(m\), got nan"):
-        SquareWaveGrating(period=1e-3, amplitude=1e-6, offset=math.nan)

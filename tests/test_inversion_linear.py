@@ -45,7 +45,7 @@ def test_multiplier_matches_closed_form_sinusoid():
 def test_dot_tests(rng):
     op1 = FourierDiagonal(normal_pressure_to_szz_multiplier(100, DX, DEPTH), DX)
     assert dottest(op1, rng) < 1e-12
-    (eta, xi) = angular_wavenumbers((16, 20), DX)
+    xi, eta = angular_wavenumbers((16, 20), DX)
     rho = np.sqrt(xi**2 + eta**2)
     h2 = -(1 + rho * DEPTH) * np.exp(-rho * DEPTH) + 1j * 0.3 * np.sin(xi * DX)  # Hermitian, complex
     op2 = FourierDiagonal(h2, DX)

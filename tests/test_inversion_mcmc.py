@@ -8,7 +8,7 @@ import pytest
 import xarray as xr
 from scipy.stats import multivariate_normal
 
-from tactilab.inversion.mcmc import _LogPosterior, sample_scene_posterior
+from tactilab.inversion.mcmc import DefectPosterior, sample_scene_posterior
 from tactilab.inversion.scene_params import DefectScanModel, LogNormal, Normal, Uniform, check_prior
 
 TRUTH = dict(x0=0.5e-3, y0=0.3e-3, friction=0.5, depth=2e-3, young_modulus=1e6, normal_force=0.8)
@@ -42,7 +42,7 @@ def test_marginal_likelihood_equals_multivariate_normal(rng):
     model = small_model()
     data = model.simulate(TRUTH, AREA).ravel() + rng.normal(0, 5.0, model.n_data)
     amp = Normal(1e-8, 3e-8)
-    lp = _LogPosterior(model, data, 5.0, {k: float(v) for k, v in TRUTH.items()}, amp)
+    lp = DefectPosterior(model, data, 5.0, {k: float(v) for k, v in TRUTH.items()}, amp)
     g = model.design(TRUTH)
     ll, cmean, cvar = lp.marginal(g)
     cov = 25.0 * np.eye(model.n_data) + amp.sd**2 * np.outer(g[0], g[0])

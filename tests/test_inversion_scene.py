@@ -79,10 +79,10 @@ def test_mismatched_recordings_fail(rng, tmp_path):
                                                                         np.nan, rec.values)})
     with pytest.raises(ValueError, match="recording.values: must be finite, found nan"):
         defect_problem(scene, broken)
-    strain = Recording.model_construct(**{**dict(rec), "quantity": "strain"})
-    scene_strain = scene.model_copy(update={"sensors": scene.sensors.model_copy(update={"quantity": "strain"})})
-    with pytest.raises(ValueError, match="recording.quantity"):
-        defect_problem(scene_strain, strain)
+    odd = Recording.model_construct(**{**dict(rec), "quantity": "displacement"})  # bypasses the schema
+    scene_odd = scene.model_copy(update={"sensors": scene.sensors.model_copy(update={"quantity": "displacement"})})
+    with pytest.raises(ValueError, match="recording.quantity: the defect model predicts stress .* or tensor strain"):
+        defect_problem(scene_odd, odd)
     quiet = scene.model_copy(update={"sensors": scene.sensors.model_copy(update={"noise_std": 0.0})})
     with pytest.raises(ValueError, match="noise_std"):
         defect_problem(quiet, rec)

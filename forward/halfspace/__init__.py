@@ -5,6 +5,10 @@ This package is the solver's one door. Scene, display and synthesis code in
 The theory is in ``docs/theory.md``.
 """
 
+from . import _validation as validation
+from ._validation import positive
+from .adjoint import dottest
+from .dcfft import dcfft_convolve, dcfft_correlate, dcfft_kernel_spectrum, dcfft_stress, padded_shape
 from .facade import AccuracyWarning, FieldResult, HalfSpace
 from .fields import (
     INVARIANTS,
@@ -22,9 +26,9 @@ from .kernels import (
     point_load_stress,
 )
 from .loads import LOAD_COMPONENTS, SurfaceLoad
-from .methods import METHODS, Method
+from .methods import METHODS, Method, select_method
 from .operator import LoadToSensor
-from .spectral import pressure_from_deflection, transfer
+from .spectral import angular_wavenumbers, pressure_from_deflection, transfer
 
 __all__ = [
     "AccuracyWarning",
@@ -38,14 +42,24 @@ __all__ = [
     "Method",
     "SHEAR_CONVENTION",
     "SurfaceLoad",
+    "angular_wavenumbers",
     "compliance_matrix",
+    "dcfft_convolve",
+    "dcfft_correlate",
+    "dcfft_kernel_spectrum",
+    "dcfft_stress",
+    "dottest",
     "invariants",
     "line_green",
     "line_load_stress",
     "output_weights",
+    "padded_shape",
     "point_green",
     "point_load_stress",
+    "positive",
     "pressure_from_deflection",
+    "select_method",
     "to_engineering",
     "transfer",
+    "validation",
 ]

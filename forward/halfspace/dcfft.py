@@ -30,10 +30,12 @@ import numpy as np
 import scipy.fft as sfft
 
 from .kernel_formulas import line_geometry, line_unit, point_geometry, point_unit
-from .kernels import COMPONENTS, active_pairs, check_components, check_nu
+from . import _validation as check
+from .kernels import COMPONENTS, active_pairs
 from .loads import SurfaceLoad
 
-__all__ = ["dcfft_stress", "dcfft_error_estimate", "padded_shape"]
+__all__ = ["dcfft_stress", "dcfft_error_estimate", "padded_shape", "dcfft_kernel_spectrum", "dcfft_convolve",
+           "dcfft_correlate"]
 
 # load component name -> direction of the force it applies
 _LOAD_DIRECTION = {"qx": "x", "qy": "y", "p": "z"}
@@ -52,34 +54,6 @@ def padded_shape(shape: Sequence[int]) -> tuple[int, ...]:
             m = sfft.next_fast_len(m + 1, real=True)
         out.append(m)
     return tuple(out)
-
-
-def _check_depths(depths) -> np.ndarray:
-    try:
-        values = np.asarray(depths, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"depths: expected a sequence of depths in m, got {depths!r}") from None
-    values = np.atleast_1d(values)
-    if values.ndim != 1 or values.size == 0:
-        raise ValueError(f"depths: expected a non-empty 1-D sequence of depths in m, got shape {values.shape}")
-    if not np.all(np.isfinite(values)):
-        raise ValueError(f"depths: depths must be finite (in m), got {depths!r}")
-    if np.any(values <= 0):
-        raise ValueError(
-            f"depths: depth must be > 0 m (inside the skin), got {float(values.min())!r}; "
-            "at z = 0 the stress is the surface traction itself"
-        )
-    return values
-
-
-def _check_dtype(dtype) -> np.dtype:
-    try:
-        value = np.dtype(dtype)
-    except TypeError:
-        raise ValueError(f"dtype: expected float32 or float64, got {dtype!r}") from None
-    if value not in (np.dtype(np.float32), np.dtype(np.float64)):
-        raise ValueError(f"dtype: expected float32 or float64, got {value}; use float64 for tolerances below 1e-6")
-    return value
 
 
 def _is_odd(comp: str, direction: str, axis: str) -> bool:
@@ -247,10 +221,13 @@ def dcfft_stress(load: SurfaceLoad, depths: Sequence[float], nu: float = 0.5,
     """
     if not isinstance(load, SurfaceLoad):
         raise ValueError(f"load: expected a SurfaceLoad, got {type(load).__name__}; build one with SurfaceLoad(p=..., spacing=...)")
-    depth_values = _check_depths(depths)
-    nu = check_nu(nu)
-    components = check_components(components)
-    dtype = _check_dtype(dtype)
+    return nodal_dcfft_stress(load, check.depths(depths, "depths"), check.poisson_ratio(nu),
+                              check.components(components), check.float_dtype(dtype), workers)
+
+
+def nodal_dcfft_stress(load: SurfaceLoad, depth_values: np.ndarray, nu: float, components: tuple[str, ...],
+                       dtype: np.dtype, workers: int | None = None) -> np.ndarray:
+    """:func:`dcfft_stress` on inputs already checked by the caller (the facade's methods)."""
     shape = load.shape
     out = np.zeros((depth_values.size, len(components)) + shape, dtype=dtype)
     arrays = {name: a for name, a in load.components.items() if a.any()}
@@ -282,6 +259,118 @@ def dcfft_stress(load: SurfaceLoad, depths: Sequence[float], nu: float = 0.5,
             if directions:
                 out[d, c] = _inverse_crop(acc, padded, shape, workers)
         del geometry
+    return out
+
+
+def dcfft_kernel_spectrum(shape: Sequence[int], spacing: Sequence[float], depth: float, nu: float,
+                    weights: np.ndarray, directions: Sequence[str], dtype=np.float64,
+                    workers: int | None = None) -> np.ndarray:
+    """Spectra of the sampled kernels on the padded grid: the engine's precomputed operator.
+
+    The same sampling, padding (:func:`padded_shape`) and symmetric transforms as
+    :func:`dcfft_stress`, for maps that are applied many times (the load-to-sensor operator,
+    batched scan maps): output ``o`` at depth ``depth`` per unit traction along ``direction``
+    at a node, ``weights[o] @ sigma_voigt`` of the point (1-D: line) kernel times the cell area.
+
+    Parameters
+    ----------
+    shape : (nx,) or (ny, nx)
+        Load grid shape.
+    spacing : (dx,) or (dx, dy)
+        Grid spacing in m, x first.
+    depth : float
+        Depth Z > 0 in m.
+    nu : float
+        Poisson's ratio.
+    weights : ndarray, shape (n_out, 6)
+        Output rows over the Voigt stress (identity rows: stress in Pa; Hooke rows: strain).
+    directions : sequence of {"x", "y", "z"}
+        Force direction of each load component (qx, qy, p).
+    dtype : float64 or float32
+        Precision.
+    workers : int, optional
+        Passed to ``scipy.fft``.
+
+    Returns
+    -------
+    ndarray, complex, shape ``(n_out, len(directions), *padded[:-1], padded[-1] // 2 + 1)``
+        The rfftn spectra of the kernels on the zero-padded grid (see :func:`dcfft_convolve`).
+    """
+    shape = tuple(int(n) for n in shape)
+    spacing = tuple(float(h) for h in spacing)
+    dtype = check.float_dtype(dtype)
+    weights = np.atleast_2d(np.asarray(weights, dtype=float))
+    padded = padded_shape(shape)
+    spectrum_shape = (*padded[:-1], padded[-1] // 2 + 1)
+    cdtype = np.result_type(dtype, np.complex64)
+    out = np.zeros((weights.shape[0], len(directions), *spectrum_shape), dtype=cdtype)
+    quad = np.zeros(shape[:-1] + (padded[-1] // 2 + 1,), dtype=dtype)
+    rows = np.zeros((padded[0] // 2 + 1, padded[1] // 2 + 1), dtype=dtype) if len(shape) == 2 else None
+    ones = np.ones(spectrum_shape, dtype=cdtype)
+    acc = np.empty(spectrum_shape, dtype=cdtype)
+    axis_names = ("y", "x") if len(shape) == 2 else ("x",)
+    geometry = _quadrant_geometry(shape, spacing, float(depth))
+    for k, direction in enumerate(directions):
+        for j, comp in enumerate(COMPONENTS):
+            col = weights[:, j]
+            if not np.any(col) or not active_pairs([comp], [direction], len(shape)):
+                continue
+            _sample_quadrant(quad, geometry, comp, direction, float(np.prod(spacing)), nu)
+            odd = [_is_odd(comp, direction, name) for name in axis_names]
+            real, start = _symmetric_spectrum(quad, odd, rows, shape[0], workers)
+            _add_kernel_product(acc, ones, real, start, odd, True)
+            for o in np.flatnonzero(col):
+                out[o, k] += col[o] * acc
+    return out
+
+
+def _crop(full: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    return full[(Ellipsis, *[slice(0, n) for n in shape])]
+
+
+def dcfft_convolve(spectrum: np.ndarray, values: np.ndarray, workers: int | None = None) -> np.ndarray:
+    """Apply :func:`dcfft_kernel_spectrum`: the isolated field of nodal tractions on the load grid.
+
+    Parameters
+    ----------
+    spectrum : ndarray, shape (n_out, n_dir, ...)
+        From :func:`dcfft_kernel_spectrum`.
+    values : ndarray, shape (..., n_dir, *shape)
+        Tractions in Pa per direction (leading axes are batches, e.g. frames).
+
+    Returns
+    -------
+    ndarray, shape (..., n_out, *shape)
+        Outputs at the grid nodes (linear convolution: no periodic images).
+    """
+    ndim = spectrum.ndim - 2
+    shape = values.shape[-ndim:]
+    padded = padded_shape(shape)
+    axes = tuple(range(-ndim, 0))
+    spec = sfft.rfftn(values, s=padded, axes=axes, workers=workers)
+    mixed = _mix(spectrum, spec, ndim)
+    return _crop(sfft.irfftn(mixed, s=padded, axes=axes, workers=workers), shape)
+
+
+def dcfft_correlate(spectrum: np.ndarray, data: np.ndarray, workers: int | None = None) -> np.ndarray:
+    """The adjoint of :func:`dcfft_convolve`: outputs (..., n_out, *shape) -> tractions (..., n_dir, *shape)."""
+    ndim = spectrum.ndim - 2
+    shape = data.shape[-ndim:]
+    padded = padded_shape(shape)
+    axes = tuple(range(-ndim, 0))
+    spec = sfft.rfftn(data, s=padded, axes=axes, workers=workers)
+    mixed = _mix(np.conj(np.swapaxes(spectrum, 0, 1)), spec, ndim)
+    return _crop(sfft.irfftn(mixed, s=padded, axes=axes, workers=workers), shape)
+
+
+def _mix(spectrum: np.ndarray, spec: np.ndarray, ndim: int) -> np.ndarray:
+    """out[..., o, k] = sum_l spectrum[o, l, k] * spec[..., l, k]."""
+    n_out, n_in = spectrum.shape[:2]
+    out = np.zeros(spec.shape[:-ndim - 1] + (n_out,) + spec.shape[-ndim:], dtype=np.result_type(spectrum, spec))
+    rest = (slice(None),) * ndim
+    for o in range(n_out):
+        for i in range(n_in):
+            out[(Ellipsis, o) + rest] += spectrum[o, i] * spec[(Ellipsis, i) + rest]
     return out
 
 
@@ -341,18 +430,20 @@ def dcfft_error_estimate(spacing, depth: float, dtype=np.float64, load_width: fl
     """
     if np.ndim(spacing) == 0:
         spacing = (spacing, spacing)
-    try:
-        h = np.asarray(spacing, dtype=float)
-    except (TypeError, ValueError):
-        h = np.array([np.nan])
-    if h.ndim != 1 or h.size not in (1, 2) or not np.all(np.isfinite(h)) or np.any(h <= 0):
+    h = check.spacing(spacing, np.size(spacing))
+    if len(h) not in (1, 2):
         raise ValueError(f"spacing: expected (dx,) or (dx, dy), finite and > 0 m, got {spacing!r}")
-    depth = float(_check_depths([depth])[0])
-    width = depth if load_width is None else float(load_width)
-    if not np.isfinite(width) or width <= 0:
-        raise ValueError(f"load_width: must be a finite length > 0 m, got {load_width!r}")
+    depth = check.depth(depth)
+    width = depth if load_width is None else check.positive(load_width, "load_width", "m",
+                                                             "give the length over which the load varies, in m")
+    return alias_error(h, depth, check.float_dtype(dtype), width)
+
+
+def alias_error(h: tuple[float, ...], depth: float, dtype: np.dtype, width: float) -> float:
+    """:func:`dcfft_error_estimate` on inputs already checked by the caller."""
+    h = np.asarray(h, dtype=float)
     c = (depth / width) ** 2
-    floor = 30.0 * np.finfo(_check_dtype(dtype)).eps
+    floor = 30.0 * np.finfo(dtype).eps
     a = 2.0 * np.pi * depth / h  # s per unit lattice step along each axis
     # Terms below exp(-45) ~ 3e-20 do not matter; a cap keeps absurd h/Z cheap (E >> 1 there).
     reach = 45.0 + 0.5 * c + np.sqrt(90.0 * c)

@@ -1,14 +1,19 @@
 """The load-to-sensor map of a half-space as a ``scipy.sparse.linalg.LinearOperator``.
 
-Model: tractions ``loads`` (a subset of p, qx, qy; Pa) on a regular grid, flattened from
-``dims = (n_load, *shape)``. Data: ``components`` of stress (Pa) or tensor strain at the
+Model: tractions ``loads`` (a subset of p, qx, qy; Pa) on a regular grid. The operators of
+the solver and the inversion share one convention: ``dims`` is the grid shape, the attribute
+``loads`` names the load components, and the model vector is load-major (all nodes of the
+first load, C order, then all nodes of the next), i.e. the flattening of an array of shape
+``(len(loads), *dims)``. Data: ``components`` of stress (Pa) or tensor strain at the
 sensors and one depth, flattened from ``dimsd = (n_comp, n_sensors)``. Batched over time
 frames through ``matmat`` (columns are frames).
 
 Paths (chosen from the sensors; the attribute ``path`` says which):
 - ``"fft-periodic"``: the grid is one period; exact spectral multipliers (docs/theory.md s2).
 - ``"fft-padded"``: isolated load; zero-padded convolution with the point (line) kernel
-  sampled at depth (DC-FFT). Used when the sensors are the grid nodes or a subset of them.
+  sampled at depth (DC-FFT, the one engine of :mod:`.dcfft`: :func:`dcfft_kernel_spectrum`,
+  :func:`dcfft_convolve`, :func:`dcfft_correlate`). Used when the sensors are the grid nodes
+  or a subset of them.
 - ``"dense"``: sensors off the grid; the kernel matrix from the closed forms (isolated), or
   from the periodic Green's function evaluated per sensor (periodic).
 The adjoint (``rmatvec``/``rmatmat``) is exact for every path and passes a dot test.
@@ -20,10 +25,12 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.sparse.linalg import LinearOperator
 
-from .fields import check_components, output_weights
+from .dcfft import dcfft_convolve, dcfft_correlate, dcfft_kernel_spectrum
+from . import _validation as check
+from .fields import output_weights
 from .kernels import line_green, point_green
 from .loads import LOAD_COMPONENTS, SurfaceLoad
-from .spectral import VOIGT, _Geometry, multiplier, wavenumbers
+from .spectral import VOIGT, _Geometry, multiplier, _half_wavenumbers
 
 _DIRECTION = {"p": "z", "qx": "x", "qy": "y"}
 
@@ -67,11 +74,9 @@ class LoadToSensor(LinearOperator):
         if len(shape) not in (1, 2) or min(shape) < 1:
             raise ValueError(f"shape: expected (nx,) or (ny, nx) with positive sizes, got {shape}")
         template = SurfaceLoad(p=np.zeros(shape), spacing=spacing, periodic=periodic)
-        if not np.isfinite(depth) or depth <= 0:
-            raise ValueError(f"depth: must be finite and > 0 m, got {depth!r}")
         self.template = template
-        self.depth = float(depth)
-        self.components = check_components(components)
+        self.depth = check.depth(depth)
+        self.components = check.components(components)
         self.loads = _check_loads(loads)
         self.quantity = quantity
         self.weights = output_weights(quantity, self.components, halfspace.E, halfspace.nu)
@@ -89,7 +94,8 @@ class LoadToSensor(LinearOperator):
                     f"{len(shape)}-D grid, got {np.shape(sensors)}")
             self.sensor_xy = pts
             self._select = self._on_grid(pts)
-        self.dims = (len(self.loads), *shape)
+        self.dims = shape
+        self.spacing = template.spacing
         self.dimsd = (len(self.components), len(self.sensor_xy))
         if self._select is not None or sensors is None:
             self.path = "fft-periodic" if periodic else "fft-padded"
@@ -97,7 +103,44 @@ class LoadToSensor(LinearOperator):
         else:
             self.path = "dense"
             self._matrix = self._dense_matrix()
-        super().__init__(dtype=np.float64, shape=(int(np.prod(self.dimsd)), int(np.prod(self.dims))))
+        super().__init__(dtype=np.float64,
+                         shape=(int(np.prod(self.dimsd)), len(self.loads) * int(np.prod(self.dims))))
+
+    @property
+    def model_shape(self) -> tuple[int, ...]:
+        """Shape of the load-major model array, ``(len(loads), *dims)``."""
+        return (len(self.loads), *self.dims)
+
+    @property
+    def circulant(self) -> bool:
+        """True when the map is a periodic convolution with a sensor at every node (in node
+        order): then each (component, load) block is diagonal in Fourier space."""
+        return self.path == "fft-periodic" and self._select is None
+
+    def fourier_multiplier(self) -> np.ndarray:
+        """The exact Fourier multipliers of a circulant operator on the full grid.
+
+        Returns
+        -------
+        ndarray, complex, shape ``(n_comp, n_load, *dims)``
+            ``H[c, l]`` in ``fftfreq`` order (wavenumbers from :func:`angular_wavenumbers`),
+            Hermitian, so that ``data_c = ifft(sum_l H[c, l] fft(load_l))``. Data units per Pa.
+
+        Raises
+        ------
+        ValueError
+            When the operator is not circulant (see :attr:`circulant`).
+        """
+        if not self.circulant:
+            raise ValueError(f"fourier_multiplier: the operator is not a periodic convolution (path {self.path!r}, "
+                             "sensors not the grid nodes); build it with periodic=True and sensors=None")
+        half = self._spectra
+        nx = self.dims[-1]
+        neg = np.arange(nx // 2 + 1, nx)
+        mirror = half[..., nx - neg]
+        if len(self.dims) == 2:
+            mirror = mirror[..., (-np.arange(self.dims[0])) % self.dims[0], :]
+        return np.concatenate([half, np.conj(mirror)], axis=-1)
 
     # -- geometry ----------------------------------------------------------------------------
     def _grid_points(self) -> np.ndarray:
@@ -122,43 +165,15 @@ class LoadToSensor(LinearOperator):
     # -- precomputation -----------------------------------------------------------------------
     def _periodic_multipliers(self) -> np.ndarray:
         t = self.template
-        xi, eta = wavenumbers(t.shape, t.spacing)
+        xi, eta = _half_wavenumbers(t.shape, t.spacing)
         g = _Geometry(xi, eta, nyquist_x=t.shape[-1] % 2 == 0, nyquist_y=t.ndim == 2 and t.shape[0] % 2 == 0)
         return np.array([[multiplier(g, self.nu, name, row, self.depth) for name in self.loads]
                          for row in self.weights])
 
-    def _padded_shape(self) -> tuple[int, ...]:
-        return tuple(sfft.next_fast_len(2 * n - 1, real=True) for n in self.grid_shape)
-
     def _padded_multipliers(self) -> np.ndarray:
         t = self.template
-        pad = self._padded_shape()
-        # offsets x_out - x_in on the circular padded grid: 0..n-1 then -(n-1)..-1
-        offs = []
-        for n, h, p in zip(t.shape, t.spacing[::-1] if t.ndim == 2 else t.spacing, pad):
-            k = np.arange(p)
-            offs.append(np.where(k < n, k, k - p) * h)
-        if t.ndim == 1:
-            (ox,) = offs
-            grids = (ox,)
-        else:
-            oy, ox = offs
-            grids = np.meshgrid(oy, ox, indexing="ij")
-        out = np.zeros((len(self.components), len(self.loads), *pad[:-1], pad[-1] // 2 + 1), dtype=complex)
-        for l, name in enumerate(self.loads):
-            kernel = np.zeros((len(self.components), *pad))
-            for j, comp in enumerate(VOIGT):
-                col = self.weights[:, j]
-                if not np.any(col):
-                    continue
-                if t.ndim == 1:
-                    g = line_green(comp, _DIRECTION[name], grids[0], self.depth, self.nu)
-                else:
-                    g = point_green(comp, _DIRECTION[name], grids[1], grids[0], self.depth, self.nu)
-                kernel += np.multiply.outer(col, g)
-            kernel *= t.cell_area  # node traction x cell area = nodal force
-            out[:, l] = sfft.rfftn(kernel, axes=tuple(range(1, t.ndim + 1)))
-        return out
+        return dcfft_kernel_spectrum(t.shape, t.spacing, self.depth, self.nu, self.weights,
+                               [_DIRECTION[name] for name in self.loads])
 
     def _dense_matrix(self) -> np.ndarray:
         t = self.template
@@ -193,7 +208,7 @@ class LoadToSensor(LinearOperator):
     def _periodic_row(self, l: int, xy: np.ndarray) -> np.ndarray:
         t = self.template
         mult = self._periodic_multipliers_cached()[:, l]
-        xi, eta = wavenumbers(t.shape, t.spacing)
+        xi, eta = _half_wavenumbers(t.shape, t.spacing)
         phase = np.exp(1j * xi * xy[0]) if t.ndim == 1 else np.exp(1j * (xi * xy[0] + eta * xy[1]))
         # response at xy to a unit traction at node m = (1/N) sum_k M(k) e^{ik (xy - x_m)}
         axes = tuple(range(1, t.ndim + 1))
@@ -220,16 +235,13 @@ class LoadToSensor(LinearOperator):
             return self._matrix @ m
         frames = m.shape[1]
         t = self.template
-        model = m.T.reshape(frames, *self.dims)
+        model = m.T.reshape(frames, *self.model_shape)
         axes = tuple(range(-t.ndim, 0))
         if self.path == "fft-periodic":
             spec = sfft.rfftn(model, axes=axes)  # (frames, n_load, ...)
             data = sfft.irfftn(np.einsum("cl...,fl...->fc...", self._spectra, spec), s=t.shape, axes=axes)
         else:
-            pad = self._padded_shape()
-            spec = sfft.rfftn(model, s=pad, axes=axes)
-            full = sfft.irfftn(np.einsum("cl...,fl...->fc...", self._spectra, spec), s=pad, axes=axes)
-            data = full[(Ellipsis, *[slice(0, n) for n in t.shape])]
+            data = dcfft_convolve(self._spectra, model)
         data = data.reshape(frames, len(self.components), -1)
         if self._select is not None:
             data = data[:, :, self._select]
@@ -252,8 +264,5 @@ class LoadToSensor(LinearOperator):
             spec = sfft.rfftn(data, axes=axes)
             model = sfft.irfftn(np.einsum("cl...,fc...->fl...", np.conj(self._spectra), spec), s=t.shape, axes=axes)
         else:
-            pad = self._padded_shape()
-            spec = sfft.rfftn(data, s=pad, axes=axes)
-            full = sfft.irfftn(np.einsum("cl...,fc...->fl...", np.conj(self._spectra), spec), s=pad, axes=axes)
-            model = full[(Ellipsis, *[slice(0, n) for n in t.shape])]
+            model = dcfft_correlate(self._spectra, data)
         return model.reshape(frames, -1).T

@@ -31,37 +31,62 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.fft as sfft
 
-from .kernels import COMPONENTS as VOIGT
+from . import _validation as check
+from ._validation import COMPONENTS as VOIGT
 from .loads import SurfaceLoad
 
 
-def wavenumbers(shape: tuple[int, ...], spacing: tuple[float, ...]):
-    """Angular wavenumbers of the rfft half spectrum.
+def angular_wavenumbers(shape: Sequence[int], spacing, half: bool = False) -> tuple[np.ndarray, ...]:
+    """Angular wavenumbers (rad/m) of a periodic grid, x first: ``(xi, eta)``.
+
+    The one wavenumber helper of the solver and the inversion (numpy's FFT convention,
+    ``k = 2 pi * fftfreq(n, h)``). Axis order is always x first, whatever the array layout:
+    arrays are stored ``(ny, nx)``, so in 2-D ``xi`` varies along the last axis and ``eta``
+    along the first, and the two broadcast to the grid.
 
     Parameters
     ----------
     shape : (nx,) or (ny, nx)
         Real-space grid shape.
-    spacing : (dx,) or (dx, dy)
-        Grid spacing in m.
+    spacing : float or (dx,) or (dx, dy)
+        Grid spacing in m, x first (as :class:`SurfaceLoad.spacing`); one value means dx = dy.
+    half : bool
+        False (default): the full grid in ``fftfreq`` order. True: the ``rfftn`` half
+        spectrum along x (``nx // 2 + 1`` non-negative xi).
 
     Returns
     -------
-    xi : ndarray, shape (nx//2 + 1,) or (1, nx//2 + 1), rad/m
-    eta : ndarray, shape (ny, 1), rad/m, or None in 1-D
+    tuple of ndarray, rad/m
+        1-D: ``(xi,)`` of shape (nx,) (or (nx//2 + 1,) with ``half``).
+        2-D: ``(xi, eta)`` of shapes (1, nx) and (ny, 1) (xi: (1, nx//2 + 1) with ``half``).
     """
+    shape = tuple(int(n) for n in shape)
+    if len(shape) not in (1, 2) or min(shape) < 1:
+        raise ValueError(f"shape: expected a 1-D (nx,) or 2-D (ny, nx) grid of positive sizes, got {shape}; "
+                         "give (nx,) or (ny, nx)")
+    steps = np.atleast_1d(np.asarray(spacing, dtype=float))
+    if steps.size == 1:
+        steps = np.repeat(steps, len(shape))
+    if steps.size != len(shape) or not np.all(np.isfinite(steps)) or np.any(steps <= 0):
+        raise ValueError(f"spacing: expected {len(shape)} finite grid spacing(s) > 0 m, x first, got {spacing!r}; "
+                         "give dx or (dx, dy) in m")
     nx = shape[-1]
-    xi = 2 * np.pi * sfft.rfftfreq(nx, spacing[0])
+    xi = 2 * np.pi * (sfft.rfftfreq(nx, steps[0]) if half else sfft.fftfreq(nx, steps[0]))
     if len(shape) == 1:
-        return xi, None
-    ny = shape[0]
-    eta = 2 * np.pi * sfft.fftfreq(ny, spacing[1])
+        return (xi,)
+    eta = 2 * np.pi * sfft.fftfreq(shape[0], steps[1])
     return xi[None, :], eta[:, None]
+
+
+def _half_wavenumbers(shape: tuple[int, ...], spacing) -> tuple[np.ndarray, np.ndarray | None]:
+    """``(xi, eta)`` of the rfft half spectrum, eta None in 1-D (the solver's internal form)."""
+    ks = angular_wavenumbers(shape, spacing, half=True)
+    return ks[0], (ks[1] if len(ks) == 2 else None)
 
 
 @functools.lru_cache(maxsize=8)
 def _cached_geometry(shape: tuple, spacing: tuple, dtype_name: str) -> "_Geometry":
-    xi, eta = wavenumbers(shape, spacing)
+    xi, eta = _half_wavenumbers(shape, spacing)
     return _Geometry(xi, eta, nyquist_x=shape[-1] % 2 == 0, nyquist_y=len(shape) == 2 and shape[0] % 2 == 0,
                      dtype=np.dtype(dtype_name))
 
@@ -227,7 +252,7 @@ def multiplier(g: _Geometry, nu: float, load_component: str, row: np.ndarray, de
 def _point_phases(shape, spacing, points: np.ndarray):
     """Fourier phases of off-grid points: (Ex (n_kx, n), Ey (ny, n) or None, column weights)."""
     nx = shape[-1]
-    xi, eta = wavenumbers(shape, spacing)
+    xi, eta = _half_wavenumbers(shape, spacing)
     # FFT index coordinates: node j sits at x = (j - nx//2) dx, i.e. x' = x + (nx//2) dx
     xp = points[:, 0] + (nx // 2) * spacing[0]
     ex = np.exp(1j * np.outer(np.ravel(xi), xp))
@@ -319,7 +344,7 @@ def transfer(xi: np.ndarray, eta: np.ndarray | None, depth: float, nu: float,
     xi, eta : ndarray
         Angular wavenumbers in rad/m (broadcastable); ``eta=None`` for 1-D plane strain.
     depth : float
-        Depth in m (>= 0).
+        Depth in m (> 0).
     nu : float
         Poisson's ratio.
     load_component : {"p", "qx", "qy"}
@@ -334,16 +359,15 @@ def transfer(xi: np.ndarray, eta: np.ndarray | None, depth: float, nu: float,
     """
     if load_component not in ("p", "qx", "qy"):
         raise ValueError(f"load_component: must be 'p', 'qx' or 'qy', got {load_component!r}")
-    if not np.isfinite(depth) or depth < 0:
-        raise ValueError(f"depth: must be finite and >= 0 m, got {depth!r}")
+    depth = check.depth(depth)
+    nu = check.poisson_ratio(nu)
+    components = check.components(components)
     xi = np.asarray(xi, dtype=float)
     if eta is not None:
         xi, eta = np.broadcast_arrays(xi, np.asarray(eta, dtype=float))
     g = _Geometry(xi, eta, nyquist_x=False, nyquist_y=False)
     out = []
     for comp in components:
-        if comp not in VOIGT:
-            raise ValueError(f"components: unknown stress component {comp!r}; use one of {VOIGT}")
         out.append(multiplier(g, nu, load_component, np.eye(6)[VOIGT.index(comp)], depth))
     return np.asarray(out, dtype=complex)
 
@@ -367,16 +391,18 @@ def pressure_from_deflection(deflection: np.ndarray, spacing, young_modulus: flo
     Returns
     -------
     SurfaceLoad
-        The normal pressure (mean zero: a uniform deflection needs no pressure on an
-        infinite half-space, so the mean is a free contact-force parameter).
+        The normal pressure, marked ``periodic=True`` (the grid is one period: the solver then
+        uses the exact periodic method and its error estimate holds). Mean zero: a uniform
+        deflection needs no pressure on an infinite half-space, so the mean is a free
+        contact-force parameter.
     """
-    h = np.asarray(deflection, dtype=float)
-    if not np.all(np.isfinite(h)):
-        raise ValueError("deflection: must be finite (no NaN or inf), in m")
+    h = check.finite_array(deflection, "deflection", "m")
+    young_modulus = check.young_modulus(young_modulus)
+    nu = check.poisson_ratio(nu)
     template = SurfaceLoad(p=np.zeros_like(h), spacing=spacing)
-    xi, eta = wavenumbers(h.shape, template.spacing)
+    xi, eta = _half_wavenumbers(h.shape, template.spacing)
     rho = np.abs(xi) if eta is None else np.hypot(xi, eta)
     axes = tuple(range(-h.ndim, 0))
     spec = sfft.rfftn(h, axes=axes) * (young_modulus * rho / (2 * (1 - nu**2)))
     p = sfft.irfftn(spec, s=h.shape, axes=axes)
-    return SurfaceLoad(p=p, spacing=template.spacing)
+    return SurfaceLoad(p=p, spacing=template.spacing, periodic=True)

@@ -1,7 +1,7 @@
 """One reader for the writer: ``write_recording`` -> ``read_recording`` gives back the same record.
 
-Owned by the inversion helper (the reader moved next to the writer in
-``tactilab.forward.scene_simulation``; ``tactilab invert`` and the inversion demo use it).
+The reader and writer live beside the record, in ``tactilab.data_schemas.recording_io``;
+``tactilab simulate`` writes with it, ``tactilab invert`` and the inversion demo read with it.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import pytest
 import xarray as xr
 
 from tactilab.data_schemas.recording import Recording
-from tactilab.forward.scene_simulation import read_recording, write_recording
+from tactilab.data_schemas import read_recording, recording_dataset, write_recording
 
 
 def record(rng, quantity="stress"):
@@ -56,3 +56,17 @@ def test_parquet_reader_without_pyarrow_says_so(rng, tmp_path, monkeypatch):
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "pyarrow" else real(name, *a))
     with pytest.raises(ValueError, match="needs the optional package pyarrow"):
         read_recording(tmp_path / "recording.parquet")
+
+
+def test_dataset_coordinates_and_their_shape_checks(rng, tmp_path):
+    rec = record(rng)
+    ds = recording_dataset(rec, positions_m=np.arange(7) * 1e-3, sensor_positions_m=np.zeros((3, 2)),
+                           attrs={"depth_m": 3e-3})
+    assert ds["values"].dims == ("time", "sensor", "component") and ds.attrs["depth_m"] == 3e-3
+    assert ds["contact_x"].attrs["units"] == "m" and ds["sensor_x"].shape == (3,)
+    with pytest.raises(ValueError, match=r"positions_m: need one contact position per sample, shape \(7,\)"):
+        recording_dataset(rec, positions_m=np.zeros(3))
+    with pytest.raises(ValueError, match=r"sensor_positions_m: need shape \(3, 2\)"):
+        recording_dataset(rec, sensor_positions_m=np.zeros((2, 2)))
+    path = write_recording(rec, tmp_path, positions_m=np.arange(7) * 1e-3)
+    assert read_recording(path) == rec

@@ -1,0 +1,197 @@
+"""Benchmark: batches on Dask, serial vs LocalCluster(n_workers=1, 2), and why small tasks are batched.
+
+Run:  .venv/bin/python benchmarks/bench_batch.py [--recordings 200] [--fft 10000] [--workers 1,2]
+
+Part 1, defect scans: ``--recordings`` recordings simulated by ``tactilab.forward.simulate_scene``
+(3 stress sensors at 2 mm depth, 30 samples; the defect at a random x in [-1, 1] mm, white noise
+20 Pa), each inverted by ``tactilab.inversion.invert_many`` for the defect position (emcee,
+4 ensembles x 8 walkers x 20 steps, after an 8-point multistart; deliberately short) and the
+load profile with its band (40 nodes). Serial (``workers=0``) and on a LocalCluster of 1 and 2
+one-thread worker processes. Columns: wall time of the batch (cluster start-up excluded, given
+separately), speedup over serial, overhead per task = (workers x wall - sum of task compute
+times) / tasks, peak resident memory per worker process (the largest), and whether every
+result is bitwise identical to the serial run.
+
+Part 2, small FFT inversions: ``--fft`` exact Gaussian posteriors (``gaussian_posterior`` on the
+fft path, 64-node periodic grid, pressure -> sigma_zz at 0.5 mm) through ``run_batch``, one
+result file per inversion at 1 and at 100 inversions per Dask task, and 100 inversions per key
+(one file per 100), serial and on 2 workers.
+
+The table is printed; docs/scale-out.md quotes it with the machine it ran on.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pathlib
+import resource
+import shutil
+import tempfile
+import time
+
+import numpy as np
+
+from tactilab.data_schemas import Scan, SensorArray, load_example, read_result, run_batch
+from tactilab.forward import simulate_scene
+from tactilab.inversion import StationaryPrior, gaussian_posterior, halfspace_fourier_operator, invert_many
+
+FAST = dict(n_walkers=8, check_every=20, max_steps=20, n_start=8)
+
+
+def small_scene(x0: float = 0.0):
+    """The defect scene of the benchmark (SI units), the defect at world x = ``x0`` m."""
+    base = load_example("fingertip_defect")
+    sensors = SensorArray(positions_m=np.array([[0.0, 0.0], [1e-3, 0.0], [-1e-3, 1e-3]]), depth_m=2e-3,
+                          components=("zz",), noise_std=20.0)
+    scan = Scan(speed_m_per_s=0.02, duration_s=0.4, sampling_rate_hz=75.0, start_position_m=-4e-3)
+    surface = base.surface.model_copy(update={"position_m": (x0, 0.0)})
+    return base.model_copy(update={"sensors": sensors, "scan": scan, "surface": surface})
+
+
+def make_recordings(root: pathlib.Path, n: int, rng: np.random.Generator) -> None:
+    """``n`` simulated scans under ``root/scan-XXXX/recording.nc``."""
+    for i, x0 in enumerate(rng.uniform(-1e-3, 1e-3, n)):
+        simulate_scene(small_scene(float(x0)), root / f"scan-{i:04d}", rng=rng, plots=False)
+
+
+def _peak_rss_mib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: KiB
+
+
+def _cluster(n: int):
+    import distributed
+
+    t0 = time.perf_counter()
+    cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                                       env={"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"})
+    client = distributed.Client(cluster)
+    return cluster, client, time.perf_counter() - t0
+
+
+def _compute_s(out, keys) -> float:
+    return sum(float(read_result(out, k).attrs["batch_compute_s"]) for k in keys)
+
+
+def _same(out_a, out_b, keys) -> bool:
+    """Every group's data of every key equal bit for bit (attributes such as timings aside)."""
+    for k in keys:
+        a, b = read_result(out_a, k), read_result(out_b, k)
+        for group in a.groups:
+            da, db = a[group].to_dataset(), b[group].to_dataset()
+            if not (da.equals(db) and all(da[v].dtype == db[v].dtype for v in da.data_vars)):
+                return False
+    return True
+
+
+def bench_recordings(n: int, workers: list[int], tmp: pathlib.Path) -> list[dict]:
+    """Part 1: rows of the defect-scan table."""
+    scans = tmp / "scans"
+    t0 = time.perf_counter()
+    make_recordings(scans, n, np.random.default_rng(2026))
+    print(f"simulated {n} recordings in {time.perf_counter() - t0:.1f} s")
+    scene = small_scene()
+    rows = []
+    common = dict(seed=1, sampler_options=FAST, n_grid=40, progress=False)
+    out0 = tmp / "serial"
+    tree = invert_many(scans, scene, out_dir=out0, workers=0, **common)
+    keys = list(tree["recording"].values)
+    wall0 = float(tree.attrs["wall_s"])
+    print(f"serial: {wall0:.1f} s", flush=True)
+    rows.append(dict(run="serial (workers=0)", start=0.0, wall=wall0, speedup=1.0,
+                     overhead=(wall0 - _compute_s(out0, keys)) / n, rss=_peak_rss_mib(), same=True))
+    for w in workers:
+        cluster, client, start = _cluster(w)
+        client.run(lambda: __import__("tactilab.inversion.scene_inversion"))  # imports are start-up, not work
+        start_total = start
+        out = tmp / f"w{w}"
+        tree = invert_many(scans, scene, out_dir=out, client=client, **common)
+        wall = float(tree.attrs["wall_s"])
+        rss = max(client.run(_peak_rss_mib).values())
+        client.close()
+        cluster.close()
+        print(f"{w} worker(s): {wall:.1f} s", flush=True)
+        rows.append(dict(run=f"LocalCluster(n_workers={w})", start=start_total, wall=wall, speedup=wall0 / wall,
+                         overhead=(w * wall - _compute_s(out, keys)) / n, rss=rss, same=_same(out0, out, keys)))
+    return rows
+
+
+def _one_fft(rng, operator, prior, noise_std):
+    n = operator.multiplier.size
+    lam = prior.spectrum((n,), operator.spacing)
+    truth = np.fft.irfft(np.sqrt(lam[: n // 2 + 1]) * np.fft.rfft(rng.standard_normal(n)), n)
+    data = operator.matvec(truth) + noise_std * rng.standard_normal(n)
+    post = gaussian_posterior(operator, data, prior, noise_std)
+    return post.mean, post.std
+
+
+def _fft_task(item, rng, *, operator, prior, noise_std, group=1):
+    """``group`` small FFT inversions of fields and noisy data drawn from ``rng``; one result."""
+    import xarray as xr
+
+    out = [_one_fft(rng, operator, prior, noise_std) for _ in range(group)]
+    return xr.Dataset({"mean": (("case", "x"), [m for m, _ in out]), "std": (("case", "x"), [s for _, s in out])})
+
+
+def bench_fft(n: int, tmp: pathlib.Path) -> list[dict]:
+    """Part 2: ``n`` tiny inversions on 2 workers at 1 and 100 per task (one file each), and 100 per key."""
+    shared = dict(operator=halfspace_fourier_operator((64,), 50e-6, 0.5e-3),
+                  prior=StationaryPrior(variance=1e6, correlation_length=0.5e-3), noise_std=10.0)
+    t0 = time.perf_counter()
+    for _ in range(200):
+        _one_fft(np.random.default_rng(0), **shared)
+    print(f"one inversion alone (no file): {1e3 * (time.perf_counter() - t0) / 200:.3f} ms")
+    items = {f"fft-{i:05d}": i for i in range(n)}
+    groups = {f"fft-group-{i:03d}": i for i in range(-(-n // 100))}
+    rows = []
+    cluster, client, _ = _cluster(2)
+    client.run(lambda: __import__("tactilab.inversion.gaussian"))
+    for label, its, per_task, extra in (("1 per task, 1 per file", items, 1, {}),
+                                        ("100 per task, 1 per file", items, 100, {}),
+                                        ("100 per file (one key = 100 inversions)", groups, 1, {"group": 100})):
+        rep = run_batch(_fft_task, its, seed=3, out_dir=tmp / f"fft-{len(rows)}", client=client,
+                        shared=dict(shared, **extra), per_task=per_task, progress=False)
+        rows.append(dict(run=f"LocalCluster(2), {label}", tasks=-(-len(its) // per_task), files=len(its),
+                         wall=rep.wall_s, per_item_ms=1e3 * rep.wall_s / n))
+        print(rows[-1], flush=True)
+    client.close()
+    cluster.close()
+    rep = run_batch(_fft_task, groups, seed=3, out_dir=tmp / "fft-serial", workers=0, shared=dict(shared, group=100),
+                    progress=False)
+    rows.append(dict(run="serial, 100 per file", tasks=len(groups), files=len(groups), wall=rep.wall_s,
+                     per_item_ms=1e3 * rep.wall_s / n, same=_same(tmp / "fft-serial", tmp / "fft-2", list(groups))))
+    return rows
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--recordings", type=int, default=200, help="number of defect-scan recordings (count)")
+    parser.add_argument("--fft", type=int, default=10000, help="number of small FFT inversions (count)")
+    parser.add_argument("--workers", default="1,2", help="LocalCluster sizes, comma-separated (counts)")
+    args = parser.parse_args(argv)
+    workers = [int(w) for w in args.workers.split(",") if w.strip()]
+    print(f"machine: {os.cpu_count()} CPU cores, load average {os.getloadavg()[0]:.1f} at start")
+    tmp = pathlib.Path(tempfile.mkdtemp(prefix="bench_batch_"))
+    try:
+        if args.recordings:
+            rows = bench_recordings(args.recordings, workers, tmp)
+            print(f"\n{args.recordings} defect-scan recordings, one task each")
+            print(f"| run | start-up (s) | wall (s) | speedup | overhead per task (ms) | peak RSS per worker (MiB) "
+                  f"| bitwise = serial |\n|---|---|---|---|---|---|---|")
+            for r in rows:
+                print(f"| {r['run']} | {r['start']:.1f} | {r['wall']:.1f} | {r['speedup']:.2f} | "
+                      f"{1e3 * r['overhead']:.0f} | {r['rss']:.0f} | {'yes' if r['same'] else 'NO'} |")
+        if args.fft:
+            rows = bench_fft(args.fft, tmp)
+            print(f"\n{args.fft} small FFT inversions (64 nodes), one result file each")
+            print("| run | tasks | files | wall (s) | per inversion (ms) |\n|---|---|---|---|---|")
+            for r in rows:
+                print(f"| {r['run']} | {r['tasks']} | {r['files']} | {r['wall']:.1f} | {r['per_item_ms']:.2f} |")
+            print(f"serial and 2-worker results of the grouped run bitwise identical: {rows[-1]['same']}")
+        print(f"load average {os.getloadavg()[0]:.1f} at the end")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,65 @@
+"""Batch options of the CLI (``--batch DIR``, ``--workers N``, ``--scheduler ADDRESS``) and the batch inversion.
+
+``tactilab invert --batch DIR --scene SCENE [--workers N] [--scheduler ADDRESS]`` inverts every
+recording file below ``DIR`` with :func:`tactilab.inversion.batch.invert_many`: serial with
+``--workers 0``, on a LocalCluster of N one-thread processes without ``--scheduler``, or on the
+running Dask scheduler at ADDRESS. A rerun with the same ``--out`` resumes the batch.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def _workers(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0 (0 = serial in-process), got {text!r}") from None
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0 (0 = serial in-process), got {n}")
+    return n
+
+
+def add_batch_options(parser: argparse.ArgumentParser) -> None:
+    """Add ``--batch``, ``--workers`` and ``--scheduler`` to a command's parser."""
+    group = parser.add_argument_group("batch (Dask; needs pip install 'tactilab[dask]' unless --workers 0)")
+    group.add_argument("--batch", type=Path, default=None, metavar="DIR",
+                       help="invert every recording file (.nc, .json, .parquet) below DIR, one task each; results "
+                            "in --out (default ./<DIR name>-batch); a rerun with the same --out resumes")
+    group.add_argument("--workers", type=_workers, default=None, metavar="N",
+                       help="worker processes of a LocalCluster on this machine (count; default: one per core); "
+                            "0 runs serially in-process")
+    group.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="address of a running Dask scheduler (e.g. tcp://host:8786); default: start a "
+                            "LocalCluster here (its dashboard address is printed)")
+
+
+def run_invert_batch(args: argparse.Namespace) -> int:
+    """Run the batch inversion for parsed ``tactilab invert --batch`` arguments; print a closing summary.
+
+    Uses ``args.batch``, ``args.scene``, ``args.out``, ``args.seed``, ``args.workers``,
+    ``args.scheduler`` and, when present, ``args.max_steps``, ``args.max_data``,
+    ``args.criterion``, ``args.sample``, ``args.quiet``. Returns 0 when every recording was
+    inverted, 1 when some failed (listed in ``errors.tsv``).
+    """
+    from tactilab.inversion.batch import invert_many
+
+    if args.batch is None or not Path(args.batch).is_dir():
+        raise ValueError(f"--batch: must be a folder of recording files, got {str(args.batch)!r}; e.g. --batch scans/")
+    max_steps = getattr(args, "max_steps", 20000)
+    if max_steps < 1:
+        raise ValueError(f"--max-steps: must be >= 1 step, got {max_steps}; e.g. 20000")
+    out = args.out if getattr(args, "out", None) is not None else Path(f"{Path(args.batch).resolve().name}-batch")
+    sample = tuple(q.strip() for q in getattr(args, "sample", "").split(",") if q.strip())
+    tree = invert_many(args.batch, args.scene, seed=getattr(args, "seed", 0), out_dir=out, workers=args.workers,
+                       scheduler=args.scheduler, sample=sample, max_data=getattr(args, "max_data", 1500),
+                       criterion=getattr(args, "criterion", "evidence"), sampler_options={"max_steps": max_steps},
+                       progress=not getattr(args, "quiet", False))
+    a = tree.attrs
+    print(f"batch: {a['n_run']} recording(s) inverted, {a['n_skipped']} skipped (done before), "
+          f"{a['n_failed']} failed, {a['wall_s']:.1f} s")
+    print(f"files: {Path(out) / 'results'} (one DataTree per recording), {Path(out) / 'invert_many.nc'} (gathered)"
+          + (f", {Path(out) / 'errors.tsv'} (failed: {a['failed'].replace(';', ', ')})" if a["n_failed"] else ""))
+    return 1 if a["n_failed"] else 0

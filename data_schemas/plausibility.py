@@ -1,0 +1,62 @@
+"""Plausibility at the edges: values far outside the range of skin and tactile displays.
+
+A value that converts cleanly can still be absurd: a 50 m grid spacing or a 1 Pa skin modulus
+is almost always a unit mistake. Each quantity has one usual range, keyed by its name as it is
+written at the edge (``--grid-spacing``, ``material.young_modulus``, ``depth_m``): the name is
+reduced to its base (``grid_spacing``, ``young_modulus``, ``depth``). A value outside the range
+emits a :class:`PlausibilityWarning` that names the value and the usual range; the ``tactilab``
+command's ``--strict`` option turns these warnings into errors.
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+
+#: base quantity name -> (lowest, highest) plausible SI value, and the usual range in words
+PLAUSIBLE: dict[str, tuple[float, float, str]] = {
+    "depth": (1e-6, 20e-3, "receptor and sensor depths are 1 um to 20 mm"),
+    "grid_spacing": (1e-7, 10e-3, "grid spacings are 0.1 um to 10 mm"),
+    "spacing": (1e-7, 10e-3, "grid spacings are 0.1 um to 10 mm"),
+    "young_modulus": (1e3, 1e9, "skin and sensor moduli are 1 kPa to 1 GPa"),
+    "watchdog": (0.0, 1.0, "display watchdogs are at most 1 s"),
+    "pitch": (1e-6, 0.2, "grating pitches are 1 um to 200 mm"),
+    "amplitude": (0.0, 20e-3, "stimulus amplitudes are at most 20 mm"),
+}
+
+_UNIT_SUFFIX = re.compile(r"_(m|pa|s|n|hz|m_per_s|n_per_m)$")
+
+
+class PlausibilityWarning(UserWarning):
+    """A value converts cleanly but lies far outside the range of skin and tactile displays."""
+
+
+def base_quantity(name: str) -> str:
+    """Reduce an edge name to its quantity: ``'--grid-spacing'`` -> ``'grid_spacing'``,
+    ``'sensors.depth_m'`` -> ``'depth'``, ``'procedure.tracks[0].start'`` -> ``'start'``."""
+    last = name.lstrip("-").replace("-", "_").split(".")[-1]
+    last = re.sub(r"\[\d+\]$", "", last)
+    return _UNIT_SUFFIX.sub("", last.lower())
+
+
+def check_plausible(value: float, name: str, unit: str = "(SI)") -> None:
+    """Warn (:class:`PlausibilityWarning`) if ``value`` (SI) is outside the usual range of ``name``.
+
+    Parameters
+    ----------
+    value : float
+        The value in SI units.
+    name : str
+        The option or field name as written at the edge; quantities without a usual range pass.
+    unit : str
+        The SI unit of ``value``, for the message.
+    """
+    entry = PLAUSIBLE.get(base_quantity(name))
+    if entry is None:
+        return
+    low, high, usual = entry
+    if not low <= abs(value) <= high:
+        warnings.warn(
+            f"{name} = {value:g} {unit} is outside the usual range ({usual}); check its unit",
+            PlausibilityWarning, stacklevel=3,
+        )

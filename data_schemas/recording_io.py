@@ -1,0 +1,158 @@
+"""Recording files: netCDF (via h5netcdf), Parquet (tidy form) and JSON, beside the record.
+
+:func:`write_recording` writes a :class:`~.recording.Recording` as ``recording.nc`` or
+``recording.parquet``; :func:`read_recording` reads either back (or a JSON record written by
+``Recording.save``) and gives the same record: values in SI (Pa, or strain with tensor shear),
+sampling rate, start time, quantity, unit, description, and the sensor and component order.
+:func:`recording_dataset` is the netCDF layout as an ``xarray.Dataset``. Parquet needs the
+optional package pyarrow (the ``parquet`` extra).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import pathlib
+from collections.abc import Mapping
+
+import numpy as np
+import xarray as xr
+
+from .recording import Recording
+
+#: File formats :func:`write_recording` writes
+FORMATS: tuple[str, ...] = ("netcdf", "parquet")
+
+_SHEAR_CONVENTION = "tensor shear eps_ij (engineering gamma = 2 eps)"
+
+
+def recording_dataset(recording: Recording, *, positions_m=None, sensor_positions_m=None,
+                      attrs: Mapping[str, float | str] | None = None) -> xr.Dataset:
+    """The recording as an xarray Dataset in SI: ``values`` with dims (time, sensor, component).
+
+    Parameters
+    ----------
+    recording : Recording
+    positions_m : array_like, shape (n_times,), optional
+        World x of the contact centre at each sample, m (coordinate ``contact_x``).
+    sensor_positions_m : array_like, shape (n_sensors, 2), optional
+        Sensor (x, y) in the finger frame, m (coordinates ``sensor_x``, ``sensor_y``).
+    attrs : mapping, optional
+        Further scalar attributes (SI, unit in the name, e.g. ``depth_m``).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``values`` in Pa or strain (tensor shear); attributes ``quantity``, ``unit``,
+        ``sampling_rate_hz``, ``start_time_s``, ``description``, ``shear_convention``.
+    """
+    ds = xr.Dataset(
+        {"values": (("time", "sensor", "component"), recording.values)},
+        coords={"time": ("time", recording.times_s, {"units": "s"}),
+                "sensor": list(recording.sensor_ids), "component": list(recording.components)},
+        attrs=dict(quantity=recording.quantity, unit=recording.unit, sampling_rate_hz=recording.sampling_rate_hz,
+                   start_time_s=recording.start_time_s, description=recording.description,
+                   shear_convention=_SHEAR_CONVENTION),
+    )
+    ds["values"].attrs["units"] = recording.unit
+    if sensor_positions_m is not None:
+        pos = np.asarray(sensor_positions_m, dtype=float)
+        if pos.shape != (recording.n_sensors, 2):
+            raise ValueError(f"sensor_positions_m: need shape ({recording.n_sensors}, 2) (x, y per sensor, m), "
+                             f"got {pos.shape}")
+        ds = ds.assign_coords(sensor_x=("sensor", pos[:, 0], {"units": "m", "frame": "finger"}),
+                              sensor_y=("sensor", pos[:, 1], {"units": "m", "frame": "finger"}))
+    if positions_m is not None:
+        u = np.asarray(positions_m, dtype=float)
+        if u.shape != (recording.n_times,):
+            raise ValueError(f"positions_m: need one contact position per sample, shape ({recording.n_times},), "
+                             f"got {u.shape}")
+        ds = ds.assign_coords(contact_x=("time", u, {"units": "m", "frame": "world"}))
+    if attrs:
+        ds.attrs.update(attrs)
+    return ds
+
+
+def write_recording(recording: Recording, out_dir, fmt: str = "netcdf", *, positions_m=None,
+                    sensor_positions_m=None, attrs: Mapping[str, float | str] | None = None) -> pathlib.Path:
+    """Write ``recording.nc`` (netCDF4 via h5netcdf) or ``recording.parquet`` (tidy form) into ``out_dir``.
+
+    Parameters
+    ----------
+    recording : Recording
+    out_dir : path
+        An existing folder.
+    fmt : {"netcdf", "parquet"}
+        Parquet needs pyarrow; it stores the tidy DataFrame (``Recording.to_dataframe``),
+        without the optional coordinates and attributes below.
+    positions_m, sensor_positions_m, attrs
+        Extra netCDF coordinates and attributes, as in :func:`recording_dataset`.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+    """
+    if fmt not in FORMATS:
+        raise ValueError(f"format: must be one of {FORMATS}, got {fmt!r}")
+    out_dir = pathlib.Path(out_dir)
+    if fmt == "parquet":
+        if importlib.util.find_spec("pyarrow") is None:
+            raise ValueError("format: 'parquet' needs the optional package pyarrow (pip install pyarrow); "
+                             "or write netcdf")
+        path = out_dir / "recording.parquet"
+        recording.to_dataframe().to_parquet(path)
+        return path
+    path = out_dir / "recording.nc"
+    ds = recording_dataset(recording, positions_m=positions_m, sensor_positions_m=sensor_positions_m, attrs=attrs)
+    ds.to_netcdf(path, engine="h5netcdf")
+    return path
+
+
+def read_recording(path) -> Recording:
+    """Read a Recording written by :func:`write_recording` (``.nc`` or ``.parquet``) or a JSON record.
+
+    Parameters
+    ----------
+    path : path
+        ``recording.nc``, ``recording.parquet`` or a ``.json`` written by ``Recording.save``.
+
+    Returns
+    -------
+    Recording
+        Equal to the record written (values in SI, sensor and component order kept).
+
+    Raises
+    ------
+    OSError
+        If the file does not exist.
+    ValueError
+        An unsupported suffix, a netCDF file without ``values``, or Parquet without pyarrow.
+    """
+    path = pathlib.Path(path)
+    if not path.exists():
+        raise OSError(f"path: file {str(path)!r} not found; give the recording.nc, .parquet or .json "
+                      "written with write_recording or Recording.save")
+    if path.suffix == ".json":
+        return Recording.load(path)
+    if path.suffix == ".parquet":
+        if importlib.util.find_spec("pyarrow") is None:
+            raise ValueError(f"path: reading {path} needs the optional package pyarrow (pip install pyarrow); "
+                             "or write the recording as netcdf")
+        import pandas as pd
+
+        df = pd.read_parquet(path)
+        # pandas keeps DataFrame.attrs in the Parquet metadata; tuples come back as lists
+        order = {k: tuple(df.attrs[k]) for k in ("sensor_ids", "components") if k in df.attrs}
+        return Recording.from_dataframe(df, **order)
+    if path.suffix != ".nc":
+        raise ValueError(f"path: unsupported file type {path.suffix!r} ({path}); use .nc, .parquet or .json")
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        if "values" not in ds:
+            raise ValueError(f"path: {path} has no 'values' variable (time, sensor, component); "
+                             "write it with write_recording")
+        return Recording(values=ds["values"].values, sampling_rate_hz=float(ds.attrs["sampling_rate_hz"]),
+                         sensor_ids=tuple(str(s) for s in ds["sensor"].values),
+                         components=tuple(str(c) for c in ds["component"].values),
+                         quantity=str(ds.attrs.get("quantity", "stress")), unit=str(ds.attrs.get("unit", "Pa")),
+                         start_time_s=float(ds.attrs.get("start_time_s", 0.0)),
+                         description=str(ds.attrs.get("description", "")))

@@ -1,0 +1,421 @@
+"""Posterior sampling of any model object with emcee, convergence judged across ensembles.
+
+:func:`sample_posterior` takes a model that follows :class:`PosteriorModel` (parameter names, a
+log prior and a per-observation log-likelihood, picklable) and returns an arviz ``DataTree``.
+
+Sampling: ``n_ensembles`` (>= 4) independent ``emcee.EnsembleSampler`` runs. Each ensemble starts
+in a small ball around its OWN MAP estimate (best of the model's ``initial`` candidates drawn with
+the ensemble's own rng, polished by Nelder-Mead in scaled coordinates), so ensembles that find
+different modes disagree visibly. Every ``check_every`` steps, on the chains after burn-in:
+
+- rank-normalised split R-hat (arviz_stats) between ensembles (each ensemble's draws, step by
+  step over its walkers, pooled as one chain) < ``rhat_target``; the R-hat with every walker as
+  a chain is reported too (walkers of one ensemble are not independent chains, so it is not a
+  stopping rule);
+- bulk and tail ESS (every walker a chain) >= ``min_ess``;
+- kept chain length >= ``tau_factor`` x the integrated autocorrelation time (emcee, per ensemble).
+
+Sampling stops when all hold (``converged = 1`` in the tree's attrs) or at ``max_steps``
+(``converged = 0``, the failing checks listed in ``attrs["failed"]`` and ``attrs["message"]``).
+
+The log-likelihood group holds the model's per-observation terms at the kept draws. Observations
+whose term varies by less than ``info_tol`` nats over all draws carry no information about the
+parameters (e.g. a sensor the signal never reaches); they break Pareto-smoothed LOO ("All tail
+values are the same") and are dropped from the group; ``attrs["log_likelihood_dropped"]`` lists
+them and ``attrs["log_likelihood_dropped_total"]`` holds their summed (constant) value, so
+``sum(log_likelihood) + dropped_total`` is the total log-likelihood of every draw.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pickle
+from typing import Protocol, Sequence, runtime_checkable
+
+import emcee
+import numpy as np
+from scipy.optimize import minimize
+
+__all__ = ["PosteriorModel", "sample_posterior", "mcmc_diagnostics"]
+
+
+@runtime_checkable
+class PosteriorModel(Protocol):
+    """What :func:`sample_posterior` needs from a model (a ``typing.Protocol``).
+
+    Required
+    --------
+    param_names : sequence of str
+        Names of the P sampled parameters, in the order of ``theta``; unique.
+    log_prior(theta) -> float
+        ``theta`` shape (P,): log prior density (``-inf`` outside the support, never NaN).
+    log_likelihood(theta) -> ndarray, shape (n_obs,)
+        Per-observation log-likelihood terms ``log p(d_i | theta)``; the sampler's target is
+        ``log_prior(theta) + sum(log_likelihood(theta))`` and the terms fill the tree's
+        ``log_likelihood`` group. Never NaN (``-inf`` is allowed).
+
+    The model must pickle (``pickle.dumps(model)``) so that a ``pool`` can send it to workers.
+
+    Optional hooks (looked up with ``getattr``)
+    -------------------------------------------
+    vectorized : bool
+        When True, ``log_prior`` takes ``theta`` shape (W, P) and returns (W,), and
+        ``log_likelihood`` takes (W, P) and returns (W, n_obs): one call per ensemble step
+        (emcee ``vectorize=True``; ignored when a ``pool`` is given).
+    initial(rng, n) -> ndarray, shape (n, P)
+        Candidate starting points (e.g. prior draws); each ensemble starts at the best of
+        ``n_start`` candidates polished by Nelder-Mead (its MAP estimate). Without it, pass
+        ``start`` to :func:`sample_posterior`.
+    scale : ndarray, shape (P,)
+        Typical parameter scale (e.g. prior sd) for the MAP polish and the start ball
+        (default: the sd of the ``initial`` candidates, else 1).
+    observed : ndarray, shape (n_obs,)
+        The data, written to the tree's ``observed_data`` group.
+    units : str
+        Units of the parameters, written to ``attrs["units"]``.
+    marginalised_names, log_marginal_likelihood(theta), draw_marginalised(theta, rng)
+        For models that integrate some parameters out exactly (a linear amplitude): the target
+        is ``log_prior + log_marginal_likelihood(theta)`` (float, or (W,) when vectorized);
+        ``draw_marginalised(theta (N, P), rng) -> dict name -> (N,)`` draws them from their
+        conditional posterior for every kept draw (they join the ``posterior`` group), and
+        ``log_likelihood`` then takes the full vector (sampled parameters followed by
+        ``marginalised_names``).
+    """
+
+    param_names: Sequence[str]
+
+    def log_prior(self, theta: np.ndarray) -> float: ...
+
+    def log_likelihood(self, theta: np.ndarray) -> np.ndarray: ...
+
+
+class _Target:
+    """Picklable log posterior (target) of a model: one theta (P,) -> float, or (W, P) -> (W,)."""
+
+    def __init__(self, model):
+        self.model = model
+        self.vectorized = bool(getattr(model, "vectorized", False))
+        self.marginal = callable(getattr(model, "log_marginal_likelihood", None))
+
+    def _likelihood(self, theta):
+        if self.marginal:
+            return self.model.log_marginal_likelihood(theta)
+        ll = np.asarray(self.model.log_likelihood(theta), dtype=float)
+        return ll.sum(axis=-1)
+
+    def __call__(self, theta):
+        theta = np.asarray(theta, dtype=float)
+        if theta.ndim == 2:
+            return self.many(theta)
+        if self.vectorized:
+            return float(self.many(theta[None, :])[0])
+        lp = float(self.model.log_prior(theta))
+        out = lp + float(self._likelihood(theta)) if np.isfinite(lp) else -np.inf
+        if np.isnan(out) or np.isnan(lp):
+            raise ValueError(f"model: log posterior is NaN at theta={theta.tolist()}; log_prior and "
+                             "log_likelihood must return -inf (not NaN) outside the support")
+        return out
+
+    def many(self, thetas: np.ndarray) -> np.ndarray:
+        if not self.vectorized:
+            return np.array([self(t) for t in thetas])
+        lp = np.asarray(self.model.log_prior(thetas), dtype=float).reshape(thetas.shape[0])
+        out = np.full(thetas.shape[0], -np.inf)
+        ok = np.isfinite(lp)
+        if ok.any():
+            out[ok] = lp[ok] + np.asarray(self._likelihood(thetas[ok]), dtype=float).reshape(-1)
+        bad = np.isnan(out) | np.isnan(lp)
+        if bad.any():
+            raise ValueError(f"model: log posterior is NaN at theta={thetas[np.flatnonzero(bad)[0]].tolist()}; "
+                             "log_prior and log_likelihood must return -inf (not NaN) outside the support")
+        return out
+
+
+def _pointwise(model, thetas: np.ndarray, pool) -> np.ndarray:
+    """Per-observation log-likelihood, shape (N, n_obs)."""
+    if getattr(model, "vectorized", False) and pool is None:
+        return np.concatenate([np.asarray(model.log_likelihood(thetas[i:i + 256]), dtype=float)
+                               for i in range(0, thetas.shape[0], 256)])
+    mapper = pool.map if pool is not None else map
+    return np.array([np.asarray(v, dtype=float) for v in mapper(model.log_likelihood, list(thetas))])
+
+
+def _initial(model, rng, n: int, ndim: int) -> np.ndarray:
+    cand = np.asarray(model.initial(rng, n), dtype=float)
+    if cand.shape != (n, ndim):
+        raise ValueError(f"model.initial: expected shape ({n}, {ndim}) from initial(rng, {n}), got {cand.shape}")
+    return cand
+
+
+def _map_start(target: _Target, model, rng, n_start: int, scale: np.ndarray, start):
+    """Best initial candidate (or the given start), polished by Nelder-Mead in scaled coordinates."""
+    if start is not None:
+        best = np.asarray(start, dtype=float)
+        if not np.isfinite(target(best)):
+            raise ValueError(f"start: the log posterior is -inf at {best.tolist()}; start inside the prior's support")
+    else:
+        cand = _initial(model, rng, n_start, scale.size)
+        vals = target.many(cand)
+        if not np.isfinite(vals).any():
+            raise ValueError(f"model.initial: none of {n_start} candidates has a finite log posterior; "
+                             "draw the candidates from the prior")
+        best = cand[int(np.argmax(vals))]
+    res = minimize(lambda z: -float(target(best + z * scale)), np.zeros(best.size), method="Nelder-Mead",
+                   options={"xatol": 1e-4, "fatol": 1e-3, "maxfev": 600})
+    polished = best + res.x * scale
+    return polished if np.isfinite(target(polished)) else best
+
+
+def mcmc_diagnostics(chains: np.ndarray, tau_factor: float, rhat_target: float, min_ess: float) -> dict:
+    """R-hat, ESS and autocorrelation checks of ``chains``, shape (n_ensembles, steps, walkers, P).
+
+    Returns
+    -------
+    dict
+        ``rhat_max`` (every walker a chain), ``rhat_between_max`` (every ensemble a chain),
+        ``ess_bulk_min``, ``ess_tail_min``, ``tau_max`` (steps), ``n_kept`` and ``failed`` (list
+        of the checks that fail against the thresholds).
+    """
+    import arviz_stats as azs
+
+    k, n, w, p = chains.shape
+    per_walker = chains.transpose(0, 2, 1, 3).reshape(k * w, n, p)
+    per_ensemble = chains.reshape(k, n * w, p)
+    rhat = np.atleast_1d(azs.rhat(per_walker, chain_axis=0, draw_axis=1))
+    rhat_between = np.atleast_1d(azs.rhat(per_ensemble, chain_axis=0, draw_axis=1))
+    ess_bulk = np.atleast_1d(azs.ess(per_walker, method="bulk", chain_axis=0, draw_axis=1))
+    ess_tail = np.atleast_1d(azs.ess(per_walker, method="tail", prob=(0.05, 0.95), chain_axis=0, draw_axis=1))
+    # tol=0: no emcee warning; the length check against tau_factor x tau is ours, below
+    tau = max(float(np.max(emcee.autocorr.integrated_time(chains[i], c=5, tol=0))) for i in range(k))
+    diag = {"rhat_max": float(np.max(rhat)), "rhat_between_max": float(np.max(rhat_between)),
+            "ess_bulk_min": float(np.min(ess_bulk)), "ess_tail_min": float(np.min(ess_tail)),
+            "tau_max": tau, "n_kept": n}
+    failed = []
+    if not diag["rhat_between_max"] < rhat_target:
+        failed.append(f"R-hat between ensembles {diag['rhat_between_max']:.4f} >= {rhat_target}")
+    if not diag["ess_bulk_min"] >= min_ess:
+        failed.append(f"bulk ESS {diag['ess_bulk_min']:.0f} < {min_ess}")
+    if not diag["ess_tail_min"] >= min_ess:
+        failed.append(f"tail ESS {diag['ess_tail_min']:.0f} < {min_ess}")
+    if not n >= tau_factor * tau:
+        failed.append(f"kept chain {n} steps < {tau_factor} x autocorrelation time {tau:.1f}")
+    diag["failed"] = failed
+    return diag
+
+
+def _check_model(model) -> tuple[str, ...]:
+    names = getattr(model, "param_names", None)
+    if names is None or isinstance(names, str) or not all(isinstance(q, str) for q in names):
+        raise ValueError(f"model.param_names: expected a sequence of parameter names (str), got {names!r}")
+    names = tuple(names)
+    if not names or len(set(names)) != len(names):
+        raise ValueError(f"model.param_names: need at least one name and no repeats, got {names!r}")
+    for hook in ("log_prior", "log_likelihood"):
+        if not callable(getattr(model, hook, None)):
+            raise ValueError(f"model.{hook}: the model must define a callable {hook}(theta); see PosteriorModel")
+    return names
+
+
+def _backends(backend, k: int) -> list:
+    if backend is None:
+        return [None] * k
+    if isinstance(backend, emcee.backends.HDFBackend):  # one HDF5 group per ensemble, same file
+        return [emcee.backends.HDFBackend(backend.filename, name=f"{backend.name}_ensemble{i}",
+                                          read_only=backend.read_only, dtype=backend.dtype,
+                                          compression=backend.compression,
+                                          compression_opts=backend.compression_opts) for i in range(k)]
+    if isinstance(backend, (list, tuple)) and len(backend) == k and all(
+            isinstance(b, emcee.backends.Backend) for b in backend):
+        return list(backend)
+    raise ValueError(f"backend: expected an emcee.backends.HDFBackend (one group per ensemble) or a list of "
+                     f"{k} emcee backends (one per ensemble), got {backend!r}")
+
+
+def sample_posterior(model: PosteriorModel, rng: np.random.Generator, *, n_ensembles: int = 4,
+                     pool=None, backend=None, n_walkers: int | None = None, start=None,
+                     max_steps: int = 20000, check_every: int = 500, rhat_target: float = 1.01,
+                     min_ess: float = 400.0, tau_factor: float = 50.0, n_start: int = 512,
+                     max_draws: int = 4000, burn_fraction: float = 0.25, info_tol: float | None = None,
+                     progress: bool = False):
+    """Sample the posterior of a :class:`PosteriorModel` with emcee (see module docstring).
+
+    Parameters
+    ----------
+    model : PosteriorModel
+        Parameter names, log prior, per-observation log-likelihood; picklable.
+    rng : numpy.random.Generator
+        Source of every random number (MAP candidates, start balls, emcee's proposals).
+    n_ensembles : int
+        Independent ensembles, >= 4.
+    pool : object with ``map(func, iterable)``, optional
+        As emcee's ``pool`` (``multiprocessing.Pool``, ``schwimmbad``, a Dask client wrapper):
+        the log posterior of each walker is evaluated through ``pool.map`` (the model must pickle).
+    backend : emcee.backends.HDFBackend or list of n_ensembles emcee backends, optional
+        Where the chains are stored (checkpointing). An ``HDFBackend`` is split into one group
+        per ensemble (``<name>_ensemble<i>`` in the same file). A backend that already holds
+        steps is resumed: no new MAP search, sampling continues to ``max_steps`` in all.
+    n_walkers : int, optional
+        Walkers per ensemble (default max(16, 4 P), made even); >= 2 P.
+    start : array_like, shape (P,) or (n_ensembles, P), optional
+        Starting point(s) for the MAP polish when the model has no ``initial`` hook.
+    max_steps, check_every : int
+        Step limit per ensemble and the interval between convergence checks.
+    rhat_target, min_ess, tau_factor : float
+        Convergence thresholds (see module docstring).
+    n_start : int
+        ``initial`` candidates per ensemble for its MAP search.
+    max_draws : int
+        Total draws kept in the tree (chains thinned evenly).
+    burn_fraction : float in [0, 0.9]
+        Leading share of every chain discarded as burn-in.
+    info_tol : float or None
+        Observations whose log-likelihood term spans less than this (nats) over all draws are
+        dropped from the ``log_likelihood`` group (stated in the attrs); None keeps every one.
+    progress : bool
+        tqdm progress bar over the steps.
+
+    Returns
+    -------
+    xarray.DataTree
+        ``posterior`` (one chain per ensemble; draws step by step over its walkers),
+        ``log_likelihood`` (``obs``, shape (chain, draw, n_kept_obs), coordinate ``obs_id`` = the
+        observation's index), ``observed_data`` (when the model has ``observed``),
+        ``sample_stats`` (``lp``, the log target). ``attrs``: the diagnostics of
+        :func:`mcmc_diagnostics`, ``converged`` (1/0), ``failed``, ``message``, ``n_steps``,
+        ``n_walkers``, ``n_ensembles``, ``burn_in``, ``map_estimates`` (JSON list of dicts),
+        ``resumed``, ``log_likelihood_dropped``, ``log_likelihood_dropped_total``.
+    """
+    import arviz_base as azb
+
+    names = _check_model(model)
+    ndim = len(names)
+    if int(n_ensembles) != n_ensembles or n_ensembles < 4:
+        raise ValueError(f"n_ensembles: need at least 4 independent ensembles to judge convergence, got {n_ensembles}")
+    k = int(n_ensembles)
+    if not (0.0 <= burn_fraction <= 0.9):
+        raise ValueError(f"burn_fraction: must lie in [0, 0.9], got {burn_fraction!r}")
+    if int(max_steps) < 1 or int(check_every) < 1:
+        raise ValueError(f"max_steps, check_every: need positive step counts, got {max_steps!r}, {check_every!r}")
+    if pool is not None:
+        if not callable(getattr(pool, "map", None)):
+            raise ValueError(f"pool: expected an object with a map(func, iterable) method, got {pool!r}")
+        try:
+            pickle.dumps(model)
+        except Exception as exc:  # noqa: BLE001 (any pickling failure)
+            raise ValueError(f"model: must be picklable to be sent to pool workers, pickling failed with {exc!r}; "
+                             "keep only data and module-level functions on the model") from exc
+    n_walkers = int(n_walkers) if n_walkers is not None else max(16, 4 * ndim)
+    n_walkers += n_walkers % 2
+    if n_walkers < 2 * ndim:
+        raise ValueError(f"n_walkers: emcee needs at least 2 x n_parameters = {2 * ndim} walkers, got {n_walkers}")
+    has_initial = callable(getattr(model, "initial", None))
+    starts_given = None
+    if start is not None:
+        starts_given = np.asarray(start, dtype=float)
+        if starts_given.shape == (ndim,):
+            starts_given = np.tile(starts_given, (k, 1))
+        if starts_given.shape != (k, ndim) or not np.all(np.isfinite(starts_given)):
+            raise ValueError(f"start: expected finite values of shape ({ndim},) or ({k}, {ndim}), got "
+                             f"{np.shape(start)}")
+    elif not has_initial:
+        raise ValueError("start: the model has no initial(rng, n) hook; pass start=theta (shape (P,)) or add "
+                         "initial() returning candidate points (e.g. prior draws)")
+    target = _Target(model)
+    backends = _backends(backend, k)
+    subs = rng.spawn(k)
+    scale = getattr(model, "scale", None)
+    if scale is None:
+        scale = np.std(_initial(model, rng.spawn(1)[0], int(n_start), ndim), axis=0) if has_initial \
+            else np.ones(ndim)
+    scale = np.broadcast_to(np.asarray(scale, dtype=float), (ndim,))
+    scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
+    vectorize = target.vectorized and pool is None
+    samplers, p0s, maps = [], [], []
+    for i, sub in enumerate(subs):
+        sampler = emcee.EnsembleSampler(n_walkers, ndim, target, vectorize=vectorize, pool=pool,
+                                        backend=backends[i])
+        if sampler.iteration == 0:
+            best = _map_start(target, model, sub, int(n_start), scale,
+                              None if starts_given is None else starts_given[i])
+            maps.append(dict(zip(names, best.tolist())))
+            p0 = best + 1e-3 * scale * sub.standard_normal((n_walkers, ndim))
+            p0[~np.isfinite(target.many(p0))] = best
+            # emcee draws its proposals from a legacy RandomState: seed it from this ensemble's rng
+            sampler.random_state = np.random.RandomState(int(sub.integers(2**31))).get_state()
+        else:
+            p0 = None
+        samplers.append(sampler)
+        p0s.append(p0)
+    done = {s.iteration for s in samplers}
+    if len(done) != 1:
+        raise ValueError(f"backend: the ensembles hold different numbers of steps {sorted(done)}; resume from "
+                         "a backend written by one sample_posterior call")
+    steps = done.pop()
+    resumed = steps > 0
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=int(max_steps), initial=min(steps, int(max_steps)), desc="emcee (all ensembles)",
+                   unit="step")
+    while True:
+        chunk = max(0, min(int(check_every), int(max_steps) - steps))
+        for s, p0 in zip(samplers, p0s):
+            if chunk:
+                s.run_mcmc(p0 if s.iteration == 0 else None, chunk, progress=False)
+        steps += chunk
+        if bar is not None:
+            bar.update(chunk)
+        burn = int(steps * burn_fraction)
+        chains = np.stack([s.get_chain() for s in samplers])[:, burn:]
+        diag = mcmc_diagnostics(chains, tau_factor, rhat_target, min_ess)
+        if not diag["failed"] or steps >= max_steps:
+            break
+    if bar is not None:
+        bar.close()
+    converged = not diag["failed"]
+    kept = chains
+    lps = np.stack([s.get_log_prob() for s in samplers])[:, burn:]
+    _, n, w, _ = kept.shape
+    # one DataTree chain per ensemble; its draws run step by step over the walkers
+    kept, lps = kept.reshape(k, n * w, ndim), lps.reshape(k, n * w)
+    stride = max(1, math.ceil(k * n * w / max_draws))
+    kept, lps = kept[:, ::stride], lps[:, ::stride]
+    n = kept.shape[1]
+    flat = kept.reshape(k * n, ndim)
+    posterior = {q: flat[:, j].reshape(k, n) for j, q in enumerate(names)}
+    full = flat
+    if target.marginal:
+        extra = model.draw_marginalised(flat, rng)
+        for q in model.marginalised_names:
+            posterior[q] = np.asarray(extra[q], dtype=float).reshape(k, n)
+        full = np.column_stack([flat, *(np.asarray(extra[q], dtype=float) for q in model.marginalised_names)])
+    pointwise = _pointwise(model, full, pool)
+    span = np.ptp(pointwise, axis=0)
+    informative = np.ones(span.size, dtype=bool) if info_tol is None else ~(np.isfinite(span) & (span < info_tol))
+    keep = np.flatnonzero(informative)
+    dropped = np.flatnonzero(~informative)
+    dropped_total = float(np.mean(pointwise[:, dropped].sum(axis=1))) if dropped.size else 0.0
+    diag.update(n_steps=steps, n_walkers=n_walkers, n_ensembles=k, burn_in=burn)
+    lines = [("converged" if converged else "did NOT converge") + f" after {steps} steps x {w} walkers x {k} ensembles",
+             f"R-hat max {diag['rhat_max']:.4f} (walkers), {diag['rhat_between_max']:.4f} (between ensembles); "
+             f"ESS bulk {diag['ess_bulk_min']:.0f}, tail {diag['ess_tail_min']:.0f}; tau {diag['tau_max']:.1f} steps"]
+    if diag["failed"]:
+        lines.append("failing checks: " + "; ".join(diag["failed"]))
+    attrs = {key: (float(v) if not isinstance(v, list) else "; ".join(v)) for key, v in diag.items()}
+    attrs.update(converged=int(converged), message="\n".join(lines), map_estimates=json.dumps(maps),
+                 resumed=int(resumed), parameters=", ".join(names),
+                 log_likelihood_dropped=", ".join(map(str, dropped.tolist())),
+                 log_likelihood_dropped_total=dropped_total,
+                 log_likelihood_note=(f"{dropped.size} of {pointwise.shape[1]} observations dropped from the "
+                                      f"log_likelihood group: their term spans < {info_tol:g} nats over all draws "
+                                      "(no information; their constant sum is log_likelihood_dropped_total)"
+                                      if dropped.size else "every observation kept"))
+    if getattr(model, "units", None):
+        attrs["units"] = str(model.units)
+    groups = {"posterior": posterior, "log_likelihood": {"obs": pointwise[:, keep].reshape(k, n, keep.size)},
+              "sample_stats": {"lp": lps}}
+    if getattr(model, "observed", None) is not None:
+        groups["observed_data"] = {"obs": np.asarray(model.observed, dtype=float).ravel()[keep]}
+    return azb.from_dict(groups, dims={"obs": ["obs_id"]}, coords={"obs_id": keep}, attrs={"/": attrs})
