@@ -100,7 +100,8 @@ def fit_conditions(paths, *, sigmoid: str = "norm", rng=None) -> list[ConditionF
     return out
 
 
-def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, n_ensembles: int = 4):
+def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, n_ensembles: int = 4,
+                     sampler_options=None):
     """Fit one TransductionModel per hypothesis string to the sessions; returns (table, fits)."""
     from .models import TransductionModel, compare_models, fit_transduction
 
@@ -110,7 +111,8 @@ def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, n_
         raise ValueError(f"model: each hypothesis once, got {list(hypotheses)}")
     gen = np.random.default_rng(rng)
     models = {h: TransductionModel(h, statistic=statistic) for h in hypotheses}
-    fits = {h: fit_transduction(m, list(paths), rng=gen, n_ensembles=n_ensembles) for h, m in models.items()}
+    fits = {h: fit_transduction(m, list(paths), rng=gen, n_ensembles=n_ensembles, sampler_options=sampler_options)
+            for h, m in models.items()}
     return compare_models(fits), fits
 
 

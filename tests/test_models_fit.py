@@ -15,6 +15,7 @@ from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
 from tactilab.experiments import SimulatedDisplay, new_session
 from tactilab.experiments.models import TransductionModel, compare_models, fit_transduction, power_analysis
+from tactilab.experiments.analysis import compare_sessions, plot_comparison
 from tactilab.experiments._transduction_data import TransductionLikelihood, conditions, default_priors
 from tactilab.experiments.responses import SimulatedObserver
 
@@ -85,8 +86,9 @@ def test_end_to_end_the_comparison_picks_the_read_hypothesis(tmp_path):
     beats zx@3mm by more than 2 standard errors, as the power analysis of the same design expects."""
     truth = TransductionModel("zx@1mm")
     paths = [_session(tmp_path / f"s{p}.sqlite", p, i + 1, truth) for i, p in enumerate((2, 8))]
-    fits = {h: fit_transduction(TransductionModel(h), paths, rng=3, sampler_options=FAST) for h in ("zx@1mm", "zx@3mm")}
-    table = compare_models(fits)
+    table, fits = compare_sessions(paths, ["zx@1mm", "zx@3mm"], rng=3, sampler_options=FAST)
+    plot_comparison(table, fits, tmp_path / "compare.png")
+    assert (tmp_path / "compare.png").stat().st_size > 10_000 and all(f.converged for f in fits.values())
     assert table.index[0] == "zx@1mm" and table["verdict"].iloc[1] in ("worse", "weakly worse")
     design = [(GRATING.model_copy(update={"amplitude_m": a * 1e-6, "pitch_m": p * 1e-3}), 20)
               for a in (0.15, 0.3, 0.6, 1.2, 2.4) for p in (2, 8)]
