@@ -141,7 +141,7 @@ def read_design(path) -> list[tuple[Stimulus, int]]:
 
 
 def plot_comparison(table, fits, path) -> None:
-    """ELPD per model (+- se), and observed vs predicted P(correct) per condition."""
+    """ELPD per model (+- se, with elpd_diff +- dse), and observed vs predicted P(correct) per condition."""
     from matplotlib.figure import Figure
 
     from ._transduction_data import p_correct_table
@@ -151,7 +151,11 @@ def plot_comparison(table, fits, path) -> None:
     names = list(table.index)
     ax.errorbar(range(len(names)), table["elpd"], yerr=table["se"], fmt="o", capsize=4)
     ax.set_xticks(range(len(names)), [f"{n}\n{v}" for n, v in zip(names, table["verdict"])], fontsize=8)
-    ax.set_ylabel("ELPD (PSIS-LOO), nats")
+    for i, (_, row) in enumerate(table.iterrows()):
+        if i:
+            ax.annotate(f"diff {row['elpd_diff']:.1f} +- {row['dse']:.1f} (z {row['z']:.2f})", (i, row["elpd"]),
+                        textcoords="offset points", xytext=(6, 6), fontsize=7)
+    ax.set_ylabel("ELPD (PSIS-LOO, +- se), nats")
     ax.set_title("model comparison (higher is better)", fontsize=9)
     for i, name in enumerate(names):
         fit = fits[name]
