@@ -111,3 +111,22 @@ def test_compare_and_fit_bad_input(frame, fit_zx):
         fit_transduction(TransductionModel("zx@1mm"), frame, rng=0, method="grid")
     with pytest.raises(ValueError, match="model: expected a TransductionModel"):
         fit_transduction("zx@1mm", frame, rng=0)
+
+
+def test_yes_no_fit_recovers_the_false_alarm_rate():
+    """Yes/no with 25 % blank trials: false_alarm is a parameter of the posterior and is recovered."""
+    import pandas as pd
+
+    from tactilab.experiments.tasks import blank
+
+    model, rng, rows = TransductionModel("zx@1mm"), np.random.default_rng(5), []
+    stims = [GRATING.model_copy(update={"amplitude_m": a}) for a in AMPS] + [blank(GRATING)]
+    p = model.p_correct(stims, "yes_no", 2e-4, 1.0, 0.02, false_alarm=0.2)
+    for stim, prob, n in zip(stims, p, [60] * len(AMPS) + [80]):
+        rows += [{"stimuli": [stim], "target": "yes" if stim.amplitude_m > 0 else "no", "correct": bool(c)}
+                 for c in rng.random(n) < prob]
+    fit = fit_transduction(model, pd.DataFrame(rows), rng=6, sampler_options=FAST)
+    assert fit.task == "yes_no" and fit.converged
+    lo, hi = fit.params["false_alarm"].ci95
+    assert lo < 0.2 < hi and hi - lo < 0.25
+    assert fit.params["threshold_strain"].ci95[0] < 2e-4 < fit.params["threshold_strain"].ci95[1]
