@@ -93,8 +93,11 @@ def bench_recordings(n: int, workers: list[int], tmp: pathlib.Path) -> list[dict
     scene = small_scene()
     rows = []
     common = dict(seed=1, sampler_options=FAST, n_grid=40, progress=False)
+    invert_many([scans / "scan-0000" / "recording.nc"], scene, out_dir=tmp / "warm", workers=0, **common)  # imports
     out0 = tmp / "serial"
     tree = invert_many(scans, scene, out_dir=out0, workers=0, **common)
+    if tree.attrs["n_failed"]:
+        raise RuntimeError(f"{tree.attrs['n_failed']} recording(s) failed: see {out0 / 'errors.tsv'}")
     keys = list(tree["recording"].values)
     wall0 = float(tree.attrs["wall_s"])
     print(f"serial: {wall0:.1f} s", flush=True)
