@@ -1,6 +1,6 @@
 """Measured figures of the biomimetic-finger studies (docs/scenes.md), all from one run.
 
-- Hertz contact sizes for the brief's ranges (0.5-1 N, E 1-4 MPa) and two finger radii.
+- Hertz contact sizes for the ranges of docs/theory.md 4b (0.5-1 N, E 1-4 MPa) and two finger radii.
 - Shape invariance tables (sigma_zz and sigma_zx sensors at Z = 3 mm; sigma_zz at Z = 1 mm).
 - First-order Wiener kernel: error vs record length (mean of repeats), time per identification.
 - Fingerprint band-pass: spectral peak frequency vs v / lambda for several speeds and periods.

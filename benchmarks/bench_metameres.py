@@ -59,14 +59,14 @@ def bench_subspace(n: int, repeats: int) -> dict:
     return dict(n=n, time=t_sub, fft=t_fft, ratio=t_sub / t_fft, dimension=sub.dimension, params=fam.n_params)
 
 
-def bench_pair(repeats: int) -> list[dict]:
-    """1000 receptors x 60 tractors: metamer_pair, unbounded and bounded."""
+def bench_pair(repeats: int, n_receptors: int = 1000, n_tractors: int = 60) -> list[dict]:
+    """1000 receptors x 60 tractors (1 mm pitch): metamer_pair, unbounded and bounded."""
     import numpy as np
 
     from tactilab.inversion import SinusoidFamily, TractorFamily, metamer_pair
 
-    fam = TractorFamily((np.arange(60) - 29.5) * 1e-3, 1.54e6, footprint=0.5e-3, limit=2000.0)
-    x = np.linspace(-30e-3, 30e-3, 1000)  # receptors under the whole row
+    fam = TractorFamily((np.arange(n_tractors) - (n_tractors - 1) / 2) * 1e-3, 1.54e6, footprint=0.5e-3, limit=2000.0)
+    x = np.linspace(-n_tractors / 2 * 1e-3, n_tractors / 2 * 1e-3, n_receptors)  # receptors under the whole row
     target = SinusoidFamily(4e-3, np.pi / 2).stimulus([0.5e-3])
     rows = []
     for label, bounds in (("unbounded", None), ("bounded |q| <= 2 N/mm", "family")):

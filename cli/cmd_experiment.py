@@ -9,12 +9,15 @@ from pathlib import Path
 
 from .common import make_out
 
+from .experiment_analysis import add_subcommands as add_analysis_subcommands
+
 NAME = "experiment"
 HELP = "run, resume, export or inspect a psychophysics session (SQLite log, SI units)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
+    add_analysis_subcommands(sub)  # fit, compare, power: cli/experiment_analysis.py
 
     run = sub.add_parser("run", help="run a protocol file (TOML; quantities take unit suffixes: 20um, 40mm/s, 500ms)")
     run.add_argument("protocol", type=Path, help="protocol TOML file")

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from .batch_options import add_batch_options, run_invert_batch
+
 NAME = "invert"
 HELP = ("invert a sensor recording (recording.nc or .json, stress in Pa) of a defect scene: defect position "
         "(x0, y0 in mm) by emcee and the load profile along the scan (mm^2/mm) with its credible band; "
@@ -14,8 +16,9 @@ METHODS = ("all", "mcmc", "profile")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("recording", type=Path, help="recording file written by tactilab simulate (.nc, Pa) or a "
-                                                     "Recording JSON (SI units)")
+    parser.add_argument("recording", type=Path, nargs="?", default=None,
+                        help="recording file written by tactilab simulate (.nc, Pa) or a Recording JSON (SI units); "
+                             "omit it with --batch DIR")
     parser.add_argument("--scene", type=Path, required=True,
                         help="scene file (.toml with units such as 0.8N, 3mm; or .json in SI) that produced it")
     parser.add_argument("--method", choices=METHODS, default="all",
@@ -36,9 +39,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=None, help="output folder (default: ./<recording stem>-inversion)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the samplers (integer)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_batch_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.batch is not None:
+        return run_invert_batch(args)
+    if args.recording is None:
+        raise ValueError("recording: give one recording file, or --batch DIR for a folder of them")
     import numpy as np
 
     from tactilab.data_schemas import load_scene, read_recording

@@ -7,7 +7,7 @@ across it; SI units throughout (m, Pa, s, Hz).
 
 Tractor ``(row, column)`` sits at ``x = center_x + (column - (columns - 1) / 2) * pitch_x_m``,
 ``y = center_y + (row - (rows - 1) / 2) * pitch_y_m``; arrays over tractors are row-major,
-shape ``(rows, columns)``. In the plane model of the physics brief a tractor pair spaced
+shape ``(rows, columns)``. In the plane model of docs/theory.md 4a a tractor pair spaced
 ``2 d`` apart is a uniform row with ``pitch_x_m = 2 d`` (:attr:`DisplayDescription.half_spacing_m`).
 """
 
@@ -125,7 +125,7 @@ class DisplayDescription(Record):
 
     @property
     def half_spacing_m(self) -> float:
-        """Half the tractor spacing along x, ``d = pitch_x_m / 2`` (m), as in the physics brief."""
+        """Half the tractor spacing along x, ``d = pitch_x_m / 2`` (m), as in docs/theory.md 4a."""
         return self.pitch_x_m / 2.0
 
     @property
@@ -262,7 +262,7 @@ class DisplayDescription(Record):
         """A one-row virtual Braille display: ``n_tractors`` tractors along x.
 
         A single row of laterally moving tractors driven as a travelling wave renders virtual
-        Braille dots (the "virtual Braille display" of the physics brief). Pitch, footprint
+        Braille dots (the "virtual Braille display" of docs/theory.md 4a). Pitch, footprint
         and limits are NOMINAL values (the STReSS2 spacing along x); pass ``overrides`` to
         change any field.
         """

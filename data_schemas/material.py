@@ -19,7 +19,7 @@ class SkinMaterial(Record):
     Parameters
     ----------
     young_modulus_pa : float, Pa
-        Young's modulus E, > 0 (fingertip skin: about 1 to 4 MPa in the physics brief).
+        Young's modulus E, > 0 (fingertip skin: about 1 to 4 MPa, docs/theory.md 4b).
     poisson_ratio : float
         Poisson's ratio nu in (-1, 0.5]; 0.5 (incompressible) is the default.
     name : str

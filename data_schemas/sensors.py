@@ -1,6 +1,6 @@
 """Sensor arrays inside the skin: where the sensors are and what each one measures.
 
-Conventions (physics brief section 1): x along the scan, y across it, z depth into the skin.
+Conventions (docs/theory.md section 1): x along the scan, y across it, z depth into the skin.
 Sensor positions ``(x, y)`` are in the finger (skin) frame, in m; all sensors of an array sit at
 the same depth ``depth_m`` > 0 below the surface.
 

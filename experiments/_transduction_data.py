@@ -17,7 +17,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
 from scipy.special import ndtr, ndtri
 
 TASKS = ("2ifc", "yes_no")
@@ -133,6 +132,9 @@ class TransductionLikelihood:
         self.kind = data["kind"]
         self.s1, self.s2, self.n, self.k = data["s1"], data["s2"], data["n"], data["k"]
         self.idx, self.correct = data["idx"], data["correct"]
+        with np.errstate(divide="ignore"):
+            self._log_s1, self._log_s2 = np.log(self.s1), np.log(self.s2)
+        self._signal = self.s2 > 0
         self.param_names = ("threshold_strain", "exponent", "lapse") + (("false_alarm",) if self.kind == "yes_no" else ())
         self.priors = priors
         self.observed = self.correct.astype(float)
@@ -142,36 +144,103 @@ class TransductionLikelihood:
         self.scale = np.array([self.typical, 0.3, 0.05, 0.1][:len(self.param_names)])
 
     def log_prior(self, theta):
-        theta = np.atleast_2d(theta)
+        theta = np.atleast_2d(np.asarray(theta, dtype=float))
         out = sum(self.priors[name].logpdf(theta[:, j]) for j, name in enumerate(self.param_names))
-        lam_ok = theta[:, 2] < 0.5
-        return np.where(lam_ok & np.isfinite(out), out, -np.inf)
+        ok = (theta[:, 2] >= 0) & (theta[:, 2] < 0.5) & (theta[:, 0] > 0) & (theta[:, 1] > 0)
+        if theta.shape[1] > 3:
+            ok &= (theta[:, 3] > 0) & (theta[:, 3] < 1)
+        return np.where(ok & ~np.isnan(out), out, -np.inf)
 
     def _table(self, theta):
-        p = p_correct_table(self.kind, self.s1, self.s2, theta)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.log(np.clip(p, 0, 1)), np.log(np.clip(1 - p, 0, 1))
+        """(log P(correct), log P(incorrect)) per condition, each (W, n_conditions); theta valid."""
+        theta = np.atleast_2d(np.asarray(theta, dtype=float))
+        t, b, lam = theta[:, 0:1], theta[:, 1:2], theta[:, 2:3]
+        d1 = np.exp(b * (self._log_s1 - np.log(t)))  # s = 0 -> log s = -inf -> d = 0
+        if self.kind == "2ifc":
+            x = (d1 - np.exp(b * (self._log_s2 - np.log(t)))) / math.sqrt(2)
+            p = lam + (1 - 2 * lam) * ndtr(x)  # = 1/2 + (1/2 - lam)(2 Phi(x) - 1)
+            q = lam + (1 - 2 * lam) * ndtr(-x)
+        else:
+            z = d1 + ndtri(theta[:, 3:4])
+            yes, no = lam + (1 - 2 * lam) * ndtr(z), lam + (1 - 2 * lam) * ndtr(-z)
+            p, q = np.where(self._signal, yes, no), np.where(self._signal, no, yes)
+        return np.log(np.maximum(p, 1e-300)), np.log(np.maximum(q, 1e-300))
 
     def log_likelihood(self, theta):
         """Per-trial log-likelihood, shape (W, n_trials) (or (n_trials,) for one theta)."""
         one = np.ndim(theta) == 1
         lp, lq = self._table(theta)
         out = np.where(self.correct, lp[:, self.idx], lq[:, self.idx])
-        out = np.where(np.isnan(out), -np.inf, out)
         return out[0] if one else out
 
     def total_log_likelihood(self, theta):
         """Sum over trials computed per condition (W,)."""
         lp, lq = self._table(theta)
-        with np.errstate(invalid="ignore"):
-            tot = (np.where(self.k > 0, self.k * lp, 0.0) + np.where(self.n > self.k, (self.n - self.k) * lq, 0.0)).sum(-1)
-        return np.where(np.isnan(tot), -np.inf, tot)
+        return lp @ self.k + lq @ (self.n - self.k)
+
+    # the sampler's target needs only the total: one term per condition (marginalising nothing)
+    marginalised_names: tuple[str, ...] = ()
+
+    def log_marginal_likelihood(self, theta):
+        """The total log-likelihood computed per condition, (W,) (the sampler's fast target)."""
+        return self.total_log_likelihood(theta)
+
+    def draw_marginalised(self, theta, rng):
+        """Nothing is marginalised: no extra posterior variables."""
+        return {}
 
     def initial(self, rng, n):
         cols = [self.priors[name].rvs(size=n, random_state=rng) for name in self.param_names]
         out = np.column_stack(cols)
         out[:, 2] = np.minimum(out[:, 2], 0.49)
         return out
+
+
+class LogUniform:
+    """Log-uniform density on [lo, hi] (scipy.stats-like ``logpdf`` and ``rvs``, vectorised)."""
+
+    def __init__(self, lo, hi):
+        self.lo, self.hi = float(lo), float(hi)
+        self._c = -math.log(math.log(self.hi / self.lo))
+
+    def logpdf(self, x):
+        x = np.asarray(x, dtype=float)
+        ok = (x >= self.lo) & (x <= self.hi)
+        return np.where(ok, self._c - np.log(np.where(ok, x, 1.0)), -np.inf)
+
+    def rvs(self, size, random_state):
+        return np.exp(random_state.uniform(math.log(self.lo), math.log(self.hi), size))
+
+
+class LogNormal:
+    """Lognormal density with median 1 and log-sd ``s``."""
+
+    def __init__(self, s):
+        self.s = float(s)
+
+    def logpdf(self, x):
+        x = np.asarray(x, dtype=float)
+        ok = x > 0
+        lx = np.log(np.where(ok, x, 1.0))
+        return np.where(ok, -lx - 0.5 * (lx / self.s) ** 2 - math.log(self.s * math.sqrt(2 * math.pi)), -np.inf)
+
+    def rvs(self, size, random_state):
+        return np.exp(self.s * random_state.standard_normal(size))
+
+
+class Beta1:
+    """Beta(1, b) density scaled to [0, scale]: (b / scale) (1 - x / scale)^(b - 1)."""
+
+    def __init__(self, b, scale):
+        self.b, self.scale = float(b), float(scale)
+
+    def logpdf(self, x):
+        u = np.asarray(x, dtype=float) / self.scale
+        ok = (u >= 0) & (u < 1)
+        return np.where(ok, math.log(self.b / self.scale) + (self.b - 1) * np.log1p(-np.where(ok, u, 0.0)), -np.inf)
+
+    def rvs(self, size, random_state):
+        return self.scale * (1 - random_state.random(size) ** (1 / self.b))
 
 
 def default_priors(data: dict, overrides: dict | None):
@@ -182,9 +251,8 @@ def default_priors(data: dict, overrides: dict | None):
     if pos.size == 0:
         raise ValueError("trials: every stimulus has statistic 0 under this model (it reads nothing the stimuli "
                          "change); pick another hypothesis or check the stimuli")
-    priors = {"threshold_strain": stats.loguniform(pos.min() / 100, pos.max() * 100),
-              "exponent": stats.lognorm(s=0.5), "lapse": stats.beta(1, 10, scale=0.5),
-              "false_alarm": stats.uniform(0, 1)}
+    priors = {"threshold_strain": LogUniform(pos.min() / 100, pos.max() * 100), "exponent": LogNormal(0.5),
+              "lapse": Beta1(10.0, 0.5), "false_alarm": Beta1(1.0, 1.0)}
     for name, dist in (overrides or {}).items():
         if name not in priors or not callable(getattr(dist, "logpdf", None)):
             raise ValueError(f"priors: {name!r} must be one of {sorted(priors)} mapped to a scipy.stats frozen "

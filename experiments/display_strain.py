@@ -1,10 +1,10 @@
 """Strain under rows of tractors (plane strain, nu = 1/2) and the drive gain.
 
-Physics brief 4a: a tractor that pushes the skin along +x with a line load ``q`` (N/m, the
+docs/theory.md 4a: a tractor that pushes the skin along +x with a line load ``q`` (N/m, the
 traction in Pa times the tractor's contact width along x) is Flamant's tangential line load,
 spread over the tractor's width. The strain comes from the forward model,
 :func:`tactilab.forward.tractors.tractor_row_strain` (closed form for a uniform strip; a pair
-of line tractors sums to the brief's Phi and Psi). Strains here use the TENSOR shear
+of line tractors sums to the Phi and Psi of docs/theory.md 4a). Strains here use the TENSOR shear
 ``eps_xz`` (engineering ``gamma_zx = 2 eps_xz``); with nu = 1/2, ``eps_zz = -eps_xx``.
 """
 
@@ -51,7 +51,7 @@ def row_strain(x_m, tractor_x_m, line_load_n_per_m, depth_m: float, young_modulu
 def sliding_surface_strain_amplitude(amplitude_m: float, pitch_m: float, depth_m: float) -> float:
     """Amplitude of eps_xx (and of the tensor shear eps_xz) under a sliding sinusoidal surface.
 
-    ``4 pi^2 A Z / p^2 exp(-2 pi Z / p)`` (physics brief 4a; independent of E). The
+    ``4 pi^2 A Z / p^2 exp(-2 pi Z / p)`` (docs/theory.md 4a; independent of E). The
     engineering shear amplitude is twice this. ``amplitude_m`` (finite), ``pitch_m`` and
     ``depth_m`` (finite, > 0) in m.
     """

@@ -173,7 +173,8 @@ class TransductionFit:
     ``tree``: ``posterior`` (threshold_strain, exponent, lapse[, false_alarm]; one chain per
     ensemble), ``log_likelihood`` (``correct`` over dim ``trial``), ``observed_data``
     (``correct``), ``sample_stats`` (``lp``); ``params``: a :class:`ParamSummary` each;
-    ``converged`` and ``diagnostics`` from the sampler (R-hat between ensembles, ESS, tau).
+    ``converged`` and ``diagnostics`` from the sampler (R-hat between ensembles, ESS, tau);
+    ``conditions``: the per-condition statistics and counts the likelihood used.
     """
 
     model: TransductionModel
@@ -182,10 +183,12 @@ class TransductionFit:
     converged: bool
     diagnostics: dict
     task: str
+    conditions: dict
 
 
 def fit_transduction(model: TransductionModel, trials, *, task: str | None = None, priors: Mapping | None = None,
-                     rng, n_ensembles: int = 4, method: str = "emcee") -> TransductionFit:
+                     rng, n_ensembles: int = 4, method: str = "emcee",
+                     sampler_options: Mapping | None = None) -> TransductionFit:
     """Fit threshold_strain, exponent, lapse (and false_alarm for yes/no) of a model to trials.
 
     Parameters
@@ -203,6 +206,9 @@ def fit_transduction(model: TransductionModel, trials, *, task: str | None = Non
     n_ensembles : int
         Independent emcee ensembles (>= 4); convergence is judged by R-hat across them.
     method : {"emcee"}
+    sampler_options : mapping, optional
+        Passed on to ``tactilab.inversion.sample_posterior`` (e.g. ``max_steps``, ``tau_factor``,
+        ``pool``); the defaults keep its convergence rules.
     """
     if method != "emcee":
         raise ValueError(f"method: only 'emcee' is supported, got {method!r}")
@@ -214,8 +220,11 @@ def fit_transduction(model: TransductionModel, trials, *, task: str | None = Non
     data = conditions(model, trials, task)
     lik = TransductionLikelihood(data, default_priors(data, priors))
     n_trials = data["idx"].size
-    max_draws = int(np.clip(8_000_000 // n_trials, 400, 4000))  # per-trial log-likelihood <= 64 MB
-    raw = sample_posterior(lik, gen, n_ensembles=n_ensembles, max_draws=max_draws, info_tol=None)
+    # the per-trial log-likelihood is kept in bounded memory: <= 8e6 values (64 MB); below 400 draws
+    # (over 20 000 trials) PSIS-LOO's Pareto k (compare_models' pareto_k_max) says whether that suffices
+    max_draws = int(np.clip(8_000_000 // n_trials, 100, 4000))
+    options = {"max_draws": max_draws, "info_tol": None, **dict(sampler_options or {})}
+    raw = sample_posterior(lik, gen, n_ensembles=n_ensembles, **options)
     tree = _rename(raw, lik)
     post = tree["posterior"]
     best = max(_maps(raw), key=lambda v: float(lik.log_prior(v[None])[0] + lik.total_log_likelihood(v[None])[0]))
@@ -227,7 +236,7 @@ def fit_transduction(model: TransductionModel, trials, *, task: str | None = Non
         params[name] = ParamSummary(float(best[j]), float(x.mean()), float(q[0]), (float(q[1]), float(q[2])),
                                     (float(q[3]), float(q[4])))
     attrs = dict(raw.attrs)
-    return TransductionFit(model, tree, params, bool(attrs.get("converged", 0)), attrs, data["kind"])
+    return TransductionFit(model, tree, params, bool(attrs.get("converged", 0)), attrs, data["kind"], data)
 
 
 def _maps(raw):

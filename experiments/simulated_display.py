@@ -1,7 +1,7 @@
 """A simulated laterotactile display: plays frames and computes the strain they produce.
 
 :class:`SimulatedDisplay` keeps what it played (its "outputs") and computes the strain at
-receptor depth with the plane-strain tractor model of physics brief 4a
+receptor depth with the plane-strain tractor model of docs/theory.md 4a
 (:func:`tactilab.forward.tractors.tractor_row_strain`): each row of tractors is a row of
 Flamant tangential loads, uniform over each tractor's contact width, on an incompressible
 half-space (nu = 1/2); the line load is the commanded traction times that width. Rows are independent

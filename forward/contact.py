@@ -34,14 +34,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .halfspace import positive
+from .halfspace import validation as check
+
 CONDITIONS = ("frictionless", "sliding", "partial", "stuck")
-
-
-def _positive(value: float, name: str, unit: str, hint: str) -> float:
-    value = float(value)
-    if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{name}: must be finite and > 0 {unit}, got {value!r}; {hint}")
-    return value
 
 
 @dataclass(frozen=True)
@@ -57,14 +53,14 @@ class HertzContact:
     young_modulus : float
         Skin (elastomer) Young's modulus ``E``, Pa.
     poisson_ratio : float
-        ``nu`` in [0, 0.5]; 0.5 (incompressible) is exact.
+        ``nu`` in (-1, 0.5]; 0.5 (incompressible) is exact.
     line : bool
         True for the 2-D line (cylinder) contact of a plane-strain model.
 
     Raises
     ------
     ValueError
-        For a force, radius or modulus that is not finite and positive, or ``nu`` outside [0, 0.5].
+        For a force, radius or modulus that is not finite and positive, or ``nu`` outside (-1, 0.5].
     """
 
     normal_force: float
@@ -75,13 +71,11 @@ class HertzContact:
 
     def __post_init__(self) -> None:
         unit = "N/m" if self.line else "N"
-        _positive(self.normal_force, "normal_force", unit,
+        positive(self.normal_force, "normal_force", unit,
                   "a finger pressing on a surface has a positive normal force (a pull is not a Hertz contact)")
-        _positive(self.finger_radius, "finger_radius", "m", "give the fingertip radius of curvature in metres")
-        _positive(self.young_modulus, "young_modulus", "Pa", "give E in Pa, e.g. 2e6 for 2 MPa")
-        nu = float(self.poisson_ratio)
-        if not (0.0 <= nu <= 0.5):
-            raise ValueError(f"poisson_ratio: must lie in [0, 0.5], got {nu!r}; skin is close to 0.5")
+        positive(self.finger_radius, "finger_radius", "m", "give the fingertip radius of curvature in metres")
+        check.young_modulus(self.young_modulus)
+        check.poisson_ratio(self.poisson_ratio, "poisson_ratio")
 
     @property
     def effective_modulus(self) -> float:

@@ -25,7 +25,8 @@ import numpy as np
 from .halfspace import output_weights
 from .scanning import MAX_OUTPUT_VALUES
 from .tractor_display import travelling_wave_drive
-from .tractors import _positive, array_phi_psi, sliding_sinusoid_strain, tractor_stress_kernel
+from .halfspace import validation as check
+from .tractors import array_phi_psi, sliding_sinusoid_strain, tractor_stress_kernel
 
 
 def display_gain(display, depth: float, young_modulus: float) -> tuple[float, float]:
@@ -47,7 +48,7 @@ def display_gain(display, depth: float, young_modulus: float) -> tuple[float, fl
     pitch : float
         Rendered grating pitch 4 d in m.
     """
-    young_modulus = _positive(young_modulus, "young_modulus", "Pa", "skin is ~1e5-4e6 Pa")
+    young_modulus = check.young_modulus(young_modulus)
     d = float(display.pitch_x_m) / 2
     pairs = max(1, int(display.columns) // 2)
     k2p = float(array_phi_psi(np.array([d]), d, depth, pairs)[1][0])

@@ -1,6 +1,6 @@
 """Tactile synthesis design: the tractor spacing that best renders a sliding grating at depth.
 
-Physics.md section 4a. An array of ``pairs`` tractor pairs (half spacing d, pair centres
+docs/theory.md section 4a. An array of ``pairs`` tractor pairs (half spacing d, pair centres
 ``4 n d``) driven with alternating tangential line loads produces at depth Z the strain
 ``eps_xx = 3 q S_Phi / (pi E)`` and ``gamma_zx = 3 q S_Psi / (pi E)`` (ENGINEERING shear). A
 sinusoidal surface of pitch ``p = 4 d`` sliding over the finger produces ``eps_xx`` and
@@ -31,7 +31,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from .tractors import _positive, array_phi_psi, check_pairs
+from .halfspace import positive as _positive
+from .tractors import array_phi_psi, check_pairs
 
 _GAUSS = np.polynomial.legendre.leggauss(8)
 

@@ -14,7 +14,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .tractors import _finite_array, _poisson, _positive, tractor_row_strain
+from .halfspace import positive
+from .halfspace import validation as check
+from .tractors import tractor_row_strain
 
 
 def travelling_wave_drive(tractor_x, height: Callable[[np.ndarray], np.ndarray], speed: float, times,
@@ -51,11 +53,11 @@ def travelling_wave_drive(tractor_x, height: Callable[[np.ndarray], np.ndarray],
     ndarray, shape (nt, n_tractors)
         Line loads, N/m.
     """
-    tx = _finite_array(tractor_x, "tractor_x", "m").reshape(-1)
-    t = _finite_array(times, "times", "s").reshape(-1)
-    v = float(_finite_array(speed, "speed", "m/s"))
-    g = float(_finite_array(gain, "gain", "(N/m)/m"))
-    s = float(_finite_array(lead, "lead", "m"))
+    tx = check.finite_array(tractor_x, "tractor_x", "m").reshape(-1)
+    t = check.finite_array(times, "times", "s").reshape(-1)
+    v = float(check.finite_array(speed, "speed", "m/s"))
+    g = float(check.finite_array(gain, "gain", "(N/m)/m"))
+    s = float(check.finite_array(lead, "lead", "m"))
     if not callable(height):
         raise ValueError(f"height: expected a callable H(x) returning heights in m, got {type(height).__name__}")
     h = np.asarray(height(tx[None, :] + v * t[:, None] + s), dtype=float)
@@ -65,11 +67,11 @@ def travelling_wave_drive(tractor_x, height: Callable[[np.ndarray], np.ndarray],
         raise ValueError("height: H(x) returned NaN or inf; give a surface defined at every tractor position")
     q = g * h
     if traction_limit is not None:
-        limit = _positive(traction_limit, "traction_limit", "Pa")
+        limit = positive(traction_limit, "traction_limit", "Pa")
         if footprint is None:
             raise ValueError("footprint: needed with traction_limit to turn line loads (N/m) into tractions "
                              "(Pa); give the tractor contact width in m")
-        c = _positive(footprint, "footprint")
+        c = positive(footprint, "footprint")
         peak = float(np.max(np.abs(q))) / c
         if peak > limit * (1 + 1e-12):
             raise ValueError(
@@ -158,8 +160,8 @@ def _panel_rule(length: float, max_panel: float, order: int = 4) -> tuple[np.nda
 
 def hooke_strain(stress_voigt: np.ndarray, young_modulus: float, nu: float) -> np.ndarray:
     """Isotropic Hooke's law: Voigt stress (..., 6) in Pa -> Voigt strain (..., 6), TENSOR shear."""
-    e = _positive(young_modulus, "young_modulus", "Pa")
-    v = _poisson(nu)
+    e = check.young_modulus(young_modulus)
+    v = check.poisson_ratio(nu)
     s = np.asarray(stress_voigt, dtype=float)
     trace = s[..., 0] + s[..., 1] + s[..., 2]
     out = (1 + v) * s / e
@@ -201,21 +203,21 @@ def patch_strain_3d(points, tractor_xy, tractions, width: float, length: float, 
     """
     from .halfspace import point_load_stress
 
-    pts = _finite_array(points, "points", "m")
+    pts = check.finite_array(points, "points", "m")
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise ValueError(f"points: expected shape (n_points, 3) for (x, y, z) in m, got {pts.shape}")
     if np.any(pts[:, 2] <= 0):
         raise ValueError(f"points: depth z must be > 0 m inside the skin, got min z {pts[:, 2].min()!r}")
-    centres = _finite_array(tractor_xy, "tractor_xy", "m")
+    centres = check.finite_array(tractor_xy, "tractor_xy", "m")
     if centres.ndim != 2 or centres.shape[1] != 2:
         raise ValueError(f"tractor_xy: expected shape (n_tractors, 2) for (x, y) in m, got {centres.shape}")
-    tau = _finite_array(tractions, "tractions", "Pa")
+    tau = check.finite_array(tractions, "tractions", "Pa")
     if tau.shape[-1:] != (centres.shape[0],):
         raise ValueError(f"tractions: trailing axis must hold one traction per tractor ({centres.shape[0]}), "
                          f"got shape {tau.shape}; give shape (..., n_tractors) in Pa")
-    a = _positive(width, "width")
-    b = _positive(length, "length")
-    per = _positive(panels_per_depth, "panels_per_depth", "1")
+    a = positive(width, "width")
+    b = positive(length, "length")
+    per = positive(panels_per_depth, "panels_per_depth", "1")
     max_panel = float(pts[:, 2].min()) / max(per, 1.0)
     gx, wx = _panel_rule(a, max_panel)
     gy, wy = _panel_rule(b, max_panel)
@@ -247,7 +249,7 @@ def display_patch_strain_3d(display, points, tractions, young_modulus: float, nu
     -------
     ndarray, shape (..., n_points, 6), TENSOR shear
     """
-    tau = _finite_array(tractions, "tractions", "Pa")
+    tau = check.finite_array(tractions, "tractions", "Pa")
     if tau.shape[-2:] != display.shape:
         raise ValueError(f"tractions: trailing axes must be the display shape {display.shape} (rows, columns), "
                          f"got {tau.shape}; give one traction in Pa per tractor")

@@ -26,48 +26,21 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .halfspace import positive
+from .halfspace import validation as check
+
 VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
 SHEAR_INDICES = (3, 4, 5)
 
 
 # ----- validation helpers --------------------------------------------------------------------
-def _show(value) -> str:
-    """repr for messages: numpy scalars as plain numbers ('nan', not 'np.float64(nan)')."""
-    return repr(value.item()) if isinstance(value, np.generic) else repr(value)
-
-
-def _positive(value, name: str, unit: str = "m", fix: str = "") -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a number in {unit}, got {_show(value)}") from None
-    if not math.isfinite(v) or v <= 0:
-        fix = fix or f"give a finite value > 0 in {unit}"
-        raise ValueError(f"{name}: must be finite and > 0 {unit}, got {_show(value)}; {fix}")
-    return v
-
-
 def _non_negative(value, name: str, unit: str = "m") -> float:
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a number in {unit}, got {_show(value)}") from None
+        raise ValueError(f"{name}: expected a number in {unit}, got {check.show(value)}") from None
     if not math.isfinite(v) or v < 0:
-        raise ValueError(f"{name}: must be finite and >= 0 {unit}, got {_show(value)}; give 0 for a line load")
-    return v
-
-
-def _finite_array(value, name: str, unit: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=float)
-    if not np.isfinite(arr).all():
-        raise ValueError(f"{name}: must be finite (no NaN or inf), in {unit}; got {arr.ravel()[~np.isfinite(arr.ravel())][:3]}")
-    return arr
-
-
-def _poisson(nu) -> float:
-    v = float(nu)
-    if not (math.isfinite(v) and -1.0 < v <= 0.5):
-        raise ValueError(f"nu: Poisson's ratio must lie in (-1, 0.5], got {nu!r}; skin is nearly 0.5")
+        raise ValueError(f"{name}: must be finite and >= 0 {unit}, got {check.show(value)}; give 0 for a line load")
     return v
 
 
@@ -126,9 +99,9 @@ def pair_phi_psi(x: ArrayLike, half_spacing: float, depth: float) -> tuple[np.nd
     phi, psi : ndarray, same shape as ``x``, 1/m
         Stable for every d > 0, including d << Z (the dipole limit, see :func:`dipole_phi_psi`).
     """
-    d = _positive(half_spacing, "half_spacing", fix="the tractor spacing must be > 0 (give d in m)")
-    z = _positive(depth, "depth")
-    c = _pair_complex(_finite_array(x, "x", "m"), d, z)
+    d = positive(half_spacing, "half_spacing", fix="the tractor spacing must be > 0 (give d in m)")
+    z = check.depth(depth)
+    c = _pair_complex(check.finite_array(x, "x", "m"), d, z)
     return c.real, -2.0 * c.imag
 
 
@@ -138,8 +111,8 @@ def dipole_phi_psi(x: ArrayLike, depth: float) -> tuple[np.ndarray, np.ndarray]:
     ``Phi(x; d) = d * phi_1(x) + O(d^3)``; with ``w = x + iZ``,
     ``phi_1 - i psi_1 / 2 = -1/w^2 + 2 i Z / w^3``.
     """
-    z = _positive(depth, "depth")
-    w = _finite_array(x, "x", "m") + 1j * z
+    z = check.depth(depth)
+    w = check.finite_array(x, "x", "m") + 1j * z
     c = -1.0 / w**2 + 2j * z / w**3
     return c.real, -2.0 * c.imag
 
@@ -154,7 +127,7 @@ def array_centres(half_spacing: float, pairs: int) -> tuple[np.ndarray, int]:
     ``sin(2 pi x / (4 d))`` at its peaks, as the target pattern of the design objective assumes.
     """
     n = check_pairs(pairs)
-    d = _positive(half_spacing, "half_spacing", fix="the tractor spacing must be > 0 (give d in m)")
+    d = positive(half_spacing, "half_spacing", fix="the tractor spacing must be > 0 (give d in m)")
     centres = (4.0 * np.arange(n) - 2.0 * (n - 1)) * d
     return centres, (1 if n % 2 == 1 else -1)
 
@@ -179,9 +152,9 @@ def array_phi_psi(x: ArrayLike, half_spacing: float, depth: float, pairs: int = 
 
     See :func:`array_centres` for the layout (odd ``pairs``: exactly docs/theory.md's sum).
     """
-    z = _positive(depth, "depth")
+    z = check.depth(depth)
     centres, sign = array_centres(half_spacing, pairs)
-    xs = _finite_array(x, "x", "m")
+    xs = check.finite_array(x, "x", "m")
     c = np.zeros(xs.shape, dtype=complex)
     for centre in centres:
         c += _pair_complex(xs - centre, float(half_spacing), z)
@@ -228,9 +201,9 @@ def tractor_stress_kernel(u: ArrayLike, depth: float, footprint: float = 0.0) ->
         ``sigma_xx, sigma_zz, sigma_zx`` for a load of 1 N/m along +x (multiply by q in N/m to
         get Pa). Independent of nu (sigma_yy = nu (sigma_xx + sigma_zz) in plane strain).
     """
-    z = _positive(depth, "depth")
+    z = check.depth(depth)
     c = _non_negative(footprint, "footprint")
-    a, b = _ab(_finite_array(u, "u", "m"), z, c)
+    a, b = _ab(check.finite_array(u, "u", "m"), z, c)
     out = np.empty(a.shape + (3,))
     out[..., 0] = -(a.real + b.real) / np.pi
     out[..., 1] = -(a.real - b.real) / np.pi
@@ -240,8 +213,8 @@ def tractor_stress_kernel(u: ArrayLike, depth: float, footprint: float = 0.0) ->
 
 def plane_strain_from_stress(stress_xz: np.ndarray, young_modulus: float, nu: float) -> np.ndarray:
     """Voigt strain (..., 6), TENSOR shear, from plane-strain stresses (..., 3) = (xx, zz, zx) in Pa."""
-    e = _positive(young_modulus, "young_modulus", "Pa")
-    v = _poisson(nu)
+    e = check.young_modulus(young_modulus)
+    v = check.poisson_ratio(nu)
     sxx, szz, szx = stress_xz[..., 0], stress_xz[..., 1], stress_xz[..., 2]
     out = np.zeros(stress_xz.shape[:-1] + (6,))
     # eps_yy = 0 with sigma_yy = nu (sxx + szz); no division by 1 - 2 nu anywhere
@@ -278,9 +251,9 @@ def tractor_row_strain(x: ArrayLike, depth: float, tractor_x: ArrayLike, line_lo
     ndarray, shape (..., nx, 6)
         Voigt strain (xx, yy, zz, yz, zx, xy), TENSOR shear (eps_yy = eps_yz = eps_xy = 0).
     """
-    xs = _finite_array(x, "x", "m").reshape(-1)
-    tx = _finite_array(tractor_x, "tractor_x", "m").reshape(-1)
-    q = _finite_array(line_loads, "line_loads", "N/m")
+    xs = check.finite_array(x, "x", "m").reshape(-1)
+    tx = check.finite_array(tractor_x, "tractor_x", "m").reshape(-1)
+    q = check.finite_array(line_loads, "line_loads", "N/m")
     if q.shape[-1:] != tx.shape:
         raise ValueError(
             f"line_loads: trailing axis must hold one load per tractor ({tx.size}), got shape {q.shape}; "
@@ -320,13 +293,13 @@ def sliding_sinusoid_strain(x: ArrayLike, depth: float, amplitude: float, pitch:
     ndarray, shape (nx, 6) for scalar time, else (nt, nx, 6)
         Voigt strain with TENSOR shear.
     """
-    z = _positive(depth, "depth")
-    p = _positive(pitch, "pitch")
-    amp = float(_finite_array(amplitude, "amplitude", "m"))
-    v = float(_finite_array(speed, "speed", "m/s"))
-    nu = _poisson(nu)
-    xs = _finite_array(x, "x", "m").reshape(-1)
-    t = _finite_array(time, "time", "s")
+    z = check.depth(depth)
+    p = positive(pitch, "pitch")
+    amp = float(check.finite_array(amplitude, "amplitude", "m"))
+    v = float(check.finite_array(speed, "speed", "m/s"))
+    nu = check.poisson_ratio(nu)
+    xs = check.finite_array(x, "x", "m").reshape(-1)
+    t = check.finite_array(time, "time", "s")
     phase = 2 * np.pi * (xs[None, :] + v * t.reshape(-1)[:, None]) / p
     k = 2 * np.pi / p
     kz = k * z

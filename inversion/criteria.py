@@ -44,13 +44,23 @@ class SpectralForm:
     ratio : ndarray, shape (n_modes,)
         Squared generalised singular values ``r >= 0`` (``inf`` for modes free of penalty).
     coef2 : ndarray, shape (n_modes,)
-        Squared data coefficients ``c^2`` (data units squared).
+        Squared data coefficients ``c^2``, in units of ``data_scale^2``.
     weights : ndarray, shape (n_modes,)
         Multiplicity of each mode (2 for a complex rfft mode standing for its mirror).
     n_data : int
         Number of data values.
     resid0 : float
-        Squared norm of the data outside the range of A (never fitted).
+        Squared norm of the data outside the range of A (never fitted), units of ``data_scale^2``.
+    data_scale : float
+        The data unit the coefficients are measured in (data units; default 1): the builders in
+        :mod:`tactilab.inversion.linear` divide the data by its largest magnitude before squaring,
+        so that data of 1e-300 or 1e200 neither underflow nor overflow. Every public method takes
+        and returns data units; the sums run in the scaled units.
+
+    Notes
+    -----
+    Every sum is written with the bounded factors ``t = lam / (r + lam)`` and ``r / (r + lam)``
+    (both in [0, 1]) and the log determinant with ``logaddexp``, so no lam in (0, 1e308) overflows.
     """
 
     ratio: np.ndarray
@@ -58,9 +68,12 @@ class SpectralForm:
     weights: np.ndarray
     n_data: int
     resid0: float = 0.0
+    data_scale: float = 1.0
     _finite: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
+        if not (np.isfinite(self.data_scale) and self.data_scale > 0):
+            raise ValueError(f"data_scale: must be finite and > 0 (data units), got {self.data_scale!r}")
         self.ratio = np.nan_to_num(np.asarray(self.ratio, dtype=float), nan=0.0, posinf=np.inf)
         self.coef2 = np.asarray(self.coef2, dtype=float)
         self.weights = np.asarray(self.weights, dtype=float)
@@ -68,16 +81,17 @@ class SpectralForm:
         inf_w = self.weights[~self._finite]
         self.n_free = float(inf_w.sum())
         self._r = self.ratio[self._finite]
+        with np.errstate(divide="ignore"):
+            self._logr = np.log(self._r)
         self._c2 = self.coef2[self._finite]
         self._w = self.weights[self._finite]
         self._wc2 = self._w * self._c2
-        self._wc2r = self._wc2 * self._r
-        self._wc2rr = self._wc2r * self._r
-        self._wr = self._w * self._r
         self._cache: dict = {}
         # data outside the penalised modes that no lam can fit: the range complement
         self._resid_fixed = float(self.resid0)
         self.n_outside = float(self.n_data - self.weights.sum())
+        with np.errstate(over="ignore"):
+            self._scale2 = np.float64(self.data_scale) ** 2  # inf beyond 1e154: only the data-unit curves
 
     def lam_range(self) -> tuple[float, float]:
         """A bracket ``(lo, hi)`` of lam spanning all the informative ratios."""
@@ -86,80 +100,98 @@ class SpectralForm:
             return 1e-12, 1.0
         # ratios below 1e-20 of the largest are lost to rounding in the filter factors anyway
         lo = max(float(pos.min()), float(pos.max()) * 1e-20)
-        return lo * 1e-4, float(pos.max()) * 1e4
+        return max(lo * 1e-4, 1e-300), min(float(pos.max()) * 1e4, 1e300)
 
     def _sums(self, lam: float) -> dict:
         """Every spectral sum the criteria need at one lam, in one fused pass (cached).
 
-        With ``inv = 1 / (r + lam)``: residual ``lam^2 sum wc2 inv^2``, seminorm
-        ``sum wc2 r inv^2``, dof ``sum w r inv``, evidence quadratic form ``lam sum wc2 inv``, and
-        the L-curve derivatives ``sum wc2 r inv^3``, ``sum wc2 r inv^4``, ``sum wc2 r^2 inv^4``.
+        With ``inv = 1 / (r + lam)``, ``t = lam inv`` and ``q = r inv`` (t + q = 1): residual
+        ``sum wc2 t^2``, seminorm ``sum wc2 q inv``, dof ``sum w q``, evidence quadratic form
+        ``sum wc2 t``, and the L-curve sums ``A_k = sum wc2 q t^k`` (k = 1, 2, 3) and
+        ``B2 = sum wc2 q^2 t^2`` (scaled units).
         """
         hit = self._cache.get(float(lam))
         if hit is not None:
             return hit
-        den = self._r + lam
-        inv = 1.0 / den
-        inv2 = inv * inv
-        inv4 = inv2 * inv2
+        inv = 1.0 / (self._r + lam)
+        t = lam * inv
+        q = self._r * inv
+        wq = self._wc2 * q
+        t2 = t * t
         out = {
-            "c_inv": float(_dot(self._wc2, inv)), "c_inv2": float(_dot(self._wc2, inv2)),
-            "cr_inv2": float(_dot(self._wc2r, inv2)), "r_inv": float(_dot(self._wr, inv)),
-            "cr_inv3": float(_dot(self._wc2r, inv2 * inv)), "cr_inv4": float(_dot(self._wc2r, inv4)),
-            "crr_inv4": float(_dot(self._wc2rr, inv4)),
+            "res": _dot(self._wc2, t2), "semi": _dot(wq, inv), "dof": _dot(self._w, q), "quad": _dot(self._wc2, t),
+            "a1": _dot(wq, t), "a2": _dot(wq, t2), "a3": _dot(wq, t2 * t), "b2": _dot(wq * q, t2),
         }
-        # log(1 + r/lam) = log(r + lam) - log(lam): one log per mode, always computed so that
-        # every criterion at this lam is served by this single pass
-        out["logdet"] = float(_dot(self._w, np.log(den))) - float(self._w.sum()) * np.log(lam)
+        # log(1 + r/lam) = logaddexp(log r, log lam) - log lam: no overflow at any r or lam
+        loglam = np.log(lam)
+        out["logdet"] = _dot(self._w, np.logaddexp(self._logr, loglam)) - float(self._w.sum()) * loglam
         if len(self._cache) > 4096:
             self._cache.clear()
         self._cache[float(lam)] = out
         return out
 
+    def _residual2_scaled(self, lam: float) -> float:
+        return self._sums(lam)["res"] + self._resid_fixed
+
     def residual2(self, lam: float) -> float:
-        return lam * lam * self._sums(lam)["c_inv2"] + self._resid_fixed
+        """``||A m - d||^2`` in data units squared (inf beyond the float range; see residual_norm)."""
+        with np.errstate(over="ignore"):
+            return self._residual2_scaled(lam) * self._scale2
+
+    def residual_norm(self, lam: float) -> float:
+        """``||A m - d||`` in data units (finite wherever the data are)."""
+        return float(self.data_scale * np.sqrt(self._residual2_scaled(lam)))
 
     def seminorm2(self, lam: float) -> float:
-        return self._sums(lam)["cr_inv2"]
+        with np.errstate(over="ignore"):
+            return self._sums(lam)["semi"] * self._scale2
 
     def dof(self, lam: float) -> float:
         """Effective number of fitted parameters ``trace(influence matrix)``."""
-        return self._sums(lam)["r_inv"] + self.n_free
+        return self._sums(lam)["dof"] + self.n_free
+
+    def _gcv_scaled(self, lam: float) -> float:
+        free = max(self.n_data - self.dof(lam), 1e-150)
+        return self.n_data * self._residual2_scaled(lam) / free / free
 
     def gcv(self, lam: float) -> float:
-        return self.n_data * self.residual2(lam) / max(self.n_data - self.dof(lam), 1e-300) ** 2
+        with np.errstate(over="ignore"):
+            return self._gcv_scaled(lam) * self._scale2
+
+    def _n_eff(self) -> float:
+        return float(self._w.sum()) + self.n_outside
+
+    def _log_evidence_scaled(self, lam: float, noise_scaled: float | None) -> tuple[float, float]:
+        sums = self._sums(lam)
+        quad = sums["quad"] + self._resid_fixed
+        n_eff = self._n_eff()
+        if noise_scaled is None:
+            noise_scaled = float(np.sqrt(max(quad / n_eff, np.finfo(float).tiny)))
+        # quad / sigma^2 and log sigma^2 without forming sigma^2 (no under/overflow)
+        ll = -0.5 * ((quad / noise_scaled) / noise_scaled + sums["logdet"]
+                     + n_eff * (np.log(2 * np.pi) + 2 * np.log(noise_scaled)))
+        return float(ll), noise_scaled
 
     def log_evidence(self, lam: float, noise_std: float | None = None) -> tuple[float, float]:
-        """Log marginal likelihood and the noise std used (given or profiled).
+        """Log marginal likelihood (data units) and the noise std used (given or profiled).
 
         Only penalised modes and the range complement enter (restricted likelihood).
         Per mode the data variance is ``sigma^2 v`` with ``v = 1 + r / lam``.
         """
-        sums = self._sums(lam)
-        quad = lam * sums["c_inv"] + self._resid_fixed
-        n_eff = float(self._w.sum()) + self.n_outside
-        if noise_std is None:
-            var = max(quad / n_eff, np.finfo(float).tiny)
-        else:
-            var = noise_std**2
-        ll = -0.5 * (quad / var + sums["logdet"] + n_eff * np.log(2 * np.pi * var))
-        return ll, float(np.sqrt(var))
+        scaled = None if noise_std is None else noise_std / self.data_scale
+        ll, sig = self._log_evidence_scaled(lam, scaled)
+        return ll - self._n_eff() * float(np.log(self.data_scale)), sig * self.data_scale
 
     def lcurve_curvature(self, lam: float) -> float:
         """Signed curvature of ``(log residual, log seminorm)`` against ``log lam``."""
         sums = self._sums(lam)
-        rho = self.residual2(lam)
-        eta = sums["cr_inv2"]
-        if rho <= 0 or eta <= 0:
+        rho = self._residual2_scaled(lam)
+        if rho <= 0 or sums["a1"] <= 0:
             return 0.0
-        eta_l = -2.0 * sums["cr_inv3"]
-        eta_ll = 6.0 * sums["cr_inv4"]
-        rho_l = -lam * eta_l
-        rho_ll = 2.0 * (sums["crr_inv4"] - 2 * lam * sums["cr_inv4"])
-        u1 = lam * rho_l / rho
-        v1 = lam * eta_l / eta
-        u2 = u1 + lam * lam * rho_ll / rho - u1 * u1
-        v2 = v1 + lam * lam * eta_ll / eta - v1 * v1
+        u1 = 2.0 * sums["a2"] / rho
+        v1 = -2.0 * sums["a2"] / sums["a1"]
+        u2 = u1 + 2.0 * (sums["b2"] - 2.0 * sums["a3"]) / rho - u1 * u1
+        v2 = v1 + 6.0 * sums["a3"] / sums["a1"] - v1 * v1
         return float((u1 * v2 - u2 * v1) / max((u1 * u1 + v1 * v1) ** 1.5, 1e-300))
 
 
@@ -263,6 +295,12 @@ def choose_lambda(
         raise ValueError(f"criteria: unknown or empty {criteria!r}; use a subset of {', '.join(CRITERIA)}")
     if noise_std is not None and not (np.isfinite(noise_std) and noise_std > 0):
         raise ValueError(f"noise_std: must be finite and > 0 (data units), got {noise_std!r}; or pass None to estimate it")
+    scale = form.data_scale
+    noise_s = None if noise_std is None else noise_std / scale  # in the form's scaled units
+    if noise_s is not None and 0 < noise_s < 1e-100:
+        raise ValueError(f"noise_std: {noise_std!r} is {noise_s:.3g} x the data's magnitude ({scale:.3g}), far below "
+                         "the float rounding of the data (2.2e-16 relative); no criterion can use it: give the "
+                         "real noise level, or None to estimate it")
     lo, hi = form.lam_range()
     grid = np.geomspace(lo, hi, n_grid)
     curves = {
@@ -272,25 +310,41 @@ def choose_lambda(
     chosen: dict = {}
     notes: dict = {}
     if "gcv" in criteria:
-        curves["gcv"] = np.array([form.gcv(x) for x in grid])
-        chosen["gcv"] = _refine(lambda t: form.gcv(np.exp(t)), grid, curves["gcv"])
+        gcv_s = np.array([form._gcv_scaled(x) for x in grid])
+        with np.errstate(over="ignore"):
+            curves["gcv"] = gcv_s * np.float64(scale) ** 2
+        res_s = np.array([form._residual2_scaled(x) for x in grid])
+        if np.ptp(gcv_s) <= 1e-9 * np.max(np.abs(gcv_s)) and np.ptp(res_s) <= 1e-12 * np.max(np.abs(res_s)):
+            chosen["gcv"] = float(np.sqrt(lo * hi))
+            notes["gcv"] = "lam has no effect on the fit here (no penalised mode is seen by the data); any lam does"
+        elif np.ptp(gcv_s) <= 1e-9 * np.max(np.abs(gcv_s)):
+            chosen["gcv"] = float("nan")
+            notes["gcv"] = "GCV is flat in lam (e.g. a single datum: the residual and n - dof shrink together)"
+        else:
+            chosen["gcv"] = _refine(lambda t: form._gcv_scaled(np.exp(t)), grid, gcv_s)
     need_ev = "evidence" in criteria or ("discrepancy" in criteria and noise_std is None)
     if need_ev:
-        curves["log_evidence"] = np.array([form.log_evidence(x, noise_std)[0] for x in grid])
-        lam_ev = _refine(lambda t: -form.log_evidence(np.exp(t), noise_std)[0], grid, -curves["log_evidence"])
+        ev_s = np.array([form._log_evidence_scaled(x, noise_s)[0] for x in grid])
+        curves["log_evidence"] = ev_s - form._n_eff() * np.log(scale)
+        lam_ev = _refine(lambda t: -form._log_evidence_scaled(np.exp(t), noise_s)[0], grid, -ev_s)
         if "evidence" in criteria:
             chosen["evidence"] = lam_ev
             if noise_std is None:
                 notes["evidence"] = "noise std profiled out (generalised maximum likelihood)"
-    sigma = noise_std if noise_std is not None else form.log_evidence(lam_ev, None)[1]
+    sigma_s = noise_s if noise_s is not None else form._log_evidence_scaled(lam_ev, None)[1]
+    sigma = sigma_s * scale
     if "lcurve" in criteria:
         curves["curvature"] = np.array([form.lcurve_curvature(x) for x in grid])
         inner = curves["curvature"].copy()
         inner[[0, -1]] = -np.inf  # a corner at the bracket's end is no corner
-        chosen["lcurve"] = _refine(lambda t: -form.lcurve_curvature(np.exp(t)), grid, -inner)
+        if grid.size < 3 or not np.any(inner > 0):
+            chosen["lcurve"] = float("nan")
+            notes["lcurve"] = "no corner: the L-curve has no positive curvature inside the lam bracket"
+        else:
+            chosen["lcurve"] = _refine(lambda t: -form.lcurve_curvature(np.exp(t)), grid, -inner)
     if "discrepancy" in criteria:
-        target = tau**2 * form.n_data * sigma**2
-        f = lambda t: form.residual2(np.exp(t)) - target  # noqa: E731 (monotone in t)
+        target = tau**2 * form.n_data * sigma_s**2
+        f = lambda t: form._residual2_scaled(np.exp(t)) - target  # noqa: E731 (monotone in t)
         a, b = np.log(lo), np.log(hi)
         if f(a) >= 0:
             chosen["discrepancy"] = float(lo)

@@ -23,7 +23,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.sparse.linalg import aslinearoperator
 
-from .criteria import CRITERIA, SpectralForm, choose_lambda
+from .criteria import CRITERIA, CriteriaResult, SpectralForm, choose_lambda
 from .iterative_criteria import IterativeCriteria, NormalSolver, choose_lambda_iterative
 from .linear_common import DENSE_MAX, LinearInversionResult, check_data
 from .operators import FourierDiagonal, as_fourier_diagonal, model_layout
@@ -35,23 +35,43 @@ PATHS = ("fft", "dense", "iterative")
 __all__ = ["invert_linear", "LinearInversionResult", "METHODS", "fft_form", "dense_form", "check_data"]
 
 
-def _dims(op) -> tuple[int, ...]:
-    return tuple(getattr(op, "dims", (op.shape[1],)))
+def _data_scale(data: np.ndarray) -> float:
+    """Largest data magnitude (1 for all-zero data): the unit the spectral sums run in."""
+    peak = float(np.max(np.abs(data))) if data.size else 0.0
+    return peak if peak > 0 else 1.0
+
+
+def _rescaled(crit: CriteriaResult, scale: float, n_data: int) -> CriteriaResult:
+    """Criteria computed on data / scale, back in data units (curves may reach inf past 1e308)."""
+    if scale == 1.0:
+        return crit
+    with np.errstate(over="ignore"):
+        s2 = np.float64(scale) ** 2
+        for key in ("residual2", "seminorm2", "gcv"):
+            if key in crit.curves:
+                crit.curves[key] = crit.curves[key] * s2
+        if "gcv" in crit.errors:
+            crit.errors["gcv"] = crit.errors["gcv"] * s2
+    if "log_evidence" in crit.curves:
+        crit.curves["log_evidence"] = crit.curves["log_evidence"] - n_data * np.log(scale)
+    crit.noise_std = crit.noise_std * scale
+    return crit
 
 
 def fft_form(op: FourierDiagonal, data: np.ndarray, penalty: str):
     """SpectralForm of a FourierDiagonal problem, plus (D, H, L2) on the rfft half grid."""
     axes = tuple(range(len(op.dims)))
     n = data.size
-    d_hat = np.fft.rfftn(data.reshape(op.dims), axes=axes)
+    scale = _data_scale(data)
+    d_hat = np.fft.rfftn(data.reshape(op.dims) / scale, axes=axes)
     h = op.half_multiplier
     l2 = penalty_symbol(penalty, op.dims, op.spacing)[..., : op.dims[-1] // 2 + 1]
     h2 = np.abs(h) ** 2
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(l2 > 0, h2 / np.where(l2 > 0, l2, 1.0), np.where(h2 > 0, np.inf, 0.0))
     form = SpectralForm(ratio=ratio.ravel(), coef2=(np.abs(d_hat) ** 2 / n).ravel(),
-                        weights=op.weights.ravel(), n_data=n)
-    return form, d_hat, h, l2
+                        weights=op.weights.ravel(), n_data=n, data_scale=scale)
+    return form, d_hat * scale, h, l2
 
 
 def _solve_fft(op, data, penalty, lam, aux):
@@ -69,10 +89,12 @@ def dense_form(a: np.ndarray, data: np.ndarray, lmat: np.ndarray):
     r = sla.cholesky(ltl + eps * np.eye(ltl.shape[0]), lower=False)
     b = sla.solve_triangular(r, a.T, trans="T", lower=False).T  # A R^-1
     u, s, vt = np.linalg.svd(b, full_matrices=False)
-    c = u.T @ data
-    resid0 = max(float(data @ data - c @ c), 0.0)
-    form = SpectralForm(ratio=s**2, coef2=c**2, weights=np.ones_like(s), n_data=data.size, resid0=resid0)
-    return form, (r, s, vt, c)
+    scale = _data_scale(data)
+    c = u.T @ (data / scale)
+    resid0 = max(float((data / scale) @ (data / scale) - c @ c), 0.0)
+    form = SpectralForm(ratio=s**2, coef2=c**2, weights=np.ones_like(s), n_data=data.size, resid0=resid0,
+                        data_scale=scale)
+    return form, (r, s, vt, c * scale)
 
 
 def _solve_dense(op, data, penalty, lam, aux):
@@ -181,26 +203,36 @@ def invert_linear(
     path = _pick_path(operator, method)
     keep = isinstance(operator, FourierDiagonal) or (isinstance(operator, np.ndarray) and path == "dense")
     op = operator if keep else aslinearoperator(operator)
-    d = check_data(data, operator.shape[0])
+    d = check_data(data, operator.shape[0], shape=getattr(operator, "dimsd", None))
     dims, n_fields = model_layout(operator)  # grid shape; loads stacked load-major
     model_shape = dims if n_fields == 1 else (n_fields, *dims)
     spacing = spacing if spacing is not None else getattr(operator, "spacing", 1.0)
     crit = None
+    penalises_nothing = ValueError(f"penalty: {penalty!r} penalises nothing on a model grid of shape {dims} "
+                                   "(every model is in its null space); use penalty='identity' or a larger grid")
     if path == "fft":
         form, *aux = fft_form(op, d, penalty)
+        if not np.any(aux[-1]):
+            raise penalises_nothing
     elif path == "dense":
         a = op if isinstance(op, np.ndarray) else op.matmat(np.eye(op.shape[1]))
         lmat = penalty_matrix(penalty, dims, spacing, periodic=False, n_fields=n_fields).toarray()
+        if not np.any(lmat):
+            raise penalises_nothing
         form, aux = dense_form(np.asarray(a, dtype=float), d, lmat)
     if path in ("fft", "dense"):
         if lam is None:
             crit = choose_lambda(form, noise_std=noise_std)
             lam_used, source = crit.lam[criterion], criterion
+            if not np.isfinite(lam_used):
+                raise ValueError(f"criterion: {criterion!r} cannot choose lam for this problem "
+                                 f"({crit.notes.get(criterion, 'no optimum')}); choose another criterion "
+                                 f"(choices: {', '.join(f'{k}={v:.3g}' for k, v in crit.lam.items())}) or give lam")
         else:
             lam_used, source = float(lam), "given"
         model, iters, ok = METHODS[path](op, d, penalty, lam_used, aux)
         model = np.asarray(model).reshape(model_shape)
-        resid = float(np.sqrt(form.residual2(lam_used)))
+        resid = form.residual_norm(lam_used)
     else:
         rng = rng if rng is not None else np.random.default_rng(0)
         tol = 1e-8 if tol is None else tol
@@ -209,16 +241,24 @@ def invert_linear(
             raise ValueError(f"n_probes: need an integer >= 2 probes for a standard error, got {n_probes!r}; e.g. 8")
         solver = NormalSolver(op, penalty, dims, spacing, rng, tol, max_iter, n_fields=n_fields)
         x0 = None
+        # CG and the criteria run on data / max|data| (no overflow of squared norms at 1e200)
+        scale = _data_scale(d)
+        d_s = d / scale
         if lam is None:
-            icrit = IterativeCriteria(solver, d, rng, n_probes=n_probes)
-            crit = choose_lambda_iterative(icrit, noise_std=noise_std)
+            noise_s = None if noise_std is None else noise_std / scale
+            if noise_s is not None and 0 < noise_s < 1e-100:
+                raise ValueError(f"noise_std: {noise_std!r} is {noise_s:.3g} x the data's magnitude ({scale:.3g}), far "
+                                 "below the float rounding of the data (2.2e-16 relative); no criterion can use it: "
+                                 "give the real noise level, or None to estimate it")
+            icrit = IterativeCriteria(solver, d_s, rng, n_probes=n_probes)
+            crit = _rescaled(choose_lambda_iterative(icrit, noise_std=noise_s), scale, d.size)
             lam_used, source = crit.lam[criterion], criterion
             x0 = icrit.norms(lam_used)["x"] if lam_used in icrit._cache else None
         else:
             lam_used, source = float(lam), "given"
-        x, iters, ok = _solve_iterative(op, d, penalty, lam_used, (solver, x0))
-        model = x.reshape(model_shape)
-        resid = float(np.linalg.norm(op.matvec(x) - d))
+        x, iters, ok = _solve_iterative(op, d_s, penalty, lam_used, (solver, x0))
+        resid = scale * float(np.linalg.norm(op.matvec(x) - d_s))
+        model = (x * scale).reshape(model_shape)
     msg = (f"path={path}, penalty={penalty}, lam={lam_used:.4g} ({source}), residual={resid:.4g}"
            + (f", {iters} CG iterations{'' if ok else ' (NOT converged)'}" if path == "iterative" else "")
            + (f"; criteria: {crit.estimator}" if crit is not None and crit.errors else ""))

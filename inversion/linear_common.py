@@ -58,11 +58,34 @@ class LinearInversionResult:
     message: str
 
 
-def check_data(data, n_expected: int, name: str = "data") -> np.ndarray:
-    """Flatten and validate data: finite reals of the expected size."""
+def check_data(data, n_expected: int, name: str = "data", shape=None) -> np.ndarray:
+    """Flatten and validate data: finite reals of the expected size and shape.
+
+    Parameters
+    ----------
+    data : array_like
+        A 1-D array of ``n_expected`` values, or an array of exactly ``shape`` (the operator's
+        ``dimsd``, e.g. a 2-D sensor grid). Any other shape is refused, naming both shapes
+        (a 2-D array is never flattened silently into a 1-D operator's data).
+    n_expected : int
+        Number of operator outputs.
+    name : str
+        Argument name for the error messages.
+    shape : tuple of int, optional
+        The operator's data shape.
+
+    Returns
+    -------
+    ndarray, shape (n_expected,)
+    """
     arr = np.asarray(data)
     if arr.dtype.kind not in "biuf":
         raise ValueError(f"{name}: expected real numbers, got dtype {arr.dtype}")
+    allowed = tuple(int(v) for v in shape) if shape is not None else (int(n_expected),)
+    if arr.ndim > 1 and arr.shape != allowed:
+        raise ValueError(f"{name}: shape {arr.shape} does not match the operator's data shape {allowed} "
+                         f"({n_expected} outputs); pass a 1-D array of {n_expected} values in the operator's "
+                         "output order")
     arr = arr.astype(float).ravel()
     if arr.size != n_expected:
         raise ValueError(f"{name}: size mismatch, got {arr.size} values but the operator has {n_expected} outputs")

@@ -16,8 +16,12 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft as sfft
+from numpy.typing import ArrayLike
 
-from .metamer_families import FamilyStimulus, GridLoadFamily, _check_hypothesis, require_linear, resolve_receptors
+from tactilab.forward import ReceptorHypothesis
+
+from .metamer_families import FamilyStimulus, StimulusFamily, _check_hypothesis, require_linear, resolve_receptors
+from .metamer_grids import GridLoadFamily
 from .metamer_plots import plot_spectrum
 
 
@@ -155,7 +159,8 @@ class Subspace:
                       title=f"{w.h}; prior std {w.tau:.3g} {w.family.param_units[0]} per parameter")
 
 
-def resolvable_subspace(family, hypothesis, prior_std: float, receptors=None, *, rtol: float = 1e-12) -> Subspace:
+def resolvable_subspace(family: StimulusFamily, hypothesis: ReceptorHypothesis | str, prior_std: float,
+                        receptors: ArrayLike | None = None, *, rtol: float = 1e-12) -> Subspace:
     """Singular spectrum of a family's whitened readout map, and what it resolves.
 
     Parameters
@@ -169,6 +174,12 @@ def resolvable_subspace(family, hypothesis, prior_std: float, receptors=None, *,
         Receptor positions (m); None: the family's grid nodes.
     rtol : float
         Singular values ``<= rtol * s_max`` count as exact nulls.
+
+    Returns
+    -------
+    Subspace
+        Periodic families read at every node are analysed per Fourier mode (O(n log n));
+        other families through a dense SVD of their readout matrix.
     """
     w = _Whitened(family, hypothesis, prior_std, receptors, "resolvable_subspace")
     s = w.values
@@ -229,10 +240,28 @@ class Ambiguity:
         return [w.family.stimulus(w.tau * (self._z_mean + zi)) for zi in z]
 
 
-def metamer_ambiguity(target, family, hypothesis, prior_std: float, receptors=None) -> Ambiguity:
+def metamer_ambiguity(target: FamilyStimulus, family: StimulusFamily, hypothesis: ReceptorHypothesis | str,
+                      prior_std: float, receptors: ArrayLike | None = None) -> Ambiguity:
     """The Gaussian posterior over ``family`` given the target's (noise-free) readouts.
 
-    Prior: independent N(0, prior_std^2) parameters; likelihood: readings with ``noise_std``.
+    Parameters
+    ----------
+    target : FamilyStimulus
+        The stimulus whose readouts are observed (any family).
+    family : StimulusFamily
+        The family the posterior is over.
+    hypothesis : ReceptorHypothesis or str
+        Linear readouts with ``noise_std``.
+    prior_std : float
+        Prior standard deviation of each parameter (family units).
+    receptors : array_like, optional
+        Receptor positions (m); None: the family's (else the target's) grid nodes.
+
+    Returns
+    -------
+    Ambiguity
+        Prior: independent N(0, prior_std^2) parameters; likelihood: independent readings with
+        ``noise_std``; the posterior mean and marginal std are in the family's units.
     """
     if not isinstance(target, FamilyStimulus):
         raise ValueError(f"target: expected a FamilyStimulus, got {type(target).__name__}")

@@ -25,17 +25,19 @@ from scipy.optimize import least_squares, lsq_linear
 from scipy.spatial.distance import squareform
 from scipy.special import ndtr
 
+from numpy.typing import ArrayLike
+
 from tactilab.forward import ReceptorHypothesis
 
 from .metamer_families import (
     VOIGT,
     FamilyStimulus,
-    GridLoadFamily,
     SinusoidFamily,
+    StimulusFamily,
     _check_hypothesis,
-    require_linear,
     resolve_receptors,
 )
+from .metamer_grids import GridLoadFamily
 from .metamer_plots import plot_pair
 from .metamer_spectra import Ambiguity, Subspace, metamer_ambiguity, resolvable_subspace
 
@@ -67,8 +69,26 @@ def _check_stimulus(value, name: str) -> FamilyStimulus:
     return value
 
 
-def compare_stimuli(a, b, hypothesis, receptors, criterion: float = 1.0) -> PairScore:
-    """Score two stimuli under a hypothesis; ``relative_residual`` is relative to ``a``'s readout."""
+def compare_stimuli(a: FamilyStimulus, b: FamilyStimulus, hypothesis: ReceptorHypothesis | str,
+                    receptors: ArrayLike | None, criterion: float = 1.0) -> PairScore:
+    """Score two stimuli under a hypothesis.
+
+    Parameters
+    ----------
+    a, b : FamilyStimulus
+        The two stimuli (any families).
+    hypothesis : ReceptorHypothesis or str
+        Readouts; d' needs ``noise_std``.
+    receptors : array_like or None
+        Receptor positions, m, shape (n,) (plane families) or (n, 2); None: a grid family's nodes.
+    criterion : float
+        d' below which the pair is called metameric.
+
+    Returns
+    -------
+    PairScore
+        ``relative_residual`` is relative to ``a``'s readout norm (not squared).
+    """
     h = _check_hypothesis(hypothesis)
     a, b = _check_stimulus(a, "a"), _check_stimulus(b, "b")
     r = resolve_receptors(receptors, a.family, b.family)
@@ -185,8 +205,9 @@ def _bounds(bounds, family):
     return lo, hi
 
 
-def metamer_pair(target, family, hypothesis, receptors=None, *, bounds="family", rcond: float = 1e-10,
-                 criterion: float = 1.0, scan_phases=None) -> MetamerPair:
+def metamer_pair(target: FamilyStimulus, family: StimulusFamily, hypothesis: ReceptorHypothesis | str,
+                 receptors: ArrayLike | None = None, *, bounds="family", rcond: float = 1e-10,
+                 criterion: float = 1.0, scan_phases: ArrayLike | None = None) -> MetamerPair:
     """The stimulus of ``family`` whose readouts come closest to the target's.
 
     Parameters
@@ -275,8 +296,26 @@ class MetamerClasses:
     dprime: np.ndarray
 
 
-def metamer_classes(stimuli, hypothesis, receptors, criterion: float = 1.0) -> MetamerClasses:
-    """Group stimuli so that every pair within a class has d' <= criterion (complete linkage)."""
+def metamer_classes(stimuli: list[FamilyStimulus], hypothesis: ReceptorHypothesis | str,
+                    receptors: ArrayLike | None, criterion: float = 1.0) -> MetamerClasses:
+    """Group stimuli so that every pair within a class has d' <= criterion (complete linkage).
+
+    Parameters
+    ----------
+    stimuli : list of FamilyStimulus
+        At least two stimuli.
+    hypothesis : ReceptorHypothesis or str
+        Readouts with ``noise_std`` (d' = readout distance / noise_std).
+    receptors : array_like or None
+        Receptor positions, m; None: the first grid family's nodes.
+    criterion : float
+        Largest d' allowed inside a class.
+
+    Returns
+    -------
+    MetamerClasses
+        ``labels`` (n,) int from 0, and the pairwise d' matrix (n, n).
+    """
     h = _check_hypothesis(hypothesis)
     if h.noise_std is None:
         raise ValueError("hypothesis: metamer classes need noise_std (d' = ||diff|| / noise_std); "

@@ -1,4 +1,5 @@
-"""Linear operators used by the inversions: a Fourier-diagonal (circulant) operator and a dot test.
+"""Linear operators used by the inversions: a Fourier-diagonal (circulant) operator (the dot test
+is the solver's, :func:`tactilab.forward.halfspace.dottest`, re-exported here).
 
 The forward map from a surface load to sensors at depth is, on a periodic grid with a sensor at
 every node, a convolution: it is diagonal in Fourier space with a multiplier ``H(k)`` (the
@@ -17,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
-from tactilab.forward.halfspace import angular_wavenumbers, transfer
+from tactilab.forward.halfspace import angular_wavenumbers, dottest, transfer  # noqa: F401 (dottest: re-export)
 
 __all__ = [
     "rigid_surface_height_operator",
@@ -269,32 +270,3 @@ def _rfft_weights(shape: tuple[int, ...]) -> np.ndarray:
     if n_last % 2 == 0:
         w[-1] = 1.0
     return np.broadcast_to(w, (*shape[:-1], half)).copy()
-
-
-def dottest(op: LinearOperator, rng: np.random.Generator, rtol: float = 1e-10) -> float:
-    """Dot test of an operator's adjoint: ``|<A x, y> - <x, A^T y>| / scale``.
-
-    Parameters
-    ----------
-    op : LinearOperator
-        Real operator with matvec and rmatvec.
-    rng : numpy.random.Generator
-        Source of the random test vectors.
-    rtol : float
-        Relative tolerance; a ValueError is raised when the mismatch exceeds it.
-
-    Returns
-    -------
-    float
-        Relative mismatch.
-    """
-    m, n = op.shape
-    x = rng.standard_normal(n)
-    y = rng.standard_normal(m)
-    lhs = float(np.dot(op.matvec(x), y))
-    rhs = float(np.dot(x, op.rmatvec(y)))
-    scale = max(abs(lhs), abs(rhs), np.finfo(float).tiny)
-    err = abs(lhs - rhs) / scale
-    if not err <= rtol:
-        raise ValueError(f"dottest: adjoint mismatch {err:.3e} exceeds rtol={rtol:g}: <Ax,y>={lhs!r}, <x,A^T y>={rhs!r}")
-    return err

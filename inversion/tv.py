@@ -143,7 +143,7 @@ def invert_tv(operator, data, *, lam=None, noise_std=None, method="auto", spacin
     if is_matrix and method == "iterative":
         operator, is_matrix = aslinearoperator(operator), False
     op = operator if isinstance(operator, (FourierDiagonal, np.ndarray)) else aslinearoperator(operator)
-    d = check_data(data, operator.shape[0])
+    d = check_data(data, operator.shape[0], shape=getattr(operator, "dimsd", None))
     dims = (operator.shape[1],) if is_matrix else tuple(getattr(operator, "dims", (operator.shape[1],)))
     spacing = spacing if spacing is not None else getattr(operator, "spacing", 1.0)
     eps_rel = 1e-4 if tol is None else float(tol)

@@ -31,7 +31,7 @@ def phi_psi(x, d, z):
 
 
 def test_pair_of_line_tractors_matches_phi_psi_closed_form():
-    """Superposed single-tractor kernels reproduce the brief's pair formulas Phi, Psi."""
+    """Superposed single-tractor kernels reproduce the pair formulas Phi, Psi of docs/theory.md 4a."""
     d, z, e, q = 0.6e-3, 1.0e-3, 2.0e5, 3.0
     x = np.linspace(-6e-3, 6e-3, 241)
     eps_xx, eps_xz = row_strain(x, [-d, d], np.array([-q, q]), z, e)

@@ -27,7 +27,7 @@ def test_display_gain_rejects_a_depth_where_no_drive_renders():
 
 @pytest.mark.parametrize("modulus", [np.nan, np.inf, 0.0, -1e6])
 def test_display_gain_rejects_bad_young_modulus(modulus):
-    with pytest.raises(ValueError, match="young_modulus: must be finite and > 0 Pa"):
+    with pytest.raises(ValueError, match="young_modulus: Young's modulus must be finite and > 0 Pa"):
         display_gain(DisplayDescription.braille_row(), 1e-3, modulus)
 
 
@@ -54,7 +54,7 @@ def test_spectral_table_rejects_unknown_component():
 def test_compliance_matrix_rejects_bad_material():
     """A NaN modulus used to give a NaN compliance (and NaN strains downstream) without a word."""
     assert compliance_matrix(2e6, 0.5)[0, 0] == pytest.approx(0.5e-6)
-    with pytest.raises(ValueError, match="young_modulus: Young's modulus must be a finite number > 0 Pa, got nan"):
+    with pytest.raises(ValueError, match="young_modulus: Young's modulus must be finite and > 0 Pa, got nan"):
         compliance_matrix(np.nan, 0.5)
     with pytest.raises(ValueError, match=r"nu: Poisson's ratio must lie in \(-1, 0.5\]"):
         output_weights("strain", ("zz",), 1e6, np.nan)

@@ -173,7 +173,7 @@ def test_bad_input_names_the_argument():
         HalfSpace(E=1e6, nu=0.6)
     with pytest.raises(ValueError, match="depth: every depth must be finite and > 0"):
         HS.stress(load, -1e-3)
-    with pytest.raises(ValueError, match="depth: give one depth"):
+    with pytest.raises(ValueError, match="depth: expected one depth or a non-empty 1-D"):
         HS.stress(load, [])
     with pytest.raises(ValueError, match="components: unknown stress component"):
         HS.stress(load, 1e-3, components=("zz", "qq"))
@@ -205,9 +205,9 @@ def test_bad_input_names_the_argument():
         HS.operator((4, 4), 1e-4, sensors=np.zeros((3, 1)))
     with pytest.raises(ValueError, match="shape: expected"):
         HS.operator((0, 4), 1e-4)
-    with pytest.raises(ValueError, match="depth: must be finite"):
+    with pytest.raises(ValueError, match="depth: every depth must be finite and > 0 m"):
         HS.operator((4, 4), 1e-4, depth=0.0)
-    with pytest.raises(ValueError, match="points: method 'dcfft' evaluates on grid nodes"):
+    with pytest.raises(ValueError, match="method: 'dcfft' cannot run here: sensors lie off the grid nodes"):
         from tactilab.forward.halfspace.methods import DCFFT, Problem
         DCFFT().compute(Problem(load, np.array([1e-3]), 0.5, np.eye(6), np.array([[0.5e-4, 0.0]]), np.dtype(float)))
 

@@ -61,7 +61,7 @@ def test_oblique_plane_waves_match_rotated_closed_forms(rng, nu):
         assert np.abs(got - want).max() / scale < 1e-12
 
 
-def test_one_dimensional_sinusoids_match_physics_md(rng):
+def test_one_dimensional_sinusoids_match_theory_section_3(rng):
     n, h = 64, 5e-5
     x = _grid(n, h)
     for _ in range(5):
@@ -185,7 +185,7 @@ def test_incompressible_strain_has_no_volume_change(rng):
     assert np.abs(ds["volumetric"]).max() < 1e-12 * np.abs(ds["strain"]).max()
 
 
-def test_sliding_sinusoid_strain_of_physics_md_4a():
+def test_sliding_sinusoid_strain_of_theory_4a():
     """H(x) = A sin(2 pi x / p) pressed frictionless into an incompressible skin gives
     eps = C [sin, 0, -sin, 0, 2 cos (engineering), 0], C = 4 pi^2 A Z / p^2 e^{-2 pi Z / p},
     independent of E."""

@@ -227,8 +227,8 @@ def test_engineering_shear_conversion():
 @pytest.mark.parametrize("call, match", [
     (lambda: tractors.pair_phi_psi(0.0, 0.0, Z), "half_spacing: must be finite and > 0"),
     (lambda: tractors.pair_phi_psi(0.0, -1e-3, Z), "tractor spacing must be > 0"),
-    (lambda: tractors.pair_phi_psi(0.0, "wide", Z), "half_spacing: expected a number"),
-    (lambda: tractors.pair_phi_psi(0.0, 1e-3, 0.0), "depth: must be finite and > 0"),
+    (lambda: tractors.pair_phi_psi(0.0, "wide", Z), "half_spacing: must be finite and > 0 m, got 'wide'"),
+    (lambda: tractors.pair_phi_psi(0.0, 1e-3, 0.0), "depth: every depth must be finite and > 0 m"),
     (lambda: tractors.pair_phi_psi(np.nan, 1e-3, Z), "x: must be finite"),
     (lambda: tractors.dipole_phi_psi(0.0, -Z), "depth"),
     (lambda: tractors.array_phi_psi(0.0, 1e-3, Z, 0), "pairs: the number of tractor pairs"),

@@ -13,7 +13,7 @@ from tactilab.data_schemas.scene import Scan
 from tactilab.data_schemas.sensors import SensorArray
 from tactilab.forward.halfspace import compliance_matrix
 from tactilab.data_schemas import read_recording
-from tactilab.forward.scene_simulation import simulate_scene
+from tactilab.forward import simulate_scene
 from tactilab.inversion import (
     DefectScanModel, dottest, halfspace_fourier_operator, halfspace_strain_operator, invert_defect_position,
     rigid_surface_height_strain_operator,

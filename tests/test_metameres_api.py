@@ -106,6 +106,18 @@ def test_2d_per_mode_spectrum_and_basis(rng):
     np.testing.assert_allclose(b.T @ b, np.eye(b.shape[1]), atol=1e-10)
     bs = slow.basis("resolvable")
     np.testing.assert_allclose(b @ b.T, bs @ bs.T, atol=1e-8)
+    target = fam.stimulus(rng.normal(size=fam.n_params) * 1e3)
+    amb = metamer_ambiguity(target, fam, h, 1e3)
+    dense = metamer_ambiguity(target, fam, h, 1e3, receptors=fam.default_receptors()[::-1])
+    np.testing.assert_allclose(amb.posterior.mean, dense.posterior.mean, rtol=1e-7, atol=1e-6)
+    np.testing.assert_allclose(amb.posterior.std, dense.posterior.std, rtol=1e-7)
+    draws = np.array([d.params for d in amb.sample(3000, rng)])
+    np.testing.assert_allclose(draws.std(axis=0).mean(), amb.posterior.std.mean(), rtol=0.05)
+    other = GridLoadFamily((6, 8), 0.3e-3, ("qx",), young_modulus=E)
+    fast_pair = metamer_pair(target, other, h, rcond=1e-8)
+    slow_pair = metamer_pair(target, other, h, fam.default_receptors()[::-1], rcond=1e-8)
+    assert fast_pair.relative_residual == pytest.approx(slow_pair.relative_residual, rel=1e-8)
+    np.testing.assert_allclose(fast_pair.params, slow_pair.params, rtol=1e-6, atol=1e-8 * np.abs(slow_pair.params).max())
 
 
 def test_metamer_pair_fields_and_per_mode_solve_equals_dense(rng):

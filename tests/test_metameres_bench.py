@@ -14,6 +14,6 @@ def test_benchmark_cases_run():
     spec.loader.exec_module(bench)
     row = bench.bench_subspace(256, repeats=1)
     assert row["n"] == 256 and row["params"] == 512 and row["time"] > 0 and row["fft"] > 0
-    rows = bench.bench_pair(repeats=1)
+    rows = bench.bench_pair(repeats=1, n_receptors=100, n_tractors=12)
     assert [r["case"] for r in rows] == ["unbounded", "bounded |q| <= 2 N/mm"]
     assert abs(rows[1]["max_load"]) <= 2000.0 * (1 + 1e-9) and rows[1]["residual"] >= rows[0]["residual"] - 1e-12

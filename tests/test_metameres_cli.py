@@ -37,6 +37,16 @@ def test_bounded_display_reports_loads_at_the_limit(tmp_path, capsys):
     assert "sit at their load limit (0.05 N/mm)" in out
 
 
+def test_display_from_a_json_description(tmp_path, capsys):
+    path = tmp_path / "row.json"
+    DisplayDescription.wh2008(max_traction_pa=2e6, display_id="MyRow").save(path)
+    assert main(["metamer", "--target", "sinusoid:A=0.5mm,p=4mm", "--display", str(path), "--out", str(tmp_path),
+                 "--scan", "2", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["display"] == "MyRow" and result["load_limit_n_per_m"] == pytest.approx(2e3)
+    assert max(abs(q) for q in result["loads_n_per_m"]) <= 2e3 * (1 + 1e-9)
+
+
 @pytest.mark.parametrize("argv, match", [
     (["--target", "bump:A=1mm"], "--target: expected sinusoid:A=LENGTH,p=LENGTH"),
     (["--target", "sinusoid:A=1mm"], "--target: give both A= and p="),

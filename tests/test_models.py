@@ -16,7 +16,7 @@ import pytest
 
 from tactilab.data_schemas.experiment import Protocol, Stimulus
 from tactilab.experiments.models import TransductionModel, power_analysis
-from tactilab.experiments._transduction_data import TransductionLikelihood, conditions, default_priors
+from tactilab.experiments._transduction_data import TransductionLikelihood, conditions, default_priors, p_correct_table
 from tactilab.experiments.responses import SimulatedObserver
 from tactilab.experiments.tasks import TrialPlan, blank
 
@@ -124,7 +124,27 @@ def test_per_trial_terms_sum_to_the_condition_total():
     theta = np.array([[2e-4, 1.0, 0.02], [3e-4, 1.5, 0.1]])
     np.testing.assert_allclose(lik.log_likelihood(theta).sum(axis=1), lik.total_log_likelihood(theta), rtol=1e-12)
     assert lik.log_likelihood(theta[0]).shape == (len(frame),)
+    np.testing.assert_allclose(np.exp(lik._table(theta)[0]), p_correct_table("2ifc", data["s1"], data["s2"], theta),
+                               rtol=1e-12)
     assert np.all(np.isfinite(lik.log_prior(lik.initial(np.random.default_rng(1), 50))))
+
+
+def test_yes_no_likelihood_matches_the_link():
+    """Yes/no trials (signal and catch): the likelihood's table equals the model's P(correct)."""
+    model = TransductionModel("zx@1mm")
+    stims = [GRATING.model_copy(update={"amplitude_m": a}) for a in (0.3e-6, 1e-6)] + [blank(GRATING)]
+    rows = [{"stimuli": [s], "target": "yes" if s.amplitude_m > 0 else "no", "correct": bool(i % 2)}
+            for i, s in enumerate(stims * 4)]
+    data = conditions(model, pd.DataFrame(rows))
+    assert data["kind"] == "yes_no" and data["s1"].size == 3
+    lik = TransductionLikelihood(data, default_priors(data, None))
+    theta = np.array([1e-4, 1.2, 0.03, 0.2])
+    lp, _ = lik._table(theta)
+    expected = model.p_correct([s for s in stims], "yes_no", 1e-4, 1.2, 0.03, false_alarm=0.2)
+    order = [list(zip(data["s1"], data["s2"])).index((model.statistic_of(s), float(s.amplitude_m > 0))) for s in stims]
+    np.testing.assert_allclose(np.exp(lp[0, order]), expected, rtol=1e-12)
+    np.testing.assert_allclose(lik.log_likelihood(theta[None]).sum(), lik.total_log_likelihood(theta[None])[0],
+                               rtol=1e-12)
 
 
 def test_power_identical_predictions_and_a_distinguishable_pair():

@@ -64,8 +64,9 @@ def test_every_public_name_imports_and_has_a_docstring(part, name):
     value = getattr(face, name)
     exec(f"from tactilab.{part} import {name}", {})  # the documented spelling works too
     if inspect.isclass(value) or inspect.isroutine(value):
-        doc = inspect.getdoc(value)
-        assert doc and doc.strip(), f"tactilab.{part}.{name} has no docstring"
+        # the object's own docstring: not inherited, not the signature a dataclass makes up
+        doc = (value.__dict__.get("__doc__") if inspect.isclass(value) else value.__doc__) or ""
+        assert doc.strip() and not doc.startswith(f"{value.__name__}("), f"tactilab.{part}.{name} has no docstring"
         assert value.__module__.startswith(f"tactilab.{part}"), (
             f"tactilab.{part}.{name} is defined in {value.__module__}, outside its part")
     else:  # a constant: documented by a '#:' comment above its assignment
@@ -86,8 +87,8 @@ def test_cli_help_does_not_import_heavy_modules():
         "    except SystemExit:\n"
         "        pass\n"
         "assert 'usage' in buf.getvalue().lower(), buf.getvalue()\n"
-        "heavy = ['emcee', 'arviz', 'matplotlib', 'scipy.sparse.linalg', 'xarray', 'pandas',\n"
-        "         'tactilab.forward.halfspace', 'tactilab.inversion.mcmc']\n"
+        "heavy = ['emcee', 'arviz', 'matplotlib', 'scipy', 'xarray', 'pandas', 'pydantic', 'h5py',\n"
+        "         'tactilab.forward.halfspace', 'tactilab.inversion.mcmc', 'tactilab.demo']\n"
         "print(' '.join(h for h in heavy if h in sys.modules))\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)

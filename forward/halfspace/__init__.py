@@ -5,6 +5,9 @@ This package is the solver's one door. Scene, display and synthesis code in
 The theory is in ``docs/theory.md``.
 """
 
+from . import _validation as validation
+from ._validation import positive
+from .adjoint import dottest
 from .dcfft import dcfft_convolve, dcfft_correlate, dcfft_kernel_spectrum, dcfft_stress, padded_shape
 from .facade import AccuracyWarning, FieldResult, HalfSpace
 from .fields import (
@@ -23,7 +26,7 @@ from .kernels import (
     point_load_stress,
 )
 from .loads import LOAD_COMPONENTS, SurfaceLoad
-from .methods import METHODS, Method
+from .methods import METHODS, Method, select_method
 from .operator import LoadToSensor
 from .spectral import angular_wavenumbers, pressure_from_deflection, transfer
 
@@ -45,6 +48,7 @@ __all__ = [
     "dcfft_correlate",
     "dcfft_kernel_spectrum",
     "dcfft_stress",
+    "dottest",
     "invariants",
     "line_green",
     "line_load_stress",
@@ -52,7 +56,10 @@ __all__ = [
     "padded_shape",
     "point_green",
     "point_load_stress",
+    "positive",
     "pressure_from_deflection",
+    "select_method",
     "to_engineering",
     "transfer",
+    "validation",
 ]

@@ -30,7 +30,8 @@ import numpy as np
 import scipy.fft as sfft
 
 from .kernel_formulas import line_geometry, line_unit, point_geometry, point_unit
-from .kernels import COMPONENTS, active_pairs, check_components, check_nu
+from . import _validation as check
+from .kernels import COMPONENTS, active_pairs
 from .loads import SurfaceLoad
 
 __all__ = ["dcfft_stress", "dcfft_error_estimate", "padded_shape", "dcfft_kernel_spectrum", "dcfft_convolve",
@@ -53,34 +54,6 @@ def padded_shape(shape: Sequence[int]) -> tuple[int, ...]:
             m = sfft.next_fast_len(m + 1, real=True)
         out.append(m)
     return tuple(out)
-
-
-def _check_depths(depths) -> np.ndarray:
-    try:
-        values = np.asarray(depths, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"depths: expected a sequence of depths in m, got {depths!r}") from None
-    values = np.atleast_1d(values)
-    if values.ndim != 1 or values.size == 0:
-        raise ValueError(f"depths: expected a non-empty 1-D sequence of depths in m, got shape {values.shape}")
-    if not np.all(np.isfinite(values)):
-        raise ValueError(f"depths: depths must be finite (in m), got {depths!r}")
-    if np.any(values <= 0):
-        raise ValueError(
-            f"depths: depth must be > 0 m (inside the skin), got {float(values.min())!r}; "
-            "at z = 0 the stress is the surface traction itself"
-        )
-    return values
-
-
-def _check_dtype(dtype) -> np.dtype:
-    try:
-        value = np.dtype(dtype)
-    except TypeError:
-        raise ValueError(f"dtype: expected float32 or float64, got {dtype!r}") from None
-    if value not in (np.dtype(np.float32), np.dtype(np.float64)):
-        raise ValueError(f"dtype: expected float32 or float64, got {value}; use float64 for tolerances below 1e-6")
-    return value
 
 
 def _is_odd(comp: str, direction: str, axis: str) -> bool:
@@ -248,10 +221,13 @@ def dcfft_stress(load: SurfaceLoad, depths: Sequence[float], nu: float = 0.5,
     """
     if not isinstance(load, SurfaceLoad):
         raise ValueError(f"load: expected a SurfaceLoad, got {type(load).__name__}; build one with SurfaceLoad(p=..., spacing=...)")
-    depth_values = _check_depths(depths)
-    nu = check_nu(nu)
-    components = check_components(components)
-    dtype = _check_dtype(dtype)
+    return nodal_dcfft_stress(load, check.depths(depths, "depths"), check.poisson_ratio(nu),
+                              check.components(components), check.float_dtype(dtype), workers)
+
+
+def nodal_dcfft_stress(load: SurfaceLoad, depth_values: np.ndarray, nu: float, components: tuple[str, ...],
+                       dtype: np.dtype, workers: int | None = None) -> np.ndarray:
+    """:func:`dcfft_stress` on inputs already checked by the caller (the facade's methods)."""
     shape = load.shape
     out = np.zeros((depth_values.size, len(components)) + shape, dtype=dtype)
     arrays = {name: a for name, a in load.components.items() if a.any()}
@@ -322,7 +298,7 @@ def dcfft_kernel_spectrum(shape: Sequence[int], spacing: Sequence[float], depth:
     """
     shape = tuple(int(n) for n in shape)
     spacing = tuple(float(h) for h in spacing)
-    dtype = _check_dtype(dtype)
+    dtype = check.float_dtype(dtype)
     weights = np.atleast_2d(np.asarray(weights, dtype=float))
     padded = padded_shape(shape)
     spectrum_shape = (*padded[:-1], padded[-1] // 2 + 1)
@@ -454,18 +430,20 @@ def dcfft_error_estimate(spacing, depth: float, dtype=np.float64, load_width: fl
     """
     if np.ndim(spacing) == 0:
         spacing = (spacing, spacing)
-    try:
-        h = np.asarray(spacing, dtype=float)
-    except (TypeError, ValueError):
-        h = np.array([np.nan])
-    if h.ndim != 1 or h.size not in (1, 2) or not np.all(np.isfinite(h)) or np.any(h <= 0):
+    h = check.spacing(spacing, np.size(spacing))
+    if len(h) not in (1, 2):
         raise ValueError(f"spacing: expected (dx,) or (dx, dy), finite and > 0 m, got {spacing!r}")
-    depth = float(_check_depths([depth])[0])
-    width = depth if load_width is None else float(load_width)
-    if not np.isfinite(width) or width <= 0:
-        raise ValueError(f"load_width: must be a finite length > 0 m, got {load_width!r}")
+    depth = check.depth(depth)
+    width = depth if load_width is None else check.positive(load_width, "load_width", "m",
+                                                             "give the length over which the load varies, in m")
+    return alias_error(h, depth, check.float_dtype(dtype), width)
+
+
+def alias_error(h: tuple[float, ...], depth: float, dtype: np.dtype, width: float) -> float:
+    """:func:`dcfft_error_estimate` on inputs already checked by the caller."""
+    h = np.asarray(h, dtype=float)
     c = (depth / width) ** 2
-    floor = 30.0 * np.finfo(_check_dtype(dtype)).eps
+    floor = 30.0 * np.finfo(dtype).eps
     a = 2.0 * np.pi * depth / h  # s per unit lattice step along each axis
     # Terms below exp(-45) ~ 3e-20 do not matter; a cap keeps absurd h/Z cheap (E >> 1 there).
     reach = 45.0 + 0.5 * c + np.sqrt(90.0 * c)

@@ -14,23 +14,18 @@ periodic 2-D load does not vary in y; float32 when ``tol >= 1e-4``.
 from __future__ import annotations
 
 import math
-import warnings
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import xarray as xr
 
-from .fields import SHEAR_CONVENTION, check_components, compliance_matrix, invariants, label, output_weights
+from . import _validation as check
+from .fields import SHEAR_CONVENTION, compliance_matrix, invariants, label, output_weights
 from .loads import SurfaceLoad
-from .methods import METHODS, Method, Problem
+from .methods import AccuracyWarning, Problem, select_method  # noqa: F401  (AccuracyWarning: re-export)
 from .spectral import pressure_from_deflection
 
 FLOAT32_TOL = 1e-4
-
-
-class AccuracyWarning(UserWarning):
-    """No method meets the requested tolerance; the result says how far off it may be."""
 
 
 @dataclass(frozen=True)
@@ -60,18 +55,6 @@ class FieldResult:
     candidates: dict = field(default_factory=dict)
 
 
-def _check_depths(depth) -> np.ndarray:
-    d = np.atleast_1d(np.asarray(depth, dtype=float))
-    if d.ndim != 1 or d.size == 0:
-        raise ValueError(f"depth: give one depth or a 1-D sequence of depths in m, got shape {d.shape}")
-    if not np.all(np.isfinite(d)) or np.any(d <= 0):
-        raise ValueError(
-            f"depth: every depth must be finite and > 0 m (z points into the skin), got {depth!r}; "
-            "give depths below the surface as positive metres"
-        )
-    return d
-
-
 def _check_points(points, load: SurfaceLoad) -> np.ndarray | None:
     if points is None:
         return None
@@ -87,20 +70,6 @@ def _check_points(points, load: SurfaceLoad) -> np.ndarray | None:
     return pts
 
 
-def _relative_to_field(method: Method, estimate: float, load: SurfaceLoad, values: np.ndarray,
-                       to_stress: float) -> float:
-    """Express a nodal-force method's estimate (relative to the peak traction) relative to
-    the peak of the computed field, as the spectral estimate already is. Strain is turned
-    into a stress scale by E (within a factor ~2 of the true stress)."""
-    if method.name not in ("dcfft", "closed_form"):
-        return estimate
-    peak_traction = float(sum(np.abs(a) for a in load.components.values()).max())
-    peak_field = float(np.abs(values).max()) * to_stress
-    if peak_traction == 0.0 or peak_field == 0.0:
-        return estimate
-    return estimate * peak_traction / peak_field
-
-
 class HalfSpace:
     """An isotropic linear elastic half-space z > 0 (the skin).
 
@@ -113,12 +82,8 @@ class HalfSpace:
     """
 
     def __init__(self, E: float, nu: float = 0.5):
-        if isinstance(E, bool) or not isinstance(E, (int, float, np.floating, np.integer)) or not math.isfinite(E) or E <= 0:
-            raise ValueError(f"E: Young's modulus must be a finite number > 0 Pa, got {E!r}; skin is ~1e5-4e6 Pa")
-        if isinstance(nu, bool) or not isinstance(nu, (int, float, np.floating)) or not math.isfinite(nu) or not -1 < nu <= 0.5:
-            raise ValueError(f"nu: Poisson's ratio must be in (-1, 0.5], got {nu!r}; use 0.5 for incompressible skin")
-        self.E = float(E)
-        self.nu = float(nu)
+        self.E = check.young_modulus(E, "E")
+        self.nu = check.poisson_ratio(nu)
 
     def __repr__(self) -> str:
         return f"HalfSpace(E={self.E!r}, nu={self.nu!r})"
@@ -181,10 +146,10 @@ class HalfSpace:
             raise ValueError(f"load: expected a SurfaceLoad, got {type(load).__name__}; build one with SurfaceLoad(p=..., spacing=...)")
         if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not math.isfinite(tol) or tol <= 0:
             raise ValueError(f"tol: must be a finite relative tolerance > 0, got {tol!r} (e.g. 1e-6)")
-        depths = _check_depths(depth)
-        comps = check_components(components)
+        depths = check.depths(depth)
+        comps = check.components(components)
         pts = _check_points(points, load)
-        if want_invariants and comps != check_components(None):
+        if want_invariants and comps != check.COMPONENTS:
             raise ValueError("invariants: need all six components; call with components=None")
         reduced = load.periodic and load.ndim == 2 and not load.varies_in_y()
         work_load = load.row() if reduced else load
@@ -193,12 +158,11 @@ class HalfSpace:
         weight_quantity = "stress" if want_invariants else quantity
         weights = output_weights(weight_quantity, comps, self.E, self.nu)
         problem = Problem(work_load, depths, self.nu, weights, work_pts, dtype)
-        chosen, reason, candidates = self._choose(problem, method, tol)
+        chosen, reason, candidates = select_method(problem, tol, method)
         if chosen.name == "closed_form" and dtype == np.float32:
             problem = Problem(work_load, depths, self.nu, weights, work_pts, np.dtype(np.float64))
         values = chosen.compute(problem)
-        err = _relative_to_field(chosen, chosen.error_estimate(problem), work_load, values,
-                                 self.E if weight_quantity == "strain" else 1.0)
+        err = chosen.field_error(problem, values, self.E if weight_quantity == "strain" else 1.0)
         if reduced and pts is None:  # broadcast the plane-strain row over y
             values = np.broadcast_to(values[..., None, :], values.shape[:-1] + load.shape).copy()
         da = label(values, weight_quantity, comps, depths, load.x, load.y, pts)
@@ -211,39 +175,3 @@ class HalfSpace:
         ds.attrs.update(method=chosen.name, error_estimate=err, reason=reason, E_pa=self.E, nu=self.nu,
                         reduced_to_1d=int(reduced), dtype=str(problem.dtype), shear_convention=SHEAR_CONVENTION)
         return FieldResult(ds, chosen.name, err, reason, candidates)
-
-    def _choose(self, problem: Problem, method, tol: float):
-        if isinstance(method, str) and method != "auto":
-            if method not in METHODS:
-                raise ValueError(f"method: unknown method {method!r}; use 'auto' or one of {sorted(METHODS)}")
-            method = METHODS[method]
-        if isinstance(method, type) and issubclass(method, Method):
-            method = method()
-        if isinstance(method, Method):
-            why = method.applicable(problem)
-            if why is not None:
-                raise ValueError(f"method: {method.name!r} cannot run here: {why}")
-            return method, "forced by the caller", {}
-        if method != "auto":
-            raise ValueError(f"method: expected 'auto', a method name or a Method subclass, got {method!r}")
-        candidates = {}
-        runnable = []
-        for name, cls in METHODS.items():
-            m = cls()
-            why = m.applicable(problem)
-            if why is not None:
-                candidates[name] = why
-                continue
-            err, cost = m.error_estimate(problem), m.cost(problem)
-            candidates[name] = (err, cost)
-            runnable.append((m, err, cost))
-        good = [r for r in runnable if r[1] <= tol]
-        if good:
-            m, err, cost = min(good, key=lambda r: r[2])
-            return m, f"cheapest method with error estimate {err:.1e} <= tol {tol:.0e}", candidates
-        m, err, cost = min(runnable, key=lambda r: r[1])
-        warnings.warn(
-            f"no method meets tol={tol:.0e}; using {m.name!r} with estimated relative error {err:.1e} "
-            "(refine the grid spacing below the depth, enlarge the grid, or loosen tol)",
-            AccuracyWarning, stacklevel=3)
-        return m, f"most accurate method available (error estimate {err:.1e} > tol {tol:.0e})", candidates

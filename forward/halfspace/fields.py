@@ -13,24 +13,13 @@ from collections.abc import Sequence
 import numpy as np
 import xarray as xr
 
-from .kernels import COMPONENTS as VOIGT
-from .kernels import check_components as kernel_check_components
-from .kernels import check_nu as kernel_check_nu
+from . import _validation as check
+from ._validation import COMPONENTS as VOIGT
 
 #: The shear convention of every strain tactilab returns (recorded in result attributes)
 SHEAR_CONVENTION = "tensor shear eps_ij (engineering gamma_ij = 2 eps_ij; see to_engineering)"
 INVARIANTS = ("volumetric", "von_mises", "energy_density", "principal", "max_shear")
 _PAIRS = {"xx": (0, 0), "yy": (1, 1), "zz": (2, 2), "yz": (1, 2), "zx": (2, 0), "xy": (0, 1)}
-
-
-def check_components(components: Sequence[str] | str | None, name: str = "components") -> tuple[str, ...]:
-    """Validate component names; None means all six (Voigt order); 'xz' etc. are accepted."""
-    if components is None:
-        return VOIGT
-    if isinstance(components, str):
-        components = (components,)
-    aliases = {"xz": "zx", "zy": "yz", "yx": "xy"}
-    return kernel_check_components(tuple(aliases.get(c, c) for c in components))
 
 
 def compliance_matrix(young_modulus: float, nu: float) -> np.ndarray:
@@ -49,11 +38,8 @@ def compliance_matrix(young_modulus: float, nu: float) -> np.ndarray:
         Rows and columns in Voigt order (xx, yy, zz, yz, zx, xy); shear rows give tensor
         shear eps_ij (engineering gamma_ij = 2 eps_ij, see :func:`to_engineering`).
     """
-    E = float(young_modulus)
-    if not np.isfinite(E) or E <= 0:
-        raise ValueError(f"young_modulus: Young's modulus must be a finite number > 0 Pa, got {young_modulus!r}; "
-                         "skin is ~1e5-4e6 Pa")
-    nu = kernel_check_nu(nu)
+    E = check.young_modulus(young_modulus)
+    nu = check.poisson_ratio(nu)
     c = np.zeros((6, 6))
     c[:3, :3] = -nu
     np.fill_diagonal(c[:3, :3], 1.0)

@@ -39,8 +39,8 @@ from numpy.typing import ArrayLike
 from .kernel_formulas import line_geometry, line_unit, point_geometry, point_unit
 from .loads import SurfaceLoad
 
-#: Voigt order of stress and strain components (tensor shear in the last three), docs/theory.md section 1
-COMPONENTS = ("xx", "yy", "zz", "yz", "zx", "xy")
+from . import _validation as check
+from ._validation import COMPONENTS
 DIRECTIONS = ("x", "y", "z")
 
 __all__ = [
@@ -52,48 +52,11 @@ __all__ = [
     "line_load_stress",
     "point_green",
     "line_green",
-    "check_components",
-    "check_nu",
     "active_pairs",
 ]
 
 
 # ----------------------------------------------------------------------------- validation
-def check_nu(nu: float) -> float:
-    """Validate Poisson's ratio: a finite number in (-1, 0.5]."""
-    try:
-        value = float(nu)
-    except (TypeError, ValueError):
-        raise ValueError(f"nu: Poisson's ratio must be a number in (-1, 0.5], got {nu!r}") from None
-    if not np.isfinite(value) or not -1.0 < value <= 0.5:
-        raise ValueError(
-            f"nu: Poisson's ratio must lie in (-1, 0.5] (0.5 = incompressible), got {nu!r}; "
-            "skin is close to 0.5"
-        )
-    return value
-
-
-def check_components(components: Sequence[str] | str) -> tuple[str, ...]:
-    """Validate a selection of stress components; returns a tuple of names from COMPONENTS."""
-    if isinstance(components, str):
-        components = (components,)
-    try:
-        names = tuple(components)
-    except TypeError:
-        raise ValueError(f"components: expected a sequence of names from {COMPONENTS}, got {components!r}") from None
-    if not names:
-        raise ValueError(f"components: empty selection; pick names from {COMPONENTS}")
-    for name in names:
-        if name not in COMPONENTS:
-            raise ValueError(
-                f"components: unknown stress component {name!r}; valid names are {COMPONENTS} "
-                "(Voigt order, 'zx' not 'xz')"
-            )
-    if len(set(names)) != len(names):
-        raise ValueError(f"components: names repeat in {names!r}; give each component once")
-    return names
-
-
 def _check_coordinate(name: str, value) -> np.ndarray:
     arr = np.asarray(value, dtype=float)
     bad = ~np.isfinite(arr)
@@ -147,10 +110,10 @@ def point_green(component: str, direction: str, x: ArrayLike, y: ArrayLike, z: A
     -------
     ndarray, shape ``broadcast(x, y, z)``, in Pa per N.
     """
-    component = check_components((component,))[0]
+    component = check.components((component,), "component")[0]
     if direction not in DIRECTIONS:
         raise ValueError(f"direction: force direction must be one of {DIRECTIONS}, got {direction!r}")
-    nu = check_nu(nu)
+    nu = check.poisson_ratio(nu)
     x, y, z = _check_point_coordinates(x, y, z)
     return point_unit(component, direction, *point_geometry(x, y, z), nu)
 
@@ -179,7 +142,7 @@ def point_load_stress(x: ArrayLike, y: ArrayLike, z: ArrayLike, fx: ArrayLike = 
     On the axis (r = 0) the Boussinesq in-plane stresses are finite:
     ``sigma_xx = sigma_yy = sigma_r = sigma_theta = fz (1 - 2 nu) / (4 pi z^2)``.
     """
-    nu = check_nu(nu)
+    nu = check.poisson_ratio(nu)
     x, y, z = _check_point_coordinates(x, y, z)
     forces = {"x": _check_force("fx", fx), "y": _check_force("fy", fy), "z": _check_force("fz", fz)}
     shape = np.broadcast_shapes(x.shape, y.shape, z.shape, *(f.shape for f in forces.values()))
@@ -212,10 +175,10 @@ def line_green(component: str, direction: str, x: ArrayLike, z: ArrayLike, nu: f
 
     Parameters as ``point_green`` without ``y``; returns shape ``broadcast(x, z)``.
     """
-    component = check_components((component,))[0]
+    component = check.components((component,), "component")[0]
     if direction not in DIRECTIONS:
         raise ValueError(f"direction: force direction must be one of {DIRECTIONS}, got {direction!r}")
-    nu = check_nu(nu)
+    nu = check.poisson_ratio(nu)
     x, z = _check_line_coordinates(x, z)
     return line_unit(component, direction, *line_geometry(x, z), nu)
 
@@ -238,7 +201,7 @@ def line_load_stress(x: ArrayLike, z: ArrayLike, fx: ArrayLike = 0.0, fy: ArrayL
     -------
     ndarray, shape ``broadcast(x, z, fx, fy, fz) + (6,)``, stress in Pa, Voigt order ``COMPONENTS``.
     """
-    nu = check_nu(nu)
+    nu = check.poisson_ratio(nu)
     x, z = _check_line_coordinates(x, z)
     forces = {"x": _check_force("fx", fx), "y": _check_force("fy", fy), "z": _check_force("fz", fz)}
     shape = np.broadcast_shapes(x.shape, z.shape, *(f.shape for f in forces.values()))
@@ -293,8 +256,8 @@ def direct_stress_from_forces(forces: ArrayLike, positions: ArrayLike, points: A
     -------
     ndarray, shape (n, len(components)), stress in Pa (tension positive, tensor shear).
     """
-    nu = check_nu(nu)
-    components = check_components(components)
+    nu = check.poisson_ratio(nu)
+    components = check.components(components)
     pos = _check_coordinate("positions", positions)
     if pos.ndim == 1:
         pos = pos[:, None]
@@ -307,8 +270,13 @@ def direct_stress_from_forces(forces: ArrayLike, positions: ArrayLike, points: A
         raise ValueError(
             f"forces: expected shape ({pos.shape[0]}, 3) of (fx, fy, fz), one row per position, got {force.shape}"
         )
+    return _sum_forces(force, pos, _check_points(points, pos.shape[1]), nu, components)
+
+
+def _sum_forces(force: np.ndarray, pos: np.ndarray, pts: np.ndarray, nu: float,
+                components: tuple[str, ...]) -> np.ndarray:
+    """The direct sum of :func:`direct_stress_from_forces` on checked inputs."""
     ndim = pos.shape[1]
-    pts = _check_points(points, ndim)
     out = np.zeros((pts.shape[0], len(components)))
     keep = np.any(force != 0, axis=1)
     pos, force = pos[keep], force[keep]
@@ -376,7 +344,11 @@ def direct_stress(load: SurfaceLoad, points: ArrayLike, nu: float = 0.5,
     """
     if not isinstance(load, SurfaceLoad):
         raise ValueError(f"load: expected a SurfaceLoad, got {type(load).__name__}; build one with SurfaceLoad(p=..., spacing=...)")
-    _check_points(points, load.ndim)
+    return nodal_stress(load, _check_points(points, load.ndim), check.poisson_ratio(nu), check.components(components))
+
+
+def nodal_stress(load: SurfaceLoad, points: np.ndarray, nu: float, components: tuple[str, ...]) -> np.ndarray:
+    """:func:`direct_stress` on inputs already checked by the caller (the facade's methods)."""
     arrays = load.components
     shape = load.shape
     force = np.zeros(shape + (3,))
@@ -388,4 +360,6 @@ def direct_stress(load: SurfaceLoad, points: ArrayLike, nu: float = 0.5,
         positions = np.stack([xx.ravel(), yy.ravel()], axis=1)
     else:
         positions = load.x
-    return direct_stress_from_forces(force.reshape(-1, 3), positions, points, nu, components)
+    if positions.ndim == 1:
+        positions = positions[:, None]
+    return _sum_forces(force.reshape(-1, 3), positions, points, nu, components)

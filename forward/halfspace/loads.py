@@ -13,22 +13,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import _validation as check
+
 #: Surface traction components: normal pressure p (pushes in) and tangential qx, qy (Pa)
 LOAD_COMPONENTS = ("p", "qx", "qy")
-
-
-def _check_spacing(spacing, ndim: int) -> tuple[float, ...]:
-    values = np.atleast_1d(np.asarray(spacing, dtype=float))
-    if values.size == 1:
-        values = np.repeat(values, ndim)
-    if values.size != ndim:
-        raise ValueError(
-            f"spacing: expected one value or {ndim} values (dx{', dy' if ndim == 2 else ''}) in m, "
-            f"got {values.size}: {spacing!r}"
-        )
-    if not np.all(np.isfinite(values)) or np.any(values <= 0):
-        raise ValueError(f"spacing: grid spacing must be finite and > 0 m, got {spacing!r}; give it in metres")
-    return tuple(float(v) for v in values)
 
 
 @dataclass(frozen=True)
@@ -93,7 +81,7 @@ class SurfaceLoad:
         shape = next(iter(shapes.values()))
         if min(shape) < 1:
             raise ValueError(f"SurfaceLoad: grid is empty, shape {shape}; give at least one node per axis")
-        object.__setattr__(self, "spacing", _check_spacing(self.spacing, len(shape)))
+        object.__setattr__(self, "spacing", check.spacing(self.spacing, len(shape)))
         if not isinstance(self.periodic, (bool, np.bool_)):
             raise ValueError(f"periodic: must be True or False, got {self.periodic!r}")
         object.__setattr__(self, "_arrays", arrays)

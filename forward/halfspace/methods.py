@@ -1,17 +1,26 @@
 """The method registry behind :meth:`HalfSpace.stress`: one class per method, each with its
-own applicability rule, error estimate and cost model (the ``solve_ivp`` pattern).
+own applicability rule, error estimate, error scale and cost model (the ``solve_ivp`` pattern).
 
-``METHODS = {"closed_form": ClosedForm, "spectral": Spectral, "dcfft": DCFFT}``.
-A user can pass a name or a :class:`Method` subclass to ``method=``.
+``METHODS = {"closed_form": ClosedForm, "spectral": Spectral, "dcfft": DCFFT}``, and beside it
+:func:`select_method`, the choice: a forced method, or the cheapest one whose error estimate
+meets ``tol``. A user can pass a name or a :class:`Method` subclass to ``method=``.
+
+:class:`Method` is a template: its public methods (:meth:`~Method.compute`,
+:meth:`~Method.error_estimate`, :meth:`~Method.cost`, :meth:`~Method.field_error`) guard and
+dispatch; subclasses implement only ``_compute``, ``_error`` and ``_cost`` and declare
+``error_scale``.
 """
 
 from __future__ import annotations
 
+import warnings
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
 
+from .dcfft import alias_error, nodal_dcfft_stress
+from .kernels import nodal_stress
 from .loads import SurfaceLoad
 from .spectral import VOIGT, periodic_stress
 
@@ -56,12 +65,30 @@ def _grid_index(problem: Problem):
     return None
 
 
+class AccuracyWarning(UserWarning):
+    """No method meets the requested tolerance; the result says how far off it may be."""
+
+
 class Method(ABC):
     """Base class (template method): the public methods guard and dispatch; subclasses
-    supply ``_error``, ``_cost`` and ``_grid_field`` (the field on the load grid)."""
+    supply ``_compute``, ``_error`` and ``_cost``, and say in ``error_scale`` what their
+    ``_error`` is relative to.
+
+    Attributes
+    ----------
+    name : str
+        Registry name (a key of :data:`METHODS`).
+    exact_for : str
+        The problems the method solves exactly.
+    error_scale : {"field", "traction"}
+        What ``_error`` is relative to: the peak of the computed field (``"field"``) or the
+        peak nodal traction ``|p| + |qx| + |qy|`` (``"traction"``, the nodal-force methods).
+        :meth:`field_error` turns either into an error relative to the field's peak.
+    """
 
     name = "base"
     exact_for = ""
+    error_scale = "field"
 
     def applicable(self, problem: Problem) -> str | None:
         """None if the method can run, else the reason it cannot."""
@@ -79,26 +106,53 @@ class Method(ABC):
         return float(self._cost(problem))
 
     def compute(self, problem: Problem) -> np.ndarray:
-        """Outputs, shape (n_depth, n_out, *grid) or (n_depth, n_out, n_points)."""
-        field = self._grid_field(problem)
+        """Outputs, shape (n_depth, n_out, *grid) or (n_depth, n_out, n_points).
+
+        Raises
+        ------
+        ValueError
+            When the method cannot run on this problem (:meth:`applicable`).
+        """
+        why = self.applicable(problem)
+        if why is not None:
+            raise ValueError(f"method: {self.name!r} cannot run here: {why}")
+        return self._compute(problem)
+
+    def field_error(self, problem: Problem, values: np.ndarray, stress_scale: float = 1.0) -> float:
+        """The error estimate relative to the peak of the computed ``values``.
+
+        A ``"traction"``-scaled estimate is multiplied by peak traction / peak field
+        (``stress_scale`` turns the field into a stress scale: E for strain, about 2x the true
+        stress); a ``"field"``-scaled one is returned as it is.
+        """
+        estimate = self.error_estimate(problem)
+        if self.error_scale == "field":
+            return estimate
+        load = problem.load
+        peak_traction = float(sum(np.abs(a) for a in load.components.values()).max())
+        peak_field = float(np.abs(values).max()) * stress_scale
+        if peak_traction == 0.0 or peak_field == 0.0:
+            return estimate
+        return estimate * peak_traction / peak_field
+
+    @staticmethod
+    def _at_points(problem: Problem, field: np.ndarray) -> np.ndarray:
+        """The grid field at the problem's points (which sit on grid nodes), or all of it."""
         if problem.points is None:
             return field
-        idx = _grid_index(problem)
-        if idx is None:
-            raise ValueError(f"points: method {self.name!r} evaluates on grid nodes only; use 'closed_form' or 'spectral'")
-        return field[(slice(None), slice(None), *idx)]
+        return field[(slice(None), slice(None), *_grid_index(problem))]
+
+    @abstractmethod
+    def _compute(self, problem: Problem) -> np.ndarray:
+        """Outputs for an applicable problem, shape as :meth:`compute`."""
 
     @abstractmethod
     def _error(self, problem: Problem) -> float:
-        """Relative error estimate of the method itself."""
+        """Relative error estimate of the method itself (relative to ``error_scale``)."""
 
     @abstractmethod
     def _cost(self, problem: Problem) -> float:
         """Flop model."""
-
-    @abstractmethod
-    def _grid_field(self, problem: Problem) -> np.ndarray:
-        """Outputs on the load grid, shape (n_depth, n_out, *grid)."""
 
 
 class Spectral(Method):
@@ -129,15 +183,13 @@ class Spectral(Method):
             return None
         return problem.points
 
-    def compute(self, problem: Problem) -> np.ndarray:
+    def _compute(self, problem: Problem) -> np.ndarray:
         pts = self._off_grid(problem)
-        if pts is None:
-            return super().compute(problem)
-        return periodic_stress(problem.load, problem.depths, problem.nu, problem.weights, dtype=problem.dtype,
-                               points=pts)
-
-    def _grid_field(self, problem: Problem) -> np.ndarray:
-        return periodic_stress(problem.load, problem.depths, problem.nu, problem.weights, dtype=problem.dtype)
+        if pts is not None:  # the exact trigonometric interpolant at the points
+            return periodic_stress(problem.load, problem.depths, problem.nu, problem.weights, dtype=problem.dtype,
+                                   points=pts)
+        field = periodic_stress(problem.load, problem.depths, problem.nu, problem.weights, dtype=problem.dtype)
+        return self._at_points(problem, field)
 
 
 def image_error(load: SurfaceLoad, depths: np.ndarray) -> float:
@@ -160,12 +212,18 @@ def image_error(load: SurfaceLoad, depths: np.ndarray) -> float:
     return float(8.0 * (2 * a / L) ** 2)
 
 
+def _sampling_error(problem: Problem) -> float:
+    """Kernel-sampling (alias) error of the nodal-force methods at the deepest-hit depth."""
+    return max(alias_error(problem.load.spacing, float(z), problem.dtype, float(z)) for z in problem.depths)
+
+
 class DCFFT(Method):
     """Zero-padded convolution with the point (line) kernel sampled at depth: no periodic
     images; exact for the load as a set of nodal forces."""
 
     name = "dcfft"
     exact_for = "isolated loads (zero outside the grid)"
+    error_scale = "traction"
 
     def applicable(self, problem: Problem) -> str | None:
         if problem.load.periodic:
@@ -175,23 +233,18 @@ class DCFFT(Method):
         return None
 
     def _error(self, problem: Problem) -> float:
-        from .dcfft import dcfft_error_estimate
-
-        return max(dcfft_error_estimate(problem.load.spacing, float(z), dtype=problem.dtype)
-                   for z in problem.depths)
+        return _sampling_error(problem)
 
     def _cost(self, problem: Problem) -> float:
         n = np.prod([2 * s for s in problem.load.shape])
         n_fft = len(problem.load.components) + 2 * len(problem.depths) * len(problem.stress_rows)
         return n_fft * _fft_cost(n)
 
-    def _grid_field(self, problem: Problem) -> np.ndarray:
-        from .dcfft import dcfft_stress
-
+    def _compute(self, problem: Problem) -> np.ndarray:
         rows = problem.stress_rows
-        stress = dcfft_stress(problem.load, problem.depths, problem.nu, [VOIGT[j] for j in rows],
-                              dtype=problem.dtype)
-        return np.einsum("oj,dj...->do...", problem.weights[:, rows], stress)
+        stress = nodal_dcfft_stress(problem.load, problem.depths, problem.nu, tuple(VOIGT[j] for j in rows),
+                                    problem.dtype)
+        return self._at_points(problem, np.einsum("oj,dj...->do...", problem.weights[:, rows], stress))
 
 
 class ClosedForm(Method):
@@ -200,6 +253,7 @@ class ClosedForm(Method):
 
     name = "closed_form"
     exact_for = "few loads and few sensors"
+    error_scale = "traction"
 
     def applicable(self, problem: Problem) -> str | None:
         if problem.load.periodic:
@@ -207,21 +261,13 @@ class ClosedForm(Method):
         return None
 
     def _error(self, problem: Problem) -> float:
-        from .dcfft import dcfft_error_estimate
-
-        return max(dcfft_error_estimate(problem.load.spacing, float(z), dtype=problem.dtype)
-                   for z in problem.depths)
+        return _sampling_error(problem)
 
     def _cost(self, problem: Problem) -> float:
         loaded = sum(np.count_nonzero(v) for v in problem.load.components.values())
         return 60.0 * loaded * problem.n_eval * len(problem.depths) * len(problem.stress_rows)
 
-    def _grid_field(self, problem: Problem) -> np.ndarray:
-        return self.compute(problem)
-
-    def compute(self, problem: Problem) -> np.ndarray:
-        from .kernels import direct_stress
-
+    def _compute(self, problem: Problem) -> np.ndarray:
         load = problem.load
         if problem.points is None:
             if load.ndim == 1:
@@ -239,7 +285,7 @@ class ClosedForm(Method):
                 xyz = np.column_stack([pts[:, 0], np.full(len(pts), z)])
             else:
                 xyz = np.column_stack([pts[:, 0], pts[:, 1], np.full(len(pts), z)])
-            stress = direct_stress(load, xyz, problem.nu, comps)  # (n, n_comp)
+            stress = nodal_stress(load, xyz, problem.nu, tuple(comps))  # (n, n_comp)
             out.append(stress @ problem.weights[:, rows].T)
         values = np.asarray(out).transpose(0, 2, 1)  # (n_depth, n_out, n)
         if problem.points is None:
@@ -249,3 +295,70 @@ class ClosedForm(Method):
 
 #: Method registry: name -> Method subclass; HalfSpace.stress/strain look ``method`` up here
 METHODS: dict[str, type[Method]] = {"closed_form": ClosedForm, "spectral": Spectral, "dcfft": DCFFT}
+
+
+def _instance(method) -> Method:
+    if isinstance(method, str):
+        if method not in METHODS:
+            raise ValueError(f"method: unknown method {method!r}; use 'auto' or one of {sorted(METHODS)}")
+        return METHODS[method]()
+    if isinstance(method, type) and issubclass(method, Method):
+        return method()
+    if isinstance(method, Method):
+        return method
+    raise ValueError(f"method: expected 'auto', a method name or a Method subclass, got {method!r}")
+
+
+def select_method(problem: Problem, tol: float, method="auto") -> tuple[Method, str, dict]:
+    """The method to run: the one forced by the caller, or the cheapest whose estimate meets tol.
+
+    Parameters
+    ----------
+    problem : Problem
+        The evaluation.
+    tol : float
+        Requested error, relative to the field's peak.
+    method : "auto", str, Method subclass or instance
+        ``"auto"`` chooses among :data:`METHODS`; anything else forces that method.
+
+    Returns
+    -------
+    method : Method
+        The method to run.
+    reason : str
+        Why it was chosen.
+    candidates : dict
+        Per method name: ``(error_estimate, cost)`` or the reason it cannot run (auto only).
+
+    Warns
+    -----
+    AccuracyWarning
+        When no method meets ``tol`` (the most accurate one is used).
+    """
+    if not (isinstance(method, str) and method == "auto"):
+        chosen = _instance(method)
+        why = chosen.applicable(problem)
+        if why is not None:
+            raise ValueError(f"method: {chosen.name!r} cannot run here: {why}")
+        return chosen, "forced by the caller", {}
+    candidates: dict = {}
+    runnable = []
+    for name, cls in METHODS.items():
+        m = cls()
+        why = m.applicable(problem)
+        if why is not None:
+            candidates[name] = why
+            continue
+        err, cost = m.error_estimate(problem), m.cost(problem)
+        candidates[name] = (err, cost)
+        runnable.append((m, err, cost))
+    good = [r for r in runnable if r[1] <= tol]
+    if good:
+        m, err, _ = min(good, key=lambda r: r[2])
+        return m, f"cheapest method with error estimate {err:.1e} <= tol {tol:.0e}", candidates
+    m, err, _ = min(runnable, key=lambda r: r[1])
+    warnings.warn(
+        f"no method meets tol={tol:.0e}; using {m.name!r} with estimated relative error {err:.1e} "
+        "(refine the grid spacing below the depth, enlarge the grid, or loosen tol)",
+        AccuracyWarning, stacklevel=4)
+    return m, f"most accurate method available (error estimate {err:.1e} > tol {tol:.0e})", candidates

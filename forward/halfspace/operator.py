@@ -26,7 +26,8 @@ import scipy.fft as sfft
 from scipy.sparse.linalg import LinearOperator
 
 from .dcfft import dcfft_convolve, dcfft_correlate, dcfft_kernel_spectrum
-from .fields import check_components, output_weights
+from . import _validation as check
+from .fields import output_weights
 from .kernels import line_green, point_green
 from .loads import LOAD_COMPONENTS, SurfaceLoad
 from .spectral import VOIGT, _Geometry, multiplier, _half_wavenumbers
@@ -73,11 +74,9 @@ class LoadToSensor(LinearOperator):
         if len(shape) not in (1, 2) or min(shape) < 1:
             raise ValueError(f"shape: expected (nx,) or (ny, nx) with positive sizes, got {shape}")
         template = SurfaceLoad(p=np.zeros(shape), spacing=spacing, periodic=periodic)
-        if not np.isfinite(depth) or depth <= 0:
-            raise ValueError(f"depth: must be finite and > 0 m, got {depth!r}")
         self.template = template
-        self.depth = float(depth)
-        self.components = check_components(components)
+        self.depth = check.depth(depth)
+        self.components = check.components(components)
         self.loads = _check_loads(loads)
         self.quantity = quantity
         self.weights = output_weights(quantity, self.components, halfspace.E, halfspace.nu)

@@ -31,7 +31,8 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.fft as sfft
 
-from .kernels import COMPONENTS as VOIGT
+from . import _validation as check
+from ._validation import COMPONENTS as VOIGT
 from .loads import SurfaceLoad
 
 
@@ -343,7 +344,7 @@ def transfer(xi: np.ndarray, eta: np.ndarray | None, depth: float, nu: float,
     xi, eta : ndarray
         Angular wavenumbers in rad/m (broadcastable); ``eta=None`` for 1-D plane strain.
     depth : float
-        Depth in m (>= 0).
+        Depth in m (> 0).
     nu : float
         Poisson's ratio.
     load_component : {"p", "qx", "qy"}
@@ -358,16 +359,15 @@ def transfer(xi: np.ndarray, eta: np.ndarray | None, depth: float, nu: float,
     """
     if load_component not in ("p", "qx", "qy"):
         raise ValueError(f"load_component: must be 'p', 'qx' or 'qy', got {load_component!r}")
-    if not np.isfinite(depth) or depth < 0:
-        raise ValueError(f"depth: must be finite and >= 0 m, got {depth!r}")
+    depth = check.depth(depth)
+    nu = check.poisson_ratio(nu)
+    components = check.components(components)
     xi = np.asarray(xi, dtype=float)
     if eta is not None:
         xi, eta = np.broadcast_arrays(xi, np.asarray(eta, dtype=float))
     g = _Geometry(xi, eta, nyquist_x=False, nyquist_y=False)
     out = []
     for comp in components:
-        if comp not in VOIGT:
-            raise ValueError(f"components: unknown stress component {comp!r}; use one of {VOIGT}")
         out.append(multiplier(g, nu, load_component, np.eye(6)[VOIGT.index(comp)], depth))
     return np.asarray(out, dtype=complex)
 
@@ -396,9 +396,9 @@ def pressure_from_deflection(deflection: np.ndarray, spacing, young_modulus: flo
         deflection needs no pressure on an infinite half-space, so the mean is a free
         contact-force parameter.
     """
-    h = np.asarray(deflection, dtype=float)
-    if not np.all(np.isfinite(h)):
-        raise ValueError("deflection: must be finite (no NaN or inf), in m")
+    h = check.finite_array(deflection, "deflection", "m")
+    young_modulus = check.young_modulus(young_modulus)
+    nu = check.poisson_ratio(nu)
     template = SurfaceLoad(p=np.zeros_like(h), spacing=spacing)
     xi, eta = _half_wavenumbers(h.shape, template.spacing)
     rho = np.abs(xi) if eta is None else np.hypot(xi, eta)

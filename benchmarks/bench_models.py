@@ -1,0 +1,92 @@
+"""Benchmark: transduction-model fits (likelihood per unique stimulus) and the statistics behind them.
+
+Run: ``python benchmarks/bench_models.py [--trials 700 7000 70000]``
+
+Table 1 -- ``fit_transduction`` of simulated 2IFC trials (20 unique stimuli: 5 amplitudes x 4
+pitches, an observer reading zx@1mm): wall time of the statistics (once per unique stimulus),
+of the whole fit (4 emcee ensembles to the sampler's own convergence rules), the steps taken,
+and the size of the per-trial log-likelihood kept in the tree (bounded: the draws kept shrink
+as trials grow, at most 8e6 values = 64 MB).
+
+Table 2 -- one likelihood evaluation for 16 walkers: per condition (what the sampler's target
+uses) against per trial (what the tree stores).
+
+Table 3 -- the cost of one statistic (peak, refined; rms) per unique stimulus.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from tactilab.data_schemas.experiment import Stimulus
+from tactilab.experiments.models import TransductionModel, fit_transduction
+from tactilab.experiments._transduction_data import TransductionLikelihood, conditions, default_priors
+
+BASE = Stimulus(amplitude_m=1e-6, pitch_m=4e-3, speed_m_per_s=0.02, duration_s=0.1)
+AMPS = (0.15e-6, 0.3e-6, 0.6e-6, 1.2e-6, 2.4e-6)
+PITCHES = (1.5e-3, 3e-3, 6e-3, 10e-3)
+
+
+def _frame(n_trials, rng):
+    import pandas as pd
+
+    truth = TransductionModel("zx@1mm")
+    stims = [BASE.model_copy(update={"amplitude_m": a, "pitch_m": p}) for a in AMPS for p in PITCHES]
+    blank = [s.model_copy(update={"amplitude_m": 0.0}) for s in stims]
+    which = rng.integers(len(stims), size=n_trials)
+    p = truth.p_correct(list(zip(stims, blank)), "2ifc", 1e-4, 1.0, 0.02)[which]
+    first = rng.random(n_trials) < 0.5
+    rows = [{"stimuli": [stims[w], blank[w]] if f else [blank[w], stims[w]], "target": "1" if f else "2",
+             "correct": bool(c)} for w, f, c in zip(which, first, rng.random(n_trials) < p)]
+    return pd.DataFrame(rows)
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--trials", type=int, nargs="+", default=[700, 7000, 70000])
+    args = parser.parse_args(argv)
+    print("Table 1: fit_transduction (zx@1mm, 2IFC, 20 unique stimuli)")
+    head = f"{'trials':>7s} {'statistics':>11s} {'fit total':>10s} {'steps':>6s} {'converged':>9s} {'draws':>6s} {'per-trial ll':>13s}"
+    print(head + "\n" + "-" * len(head))
+    for n in args.trials:
+        frame = _frame(n, np.random.default_rng(n))
+        model = TransductionModel("zx@1mm")
+        t0 = time.perf_counter()
+        conditions(model, frame)
+        t_stat = time.perf_counter() - t0
+        model = TransductionModel("zx@1mm")  # fresh cache: the fit pays for the statistics too
+        t0 = time.perf_counter()
+        fit = fit_transduction(model, frame, rng=0)
+        t_fit = time.perf_counter() - t0
+        ll = fit.tree["log_likelihood"]["correct"]
+        print(f"{n:7d} {t_stat:9.2f} s {t_fit:8.2f} s {int(fit.diagnostics['n_steps']):6d} {str(fit.converged):>9s} "
+              f"{ll.shape[0] * ll.shape[1]:6d} {ll.nbytes / 2**20:10.1f} MB")
+    frame = _frame(7000, np.random.default_rng(1))
+    model = TransductionModel("zx@1mm")
+    data = conditions(model, frame)
+    lik = TransductionLikelihood(data, default_priors(data, None))
+    theta = lik.initial(np.random.default_rng(0), 16)
+    print("\nTable 2: one likelihood evaluation, 16 walkers, 7000 trials")
+    for label, fn in (("per condition (20)", lik.total_log_likelihood), ("per trial (7000)", lik.log_likelihood)):
+        fn(theta)
+        reps = 200
+        t0 = time.perf_counter()
+        for _ in range(reps):
+            fn(theta)
+        print(f"{label:20s} {1e6 * (time.perf_counter() - t0) / reps:9.1f} us")
+    print("\nTable 3: one statistic per unique stimulus")
+    for surface in ("sinusoid", "square"):
+        for statistic in ("peak", "rms"):
+            for hyp in ("zx@1mm", "xx,zx@1mm,2mm", "max_shear@1mm"):
+                stim = BASE.model_copy(update={"surface": surface})
+                t0 = time.perf_counter()
+                value = TransductionModel(hyp, statistic=statistic).statistic_of(stim)
+                print(f"{surface:9s} {statistic:5s} {hyp:15s} {1e3 * (time.perf_counter() - t0):8.2f} ms  "
+                      f"value {value:.6g}")
+
+
+if __name__ == "__main__":
+    main()

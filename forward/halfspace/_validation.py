@@ -1,0 +1,210 @@
+"""Input rules of the half-space solver: one rule per quantity, one message style.
+
+Every public entry point of :mod:`tactilab.forward.halfspace` (and the scene, tractor and
+contact modules built on it) validates its arguments here, once, and passes checked values
+down the call chain. Each error names the argument, the rule, the value it got and the fix::
+
+    depth: every depth must be finite and > 0 m (z points into the skin), got -0.001 at
+    index 0; give depths below the surface as positive metres
+
+Rules
+-----
+- components: Voigt names ``xx, yy, zz, yz, zx, xy``; the aliases ``xz``, ``zy``, ``yx`` are
+  accepted everywhere and mean the same tensor entry; ``None`` means all six.
+- depth(s): finite and > 0 m (z points into the skin).
+- Poisson's ratio: in (-1, 0.5], the thermodynamic bounds of an isotropic solid (0.5 is
+  incompressible and exact); the same rule as the material record of
+  :mod:`tactilab.data_schemas`.
+- Young's modulus: finite and > 0 Pa.
+- grid spacing: finite and > 0 m, x first.
+- any other positive length, force or rate: :func:`positive`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+#: Voigt order of stress and strain components (tensor shear in the last three), docs/theory.md section 1
+COMPONENTS = ("xx", "yy", "zz", "yz", "zx", "xy")
+#: alternative spellings of the symmetric shear entries
+COMPONENT_ALIASES = {"xz": "zx", "zy": "yz", "yx": "xy"}
+
+__all__ = [
+    "COMPONENTS",
+    "COMPONENT_ALIASES",
+    "components",
+    "depth",
+    "depths",
+    "finite_array",
+    "float_dtype",
+    "poisson_ratio",
+    "positive",
+    "spacing",
+    "young_modulus",
+]
+
+
+def show(value) -> str:
+    """repr for messages: numpy scalars as plain numbers ('nan', not 'np.float64(nan)')."""
+    return repr(value.item()) if isinstance(value, np.generic) else repr(value)
+
+
+def _number(value, name: str, what: str, fix: str) -> float:
+    if isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name}: {what}, got {value!r}; {fix}")
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: {what}, got {show(value)}; {fix}") from None
+
+
+def positive(value, name: str, unit: str = "m", fix: str = "") -> float:
+    """A finite number > 0 (a length, force, modulus, rate ...), returned as float.
+
+    Parameters
+    ----------
+    value : float
+        The value to check.
+    name : str
+        The argument's name, as the caller spells it.
+    unit : str
+        Its SI unit, for the message ("1" for dimensionless).
+    fix : str
+        How to fix a bad value; default "give a finite value > 0 in <unit>".
+
+    Raises
+    ------
+    ValueError
+        ``"<name>: must be finite and > 0 <unit>, got <value>; <fix>"``.
+    """
+    fix = fix or f"give a finite value > 0 in {unit}"
+    v = _number(value, name, f"must be finite and > 0 {unit}", fix)
+    if not math.isfinite(v) or v <= 0:
+        raise ValueError(f"{name}: must be finite and > 0 {unit}, got {show(value)}; {fix}")
+    return v
+
+
+def young_modulus(value, name: str = "young_modulus") -> float:
+    """Young's modulus: finite and > 0 Pa."""
+    fix = "give E in Pa (skin is about 1e5 to 4e6 Pa)"
+    v = _number(value, name, "Young's modulus must be finite and > 0 Pa", fix)
+    if not math.isfinite(v) or v <= 0:
+        raise ValueError(f"{name}: Young's modulus must be finite and > 0 Pa, got {show(value)}; {fix}")
+    return v
+
+
+def poisson_ratio(value, name: str = "nu") -> float:
+    """Poisson's ratio: in (-1, 0.5]; 0.5 (incompressible) is exact."""
+    rule = "Poisson's ratio must lie in (-1, 0.5] (0.5 = incompressible)"
+    fix = "skin is close to 0.5"
+    v = _number(value, name, rule, fix)
+    if not math.isfinite(v) or not -1.0 < v <= 0.5:
+        raise ValueError(f"{name}: {rule}, got {show(value)}; {fix}")
+    return v
+
+
+def depths(value, name: str = "depth") -> np.ndarray:
+    """One depth or a non-empty 1-D sequence of depths, each finite and > 0 m.
+
+    Returns
+    -------
+    ndarray, shape (n_depth,), m
+    """
+    try:
+        d = np.atleast_1d(np.asarray(value, dtype=float))
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected one depth or a 1-D sequence of depths in m, got {value!r}; "
+                         "give numbers in metres") from None
+    if d.ndim != 1 or d.size == 0:
+        raise ValueError(f"{name}: expected one depth or a non-empty 1-D sequence of depths in m, got shape {d.shape}; "
+                         "give e.g. 1e-3 or [1e-3, 2e-3]")
+    bad = ~np.isfinite(d) | (d <= 0)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"{name}: every depth must be finite and > 0 m (z points into the skin), got {show(d[i])} "
+                         f"at index {i}; give depths below the surface as positive metres")
+    return d
+
+
+def depth(value, name: str = "depth") -> float:
+    """A single depth, finite and > 0 m."""
+    if np.ndim(value) != 0:
+        raise ValueError(f"{name}: expected one depth in m, got shape {np.shape(value)}; give a single number")
+    return float(depths(value, name)[0])
+
+
+def components(value: Sequence[str] | str | None, name: str = "components") -> tuple[str, ...]:
+    """Stress or strain components: Voigt names, aliases accepted; None means all six.
+
+    Returns
+    -------
+    tuple of str
+        Canonical names from ``COMPONENTS`` (``xz`` -> ``zx``, ``zy`` -> ``yz``, ``yx`` -> ``xy``),
+        in the order given.
+    """
+    if value is None:
+        return COMPONENTS
+    if isinstance(value, str):
+        value = (value,)
+    try:
+        names = tuple(value)
+    except TypeError:
+        raise ValueError(f"{name}: expected a sequence of names from {COMPONENTS}, got {value!r}; "
+                         "e.g. ('zz', 'zx')") from None
+    if not names:
+        raise ValueError(f"{name}: empty selection; pick names from {COMPONENTS}")
+    canonical = []
+    for comp in names:
+        if not isinstance(comp, str) or COMPONENT_ALIASES.get(comp, comp) not in COMPONENTS:
+            raise ValueError(f"{name}: unknown stress component {comp!r}; valid names are {COMPONENTS} "
+                             f"(Voigt order; the aliases {tuple(COMPONENT_ALIASES)} are accepted)")
+        canonical.append(COMPONENT_ALIASES.get(comp, comp))
+    if len(set(canonical)) != len(canonical):
+        raise ValueError(f"{name}: names repeat in {names!r} (aliases count as their Voigt name); "
+                         "give each component once")
+    return tuple(canonical)
+
+
+def spacing(value, ndim: int, name: str = "spacing") -> tuple[float, ...]:
+    """Grid spacing, x first: one value (dx = dy) or ``ndim`` values, each finite and > 0 m."""
+    try:
+        values = np.atleast_1d(np.asarray(value, dtype=float))
+    except (TypeError, ValueError):
+        values = np.array([np.nan])
+    if values.ndim == 1 and values.size == 1:
+        values = np.repeat(values, ndim)
+    if values.ndim != 1 or values.size != ndim:
+        raise ValueError(
+            f"{name}: expected one value or {ndim} values (dx{', dy' if ndim == 2 else ''}) in m, "
+            f"got {np.size(value)}: {value!r}; give the grid spacing x first")
+    if not np.all(np.isfinite(values)) or np.any(values <= 0):
+        raise ValueError(f"{name}: grid spacing must be finite and > 0 m, got {value!r}; give it in metres")
+    return tuple(float(v) for v in values)
+
+
+def finite_array(value, name: str, unit: str) -> np.ndarray:
+    """A real float array with no NaN or inf; the error names the first bad index."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected real numbers in {unit}, got {type(value).__name__}") from None
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        idx = tuple(int(i) for i in np.argwhere(bad)[0]) if arr.ndim else ()
+        raise ValueError(f"{name}: must be finite (no NaN or inf) in {unit}, got {show(arr[idx])} at index "
+                         f"{idx if arr.ndim != 1 else idx[0]}; drop or fill the bad values first")
+    return arr
+
+
+def float_dtype(value) -> np.dtype:
+    """float32 or float64."""
+    try:
+        dt = np.dtype(value)
+    except TypeError:
+        raise ValueError(f"dtype: expected float32 or float64, got {value!r}") from None
+    if dt not in (np.dtype(np.float32), np.dtype(np.float64)):
+        raise ValueError(f"dtype: expected float32 or float64, got {dt}; use float64 for tolerances below 1e-6")
+    return dt
