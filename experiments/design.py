@@ -345,9 +345,19 @@ class ModelDiscrimination(Procedure):
         return information_gain(self.table, self.weights(), self.utility, self._entropy_table, self._groups)
 
     def choose(self, rng: np.random.Generator | None = None) -> int:
-        """Index (into :attr:`candidates`) of the most informative candidate; exact ties by ``rng``."""
+        """Index (into :attr:`candidates`) of the most informative candidate; exact ties by ``rng``.
+
+        When a model has reached ``stop_probability`` but is metameric with a rival over the
+        stimuli shown so far (so the prior, not the data, put it there), the most informative
+        candidate NOT yet shown is taken instead.
+        """
         u = self.utilities()
-        best = np.flatnonzero(u >= u.max() - 1e-12 * max(u.max(), 1e-300))
+        blocked = any(len(g) == 1 and p >= self.stop_probability and self._shown_metameric(g[0])
+                      for g, p in self.group_probabilities().items())
+        if blocked and len(self._shown) < len(u):  # the prior, not the data, decides: show a new stimulus
+            u = u.copy()
+            u[sorted(self._shown)] = -np.inf
+        best = np.flatnonzero(u >= u.max() - 1e-12 * max(abs(u.max()), 1e-300))
         gen = self._rng if rng is None else rng
         return int(best[0] if best.size == 1 else best[int(gen.integers(best.size))])
 
