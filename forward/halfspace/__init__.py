@@ -7,7 +7,7 @@ The theory is in ``docs/theory.md``.
 
 from tactilab.data_schemas._lazy import attach
 
-from . import _validation as validation
+from . import _validation as validation  # noqa: F401 (public: the validation rules)
 
 #: public name -> module of the solver that defines it (loaded on first use, so that importing one
 #: kernel does not load xarray through the facade)
