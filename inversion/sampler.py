@@ -384,6 +384,10 @@ def sample_posterior(model: PosteriorModel, rng: np.random.Generator, *, n_ensem
         if not diag["failed"] or steps >= max_steps:
             break
     if bar is not None:
+        if not diag["failed"] and steps < max_steps:  # stopped early: say so, and end the bar at 100 %
+            bar.set_description_str(f"emcee converged at step {steps} of at most {int(max_steps)}")
+            bar.total = steps
+            bar.refresh()
         bar.close()
     converged = not diag["failed"]
     kept = chains

@@ -34,3 +34,19 @@ def seed(request) -> int:
 @pytest.fixture
 def rng(seed) -> np.random.Generator:
     return np.random.default_rng(seed)
+
+
+def pytest_configure(config):
+    # No tqdm monitor thread in the test process: the fork-based reliability tests need one thread.
+    import tqdm
+
+    tqdm.tqdm.monitor_interval = 0
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """Run the tests that start a Dask client last.
+
+    A Dask client leaves its IO-loop thread running in this process after it closes, and the
+    kill -9 reliability tests fork, which needs a single-threaded process.
+    """
+    items.sort(key=lambda item: item.nodeid.startswith("tests/test_batch"))
