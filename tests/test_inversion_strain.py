@@ -8,12 +8,12 @@ import warnings
 import numpy as np
 import pytest
 
+from tactilab.data_schemas import read_recording
 from tactilab.data_schemas.files import load_example
 from tactilab.data_schemas.scene import Scan
 from tactilab.data_schemas.sensors import SensorArray
+from tactilab.forward import dottest, simulate_scene
 from tactilab.forward.halfspace import compliance_matrix
-from tactilab.data_schemas import read_recording
-from tactilab.forward import simulate_scene
 from tactilab.inversion import (
     DefectScanModel, halfspace_fourier_operator, halfspace_strain_operator, invert_defect_position,
     rigid_surface_height_strain_operator,
