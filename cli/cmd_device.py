@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 import functools
 
-from tactilab.data_schemas.units import to_si
-from tactilab.experiments.emulator import emulate
 
 NAME = "device"
 HELP = "tactile display devices: run an emulator of the UDP frame protocol on 127.0.0.1"
@@ -43,6 +41,9 @@ _FLAGS = {"port": "--port", "watchdog_s": "--watchdog", "max_seconds": "--max-se
 
 
 def run(args: argparse.Namespace) -> int:
+    from tactilab.data_schemas.units import to_si
+    from tactilab.experiments.emulator import emulate
+
     watchdog = to_si(args.watchdog, "time", name="--watchdog")
     max_seconds = to_si(args.max_seconds, "time", name="--max-seconds", default_unit="s")
     late_after = to_si(args.late_after, "time", name="--late-after")
