@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import functools
 
-from tactilab.data_schemas.units import to_si
 
 NAME = "device"
 HELP = "tactile display devices: run an emulator of the UDP frame protocol on 127.0.0.1"
@@ -42,7 +41,8 @@ _FLAGS = {"port": "--port", "watchdog_s": "--watchdog", "max_seconds": "--max-se
 
 
 def run(args: argparse.Namespace) -> int:
-    from tactilab.experiments.emulator import emulate  # here, so that --help stays light
+    from tactilab.data_schemas.units import to_si
+    from tactilab.experiments.emulator import emulate
 
     watchdog = to_si(args.watchdog, "time", name="--watchdog")
     max_seconds = to_si(args.max_seconds, "time", name="--max-seconds", default_unit="s")
