@@ -257,14 +257,13 @@ class GridPosterior:
         from .psychometric import ParamSummary
 
         out = {}
-        names = {"guess": "guess", "lapse": "lapse", "eta": "eta", "threshold": "threshold", "width": "width"}
         for ax in AXES:
             if ax == "eta" and "eta" in self.fixed and self.fixed["eta"] == 0.0:
                 continue
             src = "lapse" if (self.tied and ax == "guess") else ax
             if len(self.grid[src]) == 1:
                 v = float(self.grid[src][0])
-                out[names[ax]] = ParamSummary(v, v, v, (v, v), (v, v))
+                out[ax] = ParamSummary(v, v, v, (v, v), (v, v))
                 continue
             if method == "grid":
                 mean = float(np.sum(self.marginal(src) * self.grid[src]))
@@ -273,7 +272,7 @@ class GridPosterior:
                 x = np.asarray(draws[src])
                 mean = float(x.mean())
                 med, a, b, c, d = np.quantile(x, [0.5, 0.025, 0.975, 0.16, 0.84])
-            out[names[ax]] = ParamSummary(float(self.map[src]), mean, float(med), (float(a), float(b)),
+            out[ax] = ParamSummary(float(self.map[src]), mean, float(med), (float(a), float(b)),
                                           (float(c), float(d)))
         return out
 

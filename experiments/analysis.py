@@ -1,7 +1,8 @@
 """Session analysis helpers behind ``tactilab experiment fit | compare | power``.
 
 - :func:`fit_conditions`: one psychometric fit per condition (the test stimulus with the varied
-  parameter left out), levels in display units (um, mm, mm/s, ms);
+  parameter left out), levels in display units (um, mm, mm/s, ms); :func:`fit_summary`: one line
+  per condition with the threshold and its 95 % interval (for run summaries and status);
 - :func:`compare_sessions`: fit transduction models to sessions and compare them;
 - :func:`read_design`: a power-analysis design file (TOML, quantities with units);
 - :func:`plot_comparison`, :func:`plot_power`: figures (matplotlib Figure API).
@@ -98,6 +99,20 @@ def fit_conditions(paths, *, sigmoid: str = "norm", rng=None) -> list[ConditionF
                                sigmoid=sigmoid, rng=gen)
         out.append(ConditionFit(label, parameter, unit, scale, len(items), fit))
     return out
+
+
+def fit_summary(paths, *, sigmoid: str = "norm", rng=0) -> list[str]:
+    """One line per condition for a run summary or ``experiment status``: the fitted threshold and
+    its 95 % interval in display units, e.g. ``amplitude threshold 0.295 um (95 % interval 0.159 to
+    0.424 um; psychometric fit of 100 trials; sinusoid, pitch 2 mm, ...)``.
+    """
+    lines = []
+    for c in fit_conditions(paths, sigmoid=sigmoid, rng=rng):
+        th = c.fit.params["threshold"]
+        name = DISPLAY_UNITS.get(c.parameter, (c.parameter,))[0]
+        lines.append(f"{name} threshold {th.map:.3g} {c.unit} (95 % interval {th.ci95[0]:.3g} to {th.ci95[1]:.3g} "
+                     f"{c.unit}; psychometric fit of {c.n_trials} trials; {c.label})")
+    return lines
 
 
 def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, n_ensembles: int = 4,

@@ -60,6 +60,10 @@ def test_fit_per_condition(tmp_path, capsys):
     path = tmp_path / "s.sqlite"
     new_session(protocol, path, SimulatedDisplay(DisplayDescription.braille_row()), observer, subject="S01",
                 realtime=False)
+    from tactilab.experiments.analysis import fit_summary
+
+    (line,) = fit_summary(path)
+    assert line.startswith("amplitude threshold ") and "95 % interval" in line and "60 trials" in line
     assert _run(["fit", str(path), "--out", str(tmp_path / "figs")]) == 0
     out = capsys.readouterr().out
     assert "sinusoid, pitch 4 mm, speed 20 mm/s" in out and " um " in out
