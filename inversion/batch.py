@@ -25,6 +25,8 @@ import numpy as np
 from tactilab.data_schemas.batch import batch_client, result_path, run_batch
 from tactilab.data_schemas.recording import Recording
 
+from .scene_inversion import defect_profile, invert_defect_position
+
 __all__ = ["invert_many", "recording_keys"]
 
 #: file suffixes read as recordings when a batch folder is given
@@ -91,8 +93,6 @@ def _invert_recording(item, rng: np.random.Generator, *, scene, options: dict):
     import xarray as xr
 
     from tactilab.data_schemas.recording_io import read_recording
-
-    from .scene_inversion import defect_profile, invert_defect_position
 
     rec = item if isinstance(item, Recording) else read_recording(item)
     res, info = invert_defect_position(scene, rec, rng, sample=options["sample"], max_data=options["max_data"],
