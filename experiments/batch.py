@@ -20,13 +20,13 @@ import numpy as np
 
 from tactilab.data_schemas.batch import read_result, run_batch
 
+from .model_power import power_analysis
+
 __all__ = ["power_sweep", "design_sweep"]
 
 
 def _power_point(item, rng, *, true_model, true_params, rival, design, task, n_repeats, z):
     import xarray as xr
-
-    from .model_power import power_analysis
 
     res = power_analysis(true_model, true_params, rival, design, task=task, method="simulate",
                          n_repeats=n_repeats, rng=rng)
@@ -75,8 +75,6 @@ def power_sweep(true_model, true_params: dict, rival, design, n_trials: Sequence
         ``n_skipped``, ``n_failed``.
     """
     import xarray as xr
-
-    from .model_power import power_analysis
 
     ns = _check_counts(n_trials, "n_trials", 1)
     (n_seeds,) = _check_counts(n_seeds, "n_seeds", 1)
