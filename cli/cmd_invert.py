@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
             post, crit, x = defect_profile(scene, recording, criterion=args.criterion, max_data=args.max_data)
             plot_profile(x, post.mean, post.std, out / "profile.png",
                          title=f"Defect-load density along the scan, not a height (lam by {args.criterion})")
-            plot_criteria(crit, out / "criteria.png")
+            plot_criteria(crit, out / "criteria.png", data_unit=recording.unit)
         i = int(np.argmax(np.abs(post.mean)))
         # s(x) is in m^2 per m of scan; 1 m^2/m = 1e3 mm^2/mm
         report.computed.append(

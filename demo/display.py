@@ -59,7 +59,7 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
     q_amp = matching_line_load(AMPLITUDE, None, None, YOUNG, design)
     tau_amp = q_amp / display.tractor_width_m
     yield (f"display: one row of {display.columns} tractors, pitch {display.pitch_x_m * 1e3:.3f} mm, footprint "
-           f"{display.tractor_width_m * 1e3:.3f} mm; virtual grating A = {AMPLITUDE * 1e6:g} um, p = 4d = "
+           f"{display.tractor_width_m * 1e3:.3f} mm; virtual grating A = {AMPLITUDE * 1e6:g} µm, p = 4d = "
            f"{pitch * 1e3:.3f} mm, V = {SPEED * 1e3:g} mm/s; matching drive {q_amp:.3g} N/m = "
            f"{tau_amp * 1e-3:.3g} kPa (limit {display.max_traction_pa * 1e-3:g} kPa, E = {YOUNG * 1e-3:g} kPa)")
 
