@@ -57,6 +57,7 @@ _EXPORTS = {
     "PowerResult": "models",
     "power_sweep": "batch",
     "design_sweep": "batch",
+    "ModelDiscrimination": "design",
 }
 
 __version__ = package_version()

@@ -1,0 +1,105 @@
+"""The ``[procedure]`` table of an adaptive model-discrimination protocol (``method = "model_discrimination"``).
+
+A protocol names the receptor hypotheses to tell apart as strings (``"zx@1mm"``; the grammar of
+:mod:`tactilab.data_schemas.hypothesis`, checked here for syntax only) and the candidate stimuli
+as parameter lists with units, e.g.::
+
+    [procedure]
+    method = "model_discrimination"
+    parameter = "amplitude_m"
+    models = ["zx@1mm", "zx@2mm"]
+    max_trials = 300
+    [procedure.candidates]
+    amplitude_m = { start = "2um", stop = "100um", n = 20, scale = "log" }
+    pitch_m = ["3mm"]
+    speed_m_per_s = ["40mm/s"]
+
+The candidates are the product of the lists. The runner builds each trial's stimulus from the
+protocol's ``[stimulus]`` with ``parameter`` set to the chosen level, so ``parameter`` is the
+only field that may take several values, and the other listed fields must equal the protocol's
+stimulus (the procedure reads them to predict each hypothesis's strain). The procedure is
+registered by :mod:`tactilab.experiments.design` (import it before loading such a protocol).
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import Any, Literal
+
+from pydantic import Field, model_validator
+
+from .experiment import Stimulus
+from .experiment_procedures import PARAMETERS, ProcedureConfigBase, _grid
+from .hypothesis import parse_hypothesis
+
+#: stimulus fields a candidate list may name, with their dimension ("text" for the waveform)
+CANDIDATE_FIELDS = {**PARAMETERS, "surface": "text", "ramp_s": "time", "frame_rate_hz": "frequency"}
+
+
+class ModelDiscriminationConfig(ProcedureConfigBase):
+    """Adaptive selection of the candidate that best separates the hypotheses (see docs/adaptive_design.md)."""
+
+    method: Literal["model_discrimination"]
+    parameter: str
+    models: list[str] = Field(min_length=2, max_length=32)
+    candidates: dict[str, list[Any]]
+    task: Literal["2ifc"] = "2ifc"
+    utility: Literal["model", "parameters", "both"] = "model"
+    n_grid: int = Field(25, ge=2, le=200, description="threshold grid points (log-spaced)")
+    stop_probability: float = Field(0.99, gt=0.5, lt=1.0)
+    max_trials: int = Field(500, ge=1, le=10_000)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _units(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        if data.get("parameter") not in PARAMETERS:
+            raise ValueError(f"parameter: must be one of {sorted(PARAMETERS)}, got {data.get('parameter')!r}; "
+                             "name the stimulus field the runner varies")
+        raw = data.get("candidates")
+        if not isinstance(raw, dict) or not raw:
+            raise ValueError("candidates: the candidate set is empty; give parameter lists with units, e.g. "
+                             "{amplitude_m = ['5um', '10um'], pitch_m = ['3mm'], speed_m_per_s = ['40mm/s']}")
+        out = {}
+        for key, values in raw.items():
+            if key not in CANDIDATE_FIELDS:
+                raise ValueError(f"candidates.{key}: unknown stimulus field; use {sorted(CANDIDATE_FIELDS)}")
+            if CANDIDATE_FIELDS[key] == "text":
+                if not isinstance(values, list) or not values or any(v not in ("sinusoid", "square") for v in values):
+                    raise ValueError(f"candidates.surface: a list of 'sinusoid' or 'square', got {values!r}")
+                out[key] = list(values)
+            else:
+                out[key] = _grid(values, CANDIDATE_FIELDS[key], f"candidates.{key}")
+        return {**data, "candidates": out}
+
+    @model_validator(mode="after")
+    def _check(self) -> ModelDiscriminationConfig:
+        for i, text in enumerate(self.models):
+            try:
+                parse_hypothesis(text)
+            except ValueError as exc:
+                raise ValueError(f"models[{i}]: {exc}") from None
+        missing = {"amplitude_m", "pitch_m", "speed_m_per_s"} - set(self.candidates)
+        if missing:
+            raise ValueError(f"candidates: need {sorted(missing)} too (one value each is enough), to predict "
+                             "each hypothesis's strain")
+        if self.parameter not in self.candidates:
+            raise ValueError(f"candidates: must list the varied parameter {self.parameter!r}")
+        several = [k for k, v in self.candidates.items() if k != self.parameter and len(v) > 1]
+        if several:
+            raise ValueError(f"candidates.{several[0]}: the runner varies only {self.parameter!r}; give one value "
+                             "for every other field (several are possible from Python with ModelDiscrimination)")
+        return self
+
+    def stimuli(self) -> list[Stimulus]:
+        """The candidate stimuli (the product of the lists), validated, SI."""
+        keys = list(self.candidates)
+        return [Stimulus.model_validate(dict(zip(keys, combo)))
+                for combo in itertools.product(*(self.candidates[k] for k in keys))]
+
+    def candidate_levels(self) -> list[float]:
+        return [float(v) for v in self.candidates[self.parameter]]
+
+    def n_planned(self) -> int:
+        return self.max_trials
