@@ -32,15 +32,15 @@ def package_version() -> str:
 
 @functools.lru_cache(maxsize=1)
 def _installed() -> tuple[dict[str, Path], Path | None]:
-    """Face files of the installed distribution: ``({"forward/__init__.py": path, ...}, editable_root)``."""
+    """Package files of the installed distribution: ``({"forward/__init__.py": path, ...}, editable_root)``."""
     # the first installed copy (dist-info with its files or an editable link); a source tree's own
     # tactilab.egg-info, seen when Python runs from the checkout, lists neither and is skipped
     for dist in distributions(name="tactilab"):
         files = {}
         for f in dist.files or ():
             parts = Path(f).parts
-            if len(parts) == 3 and parts[0] == "tactilab" and parts[2] == "__init__.py":
-                files[f"{parts[1]}/__init__.py"] = Path(dist.locate_file(f)).resolve()
+            if len(parts) >= 3 and parts[0] == "tactilab" and parts[-1] == "__init__.py":
+                files["/".join(parts[1:])] = Path(dist.locate_file(f)).resolve()
         root = None
         try:
             info = json.loads(dist.read_text("direct_url.json") or "{}")
@@ -60,9 +60,9 @@ def check_origin(package: str, file: str | None) -> bool:
     (a checkout, when Python runs from the folder that holds it) becomes part of it ahead of the
     installed copy. Returns True when the origin matches the installation (or nothing is installed).
     """
-    sub = package.split(".")[-1]
+    rel = "/".join([*package.split(".")[1:], "__init__.py"])  # tactilab.forward.halfspace -> forward/halfspace/...
     files, root = _installed()
-    expected = files.get(f"{sub}/__init__.py") or (root / sub / "__init__.py" if root is not None else None)
+    expected = files.get(rel) or (root / rel if root is not None else None)
     if expected is None or file is None:
         return True
     actual = Path(file).resolve()

@@ -33,3 +33,10 @@ def test_check_origin_accepts_the_installed_face_and_warns_otherwise(tmp_path):
     assert check_origin("tactilab.forward", face.__file__)
     with pytest.warns(ShadowedInstallWarning, match=r"tactilab.forward was imported from .*shadows the installed"):
         assert not check_origin("tactilab.forward", str(tmp_path / "tactilab" / "forward" / "__init__.py"))
+
+
+def test_nested_packages_are_checked_against_their_own_folder():
+    import tactilab.forward.halfspace as door
+    from tactilab.data_schemas._lazy import check_origin
+
+    assert check_origin("tactilab.forward.halfspace", door.__file__)
