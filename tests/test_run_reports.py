@@ -159,3 +159,9 @@ def test_invert_profile_json_in_mm(rng, tmp_path, capsys):
     assert abs(summary["profile_peak_x_mm"]) < 0.5  # the defect sits at x = 0, reported in mm
     assert "lam by evidence" in summary["method"] and "mm^2/mm" in summary["error_estimate"]
     assert main(argv) == 2 and "--force" in capsys.readouterr().err
+
+
+def test_invert_json_with_batch_is_refused(tmp_path, capsys):
+    scene = tmp_path / "scene.json"
+    assert main(["invert", "--scene", str(scene), "--batch", str(tmp_path), "--json"]) == 2
+    assert "--json: not available with --batch" in capsys.readouterr().err
