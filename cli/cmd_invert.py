@@ -31,8 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="regularisation criterion used for the profile (all four are plotted)")
     parser.add_argument("--sample", default="",
                         help="comma-separated extra parameters to sample besides x0, y0 (mm): friction "
-                             "(uniform on [0, 1], dimensionless), depth (m), young_modulus (Pa), normal_force "
-                             "(N); the last three log-normal around the scene value (x/1.35); e.g. friction,depth")
+                             "(uniform on [0, 1], dimensionless), depth (reported in mm), young_modulus (kPa), "
+                             "normal_force (N); the last three log-normal around the scene value (x/1.35); e.g. friction,depth")
     parser.add_argument("--max-steps", type=int, default=20000,
                         help="emcee step limit per ensemble (steps; default 20000); stops earlier once converged")
     parser.add_argument("--max-data", type=int, default=1500,
@@ -48,6 +48,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if args.batch is not None:
+        if args.json:
+            raise ValueError("--json: not available with --batch; the batch summary is in <--out>/invert_many.nc "
+                             "(one row per recording) -- drop --json")
         return run_invert_batch(args)
     if args.recording is None:
         raise ValueError("recording: give one recording file, or --batch DIR for a folder of them")
@@ -78,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
             post, crit, x = defect_profile(scene, recording, criterion=args.criterion, max_data=args.max_data)
             plot_profile(x, post.mean, post.std, out / "profile.png",
                          title=f"Defect-load density along the scan, not a height (lam by {args.criterion})")
-            plot_criteria(crit, out / "criteria.png")
+            plot_criteria(crit, out / "criteria.png", data_unit=recording.unit)
         i = int(np.argmax(np.abs(post.mean)))
         # s(x) is in m^2 per m of scan; 1 m^2/m = 1e3 mm^2/mm
         report.computed.append(

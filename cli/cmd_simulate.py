@@ -53,8 +53,11 @@ def run(args: argparse.Namespace) -> int:
     for line in lines:
         if line.startswith("method: "):
             report.method = line.removeprefix("method: ")
-        elif not line.startswith(("recording: ", "plots ")):  # the files are listed below
+        elif not line.startswith(("recording: ", "plots")):  # the files are listed below
             report.computed.append(line)
+    if not report.method and scene.display is not None:
+        report.method = ("display plane model: tractor line loads on the half-space, rows uniform in y; "
+                         "compared with the real sliding surface where the scene has one")
     report.error_estimate = ("not estimated by this command (grid quadrature; refine --grid-spacing and compare "
                              "to check convergence)")
     if args.seed is None and float(scene.sensors.noise_std) > 0:

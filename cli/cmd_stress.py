@@ -25,9 +25,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="comma-separated Voigt components (default all six)")
     parser.add_argument("--method", default="auto", choices=("auto", "spectral", "dcfft", "closed_form"),
                         help="solution method (default: auto, chosen from the scene and --tol)")
-    parser.add_argument("--tol", type=float, default=1e-6, help="requested relative error (default 1e-6)")
+    parser.add_argument("--tol", type=float, default=1e-6, help="requested relative error, dimensionless (default 1e-6)")
     parser.add_argument("--young-modulus", default="1MPa", help="skin Young's modulus with unit (default 1MPa)")
-    parser.add_argument("--nu", type=float, default=0.5, help="Poisson's ratio, (-1, 0.5] (default 0.5)")
+    parser.add_argument("--nu", type=float, default=0.5, help="Poisson's ratio, dimensionless, in (-1, 0.5] (default 0.5)")
     parser.add_argument("--out", type=Path, default=None,
                         help="output folder for field.nc (SI) and field.png (mm, kPa or strain); default: a new "
                              "folder <load stem>-stress (then -2, -3, ...); an existing non-empty one needs --force")

@@ -7,10 +7,19 @@ the face's own constant table, never from data.
 
 from __future__ import annotations
 
+import functools
 import importlib
+import json
 import sys
+import warnings
 from collections.abc import Callable, Mapping
-from importlib.metadata import PackageNotFoundError, version
+from importlib.metadata import PackageNotFoundError, distributions, version
+from pathlib import Path
+from urllib.parse import unquote, urlparse
+
+
+class ShadowedInstallWarning(UserWarning):
+    """A part of tactilab was imported from a folder other than the installed distribution's."""
 
 
 def package_version() -> str:
@@ -19,6 +28,51 @@ def package_version() -> str:
         return version("tactilab")
     except PackageNotFoundError:
         return "unknown"
+
+
+@functools.lru_cache(maxsize=1)
+def _installed() -> tuple[dict[str, Path], Path | None]:
+    """Package files of the installed distribution: ``({"forward/__init__.py": path, ...}, editable_root)``."""
+    # the first installed copy (dist-info with its files or an editable link); a source tree's own
+    # tactilab.egg-info, seen when Python runs from the checkout, lists neither and is skipped
+    for dist in distributions(name="tactilab"):
+        files = {}
+        for f in dist.files or ():
+            parts = Path(f).parts
+            if len(parts) >= 3 and parts[0] == "tactilab" and parts[-1] == "__init__.py":
+                files["/".join(parts[1:])] = Path(dist.locate_file(f)).resolve()
+        root = None
+        try:
+            info = json.loads(dist.read_text("direct_url.json") or "{}")
+        except (OSError, ValueError):
+            info = {}
+        if info.get("dir_info", {}).get("editable") and str(info.get("url", "")).startswith("file:"):
+            root = Path(unquote(urlparse(info["url"]).path)).resolve()  # package-dir: tactilab.X -> X
+        if files or root is not None:
+            return files, root
+    return {}, None
+
+
+def check_origin(package: str, file: str | None) -> bool:
+    """Warn (:class:`ShadowedInstallWarning`) when face ``package`` was loaded from outside the installed tactilab.
+
+    ``tactilab`` is a namespace package, so a folder named ``tactilab`` in the current directory
+    (a checkout, when Python runs from the folder that holds it) becomes part of it ahead of the
+    installed copy. Returns True when the origin matches the installation (or nothing is installed).
+    """
+    rel = "/".join([*package.split(".")[1:], "__init__.py"])  # tactilab.forward.halfspace -> forward/halfspace/...
+    files, root = _installed()
+    expected = files.get(rel) or (root / rel if root is not None else None)
+    if expected is None or file is None:
+        return True
+    actual = Path(file).resolve()
+    if actual == expected.resolve():
+        return True
+    warnings.warn(f"{package} was imported from {actual.parent}, not from the installed tactilab "
+                  f"({expected.parent}): a folder named 'tactilab' in the current directory or earlier on sys.path "
+                  "shadows the installed package; run Python from another folder, or install that checkout "
+                  "with 'pip install -e .'", ShadowedInstallWarning, stacklevel=3)
+    return False
 
 
 def attach(package: str, exports: Mapping[str, str]) -> tuple[Callable[[str], object], Callable[[], list[str]]]:
@@ -31,6 +85,8 @@ def attach(package: str, exports: Mapping[str, str]) -> tuple[Callable[[str], ob
     exports : mapping of str to str
         Public name -> submodule (relative to ``package``) that defines it.
     """
+
+    check_origin(package, getattr(sys.modules.get(package), "__file__", None))
 
     def __getattr__(name: str) -> object:
         try:

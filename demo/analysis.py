@@ -52,8 +52,8 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
         th = c.fit.params["threshold"]
         png = out / f"fit_{i + 1:02d}.png"
         c.fit.plot(png, xlabel="amplitude (µm)", title=c.label)
-        yield (f"analysis: {c.label}: amplitude threshold {th.map:.3g} um, 95 % interval "
-               f"[{th.ci95[0]:.3g}, {th.ci95[1]:.3g}] um ({c.n_trials} trials; plot {png})")
+        yield (f"analysis: {c.label}: amplitude threshold {th.map:.3g} µm, 95 % interval "
+               f"[{th.ci95[0]:.3g}, {th.ci95[1]:.3g}] µm ({c.n_trials} trials; plot {png})")
     table, fits = compare_sessions(paths, [TRUTH, RIVAL], rng=0)
     png = out / "compare.png"
     plot_comparison(table, fits, png)

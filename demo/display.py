@@ -59,7 +59,7 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
     q_amp = matching_line_load(AMPLITUDE, None, None, YOUNG, design)
     tau_amp = q_amp / display.tractor_width_m
     yield (f"display: one row of {display.columns} tractors, pitch {display.pitch_x_m * 1e3:.3f} mm, footprint "
-           f"{display.tractor_width_m * 1e3:.3f} mm; virtual grating A = {AMPLITUDE * 1e6:g} um, p = 4d = "
+           f"{display.tractor_width_m * 1e3:.3f} mm; virtual grating A = {AMPLITUDE * 1e6:g} µm, p = 4d = "
            f"{pitch * 1e3:.3f} mm, V = {SPEED * 1e3:g} mm/s; matching drive {q_amp:.3g} N/m = "
            f"{tau_amp * 1e-3:.3g} kPa (limit {display.max_traction_pa * 1e-3:g} kPa, E = {YOUNG * 1e-3:g} kPa)")
 
@@ -111,13 +111,13 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
         ax.plot(xmm, rendered[0, :, c] / np.sqrt(2), "C0--", label="tractor row / sqrt(2), peak frame")
         ax.plot(xs3 * 1e3, strain3d[:, c] / np.sqrt(2), "C3.", label="6 x 10 array, 3-D / sqrt(2)")
         ax.plot(display.tractor_x_m * 1e3, 0 * display.tractor_x_m, "v", color="0.5", label="tractors")
-        ax.set_ylabel(f"{label}, strain")
+        ax.set_ylabel(f"{label} (strain)")
         ax.set_title(f"{label} at depth {DEPTH * 1e3:g} mm (strain, TENSOR shear)")
         ax.legend(fontsize=7, loc="upper right")
     axes[2].plot(xmm, _rms(real[:, :, 4]), "k-", label="real: RMS eps_zx over a period")
     axes[2].plot(xmm, _rms(rendered[:, :, 4]), "C0--", label="tractor row: RMS eps_zx over a period")
-    axes[2].set_xlabel("x, mm")
-    axes[2].set_ylabel("RMS eps_zx, strain")
+    axes[2].set_xlabel("x (mm)")
+    axes[2].set_ylabel("RMS eps_zx (strain, tensor shear)")
     axes[2].set_title("RMS tensor shear strain eps_zx over one drive period")
     axes[2].legend(fontsize=7)
     fig.tight_layout()

@@ -2,7 +2,7 @@
 
 A simulated laterotactile display (one row of tractors) renders a 2 mm virtual grating scanned
 at 40 mm/s; a simulated observer (strain at 1 mm depth -> transducer -> noise -> 2IFC choice)
-answers; two interleaved 1-up-2-down staircases (20 trials each, from 8 um and 1 um, log10 steps
+answers; two interleaved 1-up-2-down staircases (20 trials each, from 8 µm and 1 µm, log10 steps
 0.3 then 0.15) track the amplitude threshold. Over 12 seeds this design's estimate was within
 +2 % of the observer's true 70.7 % point on average, with a 29 % sd (docs/experiments.md).
 Everything goes through the durable SQLite recorder and the safety layer, then is exported to
@@ -37,7 +37,7 @@ DEMO_PROTOCOL = {
 
 
 def plot_track(trials, truth_m: float, estimate_m: float, path: pathlib.Path) -> None:
-    """Staircase track: level (um) per trial, correct / wrong, per track, with the true 70.7 % point."""
+    """Staircase track: level (µm) per trial, correct / wrong, per track, with the true 70.7 % point."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(7, 4))
@@ -58,7 +58,7 @@ def plot_track(trials, truth_m: float, estimate_m: float, path: pathlib.Path) ->
     ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
     ax.yaxis.set_minor_formatter(FormatStrFormatter("%g"))
     ax.set_xlabel("trial")
-    ax.set_ylabel("virtual grating amplitude (um)")
+    ax.set_ylabel("virtual grating amplitude (µm)")
     ax.set_title("Two 1-up-2-down staircases, 2IFC, simulated observer\n(o correct, x wrong)", fontsize=10)
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -90,8 +90,8 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
     n_safety = sum(e["kind"] == "safety_intervention" for e in events)
     yield (f"experiment: {result.n_completed} trials recorded durably ({len(events)} events, each committed "
            f"before the next step; {n_safety} safety-layer interventions logged)")
-    yield (f"experiment: amplitude threshold {estimate * 1e6:.2f} um (mean of the last reversals) vs the "
-           f"observer's true 70.7 % point {truth * 1e6:.2f} um: error {100 * (estimate / truth - 1):+.0f} % "
+    yield (f"experiment: amplitude threshold {estimate * 1e6:.2f} µm (mean of the last reversals) vs the "
+           f"observer's true 70.7 % point {truth * 1e6:.2f} µm: error {100 * (estimate / truth - 1):+.0f} % "
            "(40 trials: this design's sd over seeds is about 29 %, docs/experiments.md)")
     yield f"experiment: session log {session}"
     yield f"experiment: BIDS-style export {files[0]} (+ JSON sidecar)"

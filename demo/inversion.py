@@ -34,7 +34,7 @@ def _profile_section(out: pathlib.Path, rng) -> Iterator[str]:
     noise = 20.0  # Pa
     data = clean + rng.normal(0, noise, N)
     yield (f"[inversion] profile: plane-strain scan of a rigid surface (bump, 4 mm undulation, 0.4 mm pit) over "
-           f"skin E = {E_SKIN / 1e6:g} MPa, sensor at {DEPTH * 1e3:g} mm, {N} samples every {DX * 1e6:g} um, "
+           f"skin E = {E_SKIN / 1e6:g} MPa, sensor at {DEPTH * 1e3:g} mm, {N} samples every {DX * 1e6:g} µm, "
            f"noise {noise:g} Pa")
     t = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
@@ -45,7 +45,8 @@ def _profile_section(out: pathlib.Path, rng) -> Iterator[str]:
         f"{k} {v:.3g}" for k, v in tik.criteria.lam.items())
     for w in caught:
         yield f"  warning: {w.message}"
-    plot_criteria(tik.criteria, out / "profile_criteria.png", title="Profile inversion: regularisation criteria")
+    plot_criteria(tik.criteria, out / "profile_criteria.png", title="Profile inversion: regularisation criteria",
+                  data_unit="Pa")
     # Gaussian prior: Matern-3/2, 0.5 mm; its variance chosen by the evidence (marginal likelihood)
     variances = np.geomspace(1e-13, 1e-8, 21)
     evid = [gaussian_posterior(op, data, StationaryPrior(v, 0.5e-3), noise).log_evidence for v in variances]
@@ -56,12 +57,12 @@ def _profile_section(out: pathlib.Path, rng) -> Iterator[str]:
     inside = float(np.mean(np.abs(truth - post.mean) <= 1.96 * post.std))
     err = float(np.linalg.norm(post.mean - truth) / np.linalg.norm(truth))
     band = post.resolvable_band(depth=DEPTH)
-    yield (f"  exact Gaussian posterior ({post.method}) in {el * 1e3:.2f} ms; prior std {np.sqrt(best) * 1e6:.2g} um "
+    yield (f"  exact Gaussian posterior ({post.method}) in {el * 1e3:.2f} ms; prior std {np.sqrt(best) * 1e6:.2g} µm "
            f"(max evidence); error {err:.2%}; truth inside the 95% band at {inside:.0%} of nodes; "
-           f"pointwise std {post.std[0] * 1e6:.2g} um")
+           f"pointwise std {post.std[0] * 1e6:.2g} µm")
     yield (f"  resolvable band: |k| < {band['k_max'] / 1e3:.2f} rad/mm (wavelengths > {band['wavelength_min'] * 1e3:.2f}"
            f" mm); rough rule ln(SNR)/Z = {band['k_c_estimate'] / 1e3:.2f} rad/mm")
-    plot_profile(x, post.mean, post.std, out / "profile.png", truth=truth, ylabel="height (um)", yscale=1e6,
+    plot_profile(x, post.mean, post.std, out / "profile.png", truth=truth, ylabel="height (µm)", yscale=1e6,
                  title="Surface profile from one scanned sensor: posterior mean and 95% band")
     kern = post.resolution_kernel(N // 2)
     fwhm = float(np.sum(kern >= 0.5 * kern.max()) * DX)

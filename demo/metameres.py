@@ -68,7 +68,7 @@ def _mechanics_section(out: pathlib.Path) -> Iterator[str]:
         sub = resolvable_subspace(loads, f"{text};noise={noise:g}", prior)
         dims[text] = sub
     el = time.perf_counter() - t
-    yield (f"[metameres] resolvable load patterns, periodic grid {n} x {dx * 1e6:g} um, loads (p, qx), prior "
+    yield (f"[metameres] resolvable load patterns, periodic grid {n} x {dx * 1e6:g} µm, loads (p, qx), prior "
            f"{prior / 1e3:g} kPa, noise {noise:g} ({el * 1e3:.0f} ms for four spectra, per mode):")
     for text, sub in dims.items():
         edge = sub.wavenumber_edge * 1e-3
@@ -84,7 +84,7 @@ def _mechanics_section(out: pathlib.Path) -> Iterator[str]:
     target = IndentationFamily((n,), dx, E_SKIN).stimulus(heights)
     pair = metamer_pair(target, shear, f"xx,zz,zx@{DEPTH * 1e3:g}mm;noise={noise:g}")
     deeper = pair.evaluate(f"xx,zx@{2 * DEPTH * 1e3:g}mm;noise={noise:g}")
-    yield (f"  an indentation (random, 20 um peak) and its pure lateral-traction metamer at {DEPTH * 1e3:g} mm: "
+    yield (f"  an indentation (random, 20 µm peak) and its pure lateral-traction metamer at {DEPTH * 1e3:g} mm: "
            f"relative residual {pair.relative_residual:.2e}; at {2 * DEPTH * 1e3:g} mm: {deeper.relative_residual:.3f} "
            f"(d' = {deeper.dprime:.3g}; modes near the blind pitch need large tractions)")
     k = 2 * np.pi / PITCH

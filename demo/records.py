@@ -2,7 +2,7 @@
 
 Loads each built-in TOML scene (units converted to SI once), saves it as an SI JSON record,
 reloads the JSON and checks it equals the scene, and draws one figure per scene: the surface
-height profile along the scan (mm, um) and the sensor / tractor layout in the finger frame (mm).
+height profile along the scan (mm, µm) and the sensor / tractor layout in the finger frame (mm).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from tactilab.data_schemas.scene import Scene
 def _plot_scene(scene: Scene, path: pathlib.Path) -> None:
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(12, 4))
+    fig = Figure(figsize=(12, 4), layout="constrained")
     ax_h, ax_s = fig.subplots(1, 2)
     scan = scene.scan
     lo = min(scan.positions_m[0], scan.positions_m[-1]) - 5e-3
@@ -29,7 +29,7 @@ def _plot_scene(scene: Scene, path: pathlib.Path) -> None:
     ax_h.plot(x * 1e3, scene.surface.height_at(x, np.full_like(x, y)) * 1e6)
     ax_h.axvspan(scan.positions_m[0] * 1e3, scan.positions_m[-1] * 1e3, alpha=0.15,
                  label="contact centre during the scan")
-    ax_h.set(title=f"{scene.name}: surface ({scene.surface.kind})", xlabel="x (mm)", ylabel="height (um)")
+    ax_h.set(title=f"{scene.name}: surface ({scene.surface.kind})", xlabel="x (mm)", ylabel="height (µm)")
     ax_h.legend(loc="lower right", fontsize=8)
     pos = scene.sensors.positions_m * 1e3
     ax_s.plot(pos[:, 0], pos[:, 1], "o", ms=3,
@@ -39,8 +39,11 @@ def _plot_scene(scene: Scene, path: pathlib.Path) -> None:
         t = scene.display.tractor_positions_m * 1e3
         ax_s.plot(t[:, 0], t[:, 1], "s", mfc="none", ms=8, label=f"{scene.display.n_tractors} tractors")
     ax_s.set(title="finger frame layout", xlabel="x (mm)", ylabel="y (mm)", aspect="equal")
+    ys = ax_s.get_ylim()
+    half = max((ys[1] - ys[0]) / 2, 0.25 * np.ptp(pos[:, 0]), 1.0)  # a 1-D row of sensors is not squashed flat
+    mid = (ys[0] + ys[1]) / 2
+    ax_s.set_ylim(mid - half, mid + half)
     ax_s.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
-    fig.tight_layout()
     fig.savefig(path, dpi=110)
 
 

@@ -1,7 +1,7 @@
 """Demo section: a biomimetic finger scanning a surface with one small defect (docs/theory.md 4b).
 
 The scene: an elastomer fingertip (E = 2 MPa, nu = 0.5, radius 100 mm) pressed at 0.8 N
-(Hertz contact 5.6 mm across) slides with mu = 0.5 at 20 mm/s over a 0.3 mm, 30 um bump;
+(Hertz contact 5.6 mm across) slides with mu = 0.5 at 20 mm/s over a 0.3 mm, 30 µm bump;
 a 5 x 5 array of stress sensors 3 mm deep records sigma_zz and sigma_zx at 1 kHz. The demo
 writes the recording, the field maps, the receptive fields and the time series, checks the
 point-defect receptive field against a full forward solve, prints the shape-invariance
@@ -36,7 +36,7 @@ def demo_scene() -> Scene:
     """The demo's finger scene (SI)."""
     return Scene(
         name="finger_defect_demo",
-        description="biomimetic finger sliding over one 0.3 mm, 30 um bump",
+        description="biomimetic finger sliding over one 0.3 mm, 30 µm bump",
         material=SkinMaterial(young_modulus_pa=2e6, poisson_ratio=0.5, name="elastomer fingertip"),
         surface=IsolatedDefect(shape="bump", size_m=0.3e-3, height_m=30e-6, position_m=(0.0, 0.0)),
         contact=Contact(normal_force_n=0.8, finger_radius_m=0.1, friction_coefficient=0.5),
@@ -102,7 +102,7 @@ def _fingerprint_and_kernel(out: pathlib.Path) -> Iterator[str]:
     band = freqs > 30
     peak = float(freqs[band][np.argmax(ridged[band])])
     fig = plot_fingerprint_spectra(freqs, ridged, spectra["smooth"][1], speed / period, out / "fingerprint_spectrum.png")
-    yield (f"fingerprint (lambda = {period * 1e3:g} mm, v = {speed * 1e3:g} mm/s over a random 50 um texture): "
+    yield (f"fingerprint (lambda = {period * 1e3:g} mm, v = {speed * 1e3:g} mm/s over a random 50 µm texture): "
            f"spectral peak at {peak:g} Hz, v / lambda = {speed / period:g} Hz; plot {fig}")
     finger = BiomimeticFinger(HertzContact(0.8), sensor, friction=0.5, grid_spacing=0.1e-3)
     table = kernel_identification(finger, np.random.default_rng(8), bit_length=0.1e-3,

@@ -116,6 +116,18 @@ class RunResult:
     n_completed: int
     estimate: dict[str, Any]
 
+    def __repr__(self) -> str:
+        """Status, trial count and the estimate (keys carry their units); short."""
+        est = ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v!r}" for k, v in
+                        list(self.estimate.items())[:6])
+        return f"RunResult(status={self.status!r}, {self.n_completed} trials, estimate {{{est}}}, path={str(self.path)!r})"
+
+    def _repr_html_(self) -> str:
+        """The short repr for notebooks (escaped, monospace)."""
+        import html
+
+        return "<pre>" + html.escape(repr(self)) + "</pre>"
+
 
 class Runner:
     """Drive one session: ``Runner(...).run()``.

@@ -61,18 +61,18 @@ def plot_field_maps(finger: BiomimeticFinger, path, *, surface: Surface | None =
     ext = 1e3 * np.array([load.x[0], load.x[-1], load.y[0], load.y[-1]])
     fig = _figure(figsize=(13, 4), layout="constrained")
     axes = fig.subplots(1, 3)
-    panels = [(load.components["p"] * 1e-3, "interfacial pressure p (kPa)", "viridis")]
+    panels = [(load.components["p"] * 1e-3, "interfacial pressure p (kPa)", "viridis", "p (kPa)")]
     for comp in ("zz", "zx"):
         panels.append((field.sel(component=comp).values * scale,
-                       f"{quantity} {comp} at depth {finger.depth * 1e3:.2f} mm ({unit})", "RdBu_r"))
+                       f"{quantity} {comp} at depth {finger.depth * 1e3:.2f} mm ({unit})", "RdBu_r", f"{comp} ({unit})"))
     pos = finger.sensors.positions_m * 1e3
-    for ax, (img, label, cmap) in zip(axes, panels):
+    for ax, (img, label, cmap, bar) in zip(axes, panels):
         lim = np.abs(img).max() or 1.0
         vmin = 0.0 if cmap == "viridis" else -lim
         im = ax.imshow(img, origin="lower", extent=ext, cmap=cmap, vmin=vmin, vmax=lim)
         ax.plot(pos[:, 0], pos[:, 1], "k.", ms=3)
         ax.set(title=label, xlabel="x, finger frame (mm)", ylabel="y (mm)")
-        fig.colorbar(im, ax=ax, shrink=0.85)
+        fig.colorbar(im, ax=ax, shrink=0.85, label=bar)
     fig.suptitle(title or f"contact centre at x = {position * 1e3:.2f} mm; maps by {result.method}")
     path = pathlib.Path(path)
     fig.savefig(path, dpi=110)
@@ -108,8 +108,8 @@ def plot_receptive_fields(finger: BiomimeticFinger, path, *, strength: float = 1
         ax.plot([sx], [sy], "k+", ms=10)
         ax.set(title=f"{finger.sensors.ids[k]} {comp} ({unit})", xlabel="defect x, finger frame (mm)",
                ylabel="defect y (mm)")
-        fig.colorbar(im, ax=ax, shrink=0.8)
-    fig.suptitle(f"exploratory receptive fields, defect strength S_d = {strength * 1e6:.3g} mm^2, "
+        fig.colorbar(im, ax=ax, shrink=0.8, label=f"{comp} ({unit})")
+    fig.suptitle(f"exploratory receptive fields, defect strength S_d = {strength * 1e6:.3g} mm², "
                  f"depth {finger.depth * 1e3:.2f} mm (+: sensor)")
     path = pathlib.Path(path)
     fig.savefig(path, dpi=110)
@@ -122,7 +122,7 @@ def plot_time_series(recording: Recording, path, *, max_lines: int = 8, position
     ``positions`` (m, world x of the contact centre per sample) adds a finger-position axis.
     """
     scale, unit = _unit(recording.quantity)
-    t = recording.times_s
+    t = recording.times_s * 1e3  # drawn in ms
     nc = recording.n_components
     fig = _figure(figsize=(6 * nc, 6.5), layout="constrained")
     axes = fig.subplots(2, nc, squeeze=False)
@@ -134,18 +134,18 @@ def plot_time_series(recording: Recording, path, *, max_lines: int = 8, position
             axes[0, c].plot(t, values[:, k] - np.median(values[:, k]), lw=1,
                             label=f"{recording.sensor_ids[k]} ({np.median(values[:, k]):.3g})")
         axes[0, c].set(title=f"{recording.quantity} {comp} minus its median (in legend) ({unit})",
-                       xlabel="time (s)", ylabel=f"{comp} change ({unit})")
+                       xlabel="time (ms)", ylabel=f"{comp} change ({unit})")
         axes[0, c].legend(fontsize=7, ncol=2)
         change = values - np.median(values, axis=0)
         lim = np.abs(change).max() or 1.0
         im = axes[1, c].imshow(change.T, aspect="auto", origin="lower", cmap="RdBu_r",
                                vmin=-lim, vmax=lim, extent=[t[0], t[-1], -0.5, recording.n_sensors - 0.5])
-        axes[1, c].set(title=f"{comp} minus its median, all sensors ({unit})", xlabel="time (s)",
+        axes[1, c].set(title=f"{comp} minus its median, all sensors ({unit})", xlabel="time (ms)",
                        ylabel="sensor index")
-        fig.colorbar(im, ax=axes[1, c])
+        fig.colorbar(im, ax=axes[1, c], label=f"{comp} change ({unit})")
         if positions is not None:
             top = axes[0, c].secondary_xaxis("top", functions=(
-                lambda s, t0=t[0], u=positions: 1e3 * np.interp(s, t, u),
+                lambda ms, u=positions: 1e3 * np.interp(ms, t, u),
                 lambda mm, u=positions: np.interp(np.asarray(mm) * 1e-3, u, t)))
             top.set_xlabel("contact centre x (mm)")
     path = pathlib.Path(path)
@@ -176,22 +176,44 @@ def plot_spectrum(recording: Recording, path, *, max_lines: int = 8) -> pathlib.
     return path
 
 
-def plot_rendered_vs_real(sensors, rendered: np.ndarray, real: np.ndarray, path) -> pathlib.Path:
-    """Strain profiles at the first frame and the central sensor's time course, display vs real (PNG)."""
+def representative_frame(real: np.ndarray) -> int:
+    """Index of the frame with the largest RMS of ``real`` over sensors and components (shape (time, sensor, comp)).
+
+    A profile at t = 0 can show an unloaded display; this frame shows the stimulus at its strongest.
+    """
+    real = np.asarray(real, dtype=float)
+    return int(np.argmax(np.sqrt(np.mean(real.reshape(real.shape[0], -1) ** 2, axis=1))))
+
+
+def plot_rendered_vs_real(sensors, rendered: np.ndarray, real: np.ndarray, path, *,
+                          sampling_rate_hz: float | None = None) -> pathlib.Path:
+    """Strain profiles at a representative time and the central sensor's time course, display vs real (PNG).
+
+    ``rendered`` and ``real``: tensor strain, shape (time, sensor, component). The profile is drawn at
+    :func:`representative_frame` of ``real``; time is in ms when ``sampling_rate_hz`` is given, else in frames.
+    """
     x = sensors.positions_m[:, 0] * 1e3
     order = np.argsort(x)
     nc = len(sensors.components)
+    frame = representative_frame(real)
+    n = np.asarray(rendered).shape[0]
+    if sampling_rate_hz:
+        t, t_label, at = np.arange(n) * 1e3 / sampling_rate_hz, "time (ms)", f"t = {frame * 1e3 / sampling_rate_hz:.1f} ms"
+    else:
+        t, t_label, at = np.arange(n), "frame (sampling rate not given)", f"frame {frame}"
     fig = _figure(figsize=(5 * nc, 6.5), layout="constrained")
     axes = fig.subplots(2, nc, squeeze=False)
     centre = int(np.argmin(np.abs(sensors.positions_m[:, 0])))
     for c, comp in enumerate(sensors.components):
-        axes[0, c].plot(x[order], rendered[0, order, c], label="display")
-        axes[0, c].plot(x[order], real[0, order, c], "--", label="real sliding grating")
-        axes[0, c].set(title=f"strain {comp} (tensor) at t = 0", xlabel="x (mm)", ylabel=f"{comp} (strain)")
+        axes[0, c].plot(x[order], rendered[frame, order, c], label="display")
+        axes[0, c].plot(x[order], real[frame, order, c], "--", label="real sliding grating")
+        axes[0, c].set(title=f"strain {comp} (tensor) at {at} (strongest frame)", xlabel="sensor x (mm)",
+                       ylabel=f"{comp} (strain)")
         axes[0, c].legend(fontsize=8)
-        axes[1, c].plot(rendered[:, centre, c], label="display")
-        axes[1, c].plot(real[:, centre, c], "--", label="real")
-        axes[1, c].set(title=f"{comp} at x = {x[centre]:.2f} mm (strain)", xlabel="frame", ylabel=f"{comp} (strain)")
+        axes[1, c].plot(t, rendered[:, centre, c], label="display")
+        axes[1, c].plot(t, real[:, centre, c], "--", label="real")
+        axes[1, c].axvline(t[frame], color="k", ls=":", lw=1)
+        axes[1, c].set(title=f"{comp} at sensor x = {x[centre]:.2f} mm", xlabel=t_label, ylabel=f"{comp} (strain)")
     path = pathlib.Path(path)
     fig.savefig(path, dpi=110)
     return path

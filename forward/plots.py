@@ -25,6 +25,22 @@ def _scale(da: xr.DataArray) -> tuple[float, str]:
     return 1.0, "strain"
 
 
+#: fields that are never negative (invariants and magnitudes): drawn on a sequential map from 0
+NON_NEGATIVE = ("von_mises", "von mises", "max_shear", "energy_density", "magnitude", "equivalent")
+
+
+def is_non_negative(name: str, values: np.ndarray) -> bool:
+    """True for a field that cannot be negative by its name (von Mises, magnitudes), or has no negative value.
+
+    Such fields get a sequential colour map from 0; signed fields a diverging one centred on 0.
+    """
+    lowered = str(name).lower()
+    if any(key in lowered for key in NON_NEGATIVE):
+        return True
+    finite = np.asarray(values)[np.isfinite(values)]
+    return finite.size > 0 and bool(finite.min() >= 0)
+
+
 def plot_field(da: xr.DataArray, path: str | pathlib.Path, title: str = "") -> pathlib.Path:
     """Draw one panel per (depth, component) of a labelled field and save a PNG.
 
@@ -37,6 +53,9 @@ def plot_field(da: xr.DataArray, path: str | pathlib.Path, title: str = "") -> p
         PNG to write.
     title : str
         Figure title.
+
+    Non-negative fields (von Mises, magnitudes; see :func:`is_non_negative`) use the sequential
+    ``viridis`` map from 0; signed fields the diverging ``RdBu_r`` map centred on 0.
     """
     if "component" not in da.dims:
         da = da.expand_dims(component=[da.name or "value"])
@@ -52,8 +71,11 @@ def plot_field(da: xr.DataArray, path: str | pathlib.Path, title: str = "") -> p
             label = f"{comp} ({unit})"
             if "y" in da.dims:
                 y_mm = da["y"].values * 1e3
-                lim = np.abs(values).max() or 1.0
-                mesh = ax.pcolormesh(x_mm, y_mm, values, shading="auto", cmap="RdBu_r", vmin=-lim, vmax=lim)
+                lim = np.nanmax(np.abs(values)) or 1.0
+                if is_non_negative(f"{da.name} {comp}", values):
+                    mesh = ax.pcolormesh(x_mm, y_mm, values, shading="auto", cmap="viridis", vmin=0.0, vmax=lim)
+                else:
+                    mesh = ax.pcolormesh(x_mm, y_mm, values, shading="auto", cmap="RdBu_r", vmin=-lim, vmax=lim)
                 fig.colorbar(mesh, ax=ax, label=label)
                 ax.set_ylabel("y (mm)")
                 ax.set_aspect("equal")

@@ -144,6 +144,7 @@ def _simulate_display(scene, out: pathlib.Path, fmt: str, rng, plots: bool) -> l
         if rec.n_times >= 64:
             files.append(plot_spectrum(rec, out / "spectrum.png"))
         if "real" in info:
-            files.append(plot_rendered_vs_real(scene.sensors, clean, info["real"], out / "rendered_vs_real.png"))
+            files.append(plot_rendered_vs_real(scene.sensors, clean, info["real"], out / "rendered_vs_real.png",
+                                               sampling_rate_hz=s.sampling_rate_hz))
         lines.append("plots: " + ", ".join(str(f) for f in files))
     return lines

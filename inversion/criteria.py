@@ -360,9 +360,15 @@ def choose_lambda(
     return CriteriaResult(lam=chosen, grid=grid, curves=curves, noise_std=float(sigma), notes=notes, spread=spread)
 
 
-def plot_criteria(result: CriteriaResult, path, title: str = "Regularisation criteria") -> None:
-    """Plot GCV, L-curve, discrepancy residual and evidence with each choice marked (PNG)."""
+def plot_criteria(result: CriteriaResult, path, title: str = "Regularisation criteria", *,
+                  data_unit: str = "data units") -> None:
+    """Plot GCV, L-curve, discrepancy residual and evidence with each choice marked (PNG).
+
+    ``data_unit`` names the unit of the data and residuals (e.g. "Pa", "strain"); the penalty norm is in
+    the model's units times the penalty operator's.
+    """
     from matplotlib.figure import Figure
+    from matplotlib.ticker import LogLocator, NullFormatter
 
     fig = Figure(figsize=(9, 7))
     axes = fig.subplots(2, 2)
@@ -380,12 +386,15 @@ def plot_criteria(result: CriteriaResult, path, title: str = "Regularisation cri
         if "gcv" in result.errors:  # stochastic estimate: +-2 s.e. band
             ax.fill_between(g, result.curves["gcv"] - 2 * result.errors["gcv"],
                             result.curves["gcv"] + 2 * result.errors["gcv"], color="0.8", label="+-2 s.e.")
-    ax.set(xlabel="lambda (penalty weight)", ylabel="GCV (data units^2)", title="Generalised cross-validation")
+    ax.set(xlabel="lambda (penalty weight)", ylabel=f"GCV ({data_unit}^2)", title="Generalised cross-validation")
     mark(ax, ["gcv"])
     ax.legend(fontsize=7)
     ax = axes[0, 1]
     ax.loglog(np.sqrt(result.curves["residual2"]), np.sqrt(result.curves["seminorm2"]), "k.-", ms=3)
-    ax.set(xlabel="residual norm ||Am-d|| (data units)", ylabel="penalty norm ||Lm||", title="L-curve")
+    ax.set(xlabel=f"residual norm ||Am-d|| ({data_unit})", ylabel="penalty norm ||Lm||", title="L-curve")
+    for axis in (ax.xaxis, ax.yaxis):  # at most ~5 labelled decades, no labelled minor ticks: no overlap
+        axis.set_major_locator(LogLocator(numticks=5))
+        axis.set_minor_formatter(NullFormatter())
     if "lcurve" in result.lam:
         i = int(np.argmin(np.abs(np.log(g / result.lam["lcurve"]))))
         ax.plot(np.sqrt(result.curves["residual2"][i]), np.sqrt(result.curves["seminorm2"][i]), "o", color="C1",
@@ -393,7 +402,7 @@ def plot_criteria(result: CriteriaResult, path, title: str = "Regularisation cri
         ax.legend(fontsize=7)
     ax = axes[1, 0]
     ax.loglog(g, np.sqrt(result.curves["residual2"]), "k-")
-    ax.set(xlabel="lambda", ylabel="residual norm (data units)", title=f"Discrepancy (sigma={result.noise_std:.3g})")
+    ax.set(xlabel="lambda", ylabel=f"residual norm ({data_unit})", title=f"Discrepancy (sigma={result.noise_std:.3g})")
     mark(ax, ["discrepancy"])
     ax.legend(fontsize=7)
     ax = axes[1, 1]

@@ -122,6 +122,19 @@ class GaussianPosterior:
     spacing: object
     _aux: dict = field(repr=False, default_factory=dict)
 
+    def __repr__(self) -> str:
+        """Method, shape, error estimate (pointwise std) and evidence; never the arrays."""
+        std = np.asarray(self.std, dtype=float)
+        return (f"GaussianPosterior(method={self.method!r}, mean shape {tuple(np.shape(self.mean))} (model units), "
+                f"pointwise std median {np.median(std):.3g} [{np.min(std):.3g}, {np.max(std):.3g}], "
+                f"log evidence {self.log_evidence:.6g}, noise_std {self.noise_std:.3g} data units)")
+
+    def _repr_html_(self) -> str:
+        """The short repr for notebooks (escaped, monospace)."""
+        import html
+
+        return "<pre>" + html.escape(repr(self)) + "</pre>"
+
     def sample(self, n_samples: int, rng: np.random.Generator) -> np.ndarray:
         """Exact posterior draws, shape ``(n_samples, *dims)``."""
         if int(n_samples) < 1:

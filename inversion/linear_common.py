@@ -57,6 +57,21 @@ class LinearInversionResult:
     converged: bool
     message: str
 
+    def __repr__(self) -> str:
+        """Method, penalty, lambda, model shape and residual; never the arrays."""
+        status = "" if self.converged else ", NOT converged"
+        iters = f", {self.iterations} iterations" if self.iterations else ""
+        return (f"LinearInversionResult(method={self.method!r}, penalty={self.penalty!r}, "
+                f"lam={self.lam:.3g} ({self.lam_source}), model shape {tuple(np.shape(self.model))} "
+                f"(operator's model units: Pa for loads, m for heights), residual ||Am-d|| = "
+                f"{self.residual_norm:.3g} data units{iters}{status})")
+
+    def _repr_html_(self) -> str:
+        """The short repr for notebooks (escaped, monospace)."""
+        import html
+
+        return "<pre>" + html.escape(repr(self)) + "</pre>"
+
 
 def check_data(data, n_expected: int, name: str = "data", shape=None) -> np.ndarray:
     """Flatten and validate data: finite reals of the expected size and shape.

@@ -65,6 +65,26 @@ class MCMCResult:
     message: str
     sampled: tuple = field(default_factory=tuple)
 
+    def __repr__(self) -> str:
+        """Method, convergence and each parameter's mean +- sd with its SI unit; never the draws."""
+        units = {"x0": "m", "y0": "m", "depth": "m", "amplitude": "m^2", "young_modulus": "Pa",
+                 "normal_force": "N", "friction": ""}
+        rows = []
+        for name in list(self.summary.index)[:6]:
+            mean, sd = self.summary.loc[name, "mean"], self.summary.loc[name, "sd"]
+            rows.append(f"{name} = {mean:.4g} +- {sd:.2g} {units.get(name, 'SI')}".rstrip())
+        d = self.diagnostics
+        draws = dict(self.tree["posterior"].sizes) if "posterior" in self.tree.children else {}
+        return (f"MCMCResult(method='emcee', {'converged' if self.converged else 'NOT converged'} after "
+                f"{d.get('n_steps', '?')} steps, R-hat max {d.get('rhat_max', float('nan')):.4g}, "
+                f"ESS bulk min {d.get('ess_bulk_min', float('nan')):.0f}, draws {draws}:\n  " + "; ".join(rows) + ")")
+
+    def _repr_html_(self) -> str:
+        """The short repr for notebooks (escaped, monospace)."""
+        import html
+
+        return "<pre>" + html.escape(repr(self)) + "</pre>"
+
     def to_netcdf(self, path) -> None:
         """Write the DataTree to a netCDF4/HDF5 file (h5netcdf engine)."""
         self.tree.to_netcdf(path, engine="h5netcdf")

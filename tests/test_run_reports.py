@@ -43,17 +43,17 @@ def test_choose_out_refuses_a_non_empty_folder_without_force(tmp_path):
 
 def test_stress_summary_block_and_refusal(load, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    assert main(["stress", str(load), "--depth", "1mm", "--method", "spectral"]) == 0
+    assert main(["stress", str(load), "--depth", "1mm", "--method", "dcfft", "--components", "zz"]) == 0
     text = capsys.readouterr().out
-    for key in ("--- tactilab stress: summary ---", "computed: strain (dimensionless, tensor shear)", "method: ",
+    for key in ("--- tactilab stress: summary ---", "computed: strain (dimensionless, tensor shear), components zz", "method: ",
                 "error estimate: estimated relative error", "dropped: nothing", "warnings: 0",
                 "files: load-stress/ (field.nc, field.png)"):
         assert key in text
-    assert main(["stress", str(load), "--depth", "1mm", "--method", "spectral"]) == 0  # default folder taken: a new one
+    assert main(["stress", str(load), "--depth", "1mm", "--method", "dcfft", "--components", "zz"]) == 0  # default folder taken: a new one
     assert "files: load-stress-2/" in capsys.readouterr().out
-    assert main(["stress", str(load), "--depth", "1mm", "--method", "spectral", "--out", "load-stress"]) == 2
+    assert main(["stress", str(load), "--depth", "1mm", "--method", "dcfft", "--components", "zz", "--out", "load-stress"]) == 2
     assert "exists and is not empty" in capsys.readouterr().err
-    assert main(["stress", str(load), "--depth", "1mm", "--method", "spectral", "--out", "load-stress", "--force"]) == 0
+    assert main(["stress", str(load), "--depth", "1mm", "--method", "dcfft", "--components", "zz", "--out", "load-stress", "--force"]) == 0
 
 
 def test_stress_json_is_the_only_stdout_and_collects_warnings(load, tmp_path, capsys):
@@ -159,3 +159,9 @@ def test_invert_profile_json_in_mm(rng, tmp_path, capsys):
     assert abs(summary["profile_peak_x_mm"]) < 0.5  # the defect sits at x = 0, reported in mm
     assert "lam by evidence" in summary["method"] and "mm^2/mm" in summary["error_estimate"]
     assert main(argv) == 2 and "--force" in capsys.readouterr().err
+
+
+def test_invert_json_with_batch_is_refused(tmp_path, capsys):
+    scene = tmp_path / "scene.json"
+    assert main(["invert", "--scene", str(scene), "--batch", str(tmp_path), "--json"]) == 2
+    assert "--json: not available with --batch" in capsys.readouterr().err

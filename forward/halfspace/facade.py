@@ -54,6 +54,23 @@ class FieldResult:
     reason: str
     candidates: dict = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        """Method, error estimate and the fields' shapes and units; never the arrays."""
+        parts = []
+        for name, var in self.data.data_vars.items():
+            unit = var.attrs.get("units", "")
+            unit = {"1": "strain", "": "strain" if "strain" in str(name) else ""}.get(unit, unit)
+            dims = ", ".join(f"{d}={n}" for d, n in var.sizes.items())
+            parts.append(f"{name} ({dims}) [{unit}]" if unit else f"{name} ({dims})")
+        return (f"FieldResult(method={self.method!r}, est. rel. error {self.error_estimate:.1e}; "
+                + "; ".join(parts) + ")")
+
+    def _repr_html_(self) -> str:
+        """The short repr for notebooks (escaped, monospace)."""
+        import html
+
+        return "<pre>" + html.escape(repr(self)) + "</pre>"
+
 
 def _check_points(points, load: SurfaceLoad) -> np.ndarray | None:
     if points is None:
