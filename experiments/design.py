@@ -375,7 +375,7 @@ class ModelDiscrimination(Procedure):
 
     @property
     def finished(self) -> bool:
-        if self.n_done >= self.max_trials or len(self.metameric_groups) == 1:
+        if len(self.probabilities) >= self.max_trials or len(self.metameric_groups) == 1:
             return True
         return self.winner is not None or any(p >= self.stop_probability and len(g) > 1
                                               for g, p in self.group_probabilities().items())

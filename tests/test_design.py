@@ -188,3 +188,11 @@ def test_no_winner_while_the_shown_stimuli_cannot_separate_the_models():
         d.observe(i, True)
     assert max(d.model_probabilities().values()) >= 0.51
     assert d.winner is None and not d.finished and d.verdict == "undecided"
+
+
+def test_max_trials_stops_an_undecided_design():
+    d = ModelDiscrimination(["zx@1mm", "zx@2mm"], _sines(), rng=0, max_trials=4)
+    for _ in range(4):
+        assert not d.finished
+        d.observe(d.choose(), True)
+    assert d.finished and len(d.probabilities) == 4
