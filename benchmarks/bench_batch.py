@@ -8,7 +8,8 @@ Part 1, defect scans: ``--recordings`` recordings simulated by ``tactilab.forwar
 4 ensembles x 8 walkers x 20 steps, after an 8-point multistart; deliberately short) and the
 load profile with its band (40 nodes). Serial (``workers=0``) and on a LocalCluster of 1 and 2
 one-thread worker processes. Columns: wall time of the batch (cluster start-up excluded, given
-separately), speedup over serial, overhead per task = (workers x wall - sum of task compute
+separately), speedup over serial, mean compute time per task (the callable alone; it grows when
+other jobs share the cores), busy = sum of task compute times / (workers x wall), overhead per task = (workers x wall - sum of task compute
 times) / tasks, peak resident memory per worker process (the largest), and whether every
 result is bitwise identical to the serial run.
 
@@ -22,8 +23,12 @@ The table is printed; docs/scale-out.md quotes it with the machine it ran on.
 
 from __future__ import annotations
 
-import argparse
 import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # one BLAS thread, also serially
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
 import pathlib
 import resource
 import shutil
@@ -93,13 +98,17 @@ def bench_recordings(n: int, workers: list[int], tmp: pathlib.Path) -> list[dict
     scene = small_scene()
     rows = []
     common = dict(seed=1, sampler_options=FAST, n_grid=40, progress=False)
+    invert_many([scans / "scan-0000" / "recording.nc"], scene, out_dir=tmp / "warm", workers=0, **common)  # imports
     out0 = tmp / "serial"
     tree = invert_many(scans, scene, out_dir=out0, workers=0, **common)
+    if tree.attrs["n_failed"]:
+        raise RuntimeError(f"{tree.attrs['n_failed']} recording(s) failed: see {out0 / 'errors.tsv'}")
     keys = list(tree["recording"].values)
     wall0 = float(tree.attrs["wall_s"])
     print(f"serial: {wall0:.1f} s", flush=True)
-    rows.append(dict(run="serial (workers=0)", start=0.0, wall=wall0, speedup=1.0,
-                     overhead=(wall0 - _compute_s(out0, keys)) / n, rss=_peak_rss_mib(), same=True))
+    c0 = _compute_s(out0, keys)
+    rows.append(dict(run="serial (workers=0)", start=0.0, wall=wall0, speedup=1.0, compute=c0 / n, busy=c0 / wall0,
+                     overhead=(wall0 - c0) / n, rss=_peak_rss_mib(), same=True))
     for w in workers:
         cluster, client, start = _cluster(w)
         client.run(lambda: __import__("tactilab.inversion.scene_inversion"))  # imports are start-up, not work
@@ -111,8 +120,10 @@ def bench_recordings(n: int, workers: list[int], tmp: pathlib.Path) -> list[dict
         client.close()
         cluster.close()
         print(f"{w} worker(s): {wall:.1f} s", flush=True)
+        c = _compute_s(out, keys)
         rows.append(dict(run=f"LocalCluster(n_workers={w})", start=start_total, wall=wall, speedup=wall0 / wall,
-                         overhead=(w * wall - _compute_s(out, keys)) / n, rss=rss, same=_same(out0, out, keys)))
+                         compute=c / n, busy=c / (w * wall), overhead=(w * wall - c) / n, rss=rss,
+                         same=_same(out0, out, keys)))
     return rows
 
 
@@ -176,11 +187,11 @@ def main(argv=None) -> None:
         if args.recordings:
             rows = bench_recordings(args.recordings, workers, tmp)
             print(f"\n{args.recordings} defect-scan recordings, one task each")
-            print(f"| run | start-up (s) | wall (s) | speedup | overhead per task (ms) | peak RSS per worker (MiB) "
-                  f"| bitwise = serial |\n|---|---|---|---|---|---|---|")
+            print(f"| run | start-up (s) | wall (s) | speedup | compute per task (s) | busy | overhead per task (ms) "
+                  f"| peak RSS per worker (MiB) | bitwise = serial |\n|---|---|---|---|---|---|---|---|---|")
             for r in rows:
-                print(f"| {r['run']} | {r['start']:.1f} | {r['wall']:.1f} | {r['speedup']:.2f} | "
-                      f"{1e3 * r['overhead']:.0f} | {r['rss']:.0f} | {'yes' if r['same'] else 'NO'} |")
+                print(f"| {r['run']} | {r['start']:.1f} | {r['wall']:.1f} | {r['speedup']:.2f} | {r['compute']:.2f} | "
+                      f"{r['busy']:.2f} | {1e3 * r['overhead']:.0f} | {r['rss']:.0f} | {'yes' if r['same'] else 'NO'} |")
         if args.fft:
             rows = bench_fft(args.fft, tmp)
             print(f"\n{args.fft} small FFT inversions (64 nodes), one result file each")

@@ -3,14 +3,17 @@
 Run: ``python benchmarks/bench_experiments_recording.py [--trials 300] [--quick]``
 
 Table 1 -- per-trial durable write cost: the four events of a trial (planned, presented,
-response, complete + trial row), each its own committed transaction in WAL mode with
-``synchronous=FULL`` (one fsync each), on the working folder's disk and on tmpfs. Baseline:
+response, complete + trial row) as the runner commits them now, in TWO transactions (planned
+with presented, response with complete), against the former four (one per event), in WAL mode
+with ``synchronous=FULL`` (one fsync per commit), on the working folder's disk and on tmpfs. Baseline:
 the same writes with ``synchronous=OFF`` (no fsync: not durable), and the "write everything at
 exit" pattern of runners that lose a session on a crash (its per-trial share).
 
 Table 2 -- replay time for ``tactilab experiment resume`` as the session grows: read the log,
 validate every trial record, and replay the procedure (staircase; psi with a 30 x 5 x 3 grid
 over 30 levels). "exact" checks that the replayed estimate equals the live one bit for bit.
+A resume now replays once (the command line reads only the header first: "header s"); it used
+to replay twice.
 
 Table 3 -- accuracy of the demo's staircase design (two interleaved 1-up-2-down tracks, 40
 trials) against the simulated observer's true 70.7 % point, over seeds.
@@ -36,7 +39,7 @@ from tactilab.experiments.responses import true_threshold_2ifc
 from tactilab.experiments.display import Display, PlaybackReport
 from tactilab.experiments.recording import Recorder
 from tactilab.experiments.responses import SimulatedObserver
-from tactilab.experiments.resume import replay_session
+from tactilab.experiments.resume import replay_session, session_header
 from tactilab.experiments.runner import new_session
 
 PAYLOAD = {"block": 0, "track": 1, "parameter": "amplitude_m", "level": 2.5e-6, "target": "2",
@@ -45,8 +48,8 @@ RECORD = json.dumps({**PAYLOAD, "procedure_state": {"levels": [2.5e-6, 3e-6], "r
                      "response": "2", "rt_s": 0.4, "utc": "2026-11-22T05:00:00+00:00"})
 
 
-def write_cost(folder: Path, n_trials: int, synchronous: str) -> list[float]:
-    """Seconds per trial for the runner's four committed writes."""
+def write_cost(folder: Path, n_trials: int, synchronous: str, commits: int = 2) -> list[float]:
+    """Seconds per trial for the runner's writes of one trial: ``commits`` = 2 (now) or 4 (before)."""
     path = folder / f"bench-{synchronous}-{time.monotonic_ns()}.sqlite"
     recorder = Recorder.create(path, {"bench": True})
     recorder.connection.execute(f"PRAGMA synchronous={synchronous}")
@@ -54,11 +57,17 @@ def write_cost(folder: Path, n_trials: int, synchronous: str) -> list[float]:
     try:
         for i in range(n_trials):
             start = time.perf_counter()
-            recorder.log("trial_planned", i, 0, PAYLOAD)
-            recorder.log("stimulus_presented", i, 0, {"stimuli": PAYLOAD["stimuli"]})
-            recorder.log("response", i, 0, {"response": "2", "rt_s": 0.4})
-            recorder.log("trial_complete", i, 0, {"outcome": True},
-                         extra=[("INSERT INTO trials VALUES (?, ?)", (i, RECORD))])
+            row = [("INSERT INTO trials VALUES (?, ?)", (i, RECORD))]
+            if commits == 4:
+                recorder.log("trial_planned", i, 0, PAYLOAD)
+                recorder.log("stimulus_presented", i, 0, {"stimuli": PAYLOAD["stimuli"]})
+                recorder.log("response", i, 0, {"response": "2", "rt_s": 0.4})
+                recorder.log("trial_complete", i, 0, {"outcome": True}, extra=row)
+            else:
+                recorder.log_events([("trial_planned", i, 0, PAYLOAD),
+                                     ("stimulus_presented", i, 0, {"stimuli": PAYLOAD["stimuli"]})])
+                recorder.log_events([("response", i, 0, {"response": "2", "rt_s": 0.4}),
+                                     ("trial_complete", i, 0, {"outcome": True})], extra=row)
             costs.append(time.perf_counter() - start)
     finally:
         recorder.close()
@@ -114,14 +123,16 @@ def main() -> None:
     folders = {"disk (working dir)": Path(tempfile.mkdtemp(prefix="tactilab-bench-", dir="."))}
     if Path("/dev/shm").is_dir():
         folders["tmpfs (/dev/shm)"] = Path(tempfile.mkdtemp(prefix="tactilab-bench-", dir="/dev/shm"))
-    print(f"Per-trial durable write cost, 4 commits per trial, {args.trials} trials (target < 5 ms)")
+    print(f"Per-trial durable write cost, {args.trials} trials (target < 5 ms)")
     print(f"{'storage':<20} {'mode':<26} {'median ms':>10} {'p95 ms':>8} {'ratio to no-fsync':>18}")
     for name, folder in folders.items():
         full = write_cost(folder, args.trials, "FULL")
+        full4 = write_cost(folder, args.trials, "FULL", commits=4)
         off = write_cost(folder, args.trials, "OFF")
         exit_share = write_at_exit_cost(folder, args.trials)
         base = statistics.median(off)
-        for mode, costs in (("WAL + synchronous=FULL", full), ("WAL + synchronous=OFF", off)):
+        for mode, costs in (("2 commits, sync=FULL (now)", full), ("4 commits, sync=FULL (was)", full4),
+                            ("2 commits, sync=OFF", off)):
             print(f"{name:<20} {mode:<26} {1e3 * statistics.median(costs):>10.3f} "
                   f"{1e3 * float(np.percentile(costs, 95)):>8.3f} {statistics.median(costs) / base:>18.1f}")
         print(f"{name:<20} {'all at exit (not durable)':<26} {1e3 * exit_share:>10.3f} {'':>8} "
@@ -130,7 +141,7 @@ def main() -> None:
     sizes = (50, 200, 600) if args.quick else (100, 300, 1000, 3000)
     shm = folders.get("tmpfs (/dev/shm)", folders["disk (working dir)"])
     print("\nResume replay time vs session length (read log + validate records + replay procedure)")
-    print(f"{'procedure':<10} {'trials':>7} {'replay s':>9} {'ms/trial':>9} {'exact':>6}")
+    print(f"{'procedure':<10} {'trials':>7} {'header s':>9} {'replay s':>9} {'ms/trial':>9} {'exact':>6}")
     for method in ("staircase", "psi"):
         for n in sizes:
             protocol = make_protocol(method, n)
@@ -138,10 +149,13 @@ def main() -> None:
             live = new_session(protocol, path, NullDisplay(DisplayDescription.braille_row()),
                                SimulatedObserver(protocol), subject="B1", realtime=False)
             start = time.perf_counter()
+            session_header(path)
+            header = time.perf_counter() - start
+            start = time.perf_counter()
             state = replay_session(path)
             elapsed = time.perf_counter() - start
             exact = state.procedure.estimate() == live.estimate
-            print(f"{method:<10} {n:>7} {elapsed:>9.3f} {1e3 * elapsed / n:>9.3f} {str(exact):>6}")
+            print(f"{method:<10} {n:>7} {header:>9.4f} {elapsed:>9.3f} {1e3 * elapsed / n:>9.3f} {str(exact):>6}")
     print(f"\nDemo staircase design (experiments/demo.py) over {args.seeds} seeds: estimate / observer's true "
           "70.7 % point - 1")
     errors = []

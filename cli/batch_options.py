@@ -59,7 +59,7 @@ def run_invert_batch(args: argparse.Namespace) -> int:
                        progress=not getattr(args, "quiet", False))
     a = tree.attrs
     print(f"batch: {a['n_run']} recording(s) inverted, {a['n_skipped']} skipped (done before), "
-          f"{a['n_failed']} failed, {a['wall_s']:.1f} s")
+          f"{a['n_failed']} failed, {a['wall_s']:.1f} s (+ {a['gather_s']:.1f} s reading the results back)")
     print(f"files: {Path(out) / 'results'} (one DataTree per recording), {Path(out) / 'invert_many.nc'} (gathered)"
           + (f", {Path(out) / 'errors.tsv'} (failed: {a['failed'].replace(';', ', ')})" if a["n_failed"] else ""))
     return 1 if a["n_failed"] else 0

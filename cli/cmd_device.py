@@ -6,7 +6,6 @@ import argparse
 import functools
 
 from tactilab.data_schemas.units import to_si
-from tactilab.experiments.emulator import emulate
 
 NAME = "device"
 HELP = "tactile display devices: run an emulator of the UDP frame protocol on 127.0.0.1"
@@ -30,22 +29,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="stop after this long (time, e.g. 30s or 30; default 60s); SIGTERM also stops it")
     emu.add_argument("--tractors", type=int, default=None,
                      help="expected values per frame (count); default: the count of the first frame")
+    emu.add_argument("--limits", metavar="FILE", default=None,
+                     help="display description JSON: the device ticks at its frame rate (Hz) and clamps every applied "
+                          "frame to its full scale (Pa or m) and slew limit (full scale per s), recording each clamp")
     emu.add_argument("--late-after", default="1ms",
                      help="a frame whose transit exceeds the smallest by more than this is late (time; default 1ms)")
 
 
 #: library parameter -> the flag that sets it
 _FLAGS = {"port": "--port", "watchdog_s": "--watchdog", "max_seconds": "--max-seconds",
-          "late_after_s": "--late-after", "n_tractors": "--tractors"}
+          "late_after_s": "--late-after", "n_tractors": "--tractors", "limits": "--limits"}
 
 
 def run(args: argparse.Namespace) -> int:
+    from tactilab.experiments.emulator import emulate  # here, so that --help stays light
+
     watchdog = to_si(args.watchdog, "time", name="--watchdog")
     max_seconds = to_si(args.max_seconds, "time", name="--max-seconds", default_unit="s")
     late_after = to_si(args.late_after, "time", name="--late-after")
     try:
         emulate(args.port, watchdog_s=watchdog, record=args.record, max_seconds=max_seconds,
-                n_tractors=args.tractors, late_after_s=late_after, log=functools.partial(print, flush=True))
+                n_tractors=args.tractors, late_after_s=late_after, log=functools.partial(print, flush=True),
+                limits=args.limits)
     except ValueError as exc:
         text = str(exc)
         for parameter, flag in _FLAGS.items():

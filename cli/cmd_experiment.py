@@ -22,7 +22,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run = sub.add_parser("run", help="run a protocol file (TOML; quantities take unit suffixes: 20um, 40mm/s, 500ms)")
     run.add_argument("protocol", type=Path, help="protocol TOML file")
     run.add_argument("--subject", required=True,
-                     help="pseudonymous subject code, letters and digits only (never a name), e.g. S01")
+                     help="pseudonymous subject code, letters and digits only (never a name), e.g. S01; codes that "
+                          "look like names or dates (JaneDoe, 19850412) are refused")
+    run.add_argument("--subject-pattern", default=None, metavar="REGEX",
+                     help="the lab's own subject-code pattern (a regular expression the whole code must match, e.g. "
+                          "'S[0-9]{3}'); replaces the name and date checks")
     _device_args(run)
     run.add_argument("--responses", default="terminal",
                      help="'terminal' (single keypresses) or 'simulated' (model observer); default terminal")
@@ -56,6 +60,10 @@ def _device_args(p: argparse.ArgumentParser, resume: bool = False) -> None:
                    help="display description: 'braille-row', 'stress2' or a .json description file (limits in Pa, "
                         "m, 1/s); " + ("default: the description the session recorded (another one is refused)"
                                        if resume else "default braille-row"))
+    p.add_argument("--max-skipped", type=float, default=0.01,
+                   help="udp: fraction (0-1) of a stimulus's frames that may be skipped because the host fell more "
+                        "than half a period behind (late frames are never sent in a burst); beyond it the trial "
+                        "aborts as a display fault (default 0.01)")
     p.add_argument("--no-wait", action="store_true",
                    help="do not wait in real time (inter-trial pauses, simulated playback): dry runs only")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -83,7 +91,8 @@ def _print_result(result, parameter: str) -> int:
 
 
 #: library parameter (as it starts a library error) -> the flag that sets it, per call
-_DEVICE, _DISPLAY = {"spec": "--device"}, {"spec": "--display", "url": "--display"}
+_DEVICE, _DISPLAY = {"spec": "--device"}, {"spec": "--display", "url": "--display",
+                                     "max_skipped_fraction": "--max-skipped"}
 _RESPONSES = {"spec": "--responses", "kind": "--responses", "threshold": "--observer-threshold",
               "strain": "--observer-strain"}
 
@@ -141,11 +150,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from tactilab.data_schemas.experiment import Protocol, check_label
+    from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
     from tactilab.experiments import factory
 
     if args.action == "run":
-        check_label(args.subject, "--subject")
+        check_subject(args.subject, "--subject", args.subject_pattern)
         if args.session_label is not None:
             check_label(args.session_label, "--session")
         protocol = Protocol.from_toml(args.protocol)
@@ -158,7 +167,8 @@ def _run(args: argparse.Namespace) -> int:
             label = args.session_label
             path = args.out / f"sub-{args.subject}_ses-{label}_task-{protocol.name}.sqlite"
         with _flags(_DISPLAY):
-            display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
+            display = factory.display_from_spec(args.display, description, realtime=not args.no_wait,
+                                                 max_skipped_fraction=args.max_skipped)
         try:
             with _flags(_RESPONSES):
                 responses = factory.make_responses(args.responses, protocol, display,
@@ -172,6 +182,7 @@ def _run(args: argparse.Namespace) -> int:
         ended = False
         try:
             result = new_session(protocol, path, display, responses, subject=args.subject, session=label,
+                                 subject_pattern=args.subject_pattern,
                                  realtime=not args.no_wait, progress=not args.quiet)
             ended = True
         finally:
@@ -180,9 +191,9 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.action == "resume":
         from tactilab.data_schemas.display import DisplayDescription
-        from tactilab.experiments.resume import check_same_display, replay_session, resume_session
+        from tactilab.experiments.resume import check_same_display, resume_session, session_header
 
-        state = replay_session(args.session)
+        state = session_header(args.session)  # no replay here: resume_session replays once
         recorded_description = state.meta.get("display_description")
         if args.device is None and recorded_description is not None:
             description = DisplayDescription.model_validate(recorded_description)
@@ -193,7 +204,8 @@ def _run(args: argparse.Namespace) -> int:
             check_same_display(state.meta, _Described(description), args.session)
         kind = args.responses or state.meta["responses"]
         with _flags(_DISPLAY):
-            display = factory.display_from_spec(args.display, description, realtime=not args.no_wait)
+            display = factory.display_from_spec(args.display, description, realtime=not args.no_wait,
+                                                 max_skipped_fraction=args.max_skipped)
         recorded = state.meta.get("responses_config") if kind == state.meta["responses"] else None
         try:
             with _flags(_RESPONSES):
@@ -202,8 +214,9 @@ def _run(args: argparse.Namespace) -> int:
         except BaseException:
             display.close()
             raise
-        print(f"resuming {args.session}: {len(state.trials)} trials done"
-              + (f", repeating interrupted trial {next(iter(state.attempts))}" if state.attempts else ""), flush=True)
+        print(f"resuming {args.session}: {state.n_completed} trials done"
+              + (f", repeating interrupted trial {state.interrupted_trial}"
+                 if state.interrupted_trial is not None else ""), flush=True)
         ended = False
         try:
             result = resume_session(args.session, display, responses, realtime=not args.no_wait,

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from .batch_options import add_batch_options, run_invert_batch
+from .common import RunReport, add_report_options, choose_out
 
 NAME = "invert"
 HELP = ("invert a sensor recording (recording.nc or .json, stress in Pa) of a defect scene: defect position "
@@ -36,9 +37,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="emcee step limit per ensemble (steps; default 20000); stops earlier once converged")
     parser.add_argument("--max-data", type=int, default=1500,
                         help="largest number of data values used (time decimation and sensor selection; count)")
-    parser.add_argument("--out", type=Path, default=None, help="output folder (default: ./<recording stem>-inversion)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="output folder (default: a new folder ./<recording stem>-inversion, then -2, -3, ...); "
+                             "an existing non-empty one needs --force (with --batch, the same --out resumes)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the samplers (integer)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_report_options(parser)
     add_batch_options(parser)
 
 
@@ -52,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas import load_scene, read_recording
     from tactilab.inversion.criteria import plot_criteria
     from tactilab.inversion.plots import plot_corner, plot_profile
-    from tactilab.inversion.scene_inversion import defect_profile, invert_defect_position
+    from tactilab.inversion.scene_inversion import defect_problem, defect_profile, invert_defect_position
 
     if args.max_steps < 1:
         raise ValueError(f"--max-steps: must be >= 1 step, got {args.max_steps}; e.g. 20000")
@@ -63,30 +67,77 @@ def run(args: argparse.Namespace) -> int:
         recording = read_recording(args.recording)
     except (OSError, ValueError) as err:  # name the command-line argument
         raise type(err)(f"RECORDING: {str(err).removeprefix('path: ')}") from None
-    out = args.out if args.out is not None else Path(f"{args.recording.stem}-inversion")
-    out.mkdir(parents=True, exist_ok=True)
+    report = RunReport("invert")
+    out = report.watch(choose_out(args.out, Path(f"{args.recording.stem}-inversion"), args.force))
     rng = np.random.default_rng(args.seed)
+    _, _, info = defect_problem(scene, recording, max_data=args.max_data)
+    _report_selection(report, recording, info, args.max_data)
+    methods, errors = [], []
     if args.method in ("all", "profile"):
-        post, crit, x = defect_profile(scene, recording, criterion=args.criterion, max_data=args.max_data)
-        plot_profile(x, post.mean, post.std, out / "profile.png",
-                     title=f"Defect-load density along the scan, not a height (lam by {args.criterion})")
-        plot_criteria(crit, out / "criteria.png")
-        choices = ", ".join(f"{k}={v:.3g}" for k, v in crit.lam.items())
-        peak = x[int(np.argmax(np.abs(post.mean)))]
-        print(f"profile: defect-load density s(x) along the scan line (mm^2 of effective point-defect area per mm "
-              f"of scan at y = 0; the linear part of the defect model, not a surface height), {x.size} nodes, "
-              f"lam by {args.criterion}; criteria: {choices}")
-        print(f"profile: largest |load density| at x = {peak * 1e3:.3f} mm; files profile.png, criteria.png")
+        with report.collecting_warnings():
+            post, crit, x = defect_profile(scene, recording, criterion=args.criterion, max_data=args.max_data)
+            plot_profile(x, post.mean, post.std, out / "profile.png",
+                         title=f"Defect-load density along the scan, not a height (lam by {args.criterion})")
+            plot_criteria(crit, out / "criteria.png")
+        i = int(np.argmax(np.abs(post.mean)))
+        # s(x) is in m^2 per m of scan; 1 m^2/m = 1e3 mm^2/mm
+        report.computed.append(
+            f"profile: defect-load density s(x) along the scan line at y = 0 (mm^2 of effective point-defect area "
+            f"per mm of scan; not a surface height), {x.size} nodes over {x[0] * 1e3:.2f} .. {x[-1] * 1e3:.2f} mm; "
+            f"largest |s| = {post.mean[i] * 1e3:.3g} mm^2/mm at x = {x[i] * 1e3:.3f} mm")
+        methods.append(f"profile: linear-Gaussian posterior (white Tikhonov prior), lam by {args.criterion}; "
+                       "criteria " + ", ".join(f"{k} {v:.3g}" for k, v in crit.lam.items()))
+        errors.append(f"profile: 1-sigma credible band, {post.std[i] * 1e3:.3g} mm^2/mm at the peak "
+                      f"(median {np.median(post.std) * 1e3:.3g} mm^2/mm)")
+        report.data.update(profile_peak_x_mm=float(x[i] * 1e3), profile_peak_mm2_per_mm=float(post.mean[i] * 1e3),
+                           profile_peak_sd_mm2_per_mm=float(post.std[i] * 1e3), lam=dict(crit.lam))
     if args.method in ("all", "mcmc"):
         extra = tuple(q.strip() for q in args.sample.split(",") if q.strip())
-        res, info = invert_defect_position(scene, recording, rng, sample=extra,
-                                           max_data=args.max_data, progress=not args.quiet, max_steps=args.max_steps)
-        res.to_netcdf(out / "posterior.nc")
-        plot_corner(res.tree, out / "corner.png")
-        print(f"mcmc: sensors {', '.join(info['sensor_ids'])}, every {info['time_stride']} samples, "
-              f"noise {info['noise_std']:g} Pa")
-        print(res.message)
-        table = res.summary[["mean", "sd", "ess_bulk", "ess_tail", "r_hat"]]
-        print(table.to_string(float_format=lambda v: f"{v:.4g}"))
-        print(f"files: {out / 'posterior.nc'} (arviz DataTree), {out / 'corner.png'}")
+        with report.collecting_warnings():
+            res, info = invert_defect_position(scene, recording, rng, sample=extra, max_data=args.max_data,
+                                               progress=not (args.quiet or args.json), max_steps=args.max_steps)
+            res.to_netcdf(out / "posterior.nc")
+            plot_corner(res.tree, out / "corner.png")
+        table = _table_in_display_units(res.summary[["mean", "sd", "ess_bulk", "ess_tail", "r_hat"]])
+        for name, row in table.iterrows():
+            report.computed.append(f"position posterior: {name} = {row['mean']:.4g} +- {row['sd']:.2g}")
+        report.data["posterior"] = {name: {k: float(v) for k, v in row.items()} for name, row in table.iterrows()}
+        report.data["converged"] = bool(res.converged)
+        methods.append(f"position: emcee ({', '.join(res.summary.index)}; amplitude integrated out), "
+                       f"noise {info['noise_std']:g} {recording.unit}")
+        errors.append("position: posterior sd above; " + "; ".join(" ".join(line.split()) for line in res.message.splitlines()))
+        if not args.json:
+            print(table.to_string(float_format=lambda v: f"{v:.4g}"))
+    report.method = "; ".join(methods)
+    report.error_estimate = "; ".join(errors)
+    report.emit(args.json)
     return 0
+
+
+DISPLAY_UNITS = {"x0": ("mm", 1e3), "y0": ("mm", 1e3), "depth": ("mm", 1e3), "amplitude": ("mm^2", 1e6),
+                 "young_modulus": ("kPa", 1e-3), "normal_force": ("N", 1.0), "friction": ("", 1.0)}
+
+
+def _table_in_display_units(table):
+    """The posterior summary (SI) with lengths in mm, areas in mm^2, moduli in kPa; units in the row names."""
+    rows = {}
+    for name, row in table.iterrows():
+        unit, factor = DISPLAY_UNITS.get(name, ("SI", 1.0))
+        row = row.copy()
+        row[["mean", "sd"]] = row[["mean", "sd"]] * factor
+        rows[f"{name} [{unit}]" if unit else name] = row
+    return type(table)(rows).T
+
+
+def _report_selection(report: RunReport, recording, info: dict, max_data: int) -> None:
+    kept = list(info["sensor_ids"])
+    if len(kept) < len(recording.sensor_ids):
+        left = [s for s in recording.sensor_ids if s not in kept]
+        report.dropped.append(
+            f"sensors: uses {len(kept)} of {len(recording.sensor_ids)} ({', '.join(kept)}): the defect inversion keeps "
+            f"the sensors with the largest RMS signal (baseline removed); left out {len(left)} "
+            f"({', '.join(left[:8])}{', ...' if len(left) > 8 else ''})")
+    if info["time_stride"] > 1:
+        report.dropped.append(f"samples: every {info['time_stride']}th time sample kept, so that at most "
+                              f"--max-data {max_data} values enter the likelihood")
+    report.data.update(sensors_used=kept, n_sensors=len(recording.sensor_ids), time_stride=int(info["time_stride"]))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import make_out
+from .common import RunReport, add_report_options, choose_out
 
 NAME = "simulate"
 HELP = ("simulate a finger scene file (TOML, units like 0.8N, 3mm, 20mm/s): write the sensors' recording "
@@ -16,7 +16,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", type=Path,
                         help="scene file (.toml with unit suffixes, or .json in SI); see examples/*.toml")
     parser.add_argument("--out", type=Path, default=None,
-                        help="output folder (default: ./<scene name>-simulation)")
+                        help="output folder (default: a new folder ./<scene name>-simulation, then -2, -3, ...); "
+                             "an existing non-empty one needs --force")
     parser.add_argument("--format", choices=("netcdf", "parquet"), default="netcdf",
                         help="recording file format: netcdf (recording.nc, xarray/h5netcdf; values in Pa or "
                              "strain) or parquet (tidy table; needs pyarrow)")
@@ -27,6 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="seed of the sensor noise (noise_std of the scene's sensors); default: noise-free")
     parser.add_argument("--no-plots", action="store_true", help="write the recording only")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_report_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -42,9 +44,23 @@ def run(args: argparse.Namespace) -> int:
         if spacing <= 0:
             raise ValueError(f"--grid-spacing: must be > 0, got {args.grid_spacing!r}; e.g. 50um")
     scene = load_scene(args.scene)
-    out = make_out(args.out if args.out is not None else Path(f"{scene.name or args.scene.stem}-simulation"))
+    report = RunReport("simulate")
+    out = report.watch(choose_out(args.out, Path(f"{scene.name or args.scene.stem}-simulation"), args.force))
     rng = np.random.default_rng(args.seed) if args.seed is not None else None
-    for line in simulate_scene(scene, out, fmt=args.format, rng=rng, progress=not args.quiet,
-                               grid_spacing=spacing, plots=not args.no_plots):
-        print(line)
+    with report.collecting_warnings():
+        lines = simulate_scene(scene, out, fmt=args.format, rng=rng, progress=not (args.quiet or args.json),
+                               grid_spacing=spacing, plots=not args.no_plots)
+    for line in lines:
+        if line.startswith("method: "):
+            report.method = line.removeprefix("method: ")
+        elif not line.startswith(("recording: ", "plots ")):  # the files are listed below
+            report.computed.append(line)
+    report.error_estimate = ("not estimated by this command (grid quadrature; refine --grid-spacing and compare "
+                             "to check convergence)")
+    if args.seed is None and float(scene.sensors.noise_std) > 0:
+        report.dropped.append(f"sensor noise (noise_std {scene.sensors.noise_std:g} in the recording's unit): "
+                              "not added without --seed")
+    if args.no_plots:
+        report.dropped.append("plots: --no-plots")
+    report.emit(args.json)
     return 0

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import argparse
 
+from .common import RunReport, add_report_options
+
 NAME = "synthesis"
 HELP = ("design a laterotactile display: optimal tractor half spacing d (mm) for receptors at a depth, "
-        "matching traction (kPa) and largest renderable amplitude (um), with sensitivity to width and pairs")
+        "matching traction (kPa) and largest renderable amplitude (µm), with sensitivity to width and pairs")
 
 WIDTH_FACTORS = (0.5, 0.8, 1.0, 1.2, 1.5, 2.0)
 PAIRS_SENSITIVITY = (1, 2, 3, 4, 5, 6, 7)
@@ -30,6 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sensitivity-pairs", default=None,
                         help="comma list of pair counts for the sensitivity rows (default 1,2,3,4,5,6,7)")
     parser.add_argument("--no-sensitivity", action="store_true", help="print only the design rows")
+    add_report_options(parser, out=False)
 
 
 def _lengths(text: str, name: str) -> list[float]:
@@ -115,7 +118,7 @@ def _header(opts: _Options) -> str:
     if opts.amplitude is not None:
         text += f" {'Q_N/m':>10} {'tau_kPa':>10}"
     if opts.limit is not None:
-        text += f" {'Amax_um':>10}"
+        text += f" {'Amax_µm':>10}"
     return text
 
 
@@ -123,42 +126,73 @@ def run(args: argparse.Namespace) -> int:
     from tactilab.forward import synthesis
 
     opts = _Options(args)
+    report = RunReport("synthesis")
+    say = (lambda *a: None) if args.json else print
     footprint = "d (half the tractor pitch)" if opts.footprint is None else f"{opts.footprint * 1e3:g} mm"
-    print("tactile synthesis design (docs/theory.md 4a; plane strain, nu = 1/2, tractors as line loads)")
-    print(f"objective J(d) over x in [-w/2, w/2]; optimum = lowest non-trivial local minimum, d in "
+    say("tactile synthesis design (docs/theory.md 4a; plane strain, nu = 1/2, tractors as line loads)")
+    say(f"objective J(d) over x in [-w/2, w/2]; optimum = lowest non-trivial local minimum, d in "
           f"[0.2 Z, 5 Z]; k2 = max S_Psi, k2p = S_Psi(d)")
     if opts.amplitude is not None:
-        print(f"matching: A = {opts.amplitude * 1e6:g} um at pitch p = 4d, E = {opts.young * 1e-3:g} kPa; "
+        say(f"matching: A = {opts.amplitude * 1e6:g} µm at pitch p = 4d, E = {opts.young * 1e-3:g} kPa; "
               f"Q = line load (N/m), tau = Q / footprint, footprint = {footprint}")
     if opts.limit is not None:
-        print(f"max renderable amplitude Amax at traction limit {opts.limit * 1e-3:g} kPa, footprint = {footprint}")
-    print()
-    print("design")
-    print(_header(opts))
+        say(f"max renderable amplitude Amax at traction limit {opts.limit * 1e-3:g} kPa, footprint = {footprint}")
+    say()
+    say("design")
+    say(_header(opts))
     designs = [synthesis.optimal_half_spacing(z, opts.width, opts.pairs) for z in opts.depths]
     for design in designs:
-        print(_row(design, opts))
+        say(_row(design, opts))
+    _summarise(report, designs, opts)
     if args.no_sensitivity:
+        report.emit(args.json)
         return 0
     z = opts.depths[0]
-    print()
-    print(f"sensitivity to the window width (depth {z * 1e3:g} mm, pairs {opts.pairs})")
-    print(_header(opts))
+    say()
+    say(f"sensitivity to the window width (depth {z * 1e3:g} mm, pairs {opts.pairs})")
+    say(_header(opts))
     by_width = [synthesis.optimal_half_spacing(z, w, opts.pairs) for w in opts.widths]
     for design in by_width:
-        print(_row(design, opts))
-    print()
-    print(f"sensitivity to the number of pairs (depth {z * 1e3:g} mm, width {opts.width * 1e3:g} mm)")
-    print(_header(opts))
+        say(_row(design, opts))
+    say()
+    say(f"sensitivity to the number of pairs (depth {z * 1e3:g} mm, width {opts.width * 1e3:g} mm)")
+    say(_header(opts))
     by_pairs = [synthesis.optimal_half_spacing(z, opts.width, n) for n in opts.pairs_list]
     for design in by_pairs:
-        print(_row(design, opts))
+        say(_row(design, opts))
     for label, group in (("width", by_width), ("pairs", by_pairs)):
         ds = [g.d for g in group]
-        print(f"d spread over {label}: {min(ds) * 1e3:.4f} .. {max(ds) * 1e3:.4f} mm "
+        say(f"d spread over {label}: {min(ds) * 1e3:.4f} .. {max(ds) * 1e3:.4f} mm "
               f"({(max(ds) - min(ds)) / designs[0].d * 100:.1f} % of the design d)")
     if len(designs) >= 2:
         fit = synthesis.scaling_from_designs(designs)
-        print(f"scaling with depth: d = {fit.ratio:.4f} Z (max deviation {fit.max_deviation * 100:.1f} %); "
+        say(f"scaling with depth: d = {fit.ratio:.4f} Z (max deviation {fit.max_deviation * 100:.1f} %); "
               f"power law d/mm = {fit.prefactor * 1e3 ** (1 - fit.exponent):.4g} (Z/mm)^{fit.exponent:.3f}")
+    report.emit(args.json)
     return 0
+
+
+def _summarise(report: RunReport, designs, opts: _Options) -> None:
+    from tactilab.forward import synthesis
+
+    report.method = ("lowest non-trivial local minimum of J(d) over d in [0.2 Z, 5 Z] (docs/theory.md 4a; plane "
+                     "strain, nu = 1/2, tractors as line loads)")
+    worst = max(d.relative_residual for d in designs)
+    report.error_estimate = (f"relative residual of the matched strain profile over the window, largest "
+                             f"{worst:.3g} (0 = exact match)")
+    rows = []
+    for d in designs:
+        row = {"depth_mm": d.depth * 1e3, "width_mm": d.width * 1e3, "pairs": d.pairs, "d_mm": d.d * 1e3,
+               "d_over_depth": d.d_over_depth, "relative_residual": d.relative_residual,
+               "n_local_minima": len(d.minima)}
+        if opts.amplitude is not None:
+            tau = synthesis.matching_traction_amplitude(opts.amplitude, None, None, opts.young, d, opts.footprint)
+            row["traction_kpa"] = tau * 1e-3
+        if opts.limit is not None:
+            row["max_amplitude_um"] = 1e6 * synthesis.max_virtual_amplitude(opts.limit, None, None, opts.young, d,
+                                                                           opts.footprint)
+        rows.append(row)
+        report.computed.append(f"optimal half spacing d = {row['d_mm']:.4f} mm (d/Z = {d.d_over_depth:.3f}) for "
+                               f"receptors at {row['depth_mm']:g} mm, window {row['width_mm']:g} mm, "
+                               f"{d.pairs} pairs")
+    report.data["designs"] = rows

@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
+import json
+import sys
+import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
 
 
@@ -13,3 +18,139 @@ def make_out(folder: Path, option: str = "--out") -> Path:
         raise OSError(f"{option}: cannot create the output folder {str(folder)!r} ({exc.strerror or exc}); "
                       "choose a writable folder") from None
     return folder
+
+
+def add_report_options(parser, out: bool = True) -> None:
+    """Add ``--json`` (and, for commands that write a folder, ``--force``) to a command's parser."""
+    parser.add_argument("--json", action="store_true",
+                        help="print only the run summary, as one JSON object on stdout (units in the key names)")
+    if out:
+        parser.add_argument("--force", action="store_true",
+                            help="write into an existing, non-empty --out folder (files of the same name are replaced)")
+
+
+def choose_out(out: Path | None, default: Path, force: bool = False, option: str = "--out") -> Path:
+    """Return the output folder, created; never write into a non-empty folder by accident.
+
+    ``out`` given: used as is, but an existing non-empty folder is refused unless ``force``.
+    ``out`` omitted: ``default`` when it is new or empty, else the first free ``default-2``,
+    ``default-3``, ... (an earlier run's files are never overwritten).
+    """
+    if out is not None:
+        out = Path(out)
+        if out.is_dir() and any(out.iterdir()) and not force:
+            raise ValueError(f"{option}: the folder {str(out)!r} exists and is not empty; choose a new folder, "
+                             "or add --force to overwrite its files")
+        return make_out(out, option)
+    default = Path(default)
+    candidate, k = default, 1
+    while candidate.exists() and (not candidate.is_dir() or any(candidate.iterdir())):
+        k += 1
+        candidate = default.with_name(f"{default.name}-{k}")
+    return make_out(candidate, option)
+
+
+def _files_below(folder: Path) -> dict[str, float]:
+    return {str(p): p.stat().st_mtime_ns for p in sorted(Path(folder).rglob("*")) if p.is_file()}
+
+
+@dataclass
+class RunReport:
+    """The summary block that ends a command's run, printed for people or as one JSON object.
+
+    Attributes
+    ----------
+    command : str
+        The subcommand word.
+    computed : list of str
+        What was computed (one line each; units in the text).
+    method : str
+        Method used and why.
+    error_estimate : str
+        Its error estimate, in words with units ("not estimated" when there is none).
+    dropped : list of str
+        What was left out and why (sensors, samples, components, ...); empty when nothing was.
+    warnings : list of str
+        Warnings issued during the run (one line each).
+    out : Path or None
+        Output folder; ``files`` lists the files written there.
+    data : dict
+        Machine-readable values for ``--json`` (keys carry their unit, e.g. ``x0_mm``).
+    """
+
+    command: str
+    computed: list[str] = field(default_factory=list)
+    method: str = ""
+    error_estimate: str = "not estimated"
+    dropped: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    out: Path | None = None
+    files: list[str] = field(default_factory=list)
+    data: dict = field(default_factory=dict)
+    _before: dict = field(default_factory=dict, repr=False)
+
+    def watch(self, out: Path) -> Path:
+        """Remember ``out`` and its files now, so that ``files`` lists only the ones this run wrote."""
+        self.out = Path(out)
+        self._before = _files_below(self.out)
+        return self.out
+
+    @contextlib.contextmanager
+    def collecting_warnings(self):
+        """Collect warnings raised inside (each printed as one line on stderr and kept for the summary).
+
+        The caller's filters stay in force, so ``tactilab --strict`` still turns plausibility warnings
+        into errors.
+        """
+        with warnings.catch_warnings(record=True) as caught:
+            errors = [f for f in warnings.filters if f[0] == "error"]
+            warnings.simplefilter("always", UserWarning)  # every run reports its own, repeated or not
+            warnings.simplefilter("always", RuntimeWarning)
+            for _, message, category, module, lineno in reversed(errors):  # keep --strict's errors on top
+                warnings.filterwarnings("error", message.pattern if message else "", category,
+                                        module.pattern if module else "", lineno)
+            yield
+        for w in caught:
+            text = " ".join(str(w.message).split())
+            print(f"tactilab {self.command}: warning: {text}", file=sys.stderr)
+            self.warnings.append(text)
+
+    def as_dict(self) -> dict:
+        """The summary as a JSON-ready dict."""
+        if self.out is not None:
+            after = _files_below(self.out)
+            self.files = [p for p, t in after.items() if self._before.get(p) != t]
+        return {"command": self.command, "computed": self.computed, "method": self.method,
+                "error_estimate": self.error_estimate, "dropped": self.dropped, "warnings": self.warnings,
+                "out": None if self.out is None else str(self.out), "files": self.files, **self.data}
+
+    def emit(self, as_json: bool = False) -> None:
+        """Print the summary block (or, with ``as_json``, one JSON object and nothing else) on stdout."""
+        d = self.as_dict()
+        if as_json:
+            print(json.dumps(d, default=_json_default))
+            return
+        print(f"--- tactilab {self.command}: summary ---")
+        for line in self.computed:
+            print(f"computed: {line}")
+        print(f"method: {self.method or 'n/a'}")
+        print(f"error estimate: {self.error_estimate}")
+        print("dropped: " + ("; ".join(self.dropped) if self.dropped else "nothing"))
+        print(f"warnings: {len(self.warnings)}" + "".join(f"\n  - {w}" for w in self.warnings))
+        if self.out is not None:
+            names = [str(Path(p).relative_to(self.out)) for p in d["files"]]
+            print(f"files: {self.out}/ ({', '.join(names) if names else 'none written'})")
+        else:
+            print("files: none (printed only)")
+
+
+def _json_default(value):
+    import numpy as np
+
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")

@@ -22,7 +22,24 @@ from .base import format_validation_error
 from .experiment_procedures import (  # noqa: F401 - the configs are part of this module's API
     LIKELIHOOD_FAMILIES, MAX_PLANNED_TRIALS, PARAMETERS, PROCEDURE_CONFIGS, TASKS, ConstantStimuliConfig,
     Frequency, Length, ProcedureConfigBase, PsiConfig, Speed, StaircaseConfig, StaircaseTrack, Time, _finite,
-    _Model, _positive, check_label, check_name, procedure_config, register_procedure_config)
+    _Model, _positive, check_label, check_name, check_subject, procedure_config, register_procedure_config)
+
+#: Caps on what a protocol file may hold (a protocol is a page of text, not a data dump).
+MAX_PROTOCOL_BYTES = 1_000_000
+MAX_TEXT_CHARS = 2000
+MAX_PROMPT_CHARS = 300
+
+
+def _check_text(value: str | None, name: str, cap: int) -> None:
+    """Text shown to people: capped, printable characters only (no terminal escape sequences)."""
+    if value is None:
+        return
+    if len(value) > cap:
+        raise ValueError(f"{name}: at most {cap} characters, got {len(value)}; shorten it")
+    bad = sorted({repr(c) for c in value if not (c.isprintable() or c in "\n")})
+    if bad:
+        raise ValueError(f"{name}: only printable characters (and line breaks), got {', '.join(bad[:5])}; "
+                         "remove control and escape characters")
 
 
 class Stimulus(_Model):
@@ -93,6 +110,7 @@ class Task(_Model):
 
     @model_validator(mode="after")
     def _check(self) -> Task:
+        _check_text(self.prompt, "prompt", MAX_PROMPT_CHARS)
         _finite(self.interval_gap_s, "interval_gap_s")
         if self.interval_gap_s < 0:
             raise ValueError(f"interval_gap_s: must be >= 0 s, got {self.interval_gap_s!r}")
@@ -186,6 +204,7 @@ class Protocol(_Model):
     @model_validator(mode="after")
     def _check(self) -> Protocol:
         check_label(self.name, "name")
+        _check_text(self.description, "description", MAX_TEXT_CHARS)
         _finite(self.iti_s, "iti_s")
         if not 0 <= self.iti_s <= 60:
             raise ValueError(f"iti_s: must lie in [0, 60] s, got {self.iti_s!r}")
@@ -243,10 +262,18 @@ class Protocol(_Model):
         if not path.is_file():
             raise FileNotFoundError(errno.ENOENT, "protocol file not found (check the path and the current folder)",
                                     str(path))
+        size = path.stat().st_size
+        if size > MAX_PROTOCOL_BYTES:
+            raise ValueError(f"{path}: {size} bytes, above the {MAX_PROTOCOL_BYTES}-byte cap of a protocol file; "
+                             "a protocol is a short text file: give grids as {{start, stop, n}} tables")
         try:
             data = tomllib.loads(path.read_text(encoding="utf-8"))
         except tomllib.TOMLDecodeError as exc:
             raise ValueError(f"{path}: not valid TOML ({exc}); fix the syntax") from None
+        except UnicodeDecodeError:
+            raise ValueError(f"{path}: not UTF-8 text; give a TOML protocol file") from None
+        except RecursionError:
+            raise ValueError(f"{path}: nested too deeply to be a protocol; fix the file") from None
         try:
             return cls.model_validate(data)
         except ValidationError as err:

@@ -72,6 +72,52 @@ def check_label(value: str, name: str) -> str:
     return value
 
 
+_DATE_RUN = re.compile(r"\d{6,8}")
+_NAME_LIKE = re.compile(r"^(?:[A-Z][a-z]{1,}){2,}\d*$")
+
+
+def _looks_like_date(digits: str) -> bool:
+    """``digits`` (6 or 8 digits) reads as YYYYMMDD, DDMMYYYY, YYMMDD or DDMMYY."""
+    import datetime as _dt
+
+    formats = ("%Y%m%d", "%d%m%Y", "%m%d%Y") if len(digits) == 8 else ("%y%m%d", "%d%m%y", "%m%d%y")
+    for fmt in formats:
+        try:
+            _dt.datetime.strptime(digits, fmt)
+            return True
+        except ValueError:
+            continue
+    return False
+
+
+def check_subject(value: str, name: str = "subject", pattern: str | None = None) -> str:
+    """Return ``value`` if it is a pseudonymous subject code.
+
+    Rule: a BIDS label (1-32 letters or digits, :func:`check_label`) that does not look like a
+    person: no run of 6 or 8 digits that reads as a date (``19850412``, ``120485``) and not two
+    or more capitalised words (``JaneDoe``, ``JaneDoe19850412``). A lab with its own code scheme
+    passes ``pattern`` (a regular expression the whole code must match, e.g. ``"S[0-9]{3}"``);
+    the name and date heuristics are then replaced by it.
+    """
+    check_label(value, name)
+    if pattern is not None:
+        try:
+            matched = re.fullmatch(pattern, value) is not None
+        except re.error as exc:
+            raise ValueError(f"subject pattern: {pattern!r} is not a valid regular expression ({exc})") from None
+        if not matched:
+            raise ValueError(f"{name}: {value!r} does not match the lab's subject pattern {pattern!r}; use a code of "
+                             "that form")
+        return value
+    runs = [run for run in _DATE_RUN.findall(value) if len(run) in (6, 8)]
+    if any(_looks_like_date(run) for run in runs) or _NAME_LIKE.match(value):
+        raise ValueError(
+            f"{name}: {value!r} looks like a name or a date of birth; subject codes are pseudonymous "
+            "(e.g. 'S01'); a lab with its own scheme gives its pattern (--subject-pattern)"
+        )
+    return value
+
+
 Length = Annotated[float, _quantity("length")]
 Speed = Annotated[float, _quantity("speed")]
 Time = Annotated[float, _quantity("time")]

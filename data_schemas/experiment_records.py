@@ -57,6 +57,7 @@ class TrialRecord(BaseModel):
     frames_sent: int = Field(0, ge=0)
     frames_late: int = Field(0, ge=0)
     frames_missing: int = Field(0, ge=0)
+    frames_skipped: int = Field(0, ge=0, description="frames not sent: due more than half a period ago")
     safety_interventions: int = Field(0, ge=0)
 
     @model_validator(mode="after")

@@ -100,7 +100,8 @@ def fit_conditions(paths, *, sigmoid: str = "norm", rng=None) -> list[ConditionF
     return out
 
 
-def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, n_ensembles: int = 4):
+def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, n_ensembles: int = 4,
+                     sampler_options=None):
     """Fit one TransductionModel per hypothesis string to the sessions; returns (table, fits)."""
     from .models import TransductionModel, compare_models, fit_transduction
 
@@ -110,7 +111,8 @@ def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, n_
         raise ValueError(f"model: each hypothesis once, got {list(hypotheses)}")
     gen = np.random.default_rng(rng)
     models = {h: TransductionModel(h, statistic=statistic) for h in hypotheses}
-    fits = {h: fit_transduction(m, list(paths), rng=gen, n_ensembles=n_ensembles) for h, m in models.items()}
+    fits = {h: fit_transduction(m, list(paths), rng=gen, n_ensembles=n_ensembles, sampler_options=sampler_options)
+            for h, m in models.items()}
     return compare_models(fits), fits
 
 
@@ -139,7 +141,7 @@ def read_design(path) -> list[tuple[Stimulus, int]]:
 
 
 def plot_comparison(table, fits, path) -> None:
-    """ELPD per model (+- se), and observed vs predicted P(correct) per condition."""
+    """ELPD per model (+- se, with elpd_diff +- dse), and observed vs predicted P(correct) per condition."""
     from matplotlib.figure import Figure
 
     from ._transduction_data import p_correct_table
@@ -149,7 +151,11 @@ def plot_comparison(table, fits, path) -> None:
     names = list(table.index)
     ax.errorbar(range(len(names)), table["elpd"], yerr=table["se"], fmt="o", capsize=4)
     ax.set_xticks(range(len(names)), [f"{n}\n{v}" for n, v in zip(names, table["verdict"])], fontsize=8)
-    ax.set_ylabel("ELPD (PSIS-LOO), nats")
+    for i, (_, row) in enumerate(table.iterrows()):
+        if i:
+            ax.annotate(f"diff {row['elpd_diff']:.1f} +- {row['dse']:.1f} (z {row['z']:.2f})", (i, row["elpd"]),
+                        textcoords="offset points", xytext=(6, 6), fontsize=7)
+    ax.set_ylabel("ELPD (PSIS-LOO, +- se), nats")
     ax.set_title("model comparison (higher is better)", fontsize=9)
     for i, name in enumerate(names):
         fit = fits[name]

@@ -88,6 +88,9 @@ class PlaybackReport:
     stale : int
         Frames acknowledged ``stale``: the device had already applied a newer sequence number
         (another sender is ahead: an alarm).
+    skipped : int
+        Frames not sent because their time had passed by more than half a period (the host never
+        sends a burst of late frames).
     """
 
     frames_sent: int
@@ -102,6 +105,7 @@ class PlaybackReport:
     ack_rtt_s: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     rejected: int = 0
     stale: int = 0
+    skipped: int = 0
 
     @property
     def unacknowledged(self) -> int:

@@ -39,6 +39,7 @@ _BIDS_COLUMNS = {
     "utc_presented": ("UTC time when the stimulus was recorded as presented", "ISO 8601"),
     "frames_late": ("Display frames sent late", None),
     "frames_missing": ("Display frames never acknowledged", None),
+    "frames_skipped": ("Display frames skipped (due more than half a period ago; never sent late)", None),
     "safety_interventions": ("Safety-layer interventions during the trial", None),
 }
 

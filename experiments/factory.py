@@ -35,8 +35,13 @@ def description_from_spec(spec: str) -> DisplayDescription:
     )
 
 
-def display_from_spec(spec: str, description: DisplayDescription, *, realtime: bool = True) -> Display:
-    """``"simulated"`` or ``"udp://HOST:PORT"`` -> a bare display (the runner adds the safety layer)."""
+def display_from_spec(spec: str, description: DisplayDescription, *, realtime: bool = True,
+                      max_skipped_fraction: float = 0.01) -> Display:
+    """``"simulated"`` or ``"udp://HOST:PORT"`` -> a bare display (the runner adds the safety layer).
+
+    ``max_skipped_fraction``: for UDP, the fraction of a stimulus's frames that may be skipped
+    as late before playback aborts (see :class:`~tactilab.experiments.udp.UdpDisplay`).
+    """
     if spec == "simulated":
         from .simulated_display import SimulatedDisplay
 
@@ -45,7 +50,7 @@ def display_from_spec(spec: str, description: DisplayDescription, *, realtime: b
         raise ValueError(f"spec: must be 'simulated' or 'udp://HOST:PORT', got {spec!r}")
     from .udp import UdpDisplay
 
-    return UdpDisplay.from_url(spec, description)
+    return UdpDisplay.from_url(spec, description, max_skipped_fraction=max_skipped_fraction)
 
 
 def responses_from_spec(spec: str, protocol: Protocol, **observer) -> ResponseSource:

@@ -1,8 +1,10 @@
-"""Durable session recording: SQLite in WAL mode with ``synchronous=FULL``, one commit per event.
+"""Durable session recording: SQLite in WAL mode with ``synchronous=FULL``, two commits per trial.
 
 A session is one SQLite file. Table ``meta`` holds the session's provenance (subject code,
 protocol JSON, seed, package version, display id, response source); table ``events`` holds
-every event in order, each committed (and fsynced) before the runner takes the next step:
+every event in order, committed (and fsynced) before the runner takes the next step; a trial
+commits twice: ``trial_planned`` with ``stimulus_presented`` just before the display is driven,
+and ``response`` with ``trial_complete`` and the trial row. The events are:
 
 ``session_started``, ``session_resumed``, ``trial_planned``, ``stimulus_presented`` (written
 BEFORE the display is driven), ``response``, ``trial_complete``, ``safety_intervention``,
@@ -228,19 +230,41 @@ class Recorder:
             ) from None
 
     def log(self, kind: str, trial_index: int | None = None, attempt: int | None = None,
-            payload: dict[str, Any] | None = None, extra: list[tuple[str, tuple]] = ()) -> None:
-        """Append one event and commit it (with ``extra`` statements in the same transaction)."""
-        if kind not in EVENT_KINDS:
-            raise ValueError(f"kind: must be one of {EVENT_KINDS}, got {kind!r}")
-        row = (kind, trial_index, attempt, utc_now(), time.monotonic_ns(),
-               json.dumps(payload or {}, default=_json_default))
-        self._write([("INSERT INTO events (kind, trial_index, attempt, utc, monotonic_ns, payload) "
-                      "VALUES (?, ?, ?, ?, ?, ?)", row), *extra])
+            payload: dict[str, Any] | None = None, extra: list[tuple[str, tuple]] = ()) -> str:
+        """Append one event and commit it (with ``extra`` statements in the same transaction).
 
-    def complete_trial(self, record: TrialRecord, payload: dict[str, Any]) -> None:
-        """Commit the ``trial_complete`` event and the trial row together."""
-        self.log("trial_complete", record.trial_index, record.attempt, payload,
-                 extra=[("INSERT INTO trials VALUES (?, ?)", (record.trial_index, record.model_dump_json()))])
+        Returns the event's UTC time stamp (ISO 8601).
+        """
+        return self.log_events([(kind, trial_index, attempt, payload)], extra)[0]
+
+    def log_events(self, events: list[tuple[str, int | None, int | None, dict[str, Any] | None]],
+                   extra: list[tuple[str, tuple]] = ()) -> list[str]:
+        """Append several events, in order, and commit them in ONE transaction (one fsync).
+
+        Each event is ``(kind, trial_index, attempt, payload)``, optionally with a fifth item,
+        its UTC time stamp (ISO 8601; default now). Returns the events' UTC time stamps.
+        """
+        rows, stamps = [], []
+        for kind, trial_index, attempt, payload, *utc in events:
+            if kind not in EVENT_KINDS:
+                raise ValueError(f"kind: must be one of {EVENT_KINDS}, got {kind!r}")
+            stamps.append(utc[0] if utc else utc_now())
+            rows.append(("INSERT INTO events (kind, trial_index, attempt, utc, monotonic_ns, payload) "
+                         "VALUES (?, ?, ?, ?, ?, ?)",
+                         (kind, trial_index, attempt, stamps[-1], time.monotonic_ns(),
+                          json.dumps(payload or {}, default=_json_default))))
+        self._write([*rows, *extra])
+        return stamps
+
+    def complete_trial(self, record: TrialRecord, payload: dict[str, Any],
+                       response: dict[str, Any] | None = None) -> list[str]:
+        """Commit the ``response`` event (when given), the ``trial_complete`` event and the trial
+        row together, in one transaction; returns the events' UTC time stamps."""
+        events = [] if response is None else [
+            ("response", record.trial_index, record.attempt, response, record.utc_response.isoformat())]
+        events.append(("trial_complete", record.trial_index, record.attempt, payload))
+        return self.log_events(events, extra=[("INSERT INTO trials VALUES (?, ?)",
+                                               (record.trial_index, record.model_dump_json()))])
 
     def close(self) -> None:
         """Checkpoint the log into the database file, leave WAL mode, close, release the lock.
@@ -303,22 +327,44 @@ class SessionLog:
             return None
         return None if row is None else dict(zip(("pid", "host", "since_utc", "heartbeat_utc"), row))
 
+    def _damaged(self, exc: Exception) -> ValueError:
+        return ValueError(f"session: {self.path} is damaged or not a tactilab session ({' '.join(str(exc).split())[:200]}); "
+                          "restore it from a copy, or give the .sqlite file that `experiment run` printed")
+
     def meta(self) -> dict[str, Any]:
-        """The session's metadata, decoded."""
-        return {k: json.loads(v) for k, v in self.connection.execute("SELECT key, value FROM meta")}
+        """The session's metadata, decoded.
+
+        Raises
+        ------
+        ValueError
+            If the file is torn, foreign or its metadata is not JSON (one line naming the file).
+        """
+        try:
+            return {k: json.loads(v) for k, v in self.connection.execute("SELECT key, value FROM meta")}
+        except (sqlite3.Error, ValueError) as exc:
+            raise self._damaged(exc) from None
 
     def events(self, kind: str | None = None) -> list[dict[str, Any]]:
         """Events in order, each a dict with id, kind, trial_index, attempt, utc, monotonic_ns, payload."""
         sql = "SELECT id, kind, trial_index, attempt, utc, monotonic_ns, payload FROM events"
-        rows = self.connection.execute(sql + (" WHERE kind = ?" if kind else "") + " ORDER BY id",
-                                       (kind,) if kind else ())
+        try:
+            rows = self.connection.execute(sql + (" WHERE kind = ?" if kind else "") + " ORDER BY id",
+                                           (kind,) if kind else ()).fetchall()
+        except sqlite3.Error as exc:
+            raise self._damaged(exc) from None
         keys = ("id", "kind", "trial_index", "attempt", "utc", "monotonic_ns", "payload")
-        return [{**dict(zip(keys, r)), "payload": json.loads(r[-1])} for r in rows]
+        try:
+            return [{**dict(zip(keys, r)), "payload": json.loads(r[-1])} for r in rows]
+        except (sqlite3.Error, ValueError) as exc:
+            raise self._damaged(exc) from None
 
     def trials(self) -> list[TrialRecord]:
         """Completed trials, validated, in trial order."""
-        rows = self.connection.execute("SELECT record FROM trials ORDER BY trial_index")
-        return [TrialRecord.model_validate_json(r[0]) for r in rows]
+        try:
+            rows = self.connection.execute("SELECT record FROM trials ORDER BY trial_index").fetchall()
+            return [TrialRecord.model_validate_json(r[0]) for r in rows]
+        except (sqlite3.Error, ValueError) as exc:
+            raise self._damaged(exc) from None
 
     def is_locked(self) -> bool:
         """Whether a runner holds the session now."""

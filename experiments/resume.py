@@ -102,6 +102,31 @@ def replay_log(log: SessionLog) -> Replayed:
     return Replayed(meta, protocol, trials, procedure, attempts, events)
 
 
+@dataclass
+class SessionHeader:
+    """What a session says about itself without a replay: metadata, protocol, progress."""
+
+    meta: dict[str, Any]
+    protocol: Protocol
+    n_completed: int
+    interrupted_trial: int | None
+
+
+def session_header(path: str | Path) -> SessionHeader:
+    """Read a session's metadata, protocol and progress WITHOUT replaying it (cheap; imports
+    nothing): the command line uses it before :func:`resume_session`, which replays once."""
+    log = SessionLog(path)
+    try:
+        meta = log.meta()
+        protocol = session_protocol(meta, log.path)
+        n = log.connection.execute("SELECT count(*) FROM trials").fetchone()[0]
+        pending = log.connection.execute(
+            "SELECT count(*) FROM events WHERE trial_index = ? AND attempt IS NOT NULL", (n,)).fetchone()[0]
+        return SessionHeader(meta, protocol, int(n), int(n) if pending else None)
+    finally:
+        log.close()
+
+
 def replay_session(path: str | Path) -> Replayed:
     """Read-only replay of a session file (no lock taken, nothing imported)."""
     log = SessionLog(path)

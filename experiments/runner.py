@@ -1,13 +1,16 @@
-"""The psychophysics runner: plan, record, present, respond, record -- one commit per step.
+"""The psychophysics runner: plan, record, present, respond, record -- two commits per trial.
 
-Per trial, in this order, each event committed (fsynced) before the next step:
+Per trial, in this order:
 
-1. ``trial_planned``: the procedure picks the level, the task builds the stimuli;
-2. ``stimulus_presented``: written BEFORE the display is driven, so a crash during the stimulus
-   still shows that it may have been felt;
+1. the procedure picks the level, the task builds the stimuli (after the inter-trial interval);
+2. ``trial_planned`` and ``stimulus_presented`` are committed (fsynced) together, BEFORE the
+   display is driven, so a crash during the stimulus still shows that it may have been felt;
 3. the display plays each interval through :class:`~tactilab.experiments.safety.SafeDisplay`
    (which no stimulus bypasses; its interventions are logged as ``safety_intervention``);
-4. ``response``; 5. ``trial_complete`` with the full :class:`TrialRecord`.
+4. ``response`` and ``trial_complete`` with the full :class:`TrialRecord` are committed together.
+
+A crash before step 2 leaves no trace of the trial (it was never shown: it simply runs on
+resume); a crash between 2 and 4 leaves a presented, incomplete trial that resume repeats.
 
 All randomness of trial ``i`` comes from ``np.random.default_rng([seed, i])``: the procedure
 uses its first spawned child, the task its second (the simulated observer uses
@@ -38,7 +41,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from tactilab.data_schemas.experiment import Protocol, check_label
+from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
 from tactilab.data_schemas.experiment_records import TrialRecord
 
 from .display import Display, DisplayError, PlaybackReport, description_record, render_drive
@@ -85,7 +88,7 @@ def display_fault(report: PlaybackReport) -> dict[str, Any] | None:
         ``unacknowledged``.
     """
     counts = {"frames_sent": report.frames_sent, "stale": report.stale, "rejected": report.rejected,
-              "unacknowledged": report.unacknowledged, "stopped": report.stopped}
+              "unacknowledged": report.unacknowledged, "skipped": report.skipped, "stopped": report.stopped}
     allowed = int(MAX_UNACKED_FRACTION * report.frames_sent)
     if report.stale:
         reason = (f"ALARM: {report.stale} of {report.frames_sent} frames were acknowledged 'stale': the "
@@ -96,7 +99,9 @@ def display_fault(report: PlaybackReport) -> dict[str, Any] | None:
         reason = (f"{report.unacknowledged} of {report.frames_sent} frames were never acknowledged (at most "
                   f"{allowed} = {MAX_UNACKED_FRACTION:.0%} may be)")
     elif report.stopped:
-        reason = f"playback stopped after {report.frames_sent} frames, before the end of the stimulus"
+        reason = (f"playback stopped after {report.frames_sent} frames, before the end of the stimulus"
+                  + (f" ({report.skipped} frames were due more than half a period ago and skipped: the host "
+                     "could not keep the frame rate)" if report.skipped else ""))
     else:
         return None
     return {"reason": reason, "alarm": bool(report.stale), **counts}
@@ -215,14 +220,15 @@ class Runner:
         plan = plan_trial(self.protocol, index, planned, task_rng)
         self._current = (index, attempt)
         commanded = [s.model_dump() for s in plan.stimuli]
-        self.recorder.log("trial_planned", index, attempt, {
-            "block": plan.block, "track": plan.track, "parameter": plan.parameter, "level": plan.level,
-            "target": plan.target, "stimuli": commanded})
-        utc_planned = _utc(self.recorder)
         if self.realtime and index > 0:
             self.sleep(self.protocol.iti_s)
-        self.recorder.log("stimulus_presented", index, attempt, {"stimuli": commanded})
-        utc_presented = _utc(self.recorder)
+        # ONE commit (one fsync) for the plan and the presentation, BEFORE the display is driven
+        planned_utc, presented_utc = self.recorder.log_events([
+            ("trial_planned", index, attempt, {
+                "block": plan.block, "track": plan.track, "parameter": plan.parameter, "level": plan.level,
+                "target": plan.target, "stimuli": commanded}),
+            ("stimulus_presented", index, attempt, {"stimuli": commanded})])
+        utc_planned, utc_presented = datetime.fromisoformat(planned_utc), datetime.fromisoformat(presented_utc)
         before = self._interventions
         reports, onset_ns = [], 0
         for k, stimulus in enumerate(plan.stimuli):
@@ -246,9 +252,9 @@ class Runner:
             reports.append(report)
         response = self.responses.collect(plan)
         correct, outcome = score(self.protocol, plan, response.label)
-        self.recorder.log("response", index, attempt, {
-            "response": response.label, "rt_s": response.rt_s, "monotonic_ns": response.monotonic_ns})
-        utc_response = _utc(self.recorder)
+        response_payload = {"response": response.label, "rt_s": response.rt_s,
+                            "monotonic_ns": response.monotonic_ns}
+        utc_response = datetime.fromisoformat(utc_now())
         self.procedure.update(planned, outcome)
         record = TrialRecord(
             subject=self.subject, session=self.session, block=plan.block, trial_index=index,
@@ -260,9 +266,10 @@ class Runner:
             monotonic_response_ns=response.monotonic_ns, seed=self.protocol.seed,
             package_version=package_version(), display_id=self.display_id,
             frames_sent=sum(r.frames_sent for r in reports), frames_late=sum(r.late for r in reports),
-            frames_missing=sum(r.missing for r in reports),
+            frames_missing=sum(r.missing for r in reports), frames_skipped=sum(r.skipped for r in reports),
             safety_interventions=self._interventions - before)
-        self.recorder.complete_trial(record, {"outcome": outcome, "correct": correct})
+        # ONE commit (one fsync) for the response, the completion and the trial row
+        self.recorder.complete_trial(record, {"outcome": outcome, "correct": correct}, response_payload)
         self._current = (None, None)
         return record
 
@@ -290,12 +297,6 @@ class _NoBar:
         pass
 
 
-def _utc(recorder: Recorder) -> datetime:
-    """The UTC time of the event just committed (read back, so records match the log)."""
-    row = recorder.connection.execute("SELECT utc FROM events ORDER BY id DESC LIMIT 1").fetchone()
-    return datetime.fromisoformat(row[0])
-
-
 def format_estimate(estimate: dict[str, Any], parameter: str) -> str:
     """One line for humans: ``amplitude threshold 2.47 um`` (``estimate: n/a`` before there is one)."""
     value = estimate.get("threshold")
@@ -311,7 +312,7 @@ DISPLAY_UNITS = {"amplitude_m": ("amplitude", 1e6, "um"), "pitch_m": ("pitch", 1
 
 
 def new_session(protocol: Protocol, path: str | Path, display: Display, responses: ResponseSource, *,
-                subject: str, session: str = "01", realtime: bool = True, progress: bool = False) -> RunResult:
+                subject: str, session: str = "01", subject_pattern: str | None = None, realtime: bool = True, progress: bool = False) -> RunResult:
     """Create a session file at ``path`` and run the protocol to the end (or to an interruption).
 
     Parameters
@@ -325,7 +326,12 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     responses : ResponseSource
         Where responses come from (terminal or simulated observer); its ``config`` is recorded.
     subject, session : str
-        BIDS labels (1-32 letters or digits; pseudonymous codes, never names).
+        BIDS labels (1-32 letters or digits; pseudonymous codes, never names: a subject code
+        that looks like a name or a date is refused, see
+        :func:`tactilab.data_schemas.experiment_procedures.check_subject`).
+    subject_pattern : str, optional
+        The lab's own subject-code pattern (a regular expression the whole code must match),
+        replacing the name and date heuristics.
     realtime : bool
         Wait in real time between trials and during playback (False: dry runs only).
     progress : bool
@@ -340,13 +346,19 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     ------
     FileExistsError
         If ``path`` exists (resume it instead).
+    DisplayError
+        If the display does not answer a ZERO (no session file is created then).
     SessionLockedError
         If another runner holds it.
     RecordingError
         If a write fails; the run stops before the next stimulus.
     """
-    check_label(subject, "subject")
+    check_subject(subject, "subject", subject_pattern)
     check_label(session, "session")
+    # before any file exists: the device answers (a ZERO round trip: it is there and at rest)
+    # and the first stimulus renders, so no empty or failed session litters the folder
+    display.zero()
+    render_drive(display.description, **protocol.stimulus.model_dump())
     description, description_sha256 = description_record(display.description)
     meta = {"session_id": uuid.uuid4().hex, "created_utc": utc_now(),
             "subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),

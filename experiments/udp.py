@@ -48,7 +48,7 @@ ACK_BODY = struct.Struct("<BBHI")  # 8 bytes
 CRC = struct.Struct("<I")
 #: ACK status codes (docs/udp-frame-format.md).
 STATUS = {0: "applied", 1: "zeroed", 2: "bad_crc", 3: "bad_count", 4: "stale", 5: "disarmed",
-          6: "bad_message"}
+          6: "bad_message", 7: "non_finite", 8: "overflow"}
 STATUS_CODE = {name: code for code, name in STATUS.items()}
 FLAG_WATCHDOG_TRIPPED = 0x01
 MAX_VALUES = 16000  # keeps a FRAME under the 64 KiB UDP datagram limit
@@ -130,6 +130,15 @@ def decode(data: bytes) -> Message:
     raise FrameFormatError(f"type: message type {kind} with count {count} and a {len(payload)}-byte payload is not valid")
 
 
+def _step_per_frame(description, command: str) -> float:
+    """The largest change of one output per frame at the display's refresh rate (inf: no limit),
+    less a margin of ``2**-21`` of full scale so that float32 rounding never crosses it."""
+    if description.max_slew_rate_per_s is None:
+        return math.inf
+    full = float(description.full_scale(command))
+    return float(description.max_slew_rate_per_s) * full / float(description.frame_rate_hz) - 2.0**-21 * full
+
+
 def parse_udp_url(url: str) -> tuple[str, int]:
     """``"udp://HOST:PORT"`` -> ``(host, port)``.
 
@@ -168,11 +177,16 @@ class UdpDisplay(Display):
         The last part of each frame period spent busy-waiting instead of sleeping, s (>= 0).
     zero_retries : int
         ZERO attempts before :meth:`zero` gives up (>= 1).
+    max_skipped_fraction : float
+        A frame due more than half a period ago is skipped, never sent late in a burst; after a
+        skip every value sent is re-limited to one slew step from the previous one. When more
+        than this fraction of a stimulus's frames were skipped, playback stops (the trial aborts;
+        the report says ``stopped`` and ``skipped``). In [0, 1].
     """
 
     def __init__(self, description, host: str = "127.0.0.1", port: int = 9000, *,
                  command: str | None = None, ack_timeout_s: float = 0.05, busy_wait_s: float = 1e-3,
-                 zero_retries: int = 3) -> None:
+                 zero_retries: int = 3, max_skipped_fraction: float = 0.01) -> None:
         super().__init__(description, command)
         if isinstance(port, bool) or not isinstance(port, int) or not 0 < port < 65536:
             raise ValueError(f"port: must be an integer in 1..65535, got {port!r}; give the device's UDP port")
@@ -183,6 +197,10 @@ class UdpDisplay(Display):
                 raise ValueError(f"{name}: must be a finite number {rule} s, got {value!r}; give e.g. 0.05")
         if isinstance(zero_retries, bool) or not isinstance(zero_retries, int) or zero_retries < 1:
             raise ValueError(f"zero_retries: must be an integer >= 1, got {zero_retries!r}; give e.g. 3")
+        if not (isinstance(max_skipped_fraction, (int, float)) and 0 <= max_skipped_fraction <= 1):
+            raise ValueError(f"max_skipped_fraction: must be a number in [0, 1], got {max_skipped_fraction!r}; "
+                             "give e.g. 0.01")
+        self.max_skipped_fraction = float(max_skipped_fraction)
         if description.n_tractors > MAX_VALUES:
             raise ValueError(f"description: {description.n_tractors} tractors exceed the {MAX_VALUES} values "
                              "a FRAME can carry; split the display")
@@ -286,9 +304,17 @@ class UdpDisplay(Display):
                             f"{self.description.display_id!r}? Check the device's configuration"
                         )
 
+        # frames more than half a period late are skipped, never sent in a burst; after a skip the
+        # values sent are re-limited to one slew step per frame sent (the device clamps per tick)
+        step = _step_per_frame(self.description, self.command)
+        allowed_skips = int(self.max_skipped_fraction * n)
+        frame_of = np.zeros(n, dtype=np.int64)
+        skipped, diverged = 0, False
+        last = np.zeros(wire.shape[1], dtype="<f4")
         try:
             start = time.perf_counter_ns() + period_ns
-            for k in range(n):
+            k = 0
+            while k < n:
                 if self.stop_requested:
                     break
                 target = start + k * period_ns
@@ -297,16 +323,36 @@ class UdpDisplay(Display):
                     if readable:
                         collect()
                 while time.perf_counter_ns() < target:
-                    pass
-                self._sock.send(encode(FRAME, self._next_seq(), time.perf_counter_ns(), wire[k]))
-                sent_ns[k] = time.perf_counter_ns()
-                sent = k + 1
+                    time.sleep(0)  # busy-wait, but let other threads (an in-process device) run
+                late_by = time.perf_counter_ns() - target
+                if sent == 0 and skipped == 0:
+                    start += late_by  # the schedule starts with the first frame actually sent
+                    target, late_by = target + late_by, 0
+                if late_by > period_ns / 2:
+                    ahead = min(n, k + int(math.ceil((late_by - period_ns / 2) / period_ns)))
+                    skipped += ahead - k
+                    k, diverged = ahead, True
+                    if skipped > allowed_skips:
+                        break  # the trial aborts: reported as stopped, with the skipped frames
+                    continue
+                values = wire[k]
+                if diverged:
+                    values = (last + np.clip(values.astype(float) - last, -step, step)).astype("<f4")
+                self._sock.send(encode(FRAME, self._next_seq(), time.perf_counter_ns(), values))
+                sent_ns[sent], frame_of[sent] = time.perf_counter_ns(), k
+                last = values
+                sent += 1
+                k += 1
                 collect()
+            # the device acknowledges a frame when its tick applies it: wait while they come
             deadline = time.perf_counter_ns() + self.ack_timeout_s * 1e9
             while np.any(ack_ns[:sent] == 0) and (remaining := deadline - time.perf_counter_ns()) > 0:
                 readable, _, _ = select.select([self._sock], [], [], remaining / 1e9)
                 if readable:
+                    before = np.count_nonzero(ack_ns[:sent])
                     collect()
+                    if np.count_nonzero(ack_ns[:sent]) > before:
+                        deadline = time.perf_counter_ns() + self.ack_timeout_s * 1e9
         except BaseException:
             try:
                 self._send(ZERO)  # best effort, no wait: the caller may be unwinding a signal
@@ -317,17 +363,18 @@ class UdpDisplay(Display):
         times = sent_ns[:sent]
         acked = ack_ns[:sent] > 0
         rtt_s = (ack_ns[:sent][acked] - times[acked]) / 1e9
-        lateness = times - (start + np.arange(sent) * period_ns)
+        lateness = times - (start + frame_of[:sent] * period_ns)
         return PlaybackReport(
             frames_sent=sent,
             late=int(np.count_nonzero(lateness > period_ns / 2)),
             missing=int(sent - np.count_nonzero(status[:sent] == STATUS_CODE["applied"])),
             acked=int(np.count_nonzero(status[:sent] == STATUS_CODE["applied"])),
-            stopped=sent < n,
+            stopped=sent + skipped < n,
             duration_s=float(times[-1] - times[0]) / 1e9 if sent else 0.0,
             late_acks=int(np.count_nonzero(rtt_s > self.ack_timeout_s)),
             send_intervals_s=np.diff(times) / 1e9,
             ack_rtt_s=rtt_s,
             rejected=int(np.count_nonzero((status[:sent] >= 0) & (status[:sent] != STATUS_CODE["applied"]))),
             stale=int(np.count_nonzero(status[:sent] == STATUS_CODE["stale"])),
+            skipped=skipped,
         )

@@ -29,6 +29,7 @@ _EXPORTS = {
     "pressure_from_deflection": "halfspace",
     "angular_wavenumbers": "halfspace",
     "dottest": "halfspace",
+    "dcfft_stress": "halfspace",
     "to_engineering": "halfspace",
     "invariants": "halfspace",
     "ReceptorHypothesis": "receptors",

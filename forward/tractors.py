@@ -26,8 +26,19 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .halfspace import positive
-from .halfspace import validation as check
+
+class _DeferredRules:
+    """The solver's input rules (``tactilab.forward.halfspace.validation``), imported on first
+    use: this module is loaded by ``tactilab --help`` (through the display code), which must not
+    load the solver."""
+
+    def __getattr__(self, name: str):
+        from .halfspace import validation
+
+        return getattr(validation, name)
+
+
+check = _DeferredRules()
 
 VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
 SHEAR_INDICES = (3, 4, 5)
@@ -99,7 +110,7 @@ def pair_phi_psi(x: ArrayLike, half_spacing: float, depth: float) -> tuple[np.nd
     phi, psi : ndarray, same shape as ``x``, 1/m
         Stable for every d > 0, including d << Z (the dipole limit, see :func:`dipole_phi_psi`).
     """
-    d = positive(half_spacing, "half_spacing", fix="the tractor spacing must be > 0 (give d in m)")
+    d = check.positive(half_spacing, "half_spacing", fix="the tractor spacing must be > 0 (give d in m)")
     z = check.depth(depth)
     c = _pair_complex(check.finite_array(x, "x", "m"), d, z)
     return c.real, -2.0 * c.imag
@@ -127,7 +138,7 @@ def array_centres(half_spacing: float, pairs: int) -> tuple[np.ndarray, int]:
     ``sin(2 pi x / (4 d))`` at its peaks, as the target pattern of the design objective assumes.
     """
     n = check_pairs(pairs)
-    d = positive(half_spacing, "half_spacing", fix="the tractor spacing must be > 0 (give d in m)")
+    d = check.positive(half_spacing, "half_spacing", fix="the tractor spacing must be > 0 (give d in m)")
     centres = (4.0 * np.arange(n) - 2.0 * (n - 1)) * d
     return centres, (1 if n % 2 == 1 else -1)
 
@@ -294,7 +305,7 @@ def sliding_sinusoid_strain(x: ArrayLike, depth: float, amplitude: float, pitch:
         Voigt strain with TENSOR shear.
     """
     z = check.depth(depth)
-    p = positive(pitch, "pitch")
+    p = check.positive(pitch, "pitch")
     amp = float(check.finite_array(amplitude, "amplitude", "m"))
     v = float(check.finite_array(speed, "speed", "m/s"))
     nu = check.poisson_ratio(nu)

@@ -40,7 +40,6 @@ _EXPORTS = {
     "halfspace_fourier_operator": "operators",
     "rigid_surface_height_operator": "operators",
     "FourierDiagonal": "operators",
-    "dottest": "operators",
     "halfspace_strain_operator": "strain_operators",
     "rigid_surface_height_strain_operator": "strain_operators",
     "plot_profile": "plots",

@@ -108,6 +108,12 @@ class DefectPosterior:
         return self.data
 
     @property
+    def observation_groups(self) -> np.ndarray:
+        """Channel (sensor x component) of every datum, data ordered (time, sensor, component)."""
+        n_channels = int(np.prod(self.model.data_shape[1:])) if hasattr(self.model, "data_shape") else 1
+        return np.tile(np.arange(n_channels), self.data.size // n_channels)
+
+    @property
     def scale(self) -> np.ndarray:
         return np.array([self.priors[k].std for k in self.sampled])
 
@@ -192,7 +198,7 @@ def sample_scene_posterior(
     progress: bool = False,
     pool=None,
     backend=None,
-    info_tol: float | None = None,
+    info_tol: float | None = 1e-9,
 ) -> MCMCResult:
     """Sample the posterior of scene parameters with emcee (see module docstring).
 

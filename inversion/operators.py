@@ -1,5 +1,5 @@
-"""Linear operators used by the inversions: a Fourier-diagonal (circulant) operator (the dot test
-is the solver's, :func:`tactilab.forward.halfspace.dottest`, re-exported here).
+"""Linear operators used by the inversions: a Fourier-diagonal (circulant) operator and the dot test
+(the solver's :func:`tactilab.forward.halfspace.dottest`, one implementation for both parts).
 
 The forward map from a surface load to sensors at depth is, on a periodic grid with a sensor at
 every node, a convolution: it is diagonal in Fourier space with a multiplier ``H(k)`` (the
@@ -18,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
-from tactilab.forward.halfspace import angular_wavenumbers, dottest, transfer  # noqa: F401 (dottest: re-export)
+from tactilab.forward.halfspace import angular_wavenumbers, transfer
+from tactilab.forward.halfspace import dottest as _solver_dottest
 
 __all__ = [
     "rigid_surface_height_operator",
@@ -270,3 +271,26 @@ def _rfft_weights(shape: tuple[int, ...]) -> np.ndarray:
     if n_last % 2 == 0:
         w[-1] = 1.0
     return np.broadcast_to(w, (*shape[:-1], half)).copy()
+
+
+def dottest(op: LinearOperator, rng: np.random.Generator | None = None, rtol: float = 1e-10) -> float:
+    """Dot test of an operator's adjoint: ``|<A x, y> - <x, A^T y>| / scale``.
+
+    The solver's :func:`tactilab.forward.halfspace.dottest` (matvec and batched matmat), under
+    the inversion's name.
+
+    Parameters
+    ----------
+    op : LinearOperator
+        Real operator with matvec and rmatvec.
+    rng : numpy.random.Generator, optional
+        Source of the random test vectors.
+    rtol : float
+        Relative tolerance; a ValueError is raised when the mismatch exceeds it.
+
+    Returns
+    -------
+    float
+        Relative mismatch.
+    """
+    return _solver_dottest(op, rng=rng, rtol=rtol)

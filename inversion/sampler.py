@@ -18,12 +18,13 @@ different modes disagree visibly. Every ``check_every`` steps, on the chains aft
 Sampling stops when all hold (``converged = 1`` in the tree's attrs) or at ``max_steps``
 (``converged = 0``, the failing checks listed in ``attrs["failed"]`` and ``attrs["message"]``).
 
-The log-likelihood group holds the model's per-observation terms at the kept draws. Observations
-whose term varies by less than ``info_tol`` nats over all draws carry no information about the
-parameters (e.g. a sensor the signal never reaches); they break Pareto-smoothed LOO ("All tail
-values are the same") and are dropped from the group; ``attrs["log_likelihood_dropped"]`` lists
-them and ``attrs["log_likelihood_dropped_total"]`` holds their summed (constant) value, so
-``sum(log_likelihood) + dropped_total`` is the total log-likelihood of every draw.
+The log-likelihood group holds the model's per-observation terms at the kept draws, made ready
+for ``arviz_stats.loo`` by :func:`tactilab.inversion.pointwise.loo_ready`: observations whose
+term spans less than ``info_tol`` nats over all draws carry no information and are dropped;
+observations informative in only some draws (tied PSIS tails) are merged into the model's
+``observation_groups`` where it names them, else dropped. ``attrs["log_likelihood_note"]`` says
+what was done, ``attrs["log_likelihood_dropped"]`` lists what was dropped and
+``attrs["log_likelihood_dropped_total"]`` holds the mean of their summed terms.
 """
 
 from __future__ import annotations
@@ -36,6 +37,8 @@ from typing import Protocol, Sequence, runtime_checkable
 import emcee
 import numpy as np
 from scipy.optimize import minimize
+
+from .pointwise import loo_ready
 
 __all__ = ["PosteriorModel", "sample_posterior", "mcmc_diagnostics"]
 
@@ -74,6 +77,10 @@ class PosteriorModel(Protocol):
         The data, written to the tree's ``observed_data`` group.
     units : str
         Units of the parameters, written to ``attrs["units"]``.
+    observation_groups : ndarray, shape (n_obs,)
+        A group label per observation (e.g. the sensor channel); used to merge observations
+        for LOO when some are informative in only some draws (see
+        :mod:`tactilab.inversion.pointwise`).
     marginalised_names, log_marginal_likelihood(theta), draw_marginalised(theta, rng)
         For models that integrate some parameters out exactly (a linear amplitude): the target
         is ``log_prior + log_marginal_likelihood(theta)`` (float, or (W,) when vectorized);
@@ -236,7 +243,7 @@ def sample_posterior(model: PosteriorModel, rng: np.random.Generator, *, n_ensem
                      pool=None, backend=None, n_walkers: int | None = None, start=None,
                      max_steps: int = 20000, check_every: int = 500, rhat_target: float = 1.01,
                      min_ess: float = 400.0, tau_factor: float = 50.0, n_start: int = 512,
-                     max_draws: int = 4000, burn_fraction: float = 0.25, info_tol: float | None = None,
+                     max_draws: int = 4000, burn_fraction: float = 0.25, info_tol: float | None = 1e-9,
                      progress: bool = False):
     """Sample the posterior of a :class:`PosteriorModel` with emcee (see module docstring).
 
@@ -271,7 +278,8 @@ def sample_posterior(model: PosteriorModel, rng: np.random.Generator, *, n_ensem
         Leading share of every chain discarded as burn-in.
     info_tol : float or None
         Observations whose log-likelihood term spans less than this (nats) over all draws are
-        dropped from the ``log_likelihood`` group (stated in the attrs); None keeps every one.
+        dropped from the ``log_likelihood`` group, and tied tails merged or dropped (stated in
+        the attrs; see :mod:`tactilab.inversion.pointwise`); None keeps every observation as is.
     progress : bool
         tqdm progress bar over the steps.
 
@@ -279,12 +287,15 @@ def sample_posterior(model: PosteriorModel, rng: np.random.Generator, *, n_ensem
     -------
     xarray.DataTree
         ``posterior`` (one chain per ensemble; draws step by step over its walkers),
-        ``log_likelihood`` (``obs``, shape (chain, draw, n_kept_obs), coordinate ``obs_id`` = the
-        observation's index), ``observed_data`` (when the model has ``observed``),
-        ``sample_stats`` (``lp``, the log target). ``attrs``: the diagnostics of
+        ``log_likelihood`` (``obs``, shape (chain, draw, n_kept), coordinate ``obs_id`` = the
+        observation's index as text, or ``"group <g>: i+j"`` for merged ones), ``observed_data`` (when the model
+        has ``observed``),
+        ``sample_stats`` (``lp``, the log target); ``observed_data`` holds the full data (``data``,
+        dimension ``data_id``). ``attrs``: the diagnostics of
         :func:`mcmc_diagnostics`, ``converged`` (1/0), ``failed``, ``message``, ``n_steps``,
         ``n_walkers``, ``n_ensembles``, ``burn_in``, ``map_estimates`` (JSON list of dicts),
-        ``resumed``, ``log_likelihood_dropped``, ``log_likelihood_dropped_total``.
+        ``resumed``, ``log_likelihood_dropped``,
+        ``log_likelihood_dropped_total``, ``log_likelihood_note``.
     """
     import arviz_base as azb
 
@@ -373,6 +384,10 @@ def sample_posterior(model: PosteriorModel, rng: np.random.Generator, *, n_ensem
         if not diag["failed"] or steps >= max_steps:
             break
     if bar is not None:
+        if not diag["failed"] and steps < max_steps:  # stopped early: say so, and end the bar at 100 %
+            bar.set_description_str(f"emcee converged at step {steps} of at most {int(max_steps)}")
+            bar.total = steps
+            bar.refresh()
         bar.close()
     converged = not diag["failed"]
     kept = chains
@@ -392,11 +407,12 @@ def sample_posterior(model: PosteriorModel, rng: np.random.Generator, *, n_ensem
             posterior[q] = np.asarray(extra[q], dtype=float).reshape(k, n)
         full = np.column_stack([flat, *(np.asarray(extra[q], dtype=float) for q in model.marginalised_names)])
     pointwise = _pointwise(model, full, pool)
-    span = np.ptp(pointwise, axis=0)
-    informative = np.ones(span.size, dtype=bool) if info_tol is None else ~(np.isfinite(span) & (span < info_tol))
-    keep = np.flatnonzero(informative)
-    dropped = np.flatnonzero(~informative)
-    dropped_total = float(np.mean(pointwise[:, dropped].sum(axis=1))) if dropped.size else 0.0
+    if info_tol is None:
+        ll_kept, labels, ll_attrs = pointwise, np.arange(pointwise.shape[1]).astype(str), {
+            "log_likelihood_dropped": "", "log_likelihood_dropped_total": 0.0,
+            "log_likelihood_note": "every observation kept (info_tol=None)"}
+    else:
+        ll_kept, labels, ll_attrs = loo_ready(pointwise, info_tol, getattr(model, "observation_groups", None))
     diag.update(n_steps=steps, n_walkers=n_walkers, n_ensembles=k, burn_in=burn)
     lines = [("converged" if converged else "did NOT converge") + f" after {steps} steps x {w} walkers x {k} ensembles",
              f"R-hat max {diag['rhat_max']:.4f} (walkers), {diag['rhat_between_max']:.4f} (between ensembles); "
@@ -406,16 +422,13 @@ def sample_posterior(model: PosteriorModel, rng: np.random.Generator, *, n_ensem
     attrs = {key: (float(v) if not isinstance(v, list) else "; ".join(v)) for key, v in diag.items()}
     attrs.update(converged=int(converged), message="\n".join(lines), map_estimates=json.dumps(maps),
                  resumed=int(resumed), parameters=", ".join(names),
-                 log_likelihood_dropped=", ".join(map(str, dropped.tolist())),
-                 log_likelihood_dropped_total=dropped_total,
-                 log_likelihood_note=(f"{dropped.size} of {pointwise.shape[1]} observations dropped from the "
-                                      f"log_likelihood group: their term spans < {info_tol:g} nats over all draws "
-                                      "(no information; their constant sum is log_likelihood_dropped_total)"
-                                      if dropped.size else "every observation kept"))
+                 **ll_attrs)
     if getattr(model, "units", None):
         attrs["units"] = str(model.units)
-    groups = {"posterior": posterior, "log_likelihood": {"obs": pointwise[:, keep].reshape(k, n, keep.size)},
+    groups = {"posterior": posterior, "log_likelihood": {"obs": ll_kept.reshape(k, n, labels.size)},
               "sample_stats": {"lp": lps}}
+    dims = {"obs": ["obs_id"]}
     if getattr(model, "observed", None) is not None:
-        groups["observed_data"] = {"obs": np.asarray(model.observed, dtype=float).ravel()[keep]}
-    return azb.from_dict(groups, dims={"obs": ["obs_id"]}, coords={"obs_id": keep}, attrs={"/": attrs})
+        groups["observed_data"] = {"data": np.asarray(model.observed, dtype=float).ravel()}
+        dims["data"] = ["data_id"]
+    return azb.from_dict(groups, dims=dims, coords={"obs_id": labels}, attrs={"/": attrs})

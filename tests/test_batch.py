@@ -97,7 +97,7 @@ def test_serial_results_errors_and_resume(tmp_path):
     assert lines == ["key\treason", "fail\tValueError: this item is broken on two lines"]
     got = read_result(tmp_path, "a")
     assert np.array_equal(got["v"].values, 2.0 * task_rng(3, "a").standard_normal(3))
-    assert got.attrs["batch_key"] == "a" and got.attrs["batch_seed"] == 3
+    assert got.attrs["batch_key"] == "a" and got.attrs["batch_seed"] == 3 and got.attrs["batch_compute_s"] > 0
     assert not list((tmp_path / "results").glob(".*"))  # no temporary file left
     again = run_batch(draw, items, seed=3, out_dir=tmp_path, workers=0, shared={"scale": 2.0}, progress=False)
     assert (again.n_run, again.n_skipped, again.n_failed) == (0, 3, 1)
@@ -228,6 +228,7 @@ def test_serial_batch_recovers_positions_and_records_the_corrupt_file(serial, re
     out, tree = serial
     assert list(tree["recording"].values) == list(TRUTH)
     assert (tree.attrs["n_run"], tree.attrs["n_skipped"], tree.attrs["n_failed"]) == (2, 0, 1)
+    assert tree.attrs["wall_s"] > 0 and tree.attrs["gather_s"] > 0
     errors = (out / "errors.tsv").read_text().splitlines()
     assert errors[0] == "key\treason" and errors[1].startswith("corrupt.nc\tOSError") and len(errors) == 2
     pos = tree["position"].to_dataset()

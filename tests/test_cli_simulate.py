@@ -55,7 +55,7 @@ def test_simulate_writes_netcdf_and_plots(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["simulate", str(_scene(tmp_path)), "--out", str(out), "--quiet", "--seed", "3"]) == 0
     text = capsys.readouterr().out
-    assert "Hertz contact a = 2.82 mm" in text and "recording:" in text
+    assert "Hertz contact a = 2.82 mm" in text and "recording.nc" in text
     ds = xr.open_dataset(out / "recording.nc", engine="h5netcdf")
     assert ds["values"].shape == (50, 6, 2) and ds.attrs["unit"] == "Pa"
     assert np.all(np.isfinite(ds["values"].values))

@@ -317,3 +317,16 @@ def test_a_resume_with_a_laxer_display_description_is_refused(tmp_path, capsys):
     sidecar = json.loads(next((tmp_path / "bids").rglob("*_beh.json")).read_text())
     assert sidecar["DisplayDescription"]["max_traction_pa"] == 50000.0
     assert sidecar["DisplayDescriptionSHA256"] == meta["display_sha256"]
+
+
+def test_resume_replays_the_log_once(session, monkeypatch, capsys):
+    with contextlib.closing(sqlite3.connect(session)) as db, db:
+        db.execute("DELETE FROM events WHERE kind = 'session_complete' OR trial_index >= 3")
+        db.execute("DELETE FROM trials WHERE trial_index >= 3")
+    from tactilab.experiments import resume
+
+    calls = []
+    original = resume.replay_log
+    monkeypatch.setattr(resume, "replay_log", lambda log: (calls.append(1), original(log))[1])
+    assert cli_main(["experiment", "resume", str(session), "--no-wait", "--quiet"]) == 0
+    assert len(calls) == 1 and "3 trials done" in capsys.readouterr().out

@@ -57,8 +57,8 @@ class FakeDevice:
 
 
 @pytest.mark.parametrize("mode,match,alarm", [
-    ("stale", "ALARM: 30 of 30 frames were acknowledged 'stale'", True),
-    ("silent", "30 of 30 frames were never acknowledged", False),
+    ("stale", r"ALARM: (\d+) of \1 frames were acknowledged 'stale'", True),
+    ("silent", r"(\d+) of \1 frames were never acknowledged", False),
 ])
 def test_a_trial_whose_frames_were_not_applied_is_never_scored(tmp_path, mode, match, alarm):
     protocol = Protocol.model_validate(PROTOCOL)
@@ -66,7 +66,7 @@ def test_a_trial_whose_frames_were_not_applied_is_never_scored(tmp_path, mode, m
     device = FakeDevice(mode)
     path = tmp_path / "s.sqlite"
     try:
-        with UdpDisplay(description, "127.0.0.1", device.port) as display:
+        with UdpDisplay(description, "127.0.0.1", device.port, max_skipped_fraction=1.0) as display:
             with pytest.raises(DisplayFault, match=match + ".*not scored.*resume"):
                 new_session(protocol, path, display, SimulatedObserver(protocol), subject="S01", realtime=False)
     finally:
@@ -92,7 +92,7 @@ def test_a_trial_whose_frames_were_not_applied_is_never_scored(tmp_path, mode, m
         stop.wait(0.01)
     port = int(ports[0].split(":")[2].split()[0])
     try:
-        with UdpDisplay(description, "127.0.0.1", port) as display:
+        with UdpDisplay(description, "127.0.0.1", port, max_skipped_fraction=1.0) as display:
             result = resume_session(path, display, SimulatedObserver(protocol), realtime=False)
     finally:
         stop.set()
@@ -131,3 +131,30 @@ def test_the_fault_rule_allows_a_small_stated_fraction_of_lost_acknowledgements(
     assert "1 of 1000 frames were refused" in display_fault(refused)["reason"]
     stopped = PlaybackReport(frames_sent=10, late=0, missing=0, acked=10, stopped=True)
     assert "playback stopped after 10 frames" in display_fault(stopped)["reason"]
+
+
+def test_an_absent_device_is_found_before_any_session_file_exists(tmp_path, capsys):
+    """A ZERO round trip comes first: no device, no file (and one line from the command line)."""
+    from tactilab.experiments.display import DisplayError
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        free_port = probe.getsockname()[1]
+    protocol = Protocol.model_validate(PROTOCOL)
+    display = UdpDisplay(DisplayDescription.braille_row(), "127.0.0.1", free_port)
+    try:
+        with pytest.raises(DisplayError, match="connection refused"):
+            new_session(protocol, tmp_path / "s.sqlite", display, SimulatedObserver(protocol), subject="S01",
+                        realtime=False)
+    finally:
+        display.close()
+    assert list(tmp_path.iterdir()) == []
+    toml = tmp_path / "p.toml"
+    toml.write_text('name = "faults"\nseed = 3\n[task]\nkind = "yes_no"\n[stimulus]\namplitude_m = "2um"\n'
+                    'pitch_m = "2mm"\nspeed_m_per_s = "40mm/s"\n[procedure]\nmethod = "constant_stimuli"\n'
+                    'parameter = "amplitude_m"\nlevels = ["1um"]\n')
+    code = cli_main(["experiment", "run", str(toml), "--subject", "S01", "--responses", "simulated", "--quiet",
+                     "--out", str(tmp_path / "out"), "--display", f"udp://127.0.0.1:{free_port}"])
+    err = capsys.readouterr().err
+    assert code == 3 and len(err.strip().splitlines()) == 1 and "connection refused" in err
+    assert not list((tmp_path / "out").glob("*.sqlite"))

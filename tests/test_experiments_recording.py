@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import re
 import json
 import os
 import signal
@@ -281,3 +282,42 @@ def test_a_closed_session_is_one_self_contained_file(tmp_path):
     assert status["status"] == "complete" and status["completed"] == 8
     assert status["owner"]["pid"] == os.getpid()
     assert [p.name for p in tmp_path.iterdir()] == ["s.sqlite"], "reading leaves nothing behind"
+
+
+def test_a_trial_costs_two_commits(tmp_path, monkeypatch):
+    """Plan with presentation, response with completion: two fsynced transactions per trial."""
+    runner, recorder, _, path = _runner(tmp_path)
+    commits = []
+    original = Recorder._write
+    monkeypatch.setattr(Recorder, "_write", lambda self, statements: (commits.append(
+        [sql.split()[0] + (" " + params[0] if sql.startswith("INSERT INTO events") else "")
+         for sql, params in statements]), original(self, statements))[1])
+    runner.run()
+    recorder.close()
+    trial_commits = [c for c in commits if any("trial_planned" in x or "trial_complete" in x for x in c)]
+    assert len(trial_commits) == 2 * 8
+    assert trial_commits[0] == ["INSERT trial_planned", "INSERT stimulus_presented"]
+    assert trial_commits[1] == ["INSERT response", "INSERT trial_complete", "INSERT"]
+    assert len(commits) == 2 * 8 + 1  # and session_complete
+
+
+def test_torn_foreign_and_incomplete_session_files_give_one_line(tmp_path, capsys):
+    runner, recorder, _, path = _runner(tmp_path)
+    runner.run()
+    recorder.close()
+    torn = tmp_path / "torn.sqlite"
+    torn.write_bytes(path.read_bytes()[: len(path.read_bytes()) // 2])
+    foreign = tmp_path / "foreign.sqlite"
+    with contextlib.closing(sqlite3.connect(foreign)) as db, db:
+        db.execute("CREATE TABLE events (x)")
+    incomplete = tmp_path / "incomplete.sqlite"
+    incomplete.write_bytes(path.read_bytes())
+    with contextlib.closing(sqlite3.connect(incomplete)) as db, db:
+        db.execute("DELETE FROM meta WHERE key = 'seed'")
+    for bad, message in ((torn, "(is damaged or )?not a tactilab session"), (foreign, "(is damaged or )?not a tactilab"),
+                         (incomplete, "lacks the metadata \\['seed'\\]")):
+        for action in ("status", "export"):
+            assert cli_main(["experiment", action, str(bad), "--format", "json"][:3 if action == "status" else 5]) == 2
+            err = capsys.readouterr().err
+            assert len(err.strip().splitlines()) == 1 and str(bad) in err, err
+            assert re.search(message, err), err

@@ -86,8 +86,8 @@ def _child(path, protocol, resume: bool, pipe_w: int) -> None:
     """Runs in the forked child: report each durable trial_complete, then run or resume."""
     original = Recorder.complete_trial
 
-    def reporting(self, record, payload):
-        original(self, record, payload)
+    def reporting(self, record, *args):
+        original(self, record, *args)
         os.write(pipe_w, f"{record.trial_index}\n".encode())
 
     Recorder.complete_trial = reporting

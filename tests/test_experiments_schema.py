@@ -297,3 +297,49 @@ def test_fuzzed_invalid_protocols_are_rejected_with_a_clear_error(data):
     field = path.split(".")[-1] if not path.split(".")[-1].isdigit() else path.split(".")[-2]
     locations = [".".join(str(x) for x in e["loc"]) + " " + e["msg"] for e in info.value.errors()]
     assert any(field in text or "procedure" in text for text in locations), locations
+
+
+# ----- bad inputs: caps, printable text, subject codes ------------------------------------------
+def test_caps_on_planned_trials_text_and_file_size(tmp_path):
+    from tactilab.data_schemas.experiment import MAX_PROTOCOL_BYTES
+
+    huge = with_("procedure", {"method": "constant_stimuli", "parameter": "amplitude_m",
+                               "levels": {"start": "1um", "stop": "9um", "n": 200},
+                               "repeats_per_block": 1000, "n_blocks": 1000})
+    with pytest.raises(ValueError, match="procedure: plans 200000000 trials, above the cap of 100000"):
+        Protocol.model_validate(huge)
+    with pytest.raises(ValueError, match="description: at most 2000 characters"):
+        Protocol.model_validate(with_("description", "x" * 2001))
+    with pytest.raises(ValueError, match="prompt: only printable characters .*'\\\\x1b'"):
+        Protocol.model_validate(with_("task", {"kind": "2ifc", "prompt": "Which? \x1b[2J\x1b]0;owned\x07"}))
+    big = tmp_path / "big.toml"
+    big.write_text("# " + "x" * MAX_PROTOCOL_BYTES)
+    with pytest.raises(ValueError, match="big.toml: 1000002 bytes, above the 1000000-byte cap"):
+        Protocol.from_toml(big)
+    deep = tmp_path / "deep.toml"
+    deep.write_text("x = " + "[" * 5000 + "]" * 5000)
+    with pytest.raises(ValueError, match="deep.toml: nested too deeply|deep.toml: not valid TOML"):
+        Protocol.from_toml(deep)
+
+
+@pytest.mark.parametrize("code,ok", [("S01", True), ("P0042", True), ("S19", True), ("A1B2C3", True),
+                                     ("JaneDoe", False), ("JaneDoe19850412", False), ("S19850412", False),
+                                     ("x120485", False), ("MaxMustermann", False)])
+def test_subject_codes_that_look_like_names_or_dates_are_refused(code, ok):
+    from tactilab.data_schemas.experiment import check_subject
+
+    if ok:
+        assert check_subject(code) == code
+    else:
+        with pytest.raises(ValueError, match="looks like a name or a date of birth"):
+            check_subject(code)
+
+
+def test_a_lab_pattern_replaces_the_heuristics():
+    from tactilab.data_schemas.experiment import check_subject
+
+    assert check_subject("KarlaX1", pattern="[A-Z][a-z]+X[0-9]") == "KarlaX1"
+    with pytest.raises(ValueError, match="does not match the lab's subject pattern"):
+        check_subject("S01", pattern="P[0-9]{4}")
+    with pytest.raises(ValueError, match="is not a valid regular expression"):
+        check_subject("S01", pattern="(")

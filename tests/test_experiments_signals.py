@@ -53,7 +53,7 @@ def test_sighup_and_sigquit_mid_stimulus_zero_the_display_and_log_the_stop(tmp_p
         toml.write_text(PROTOCOL)
         runner = subprocess.Popen([sys.executable, "-m", "tactilab.cli.main", "experiment", "run", str(toml),
                                    "--subject", "S01", "--responses", "simulated", "--quiet", "--out", str(tmp_path),
-                                   "--display", f"udp://127.0.0.1:{port}"], stdout=subprocess.PIPE,
+                                   "--display", f"udp://127.0.0.1:{port}", "--max-skipped", "1"], stdout=subprocess.PIPE,
                                   stderr=subprocess.PIPE, text=True)
         deadline = time.monotonic() + 30
         while sum(e["type"] == "frame" for e in _entries(record)) < 50:

@@ -66,10 +66,14 @@ def last_stream(record):
     return rec["streams"][-1]["values"], rec
 
 
-def assert_record_within_limits(values, desc, rate=1000.0):
-    """The emulator's record proves it: data_schemas' check and our own, on the received float32."""
-    desc.check_commands(values.reshape(-1, desc.rows, desc.columns), "traction")
-    assert limit_violations(values, rate, desc) == []
+def assert_record_within_limits(values, desc, rate=1000.0, whole_stream=True):
+    """The emulator's record proves it: data_schemas' check and our own, on the received float32.
+
+    With frames skipped by a late host (``whole_stream`` False) the duty cycle over the frames
+    received says nothing; amplitude and slew must still hold frame to frame."""
+    if whole_stream:
+        desc.check_commands(values.reshape(-1, desc.rows, desc.columns), "traction")
+    assert [v for v in limit_violations(values, rate, desc) if whole_stream or v["kind"] != "duty"] == []
 
 
 # ----- the frame format -----------------------------------------------------------------------
@@ -149,18 +153,20 @@ def test_safe_stream_arrives_exactly_and_within_limits(emulator):
     port, record = emulator
     desc = DisplayDescription.stress2()
     events = []
-    safe = SafeDisplay(UdpDisplay.from_url(f"udp://127.0.0.1:{port}", desc), events.append)
+    safe = SafeDisplay(UdpDisplay.from_url(f"udp://127.0.0.1:{port}", desc, max_skipped_fraction=1.0), events.append)
     frames = render_drive(desc, amplitude_m=30e-6, pitch_m=2.4e-3, speed_m_per_s=0.04, duration_s=0.15,
                           frame_rate_hz=1000.0)
     safe.load(frames, 1000.0)
     report = safe.play()
     safe.close()
-    assert report.frames_sent == 150 and report.acked + report.missing == 150
+    assert report.frames_sent + report.skipped == 150 and report.acked + report.missing == report.frames_sent
     assert any(e["kind"] == "amplitude_clip" for e in events)  # 30 um needs more than 50 kPa
     received, rec = last_stream(record)
-    np.testing.assert_array_equal(received, safe.frames.astype(np.float32))
-    assert np.all(np.diff(rec["streams"][-1]["seq"]) == 1)
-    assert_record_within_limits(received, desc)
+    assert received.shape[0] == report.acked
+    if report.skipped == 0:  # bit-exact when the host kept the frame rate (a loaded machine may skip)
+        np.testing.assert_array_equal(received, safe.frames.astype(np.float32))
+        assert np.all(np.diff(rec["streams"][-1]["seq"]) == 1)
+    assert_record_within_limits(received, desc, whole_stream=report.skipped == 0)
 
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow,
@@ -173,13 +179,14 @@ def test_random_drives_through_safe_display_never_exceed_limits(emulator, data, 
     desc = DisplayDescription.braille_row(n_tractors=6, max_slew_rate_per_s=slew, max_duty_cycle=duty)
     values = data.draw(st.lists(st.floats(-1, 1), min_size=6 * n_frames, max_size=6 * n_frames))
     frames = scale * desc.max_traction_pa * np.array(values).reshape(n_frames, 6)
-    safe = SafeDisplay(UdpDisplay(desc, LOOPBACK, port), lambda e: None)
+    safe = SafeDisplay(UdpDisplay(desc, LOOPBACK, port, max_skipped_fraction=1.0), lambda e: None)
     safe.load(frames, 1000.0)
     report = safe.play()
     safe.close()
-    received, _ = last_stream(record)
-    assert received.shape[0] == report.frames_sent == n_frames
-    assert_record_within_limits(received, desc)
+    received, rec = last_stream(record)
+    assert received.shape[0] == report.frames_sent == n_frames - report.skipped
+    assert_record_within_limits(received, desc, whole_stream=report.skipped == 0)
+    assert rec["clamps"] == []  # the device never had to clamp
 
 
 def test_stop_ends_the_stream_and_zeroes(emulator):
@@ -245,7 +252,7 @@ from tactilab.experiments.display import render_drive
 from tactilab.experiments.safety import SafeDisplay
 from tactilab.experiments.udp import UdpDisplay
 desc = DisplayDescription.stress2()
-safe = SafeDisplay(UdpDisplay(desc, "127.0.0.1", int(sys.argv[1])), print)
+safe = SafeDisplay(UdpDisplay(desc, "127.0.0.1", int(sys.argv[1]), max_skipped_fraction=1.0), print)
 safe.load(render_drive(desc, amplitude_m=10e-6, pitch_m=2.4e-3, speed_m_per_s=0.04, duration_s=30.0,
                        frame_rate_hz=1000.0), 1000.0)
 print("playing", flush=True)
@@ -276,8 +283,9 @@ def test_host_killed_mid_stimulus_emulator_zeroes_within_its_watchdog(tmp_path):
     stream = rec["streams"][-1]
     last_frame_ns = int(stream["arrival_ns"][-1])
     assert np.any(stream["values"][-1] != 0)  # it was killed while driving the skin
-    assert trip["last_valid_ns"] == last_frame_ns
-    assert trip["deadline_ns"] == last_frame_ns + 100_000_000  # the watchdog time, exactly
+    # the last frame received (frames still in the FIFO at the trip are dropped, never applied)
+    assert trip["last_valid_ns"] >= last_frame_ns and trip["dropped"] >= 0
+    assert trip["deadline_ns"] == trip["last_valid_ns"] + 100_000_000  # the watchdog time, exactly
     assert trip["t_ns"] >= trip["deadline_ns"] and trip["late_by_ns"] == trip["t_ns"] - trip["deadline_ns"]
     assert rec["events"][-1]["type"] == "summary" and "summary:" in out
     assert_record_within_limits(stream["values"], DisplayDescription.stress2())

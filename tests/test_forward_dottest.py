@@ -63,7 +63,45 @@ def test_dottest_validation():
         dottest(aslinearoperator(np.eye(3)), n_columns=0)
 
 
-def test_inversion_uses_the_solvers_dottest():
+def test_inversion_uses_the_solvers_dottest(monkeypatch):
     from tactilab.inversion import operators
 
-    assert operators.dottest is dottest
+    seen = []
+    monkeypatch.setattr(operators, "_solver_dottest", lambda op, rng, rtol: seen.append(rtol) or 0.0)
+    assert operators.dottest(aslinearoperator(np.eye(2)), rtol=1e-9) == 0.0 and seen == [1e-9]
+    assert "def dottest" in open(operators.__file__).read().split("_solver_dottest(op")[0]
+
+
+@pytest.mark.parametrize("path", ["fft-periodic", "fft-padded", "dense"])
+def test_load_to_sensor_refuses_non_finite_input(path):
+    """One NaN used to give NaN everywhere (through the FFTs) without a word."""
+    sensors = np.array([[1e-5, 2e-5], [-3e-4, 1e-4]]) if path == "dense" else None
+    op = HS.operator((6, 8), 1e-4, sensors=sensors, depth=2e-4, components=("zz", "zx"), loads=("p", "qx"),
+                     periodic=path == "fft-periodic")
+    x = np.ones(op.shape[1])
+    x[7] = np.nan
+    with pytest.raises(ValueError, match=r"x \(model: tractions\): must be finite \(no NaN or inf\) in Pa, got nan "
+                                         r"at index 7"):
+        op.matvec(x)
+    y = np.ones(op.shape[0])
+    y[3] = np.inf
+    with pytest.raises(ValueError, match=r"x \(data: sensor values\): must be finite .* got inf at index 3"):
+        op.rmatvec(y)
+    with pytest.raises(ValueError, match=r"x \(data: sensor values\): must be finite .* at index 3"):
+        op.H @ y
+    block = np.ones((op.shape[1], 2))
+    block[5, 1] = -np.inf
+    with pytest.raises(ValueError, match=r"x \(model: tractions\): must be finite .* got -inf at index \(5, 1\)"):
+        op.matmat(block)
+    assert np.all(np.isfinite(op @ np.ones(op.shape[1])))
+
+
+def test_transfer_refuses_non_finite_wavenumbers():
+    from tactilab.forward.halfspace import transfer
+
+    xi = np.linspace(0, 1e4, 5)
+    xi[2] = np.nan
+    with pytest.raises(ValueError, match=r"xi: must be finite \(no NaN or inf\) in rad/m, got nan at index 2"):
+        transfer(xi, None, 1e-3, 0.5, "p")
+    with pytest.raises(ValueError, match=r"eta: must be finite .* got inf at index \(1, 0\)"):
+        transfer(np.zeros((1, 3)), np.array([[0.0], [np.inf]]), 1e-3, 0.5, "p")

@@ -84,12 +84,59 @@ def test_select_method_warns_when_no_method_meets_tol():
 def test_select_method_forced_and_bad_names():
     problem = _problem(_gaussian())
     with warnings.catch_warnings():
-        warnings.simplefilter("error")
+        warnings.simplefilter("error")  # forced methods that meet tol say nothing
         assert select_method(problem, 1e-6, "closed_form")[0].name == "closed_form"
-        assert select_method(problem, 1e-6, Spectral)[1] == "forced by the caller"
+        assert select_method(problem, 1e-6, DCFFT)[1] == "forced by the caller"
+        assert select_method(_problem(_gaussian(periodic=True)), 1e-6, Spectral())[0].name == "spectral"
     with pytest.raises(ValueError, match="method: unknown method 'magic'"):
         select_method(problem, 1e-6, "magic")
     with pytest.raises(ValueError, match="method: expected 'auto', a method name or a Method subclass"):
         select_method(problem, 1e-6, 3)
     with pytest.raises(ValueError, match="method: 'dcfft' cannot run here"):
         select_method(_problem(_gaussian(periodic=True)), 1e-6, "dcfft")
+
+
+def test_a_forced_method_that_misses_tol_warns_and_names_the_better_method():
+    """``method="dcfft"`` at 1e-3 grid spacings deep returned -4.8e9 Pa for a -1e4 Pa field in
+    silence; only ``auto`` warned although the method's own estimate knew."""
+    load = _gaussian()
+    hs = HalfSpace(1e6)
+    with pytest.warns(AccuracyWarning, match=r"method 'dcfft' was forced, but its error estimate .* exceeds "
+                                             r"tol=1e-06; no method meets it; 'spectral' is more accurate"):
+        result = hs.stress(load, 1e-3 * 1e-4, components=("zz",), method="dcfft")
+    assert result.error_estimate > 0.1  # and the result says so
+    with pytest.warns(AccuracyWarning, match=r"method 'spectral' was forced, but its error estimate .* exceeds "
+                                             r"tol=1e-06; 'dcfft' meets it \(estimate .*\): use method='dcfft'"):
+        hs.stress(load, 3e-4, components=("zz",), method="spectral")
+    with pytest.warns(AccuracyWarning, match=r"tol=1e-09; no registered method does better: refine"):
+        hs.stress(load, 3e-4, components=("zz",), method="closed_form", tol=1e-9)
+
+
+@pytest.mark.parametrize("method", ["dcfft", "closed_form"])
+@pytest.mark.parametrize("width_in_spacings", [0.5, 1.0, 2.0])
+def test_narrow_loads_are_covered_by_the_estimate(method, width_in_spacings):
+    """A Gaussian of width 0.5 grid spacings at 3 spacings deep: true error 5e-2 against the
+    continuous load, reported 1.1e-5, because the load's width never reached the estimator."""
+    from tactilab.forward.halfspace import dcfft_stress
+    from tactilab.forward.halfspace.methods import load_width
+
+    h, z, refine = 1e-4, 3e-4, 8
+    w = width_in_spacings * h
+
+    def gaussian(step):
+        n = 2 * int(round(max(8 * h, 8 * w) / step)) + 1
+        x = (np.arange(n) - n // 2) * step
+        xx, yy = np.meshgrid(x, x)
+        return SurfaceLoad(p=-1e4 * np.exp(-((xx - 0.2 * h) ** 2 + yy**2) / (2 * w**2)), spacing=step)
+
+    coarse = gaussian(h)
+    assert load_width(coarse) == pytest.approx(w, rel=0.07)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AccuracyWarning)
+        result = HalfSpace(1e6, 0.5).stress(coarse, z, components=("zz",), method=method)
+    got = result.data["stress"].values[0, 0]
+    # the continuous load, to quadrature accuracy: the same Gaussian 8x finer, read at the coarse nodes
+    reference = dcfft_stress(gaussian(h / refine), [z], 0.5, ("zz",))[0, 0][::refine, ::refine]
+    true_error = np.abs(got - reference).max() / np.abs(got).max()
+    assert true_error <= result.error_estimate
+    assert result.error_estimate <= 100 * true_error  # and useful

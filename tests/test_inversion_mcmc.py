@@ -84,7 +84,9 @@ def test_output_tree_netcdf_and_summary(rng, tmp_path):
     assert set(tree["posterior"].data_vars) == {"x0", "friction", "amplitude"}
     assert "y0" not in tree["posterior"].data_vars  # fixed parameters are not sampled
     assert tree["posterior"].sizes["chain"] == 4
-    assert tree["log_likelihood"]["obs"].shape[-1] == model.n_data
+    # uninformative observations are dropped from the log_likelihood group (for arviz_stats.loo), and listed
+    dropped = [d for d in tree.attrs["log_likelihood_dropped"].split(", ") if d]
+    assert tree["log_likelihood"]["obs"].shape[-1] + len(dropped) == model.n_data
     assert {"mean", "sd", "ess_bulk", "ess_tail", "r_hat"} <= set(res.summary.columns)
     assert res.summary.loc["x0", "r_hat"] < 1.02
     path = tmp_path / "posterior.nc"
@@ -191,3 +193,62 @@ def test_separated_modes_caught_across_ensembles():
     assert not res.converged and "between ensembles" in res.message
     assert res.diagnostics["rhat_between_max"] > 1.1
     assert "y0" not in res.flat_parameters
+
+
+def test_defect_posterior_works_with_arviz_loo(rng):
+    """Sensors the defect's signal never reaches give identical log-likelihood terms in every draw
+    ("All tail values are the same" in PSIS): they are dropped and said so; loo then runs."""
+    import arviz_stats as azs
+
+    model = small_model(components=("zx", "zz"))
+    data = model.simulate(TRUTH, AREA).ravel() + rng.normal(0, 20.0, model.n_data)
+    priors = dict(TRUTH, x0=Uniform(-3e-3, 3e-3), friction=Uniform(0.0, 1.0))
+    res = sample_scene_posterior(model, data, 20.0, priors, Normal(0.0, 1e-7), rng=rng, **FAST)
+    tree = res.tree
+    assert "dropped" in tree.attrs["log_likelihood_note"]
+    dropped = [int(i) for i in tree.attrs["log_likelihood_dropped"].split(", ")]
+    ll = tree["log_likelihood"]["obs"].values
+    assert ll.shape[-1] + len(dropped) == model.n_data  # nothing merged here: kept + dropped = all
+    # kept terms + the dropped terms' mean sum = the total log-likelihood of every draw (to the
+    # dropped terms' spread, < 1e-9 nats each for the uninformative ones)
+    post = tree["posterior"]
+    theta = np.column_stack([post[q].values.ravel() for q in ("x0", "friction", "amplitude")])
+    fixed = {q: float(v) for q, v in TRUTH.items()}
+    defect = DefectPosterior(model, data, 20.0, dict(fixed, x0=priors["x0"], friction=priors["friction"]),
+                             Normal(0.0, 1e-7))
+    total = defect.log_likelihood(theta).sum(axis=1)
+    approx = ll.reshape(-1, ll.shape[-1]).sum(axis=1) + tree.attrs["log_likelihood_dropped_total"]
+    informative_dropped = np.ptp(defect.log_likelihood(theta)[:, dropped], axis=0).sum()
+    assert np.abs(total - approx).max() <= informative_dropped + 1e-6
+    loo = azs.loo(tree)
+    assert np.isfinite(loo.elpd) and loo.n_data_points == ll.shape[-1]
+    off = sample_scene_posterior(model, data, 20.0, priors, Normal(0.0, 1e-7), rng=np.random.default_rng(3),
+                                 info_tol=None, **dict(FAST, max_steps=300))
+    assert off.tree["log_likelihood"]["obs"].shape[-1] == model.n_data
+    with pytest.raises(ValueError, match="All tail values are the same"):
+        azs.loo(off.tree)
+
+
+def test_loo_ready_drops_and_merges():
+    from tactilab.inversion.pointwise import loo_ready
+
+    rng = np.random.default_rng(0)
+    s = 400
+    ll = rng.normal(size=(s, 6))
+    ll[:, 1] = -3.0  # uninformative
+    ll[:, 3] = -2.0  # each at its minimum in half the draws: tied tails; their sum is not tied
+    ll[:200, 3] = -1.0
+    ll[:, 4] = -2.0
+    ll[-200:, 4] = -2.0 + rng.uniform(0.1, 1.0, 200)
+    ll[:, 5] = -2.0  # alone in its group and tied: dropped
+    ll[:3, 5] = -0.5
+    out, labels, attrs = loo_ready(ll, 1e-9, groups=[0, 0, 1, 1, 1, 2])
+    assert list(labels) == ["0", "2", "group 1: 3+4"]
+    np.testing.assert_array_equal(out[:, 2], ll[:, 3] + ll[:, 4])
+    assert attrs["log_likelihood_dropped"] == "1, 5"
+    assert attrs["log_likelihood_dropped_total"] == pytest.approx(np.mean(ll[:, 1] + ll[:, 5]))
+    assert "merged within their group" in attrs["log_likelihood_note"]
+    _, labels, attrs = loo_ready(ll, 1e-9)
+    assert list(labels) == ["0", "2"] and "observation_groups" in attrs["log_likelihood_note"]
+    with pytest.raises(ValueError, match=r"model.observation_groups: expected one label per observation, shape \(6,\)"):
+        loo_ready(ll, 1e-9, groups=[0, 1])

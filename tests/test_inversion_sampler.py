@@ -93,7 +93,7 @@ def test_log_likelihood_group_sums_to_the_total(rng):
     np.testing.assert_allclose(ll.sum(axis=1), model.log_likelihood(x).sum(axis=1), rtol=1e-12)
     lp = tree["sample_stats"]["lp"].values.ravel()
     np.testing.assert_allclose(lp, model.log_prior(x) + ll.sum(axis=1), rtol=1e-10)
-    np.testing.assert_array_equal(tree["observed_data"]["obs"].values, model.observed)
+    np.testing.assert_array_equal(tree["observed_data"]["data"].values, model.observed)
 
 
 def test_vectorised_and_per_walker_targets_give_the_same_chains(seed):

@@ -5,61 +5,44 @@ This package is the solver's one door. Scene, display and synthesis code in
 The theory is in ``docs/theory.md``.
 """
 
-from . import _validation as validation
-from ._validation import positive
-from .adjoint import dottest
-from .dcfft import dcfft_convolve, dcfft_correlate, dcfft_kernel_spectrum, dcfft_stress, padded_shape
-from .facade import AccuracyWarning, FieldResult, HalfSpace
-from .fields import (
-    INVARIANTS,
-    SHEAR_CONVENTION,
-    compliance_matrix,
-    invariants,
-    output_weights,
-    to_engineering,
-)
-from .kernels import (
-    COMPONENTS,
-    line_green,
-    line_load_stress,
-    point_green,
-    point_load_stress,
-)
-from .loads import LOAD_COMPONENTS, SurfaceLoad
-from .methods import METHODS, Method, select_method
-from .operator import LoadToSensor
-from .spectral import angular_wavenumbers, pressure_from_deflection, transfer
+from tactilab.data_schemas._lazy import attach
 
-__all__ = [
-    "AccuracyWarning",
-    "COMPONENTS",
-    "FieldResult",
-    "HalfSpace",
-    "INVARIANTS",
-    "LOAD_COMPONENTS",
-    "LoadToSensor",
-    "METHODS",
-    "Method",
-    "SHEAR_CONVENTION",
-    "SurfaceLoad",
-    "angular_wavenumbers",
-    "compliance_matrix",
-    "dcfft_convolve",
-    "dcfft_correlate",
-    "dcfft_kernel_spectrum",
-    "dcfft_stress",
-    "dottest",
-    "invariants",
-    "line_green",
-    "line_load_stress",
-    "output_weights",
-    "padded_shape",
-    "point_green",
-    "point_load_stress",
-    "positive",
-    "pressure_from_deflection",
-    "select_method",
-    "to_engineering",
-    "transfer",
-    "validation",
-]
+from . import _validation as validation  # noqa: F401 (public: the validation rules)
+
+#: public name -> module of the solver that defines it (loaded on first use, so that importing one
+#: kernel does not load xarray through the facade)
+_EXPORTS = {
+    "AccuracyWarning": "facade",
+    "angular_wavenumbers": "spectral",
+    "compliance_matrix": "fields",
+    "COMPONENTS": "kernels",
+    "dcfft_convolve": "dcfft",
+    "dcfft_correlate": "dcfft",
+    "dcfft_kernel_spectrum": "dcfft",
+    "dcfft_stress": "dcfft",
+    "dottest": "adjoint",
+    "FieldResult": "facade",
+    "HalfSpace": "facade",
+    "INVARIANTS": "fields",
+    "invariants": "fields",
+    "line_green": "kernels",
+    "line_load_stress": "kernels",
+    "LOAD_COMPONENTS": "loads",
+    "LoadToSensor": "operator",
+    "Method": "methods",
+    "METHODS": "methods",
+    "output_weights": "fields",
+    "padded_shape": "dcfft",
+    "point_green": "kernels",
+    "point_load_stress": "kernels",
+    "positive": "_validation",
+    "pressure_from_deflection": "spectral",
+    "select_method": "methods",
+    "SHEAR_CONVENTION": "fields",
+    "SurfaceLoad": "loads",
+    "to_engineering": "fields",
+    "transfer": "spectral",
+}
+
+__all__ = sorted([*_EXPORTS, "validation"])
+__getattr__, __dir__ = attach(__name__, _EXPORTS)

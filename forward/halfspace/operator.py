@@ -223,14 +223,24 @@ class LoadToSensor(LinearOperator):
         return self._pm
 
     # -- LinearOperator ------------------------------------------------------------------------
+    # Non-finite input would spread NaN over every output through the FFTs: refuse it, naming
+    # the first bad index (flat for matvec, (row, column) for matmat).
+    _MODEL = ("x (model: tractions)", "Pa")
+    _DATA = ("x (data: sensor values)", "data units (Pa or tensor strain)")
+
     def _matvec(self, v):
-        return self._matmat(np.asarray(v).reshape(-1, 1)).ravel()
+        return self._forward(check.finite_array(np.ravel(v), *self._MODEL).reshape(-1, 1)).ravel()
 
     def _rmatvec(self, v):
-        return self._rmatmat(np.asarray(v).reshape(-1, 1)).ravel()
+        return self._backward(check.finite_array(np.ravel(v), *self._DATA).reshape(-1, 1)).ravel()
 
     def _matmat(self, m):
-        m = np.asarray(m, dtype=float)
+        return self._forward(check.finite_array(m, *self._MODEL))
+
+    def _rmatmat(self, d):
+        return self._backward(check.finite_array(d, *self._DATA))
+
+    def _forward(self, m: np.ndarray) -> np.ndarray:
         if self.path == "dense":
             return self._matrix @ m
         frames = m.shape[1]
@@ -247,8 +257,7 @@ class LoadToSensor(LinearOperator):
             data = data[:, :, self._select]
         return data.reshape(frames, -1).T
 
-    def _rmatmat(self, d):
-        d = np.asarray(d, dtype=float)
+    def _backward(self, d: np.ndarray) -> np.ndarray:
         if self.path == "dense":
             return self._matrix.T @ d
         frames = d.shape[1]

@@ -356,15 +356,21 @@ def transfer(xi: np.ndarray, eta: np.ndarray | None, depth: float, nu: float,
     ndarray, complex, shape (len(components), *broadcast(xi, eta).shape)
         Multipliers (Pa per Pa). The rho = 0 mode holds its direction-averaged limit.
         No Nyquist rule is applied: pass the wavenumbers you mean.
+
+    Raises
+    ------
+    ValueError
+        For non-finite wavenumbers (naming the first bad index), a depth that is not finite
+        and > 0, or an unknown load or stress component.
     """
     if load_component not in ("p", "qx", "qy"):
         raise ValueError(f"load_component: must be 'p', 'qx' or 'qy', got {load_component!r}")
     depth = check.depth(depth)
     nu = check.poisson_ratio(nu)
     components = check.components(components)
-    xi = np.asarray(xi, dtype=float)
+    xi = check.finite_array(xi, "xi", "rad/m")
     if eta is not None:
-        xi, eta = np.broadcast_arrays(xi, np.asarray(eta, dtype=float))
+        xi, eta = np.broadcast_arrays(xi, check.finite_array(eta, "eta", "rad/m"))
     g = _Geometry(xi, eta, nyquist_x=False, nyquist_y=False)
     out = []
     for comp in components:
