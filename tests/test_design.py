@@ -151,6 +151,9 @@ def test_runner_interface_plans_the_parameter_and_records_probabilities():
     (dict(stop_probability=1.0), r"stop_probability: must lie in \(0.5, 1\)"),
     (dict(max_trials=0), "max_trials: must be a whole number >= 1"),
     (dict(n_grid=1), "n_grid: need whole numbers >= 2"),
+    (dict(n_grid=(25, float("nan"))), "n_grid: need whole numbers >= 2"),
+    (dict(max_trials=float("nan")), "max_trials: must be a whole number >= 1"),
+    (dict(stop_probability=float("nan")), r"stop_probability: must lie in \(0.5, 1\)"),
     (dict(priors={"slope": None}), r"priors: unknown keys \['slope'\]"),
     (dict(priors={"model": [1.0]}), "priors: 'model' needs 2 positive probabilities"),
 ])
