@@ -15,9 +15,10 @@ from tactilab.forward.halfspace import compliance_matrix
 from tactilab.data_schemas import read_recording
 from tactilab.forward import simulate_scene
 from tactilab.inversion import (
-    DefectScanModel, dottest, halfspace_fourier_operator, halfspace_strain_operator, invert_defect_position,
+    DefectScanModel, halfspace_fourier_operator, halfspace_strain_operator, invert_defect_position,
     rigid_surface_height_strain_operator,
 )
+from tactilab.forward import dottest
 
 VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
 PARAMS = dict(x0=0.4e-3, y0=-0.2e-3, friction=0.5, depth=2e-3, young_modulus=7e5, normal_force=0.8)

@@ -15,12 +15,12 @@ from tactilab.inversion import (
     StimulusFamily,
     TractorFamily,
     compare_stimuli,
-    dottest,
     metamer_ambiguity,
     metamer_classes,
     metamer_pair,
     resolvable_subspace,
 )
+from tactilab.forward import dottest
 
 E = 1.54e6
 X = np.linspace(-5e-3, 5e-3, 41)
