@@ -199,3 +199,21 @@ def test_max_trials_stops_an_undecided_design():
         assert not d.finished
         d.observe(d.choose(), True)
     assert d.finished and len(d.probabilities) == 4
+
+
+def test_each_statistic_is_computed_once_per_model_and_candidate():
+    from tactilab.experiments import TransductionModel
+
+    class Counting(TransductionModel):
+        calls = 0
+
+        def _surface_statistic(self, stimulus):
+            Counting.calls += 1
+            return super()._surface_statistic(stimulus)
+
+    models = [Counting("zx@1mm"), Counting("zx@2mm")]
+    d = ModelDiscrimination(models, _sines(), rng=0)
+    for _ in range(5):
+        d.observe(d.choose(), True)
+    ModelDiscrimination(models, _sines()[::-1], rng=0)  # a second design reuses the models' caches
+    assert Counting.calls == 2 * len(_sines())
