@@ -192,10 +192,13 @@ class ModelDiscrimination(Procedure):
                              f"rate, which this design does not schedule), got {task!r}")
         if not 0.5 < stop_probability < 1:
             raise ValueError(f"stop_probability: must lie in (0.5, 1), got {stop_probability!r}")
-        if isinstance(max_trials, bool) or int(max_trials) != max_trials or max_trials < 1:
+        def whole(v, least):
+            return isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= least
+
+        if not whole(max_trials, 1):
             raise ValueError(f"max_trials: must be a whole number >= 1, got {max_trials!r}")
-        n_t, n_b = (n_grid, 9) if np.ndim(n_grid) == 0 else tuple(n_grid)
-        if min(n_t, n_b) < 2 or int(n_t) != n_t or int(n_b) != n_b:
+        n_t, n_b = (n_grid, 9) if np.ndim(n_grid) == 0 else (tuple(n_grid) + (None,))[:2]
+        if not (whole(n_t, 2) and whole(n_b, 2)):
             raise ValueError(f"n_grid: need whole numbers >= 2 of threshold (and exponent) points, got {n_grid!r}")
         self.models = self._models(models)
         self.names = [m.name for m in self.models]
@@ -375,7 +378,7 @@ class ModelDiscrimination(Procedure):
 
     @property
     def finished(self) -> bool:
-        if self.n_done >= self.max_trials or len(self.metameric_groups) == 1:
+        if len(self.probabilities) >= self.max_trials or len(self.metameric_groups) == 1:
             return True
         return self.winner is not None or any(p >= self.stop_probability and len(g) > 1
                                               for g, p in self.group_probabilities().items())

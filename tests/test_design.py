@@ -151,6 +151,9 @@ def test_runner_interface_plans_the_parameter_and_records_probabilities():
     (dict(stop_probability=1.0), r"stop_probability: must lie in \(0.5, 1\)"),
     (dict(max_trials=0), "max_trials: must be a whole number >= 1"),
     (dict(n_grid=1), "n_grid: need whole numbers >= 2"),
+    (dict(n_grid=(25, float("nan"))), "n_grid: need whole numbers >= 2"),
+    (dict(max_trials=float("nan")), "max_trials: must be a whole number >= 1"),
+    (dict(stop_probability=float("nan")), r"stop_probability: must lie in \(0.5, 1\)"),
     (dict(priors={"slope": None}), r"priors: unknown keys \['slope'\]"),
     (dict(priors={"model": [1.0]}), "priors: 'model' needs 2 positive probabilities"),
 ])
@@ -188,3 +191,29 @@ def test_no_winner_while_the_shown_stimuli_cannot_separate_the_models():
         d.observe(i, True)
     assert max(d.model_probabilities().values()) >= 0.51
     assert d.winner is None and not d.finished and d.verdict == "undecided"
+
+
+def test_max_trials_stops_an_undecided_design():
+    d = ModelDiscrimination(["zx@1mm", "zx@2mm"], _sines(), rng=0, max_trials=4)
+    for _ in range(4):
+        assert not d.finished
+        d.observe(d.choose(), True)
+    assert d.finished and len(d.probabilities) == 4
+
+
+def test_each_statistic_is_computed_once_per_model_and_candidate():
+    from tactilab.experiments import TransductionModel
+
+    class Counting(TransductionModel):
+        calls = 0
+
+        def _surface_statistic(self, stimulus):
+            Counting.calls += 1
+            return super()._surface_statistic(stimulus)
+
+    models = [Counting("zx@1mm"), Counting("zx@2mm")]
+    d = ModelDiscrimination(models, _sines(), rng=0)
+    for _ in range(5):
+        d.observe(d.choose(), True)
+    ModelDiscrimination(models, _sines()[::-1], rng=0)  # a second design reuses the models' caches
+    assert Counting.calls == 2 * len(_sines())
