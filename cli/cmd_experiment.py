@@ -79,11 +79,24 @@ def _observer_args(p: argparse.ArgumentParser) -> None:
                         "surface, or on resume the session's own")
 
 
+def _fitted_thresholds(path) -> list[str]:
+    """The psychometric fit's threshold with its 95 % interval, one line per condition."""
+    from tactilab.experiments.analysis import fit_summary
+
+    try:
+        return [f"fitted: {line}" for line in fit_summary([path])]
+    except ValueError as exc:  # too few trials, or a session with no levels to fit
+        return [f"fitted: no psychometric fit yet ({' '.join(str(exc).split())})"]
+
+
 def _print_result(result, parameter: str) -> int:
     from tactilab.experiments.runner import format_estimate
 
     print(f"session {result.path}: {result.status} after {result.n_completed} trials; "
-          f"{format_estimate(result.estimate, parameter)}")
+          f"procedure's running {format_estimate(result.estimate, parameter)}")
+    if result.n_completed:
+        for line in _fitted_thresholds(result.path):
+            print(line)
     if result.status == "interrupted":
         print(f"resume with: tactilab experiment resume {result.path}")
         return 130
@@ -243,4 +256,7 @@ def _run(args: argparse.Namespace) -> int:
     info = session_status(args.session)
     for key, value in info.items():
         print(f"{key}: {value}")
+    if info.get("completed"):
+        for line in _fitted_thresholds(args.session):
+            print(line)
     return 0

@@ -1,6 +1,7 @@
 """Build the procedure a protocol names, from the registry (built-ins registered on import).
 
-Importing :mod:`tactilab.experiments.procedures` and :mod:`tactilab.experiments.psi` here
+Importing :mod:`tactilab.experiments.procedures`, :mod:`~tactilab.experiments.psi` and
+:mod:`~tactilab.experiments.design` (model discrimination) here
 registers the built-in procedures; the registry itself (:mod:`tactilab.experiments.registry`)
 imports neither, so no module of the part imports another inside a function.
 """
@@ -9,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from . import procedures, psi  # noqa: F401 - importing them registers the built-in procedures
+from . import design, procedures, psi  # noqa: F401 - importing them registers the built-in procedures
 from .procedures import Procedure
 from .registry import procedure_factory
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import contextlib
 import json
 import sqlite3
@@ -53,6 +55,7 @@ def session(tmp_path, capsys):
     assert code == 0, out
     path = tmp_path / "sessions" / "sub-S01_ses-01_task-cli.sqlite"
     assert f"session file: {path}" in out and "complete after" in out and "amplitude threshold" in out
+    assert "fitted: amplitude threshold" in out and "95 % interval" in out
     return path
 
 
@@ -60,6 +63,9 @@ def test_run_status_and_second_session_numbering(session, tmp_path, capsys):
     assert cli_main(["experiment", "status", str(session)]) == 0
     out = capsys.readouterr().out
     assert "status: complete" in out and "subject: S01" in out and "display_id: VirtualBrailleRow" in out
+    # the psychometric fit's threshold with its interval, not the procedure's interpolated crossing
+    assert re.search(r"fitted: amplitude threshold [0-9.e+-]+ um \(95 % interval [0-9.e+-]+ to [0-9.e+-]+ um; "
+                     r"psychometric fit of 6 trials", out), out
     assert factory.next_session_path(session.parent, "S01", "cli") == (
         session.parent / "sub-S01_ses-02_task-cli.sqlite", "02")
 
