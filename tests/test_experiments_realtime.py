@@ -127,9 +127,10 @@ def test_the_host_skips_late_frames_forward_and_never_bursts(device, monkeypatch
     report = safe.play()
     safe.close()
     assert report.skipped >= 10 and report.frames_sent + report.skipped == 200
-    # no burst: two frames within a quarter period only when the host was preempted between its
-    # lateness check and the send (a loaded CI box), never a run of them
-    assert np.count_nonzero(report.send_intervals_s < 0.25e-3) <= 2
+    # no burst: a single short interval happens when the host is preempted between its lateness
+    # check and the send (a loaded machine), but never two in a row (three frames within half a period)
+    short = report.send_intervals_s < 0.25e-3
+    assert not np.any(short[1:] & short[:-1]), report.send_intervals_s
     rec = read_record(record)
     assert rec["clamps"] == []
     values = rec["streams"][-1]["values"]
