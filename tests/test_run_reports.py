@@ -43,7 +43,7 @@ def test_choose_out_refuses_a_non_empty_folder_without_force(tmp_path):
 
 def test_stress_summary_block_and_refusal(load, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    assert main(["stress", str(load), "--depth", "1mm", "--method", "spectral"]) == 0
+    assert main(["stress", str(load), "--depth", "1mm", "--method", "dcfft"]) == 0
     text = capsys.readouterr().out
     for key in ("--- tactilab stress: summary ---", "computed: strain (dimensionless, tensor shear)", "method: ",
                 "error estimate: estimated relative error", "dropped: nothing", "warnings: 0",
