@@ -310,7 +310,16 @@ class _NoBar:
 
 
 def format_estimate(estimate: dict[str, Any], parameter: str) -> str:
-    """One line for humans: ``amplitude threshold 2.47 um`` (``estimate: n/a`` before there is one)."""
+    """One line for humans: ``amplitude threshold 2.47 um`` (``estimate: n/a`` before there is one).
+
+    A procedure that weighs models (``p_<model>`` entries, e.g. model discrimination) shows their
+    posterior probabilities instead: ``P(zx@1mm) 0.93, P(zx@2mm) 0.07``, and its verdict once reached.
+    """
+    models = {key[2:]: p for key, p in estimate.items() if key.startswith("p_") and p is not None}
+    if models:
+        text = ", ".join(f"P({name}) {float(p):.2f}" for name, p in models.items())
+        verdict = estimate.get("verdict")
+        return f"{text}; {verdict}" if verdict else text
     value = estimate.get("threshold")
     if value is None:
         return "estimate: n/a"

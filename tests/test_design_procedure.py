@@ -103,3 +103,13 @@ def test_mixed_tasks_are_refused():
 def test_bad_configurations(changes, match):
     with pytest.raises(ValueError, match=match):
         ModelDiscriminationConfig.model_validate({**PROCEDURE, **changes})
+
+
+def test_progress_line_shows_the_model_probabilities_and_the_verdict():
+    from tactilab.experiments.runner import format_estimate
+
+    line = format_estimate({"threshold": None, "p_zx@1mm": 0.934, "p_zx@2mm": 0.066, "verdict": "undecided"},
+                           "pitch_m")
+    assert line == "P(zx@1mm) 0.93, P(zx@2mm) 0.07; undecided"
+    assert format_estimate({"threshold": 2.47e-6}, "amplitude_m") == "amplitude threshold 2.47 um"
+    assert format_estimate({"threshold": None}, "amplitude_m") == "estimate: n/a"
