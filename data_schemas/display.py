@@ -232,6 +232,11 @@ class DisplayDescription(Record):
 
     # ----- presets ----------------------------------------------------------------------
     @classmethod
+    def _preset(cls, overrides: dict, **values) -> DisplayDescription:
+        """A preset: its layout ``values`` with the toolkit's nominal limits, then the user's ``overrides``."""
+        return cls(**{**_NOMINAL_LIMITS, **values, **overrides})
+
+    @classmethod
     def stress2(cls, **overrides) -> DisplayDescription:
         """The STReSS2 laterotactile display: 6 rows x 10 columns of tractors.
 
@@ -241,7 +246,8 @@ class DisplayDescription(Record):
         NOMINAL values chosen for this toolkit (not measured data): pass ``overrides`` to
         use a device's own numbers.
         """
-        values = dict(
+        return cls._preset(
+            overrides,
             display_id="STReSS2",
             rows=6,
             columns=10,
@@ -249,12 +255,9 @@ class DisplayDescription(Record):
             pitch_y_m=1.4e-3,
             tractor_width_m=0.6e-3,
             tractor_length_m=1.0e-3,
-            **_NOMINAL_LIMITS,
             description=("STReSS2 layout, 6 x 10 tractors (Wang & Hayward 2010); pitch 1.2 mm x "
                          "1.4 mm, footprint, limits and frame rate are nominal values"),
         )
-        values.update(overrides)
-        return cls(**values)
 
     @classmethod
     def braille_row(cls, n_tractors: int = 10, pitch_x_m: float = 1.2e-3,
@@ -266,18 +269,16 @@ class DisplayDescription(Record):
         and limits are NOMINAL values (the STReSS2 spacing along x); pass ``overrides`` to
         change any field.
         """
-        values = dict(
+        return cls._preset(
+            overrides,
             display_id="VirtualBrailleRow",
             rows=1,
             columns=n_tractors,
             pitch_x_m=pitch_x_m,
             tractor_width_m=pitch_x_m / 2.0,
             tractor_length_m=6e-3,
-            **_NOMINAL_LIMITS,
             description="one-row virtual Braille display; pitch, footprint and limits are nominal",
         )
-        values.update(overrides)
-        return cls(**values)
 
     @classmethod
     def wh2008(cls, **overrides) -> DisplayDescription:
@@ -289,16 +290,14 @@ class DisplayDescription(Record):
         NOMINAL 1 mm (d, half the pitch) and the limits are the toolkit's nominal values (not
         from the paper): pass ``overrides`` to use a device's own numbers.
         """
-        values = dict(
+        return cls._preset(
+            overrides,
             display_id="WH2008",
             rows=1,
             columns=10,
             pitch_x_m=2e-3,
             tractor_width_m=1e-3,
             tractor_length_m=6e-3,
-            **_NOMINAL_LIMITS,
             description=("Wang & Hayward 2008 tractor row: 10 tractors at +-1, +-3, ..., +-9 mm (5 pairs, "
                          "d = 1 mm); footprint, limits and frame rate are nominal values"),
         )
-        values.update(overrides)
-        return cls(**values)
