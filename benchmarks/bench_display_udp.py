@@ -1,13 +1,17 @@
 """Frame rate and jitter of the UDP display driver on loopback, and the emulator's watchdog delay.
 
 Starts ``tactilab device emulate`` as a separate process on 127.0.0.1, streams a STReSS2 drive
-(60 tractors, float32 frames of 264 bytes) through ``SafeDisplay(UdpDisplay(...))`` and prints
+(60 tractors, float32 frames of 276 bytes: frame format version 2, a 16-byte HMAC-SHA256 tag, one
+ARM / ARMED key exchange per stimulus) through ``SafeDisplay(UdpDisplay(...))`` and prints
 one table: inter-frame send interval (mean, p50, p99, max, standard deviation), frames the host
 sent late (> half a period behind schedule), frames the device never acknowledged, ACK
 round-trip p50/p99, and the emulator's own late/missing counts. The baseline is the same driver
 pacing with ``select`` sleeps only (``busy_wait_s = 0``); "ratio" is the p99 jitter
 (|interval - period|) of the baseline over that of each row (> 1: better than the baseline).
 The rows are the default busy-wait of 1 ms, 0.2 ms, and the baseline.
+
+It also times the MAC: encoding and tagging one 60-tractor FRAME, and decoding and verifying it,
+in microseconds (median of many).
 
 Then it kills (SIGKILL) a host process mid-stimulus and reports how long after the last frame
 the emulator zeroed its outputs (watchdog 50 ms).
@@ -31,6 +35,7 @@ import numpy as np
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.experiments.display import render_drive
 from tactilab.experiments.emulator import read_record
+from tactilab.experiments.link import FRAME, decode, encode
 from tactilab.experiments.safety import SafeDisplay
 from tactilab.experiments.udp import UdpDisplay
 
@@ -95,6 +100,21 @@ def kill_test(folder: Path) -> tuple[float, float]:
     return (trip["t_ns"] - trip["last_valid_ns"]) / 1e6, trip["late_by_ns"] / 1e6
 
 
+def mac_cost(repeats: int = 20000) -> tuple[float, float, int]:
+    """Median µs to encode+tag and to decode+verify one 60-tractor FRAME, and its size in bytes."""
+    key, nonce = bytes(range(32)), bytes(range(16))
+    values = np.linspace(-1.0, 1.0, 60) * 1e3
+    enc, dec = [], []
+    for seq in range(repeats):
+        t0 = time.perf_counter_ns()
+        data = encode(FRAME, seq, t0, values, key=key, nonce=nonce)
+        t1 = time.perf_counter_ns()
+        assert decode(data, key=key, nonce=nonce).authentic
+        dec.append(time.perf_counter_ns() - t1)
+        enc.append(t1 - t0)
+    return float(np.median(enc)) / 1e3, float(np.median(dec)) / 1e3, len(data)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=3000, help="frames per run (count)")
@@ -126,6 +146,9 @@ def main() -> None:
         print(f"emulator (all runs): frames applied {summary['frames_applied']}, late (> 1 ms transit) "
               f"{summary['late']}, missing {summary['missing']}, stale {summary['stale']}, "
               f"rejected {summary['rejected']}")
+        enc_us, dec_us, size = mac_cost()
+        print(f"MAC (HMAC-SHA256, 16-byte tag): encode+tag {enc_us:.1f} us, decode+verify {dec_us:.1f} us "
+              f"per {size}-byte FRAME (median)")
         if not args.no_kill:
             delay, late_by = kill_test(folder)
             print(f"host killed (SIGKILL) mid-stimulus: emulator zeroed {delay:.2f} ms after the last frame "
