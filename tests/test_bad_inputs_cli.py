@@ -228,3 +228,20 @@ def test_a_device_lost_mid_session_gives_one_line_and_a_resumable_session(tmp_pa
     finally:
         log.close()
     assert len(faults) == 1 and faults[0]["trial_index"] == len(trials)  # the lost trial is not among the scored
+
+
+def test_a_type_error_deep_in_validation_is_still_one_line(tmp_path, capsys, monkeypatch):
+    """The net under every validator: a value of a type no validator expected (``parameter = []``
+    was one) is one line naming the file, never a traceback."""
+    from tactilab.data_schemas.experiment import Protocol
+
+    def unhashable(cls, data):
+        raise TypeError("unhashable type: 'list'")
+
+    monkeypatch.setattr(Protocol, "model_validate", classmethod(unhashable))
+    path = _protocol(tmp_path, "p")
+    with pytest.raises(ValueError, match=r"\(protocol\): a value has the wrong type \(unhashable type: 'list'\); "
+                                         r"compare the file with docs/experiments.md"):
+        Protocol.from_toml(path)
+    code = cli_main(["experiment", "run", str(path), "--subject", "S01", *_simulated(tmp_path)])
+    _one_line_error(code, capsys.readouterr().err, [str(path), "wrong type"])

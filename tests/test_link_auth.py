@@ -227,3 +227,97 @@ def test_a_device_that_speaks_version_1_is_a_clear_error():
         with pytest.raises(DisplayError, match="no acknowledgement of ARM.*frame format version 2"):
             display.zero()
         display.close()
+
+
+class RefusingDevice:
+    """Arms like a device, then answers ``refuse`` messages of type ``kind`` with an untagged
+    refusal of ``status`` (a device that restarted, or a link that lost its session)."""
+
+    def __init__(self, kind: int, status: str) -> None:
+        import socket
+
+        self.kind, self.status = kind, status
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(0.05)
+        self.port = self.sock.getsockname()[1]
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    def _serve(self) -> None:
+        key, nonce = None, bytes(range(16))
+        while not self.stop.is_set():
+            try:
+                data, sender = self.sock.recvfrom(65536)
+            except TimeoutError:
+                continue
+            message = decode(data, key=key, nonce=nonce)
+            if message.kind == self.kind:
+                self.sock.sendto(encode(3, message.seq, message.timestamp_ns, status=STATUS_CODE[self.status]), sender)
+            elif message.kind == ARM:
+                key = message.key
+                self.sock.sendto(encode(ARMED, message.seq, message.timestamp_ns, key=key, nonce=nonce), sender)
+            else:
+                status = {ZERO: "zeroed", DISARM: "released", FRAME: "applied"}[message.kind]
+                self.sock.sendto(encode(3, message.seq, message.timestamp_ns, status=STATUS_CODE[status], key=key,
+                                        nonce=nonce), sender)
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join()
+        self.sock.close()
+
+
+@pytest.mark.parametrize("kind,status,match", [
+    (FRAME, "not_armed", r"refused frame 0 \(not_armed\): the link session was lost"),
+    (FRAME, "foreign", r"refused frame 0 \(foreign\): the link session was lost"),
+    (FRAME, "bad_mac", r"refused frame 0 \(bad_mac\): the link session was lost"),
+    (ARM, "bad_version", r"refused ARM \(bad_version\); see docs/udp-frame-format.md"),
+    (ZERO, "bad_message", r"refused ZERO \(bad_message\)"),
+])
+def test_the_host_stops_on_a_refusal_even_untagged(kind, status, match):
+    """A refusal needs no tag to stop the host (it can only make it stop); success always needs one."""
+    device = RefusingDevice(kind, status)
+    try:
+        display = UdpDisplay(DESC, "127.0.0.1", device.port, ack_timeout_s=0.2)
+        display.load(np.zeros((20, 2)), 1000.0)
+        with pytest.raises(DisplayError, match=match):
+            display.play()
+        display.close()
+    finally:
+        device.close()
+
+
+def test_untagged_success_is_never_taken():
+    """An ARMED or `applied` without a valid tag is ignored: the host times out instead of trusting it."""
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as forger:
+        forger.bind(("127.0.0.1", 0))
+        forger.settimeout(2)
+        display = UdpDisplay(DESC, "127.0.0.1", forger.getsockname()[1], ack_timeout_s=0.05, zero_retries=1)
+        outcome = {}
+        thread = threading.Thread(target=lambda: outcome.update(error=pytest.raises(DisplayError, display.zero)))
+        thread.start()
+        data, sender = forger.recvfrom(65536)
+        arm = decode(data)
+        forged = bytearray(encode(ARMED, arm.seq, arm.timestamp_ns, key=bytes(32), nonce=bytes(16)))
+        forger.sendto(bytes(forged), sender)  # tagged under another key
+        thread.join()
+        display.close()
+    assert "no acknowledgement of ARM" in str(outcome["error"].value)
+
+
+def test_cli_emulate_json_prints_one_summary_object(tmp_path, capsys):
+    import json
+
+    from tactilab.cli.main import main as cli_main
+
+    assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "0.2", "--json",
+                     "--record", str(tmp_path / "r.jsonl")]) == 0
+    out, err = capsys.readouterr()
+    summary = json.loads(out)  # stdout is exactly one JSON object
+    assert summary["frame_format_version"] == 2 and summary["sessions"] == 0 and summary["foreign"] == 0
+    assert summary["watchdog_s"] == 0.05 and summary["record"] == str(tmp_path / "r.jsonl")
+    assert err.startswith("listening on udp://127.0.0.1:")
