@@ -189,14 +189,16 @@ class UdpDisplay(Display):
 
     def _exchange(self, what: str, make, key: bytes | None = None) -> Message:
         """Send ``make() -> (datagram, seq)`` and wait for the answer to that seq, retrying."""
+        sent: set[int] = set()
         for _ in range(self.zero_retries):
             data, seq = make()
             self._sock.send(data)
+            sent.add(seq)  # a late answer to an earlier try counts too (a busy device answers late)
             deadline = time.perf_counter() + self.ack_timeout_s
             while (remaining := deadline - time.perf_counter()) > 0:
                 select.select([self._sock], [], [], remaining)
                 for message, _ in self._receive(key):
-                    if message.seq == seq:
+                    if message.seq in sent:
                         self.last_ack = message
                         return message
         raise DisplayError(
