@@ -169,9 +169,13 @@ def test_resume_and_status_of_an_interrupted_session(session, tmp_path, capsys):
     assert re.search(r"^status +interrupted: killed or crashed \(no stop was recorded\); resume to go on$", out, re.M)
     assert re.search(r"^progress +3 of 6 planned trials \(50 %\)$", out, re.M), out
     assert f"resume with: tactilab experiment resume {session}" in out
-    assert cli_main(["experiment", "resume", str(session), "--no-wait", "--quiet"]) == 0
-    out = capsys.readouterr().out
-    assert "3 trials done, repeating interrupted trial 3" in out and "complete after" in out
+    assert cli_main(["experiment", "resume", str(session), "--no-wait", "--quiet", "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "3 trials done, repeating interrupted trial 3" in captured.err and "complete after" in captured.err
+    summary = json.loads(captured.out)  # --json: one object on stdout, messages on stderr
+    assert summary["command"] == "experiment resume" and summary["status"] == "complete"
+    assert summary["repeated_trials"] == [{"trial_index": 3, "attempts": 2, "felt_before": False,
+                                           "why": "the run was killed during it (no stop was recorded)"}]
     trial3 = SessionLog(session).trials()[3]
     assert trial3.attempt == 1 and not trial3.repeated  # planned, never presented: not felt
 
