@@ -129,7 +129,7 @@ def session_summary(path: str | Path, *, rng: int = 0) -> dict[str, Any]:
         "rt_min_s": min(rts) if rts else None, "rt_max_s": max(rts) if rts else None,
         "created_utc": meta.get("created_utc"),
         "elapsed_s": (max(stamps) - min(stamps)).total_seconds() if stamps else 0.0,
-        "conditions": conditions, "fit_note": fit_note,
+        "procedure_estimate": info["estimate"], "conditions": conditions, "fit_note": fit_note,
         "display_id": info["display_id"], "display_sha256": info["display_sha256"],
         "seed": info["seed"], "package_version": info["package_version"],
     }
@@ -188,6 +188,13 @@ def summary_lines(s: dict[str, Any]) -> list[str]:
                                       f"to {s['rt_max_s'] * 1e3:.0f} ms)"))
     rows.append(("elapsed", f"{s['elapsed_s'] * 1e3:.0f} ms from the first to the last event (created "
                             f"{s['created_utc']})"))
+    from .runner import format_estimate
+
+    try:
+        running = format_estimate(s["procedure_estimate"], s["parameter"]).replace(" um", " µm")
+    except (KeyError, TypeError, ValueError):
+        running = "n/a"
+    rows.append(("procedure's estimate", running))
     for i, c in enumerate(s["conditions"], 1):
         unit = c["parameter"].split("_", 1)[1]
         lo, hi = c[f"threshold_ci95_{unit}"]
