@@ -43,7 +43,9 @@ class FieldResult:
     method : str
         The method that ran.
     error_estimate : float
-        Estimated max error relative to the field's peak magnitude.
+        Estimated max error relative to the field's peak magnitude; ``data.attrs["error_covers"]``
+        says what it covers: ``"method"`` (a nodal ``SurfaceLoad``: the method's error for the
+        values as given) or ``"method+sampling"`` (a ``ContinuousLoad``: also its sampling).
     reason : str
         Why this method was chosen.
     candidates : dict
@@ -119,8 +121,13 @@ class HalfSpace:
 
         Parameters
         ----------
-        load : SurfaceLoad
-            Tractions on the surface (Pa); ``load.periodic`` says whether the grid repeats.
+        load : SurfaceLoad or ContinuousLoad
+            Tractions on the surface (Pa); ``load.periodic`` says whether the grid repeats. A
+            ``SurfaceLoad`` is nodal values: the error estimate is for those values as given
+            (``attrs["error_covers"] == "method"``). A ``ContinuousLoad`` (``HertzContact.load``,
+            ``TractionField``, ``DeflectionLoad``) is sampled on its grid, and the estimate covers
+            that sampling too (``"method+sampling"``); with ``method="auto"`` the grid is refined
+            until the estimate meets ``tol``, or an ``AccuracyWarning`` names the spacing that would.
         depth : float or sequence of float
             Depths z > 0 in m.
         points : ndarray, shape (n, 2), optional
@@ -129,7 +136,13 @@ class HalfSpace:
             Voigt names from ("xx", "yy", "zz", "yz", "zx", "xy"); default all six.
         method : {"auto", "closed_form", "spectral", "dcfft"} or Method subclass
         tol : float
-            Requested max error relative to the field's peak.
+            Requested max error relative to the largest magnitude of the requested field.
+
+        Returns
+        -------
+        FieldResult
+            ``error_estimate`` is relative to the largest magnitude of the requested field;
+            ``data.attrs["error_covers"]`` says what it covers.
         """
         return self._field(load, depth, points, components, method, tol, "stress", False)
 
