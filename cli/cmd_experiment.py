@@ -204,6 +204,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         return _run(args)
     except DisplayError as exc:
+        path = getattr(args, "session_path", None)
+        if path is not None and Path(path).is_file():  # the run's summary first: what was done, what failed
+            _print_summary(path, f"experiment {args.action}", args.json)
         print(f"tactilab experiment: display error: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_DISPLAY_FAULT
 
@@ -238,6 +241,7 @@ def _run(args: argparse.Namespace) -> int:
         from tactilab.experiments.runner import new_session
 
         print(f"session file: {path}", flush=True, file=sys.stderr if args.json else sys.stdout)
+        args.session_path = path
         ended, report = False, RunReport("experiment run")
         try:
             with report.collecting_warnings():
@@ -278,6 +282,7 @@ def _run(args: argparse.Namespace) -> int:
               + (f", repeating interrupted trial {state.interrupted_trial}"
                  if state.interrupted_trial is not None else ""), flush=True,
               file=sys.stderr if args.json else sys.stdout)
+        args.session_path = args.session
         ended, report = False, RunReport("experiment resume")
         try:
             with report.collecting_warnings():
