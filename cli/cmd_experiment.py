@@ -97,26 +97,13 @@ def _summary_args(p: argparse.ArgumentParser) -> None:
                         "each key); progress and messages go to stderr")
 
 
-def _fitted_thresholds(path) -> list[str]:
-    """The psychometric fit's threshold with its 95 % interval, one line per condition."""
-    from tactilab.experiments.analysis import fit_summary
-
-    try:
-        return [f"fitted: {line}" for line in fit_summary([path])]
-    except ValueError as exc:  # too few trials, or a session with no levels to fit
-        return [f"fitted: no psychometric fit yet ({' '.join(str(exc).split())})"]
-
-
 def _finish(result, parameter: str, args: argparse.Namespace, warned: list[str]) -> int:
-    """The end of a run or resume: one line, the fitted thresholds, then the summary block (or JSON)."""
+    """The end of a run or resume: one line, then the summary block with the fitted thresholds (or JSON)."""
     from tactilab.experiments.runner import format_estimate
 
     info = sys.stderr if args.json else sys.stdout
     print(f"session {result.path}: {result.status} after {result.n_completed} trials; "
           f"procedure's running {format_estimate(result.estimate, parameter)}", file=info)
-    if result.n_completed:
-        for line in _fitted_thresholds(result.path):
-            print(line, file=info)
     exported = []
     if args.export is not None and result.status == "complete":
         from tactilab.experiments.export import export_session
