@@ -25,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     emu.add_argument("--record", metavar="FILE", default=None,
                      help="write every message and event to FILE (JSON lines; values in the display's units, Pa or m)")
     emu.add_argument("--max-seconds", default="60s",
-                     help="stop after this long (time, e.g. 30s or 30; default 60s); SIGTERM also stops it")
+                     help="stop after this long (time with a unit, e.g. 30s or 500ms; default 60s); SIGTERM also stops it")
     emu.add_argument("--tractors", type=int, default=None,
                      help="expected values per frame (count); default: the count of the first frame")
     emu.add_argument("--limits", metavar="FILE", default=None,
@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     from tactilab.experiments.emulator import emulate
 
     watchdog = to_si(args.watchdog, "time", name="--watchdog")
-    max_seconds = to_si(args.max_seconds, "time", name="--max-seconds", default_unit="s")
+    max_seconds = to_si(args.max_seconds, "time", name="--max-seconds")
     late_after = to_si(args.late_after, "time", name="--late-after")
     try:
         emulate(args.port, watchdog_s=watchdog, record=args.record, max_seconds=max_seconds,

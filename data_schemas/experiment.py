@@ -292,3 +292,7 @@ def _first_error(exc: ValueError) -> str:
         msg = str(first.get("msg", "")).removeprefix("Value error, ")
         return f"{loc}: {msg}" if loc else msg
     return str(exc)
+
+
+# the built-in adaptive design registers its [procedure] table (it imports this module: keep last)
+from . import design_config  # noqa: E402,F401

@@ -20,6 +20,7 @@ _EXPORTS = {
     "replay_session": "resume",
     "export_session": "export",
     "session_dataframe": "export",
+    "session_summary": "session_report",
     "SessionLog": "recording",
     "RecordingError": "recording",
     "SessionLockedError": "recording",

@@ -94,7 +94,7 @@ def test_the_device_clamps_to_its_limits_records_each_clamp_and_refuses_non_fini
 def test_cli_limits_option(tmp_path, capsys):
     limits = DESC.save(tmp_path / "d.json")
     record = tmp_path / "r.jsonl"
-    assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "0.1", "--limits", str(limits),
+    assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "0.1s", "--limits", str(limits),
                      "--record", str(record)]) == 0
     assert "tick 1 ms" in capsys.readouterr().out and read_record(record)["events"][0]["n_tractors"] == 2
     assert cli_main(["device", "emulate", "--port", "0", "--limits", str(tmp_path / "none.json")]) == 2

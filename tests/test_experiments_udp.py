@@ -55,7 +55,7 @@ def stop_emulator(proc):
 @pytest.fixture(scope="module")
 def emulator(tmp_path_factory):
     proc, port, record = start_emulator(tmp_path_factory.mktemp("emu"), "shared", "--watchdog", "2s",
-                                        "--max-seconds", "120")
+                                        "--max-seconds", "120s")
     yield port, record
     out = stop_emulator(proc)
     assert proc.returncode == 0 and "summary:" in out
@@ -223,7 +223,7 @@ def test_no_device_is_a_clear_error():
 
 def test_wrong_tractor_count_and_watchdog_trip_raise_and_zero(tmp_path):
     proc, port, record = start_emulator(tmp_path, "strict", "--tractors", "4", "--watchdog", "5ms",
-                                        "--max-seconds", "60")
+                                        "--max-seconds", "60s")
     try:
         events = []
         safe = SafeDisplay(UdpDisplay(DisplayDescription.braille_row(), LOOPBACK, port), events.append)
@@ -261,7 +261,7 @@ safe.play()
 
 
 def test_host_killed_mid_stimulus_emulator_zeroes_within_its_watchdog(tmp_path):
-    proc, port, record = start_emulator(tmp_path, "kill", "--watchdog", "100ms", "--max-seconds", "60")
+    proc, port, record = start_emulator(tmp_path, "kill", "--watchdog", "100ms", "--max-seconds", "60s")
     host = subprocess.Popen([sys.executable, "-c", HOST, str(port)], stdout=subprocess.PIPE, text=True)
     try:
         assert host.stdout.readline().strip() == "playing"
@@ -365,9 +365,9 @@ def test_emulate_rejects_bad_arguments(kwargs, match):
 
 
 def test_cli_reports_bad_options_in_one_line(capsys):
-    assert cli_main(["device", "emulate", "--port", "0", "--watchdog", "0ms", "--max-seconds", "1"]) == 2
+    assert cli_main(["device", "emulate", "--port", "0", "--watchdog", "0ms", "--max-seconds", "1s"]) == 2
     assert "--watchdog: must be a finite number of seconds > 0" in capsys.readouterr().err
-    assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "1e300"]) == 2  # was OverflowError
+    assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "1e300s"]) == 2  # was OverflowError
     assert "--max-seconds: must be at most" in capsys.readouterr().err
     assert cli_main(["device", "emulate", "--port", "0", "--tractors", "0"]) == 2
     assert "--tractors: must be an integer >= 1" in capsys.readouterr().err
@@ -375,7 +375,7 @@ def test_cli_reports_bad_options_in_one_line(capsys):
 
 def test_cli_emulator_stops_on_its_own_after_max_seconds(tmp_path, capsys):
     record = tmp_path / "short.jsonl"
-    assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "0.2", "--record", str(record)]) == 0
+    assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "0.2s", "--record", str(record)]) == 0
     assert "summary: port" in capsys.readouterr().out
     rec = read_record(record)
     assert rec["summary"]["frames_applied"] == 0 and rec["streams"] == [] and rec["n_frames"] == 0
