@@ -7,7 +7,7 @@ import contextlib
 import sys
 from pathlib import Path
 
-from .common import make_out
+from .common import RunReport, make_out
 
 from .experiment_analysis import add_subcommands as add_analysis_subcommands
 
@@ -35,6 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run.add_argument("--session", dest="session_label", default=None,
                      help="session label (letters/digits); default: the next free number, 01, 02, ...")
     _observer_args(run)
+    _summary_args(run)
 
     resume = sub.add_parser("resume", help="continue a killed or stopped session exactly (repeats the interrupted trial)")
     resume.add_argument("session", type=Path, help="session .sqlite file")
@@ -42,15 +43,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     resume.add_argument("--responses", default=None,
                         help="'terminal' or 'simulated'; default: what the session was started with")
     _observer_args(resume)
+    _summary_args(resume)
 
-    export = sub.add_parser("export", help="export trials: BIDS-style beh TSV + JSON sidecar, CSV or Parquet (SI units)")
+    export = sub.add_parser("export", help="export trials: a BIDS beh dataset (TSV + sidecar describing every "
+                                           "column), CSV, Parquet or JSON (SI units, the unit in each column name)")
     export.add_argument("session", type=Path, help="session .sqlite file")
     export.add_argument("--format", default="bids",
                         help="bids, csv, parquet (needs pyarrow) or json (the whole session); default bids")
-    export.add_argument("--out", type=Path, default=None, help="output folder (default: the session's folder)")
+    export.add_argument("--out", type=Path, default=None,
+                        help="output folder; for bids the dataset root, to which the session is added (default: "
+                             "<session's folder>/bids); for the others default the session's folder")
+    export.add_argument("--force", action="store_true", help="replace the session's files if they were exported before")
+    export.add_argument("--json", action="store_true", help="print only the files written, as one JSON object")
 
-    status = sub.add_parser("status", help="show progress, status and the current estimate of a session (SI -> um/mm)")
+    status = sub.add_parser("status", help="progress, status, safety interventions, frame timing and the fitted "
+                                           "threshold of a session, as a table (mm, um, ms, counts)")
     status.add_argument("session", type=Path, help="session .sqlite file")
+    status.add_argument("--json", action="store_true",
+                        help="print the same as one JSON object (SI units, the unit in each key, e.g. rt_median_s)")
 
 
 def _device_args(p: argparse.ArgumentParser, resume: bool = False) -> None:
@@ -79,28 +89,51 @@ def _observer_args(p: argparse.ArgumentParser) -> None:
                         "surface, or on resume the session's own")
 
 
-def _fitted_thresholds(path) -> list[str]:
-    """The psychometric fit's threshold with its 95 % interval, one line per condition."""
-    from tactilab.experiments.analysis import fit_summary
-
-    try:
-        return [f"fitted: {line}" for line in fit_summary([path])]
-    except ValueError as exc:  # too few trials, or a session with no levels to fit
-        return [f"fitted: no psychometric fit yet ({' '.join(str(exc).split())})"]
+def _summary_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--export", default=None, metavar="FORMAT",
+                   help="at the end, export the session: bids (to <session's folder>/bids), csv, parquet or json")
+    p.add_argument("--json", action="store_true",
+                   help="print only the end-of-run summary, as one JSON object on stdout (SI units, the unit in "
+                        "each key); progress and messages go to stderr")
 
 
-def _print_result(result, parameter: str) -> int:
+def _finish(result, parameter: str, args: argparse.Namespace, warned: list[str]) -> int:
+    """The end of a run or resume: one line, then the summary block with the fitted thresholds (or JSON)."""
     from tactilab.experiments.runner import format_estimate
 
+    info = sys.stderr if args.json else sys.stdout
     print(f"session {result.path}: {result.status} after {result.n_completed} trials; "
-          f"procedure's running {format_estimate(result.estimate, parameter)}")
-    if result.n_completed:
-        for line in _fitted_thresholds(result.path):
-            print(line)
+          f"procedure's running {format_estimate(result.estimate, parameter)}", file=info)
+    exported = []
+    if args.export is not None and result.status == "complete":
+        from tactilab.experiments.export import export_session
+
+        out = result.path.parent / "bids" if args.export == "bids" else result.path.parent
+        with _flags({"format": "--export", "out": "--export"}):
+            exported = [str(p) for p in export_session(result.path, out, args.export, overwrite=False)]
+    _print_summary(result.path, f"experiment {args.action}", args.json, warned, exported)
     if result.status == "interrupted":
-        print(f"resume with: tactilab experiment resume {result.path}")
+        print(f"resume with: tactilab experiment resume {result.path}", file=info)
         return 130
     return 0
+
+
+def _print_summary(path, command: str, as_json: bool, warned: list[str] = (), exported: list[str] = ()) -> None:
+    """The session's summary table (``experiment status``'s), framed as a run summary, or one JSON object."""
+    import json
+
+    from tactilab.experiments.session_report import session_summary, summary_lines
+
+    summary = session_summary(path)
+    summary["warnings"] = list(warned) + summary["warnings"]
+    summary["files"] = [str(path), *exported]
+    if as_json:
+        print(json.dumps({"command": command, **summary}))
+        return
+    print(f"--- tactilab {command}: summary ---")
+    for line in summary_lines(summary):
+        print(line)
+    print(f"files: session {path}" + "".join(f"\n  {p}" for p in exported))
 
 
 #: library parameter (as it starts a library error) -> the flag that sets it, per call
@@ -158,6 +191,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         return _run(args)
     except DisplayError as exc:
+        path = getattr(args, "session_path", None)
+        if path is not None and Path(path).is_file():  # the run's summary first: what was done, what failed
+            _print_summary(path, f"experiment {args.action}", args.json)
         print(f"tactilab experiment: display error: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_DISPLAY_FAULT
 
@@ -191,16 +227,18 @@ def _run(args: argparse.Namespace) -> int:
             raise
         from tactilab.experiments.runner import new_session
 
-        print(f"session file: {path}", flush=True)
-        ended = False
+        print(f"session file: {path}", flush=True, file=sys.stderr if args.json else sys.stdout)
+        args.session_path = path
+        ended, report = False, RunReport("experiment run")
         try:
-            result = new_session(protocol, path, display, responses, subject=args.subject, session=label,
-                                 subject_pattern=args.subject_pattern,
-                                 realtime=not args.no_wait, progress=not args.quiet)
+            with report.collecting_warnings():
+                result = new_session(protocol, path, display, responses, subject=args.subject, session=label,
+                                     subject_pattern=args.subject_pattern,
+                                     realtime=not args.no_wait, progress=not args.quiet)
             ended = True
         finally:
             _zero_and_close(display, responses, ended)
-        return _print_result(result, protocol.procedure.parameter)
+        return _finish(result, protocol.procedure.parameter, args, report.warnings)
 
     if args.action == "resume":
         from tactilab.data_schemas.display import DisplayDescription
@@ -229,34 +267,55 @@ def _run(args: argparse.Namespace) -> int:
             raise
         print(f"resuming {args.session}: {state.n_completed} trials done"
               + (f", repeating interrupted trial {state.interrupted_trial}"
-                 if state.interrupted_trial is not None else ""), flush=True)
-        ended = False
+                 if state.interrupted_trial is not None else ""), flush=True,
+              file=sys.stderr if args.json else sys.stdout)
+        args.session_path = args.session
+        ended, report = False, RunReport("experiment resume")
         try:
-            result = resume_session(args.session, display, responses, realtime=not args.no_wait,
-                                    progress=not args.quiet)
+            with report.collecting_warnings():
+                result = resume_session(args.session, display, responses, realtime=not args.no_wait,
+                                        progress=not args.quiet)
             ended = True
         finally:
             _zero_and_close(display, responses, ended)
-        return _print_result(result, state.protocol.procedure.parameter)
+        return _finish(result, state.protocol.procedure.parameter, args, report.warnings)
 
     if args.action == "export":
+        import json
+
         from tactilab.experiments.export import export_session
 
-        out = args.out if args.out is not None else args.session.parent
-        if args.out is not None and args.session.is_file():  # a missing session is reported by export_session
-            make_out(args.out)
-        with _flags({"format": "--format"}):
-            written = export_session(args.session, out, args.format)
-        for path in written:
-            print(f"wrote {path}")
+        if args.out is not None:
+            out = args.out
+        else:
+            out = args.session.parent / "bids" if args.format == "bids" else args.session.parent
+        if args.session.is_file():  # a missing session is reported by export_session
+            make_out(out)
+        with _flags({"format": "--format", "out": "--out"}):
+            written = export_session(args.session, out, args.format, overwrite=args.force)
+        if args.json:
+            print(json.dumps({"command": "experiment export", "format": args.format, "out": str(out),
+                              "files": [str(p) for p in written]}))
+        else:
+            for path in written:
+                print(f"wrote {path}")
         return 0
 
-    from tactilab.experiments.resume import session_status
-
-    info = session_status(args.session)
-    for key, value in info.items():
-        print(f"{key}: {value}")
-    if info.get("completed"):
-        for line in _fitted_thresholds(args.session):
-            print(line)
+    _print_status(args)
     return 0
+
+
+def _print_status(args: argparse.Namespace) -> None:
+    """``experiment status``: the summary table, or one JSON object with ``--json``."""
+    import json
+
+    from tactilab.experiments.session_report import session_summary, summary_lines
+
+    summary = session_summary(args.session)
+    if args.json:
+        print(json.dumps({"command": "experiment status", **summary}))
+        return
+    for line in summary_lines(summary):
+        print(line)
+    if summary["status"] in ("interrupted", "failed"):
+        print(f"resume with: tactilab experiment resume {args.session}")

@@ -108,22 +108,32 @@ class Session(BaseModel):
         return self
 
 
-def trials_to_dataframe(trials: list[TrialRecord]) -> pd.DataFrame:
-    """One row per trial; nested fields (stimuli, procedure_state) as JSON strings.
+#: Stimulus fields spread into flat ``interval<k>_<field>`` columns (k = 1, 2, ...; SI, unit in the name)
+INTERVAL_FIELDS = ("surface", "amplitude_m", "pitch_m", "speed_m_per_s", "duration_s", "ramp_s", "phase_rad",
+                   "frame_rate_hz")
 
-    The commanded stimulus of the LAST interval is also spread into plain columns
-    (``amplitude_m``, ``pitch_m``, ``speed_m_per_s``, ``duration_s``) for analysis.
+
+def trials_to_dataframe(trials: list[TrialRecord]) -> pd.DataFrame:
+    """One row per trial: every :class:`TrialRecord` field under its own name (``rt_s`` in s, ...).
+
+    The nested fields stay as JSON strings (``stimuli``, which analysis code reads, and
+    ``procedure_state``); each interval's commanded stimulus is also spread into flat columns
+    ``interval1_amplitude_m``, ``interval1_pitch_m``, ..., ``interval2_amplitude_m``, ... (SI,
+    the unit in the name; empty for a trial with fewer intervals), one per field of
+    :data:`INTERVAL_FIELDS`.
     """
     columns = list(TrialRecord.model_fields)
+    n_intervals = max((len(t.stimuli) for t in trials), default=0)
+    flat = [f"interval{k + 1}_{f}" for k in range(n_intervals) for f in INTERVAL_FIELDS]
     rows = []
     for trial in trials:
         row = trial.model_dump(mode="json")
         for key in _JSON_COLUMNS:
             row[key] = json.dumps(row[key], sort_keys=True)
-        last = trial.stimuli[-1]
-        row.update({k: getattr(last, k) for k in ("amplitude_m", "pitch_m", "speed_m_per_s", "duration_s")})
+        for k, stimulus in enumerate(trial.stimuli):
+            row.update({f"interval{k + 1}_{f}": getattr(stimulus, f) for f in INTERVAL_FIELDS})
         rows.append(row)
-    frame = pd.DataFrame(rows, columns=columns + ["amplitude_m", "pitch_m", "speed_m_per_s", "duration_s"])
+    frame = pd.DataFrame(rows, columns=columns + flat)
     for key in ("utc_planned", "utc_presented", "utc_response"):
         frame[key] = pd.to_datetime(frame[key], utc=True)
     return frame

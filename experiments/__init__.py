@@ -20,6 +20,7 @@ _EXPORTS = {
     "replay_session": "resume",
     "export_session": "export",
     "session_dataframe": "export",
+    "session_summary": "session_report",
     "SessionLog": "recording",
     "RecordingError": "recording",
     "SessionLockedError": "recording",
@@ -57,6 +58,8 @@ _EXPORTS = {
     "PowerResult": "models",
     "power_sweep": "batch",
     "design_sweep": "batch",
+    "compare_many": "batch",
+    "sessions_by_subject": "batch",
     "ModelDiscrimination": "design",
 }
 

@@ -36,6 +36,7 @@ class ConditionFit:
     scale: float
     n_trials: int
     fit: PsychometricFit
+    levels: tuple[float, ...] = ()  #: distinct levels tested, in ``unit``
 
 
 def _session_rows(paths):
@@ -97,7 +98,8 @@ def fit_conditions(paths, *, sigmoid: str = "norm", rng=None) -> list[ConditionF
             raise ValueError(f"session: condition '{label}' has trials at one {name} only; a fit needs >= 2 levels")
         fit = fit_psychometric(levels, correct, experiment="yes_no" if kind == "yes_no" else "2afc",
                                sigmoid=sigmoid, rng=gen)
-        out.append(ConditionFit(label, parameter, unit, scale, len(items), fit))
+        out.append(ConditionFit(label, parameter, unit, scale, len(items), fit,
+                                tuple(float(v) for v in np.unique(levels))))
     return out
 
 
@@ -113,6 +115,27 @@ def fit_summary(paths, *, sigmoid: str = "norm", rng=0) -> list[str]:
         lines.append(f"{name} threshold {th.map:.3g} {c.unit} (95 % interval {th.ci95[0]:.3g} to {th.ci95[1]:.3g} "
                      f"{c.unit}; psychometric fit of {c.n_trials} trials; {c.label})")
     return lines
+
+
+def condition_table(paths, *, sigmoid: str = "norm", rng=0) -> list[dict]:
+    """Per condition, SI values for ``experiment status --json``: keys carry the varied
+    parameter's SI unit (``threshold_m``, ``threshold_ci95_m``, ``levels_m`` for an amplitude;
+    ``_m_per_s`` for a speed, ``_s`` for a duration).
+
+    Raises
+    ------
+    ValueError
+        As :func:`fit_conditions` (no scored trials, one level only, a task without fits).
+    """
+    rows = []
+    for c in fit_conditions(paths, sigmoid=sigmoid, rng=rng):
+        unit = c.parameter.split("_", 1)[1] if "_" in c.parameter else "si"
+        th = c.fit.params["threshold"]
+        rows.append({"condition": c.label, "parameter": c.parameter, "n_trials": c.n_trials,
+                     f"levels_{unit}": [v / c.scale for v in c.levels],
+                     f"threshold_{unit}": th.map / c.scale,
+                     f"threshold_ci95_{unit}": [th.ci95[0] / c.scale, th.ci95[1] / c.scale]})
+    return rows
 
 
 def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, n_ensembles: int = 4,

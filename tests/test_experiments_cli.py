@@ -55,33 +55,39 @@ def session(tmp_path, capsys):
     assert code == 0, out
     path = tmp_path / "sessions" / "sub-S01_ses-01_task-cli.sqlite"
     assert f"session file: {path}" in out and "complete after" in out and "amplitude threshold" in out
-    assert "fitted: amplitude threshold" in out and "95 % interval" in out
+    assert re.search(r"^  fitted threshold +[0-9.]+ µm \(95 % interval [0-9.]+ µm to [0-9.]+ µm; psychometric fit\)$",
+                     out, re.M), out
     return path
 
 
 def test_run_status_and_second_session_numbering(session, tmp_path, capsys):
     assert cli_main(["experiment", "status", str(session)]) == 0
     out = capsys.readouterr().out
-    assert "status: complete" in out and "subject: S01" in out and "display_id: VirtualBrailleRow" in out
+    assert re.search(r"^status +complete: the procedure finished after \d+ trials$", out, re.M), out
+    assert re.search(r"^progress +\d+ trials: 6 planned by the procedure and \d+ on top \(catch trials\)$", out, re.M)
+    assert "sub-S01 / ses-01 / cli" in out and re.search(r"^display +VirtualBrailleRow, description SHA-256 [0-9a-f]{64}$",
+                                                          out, re.M)
+    assert "stopped_cleanly" not in out
     # the psychometric fit's threshold with its interval, not the procedure's interpolated crossing
-    assert re.search(r"fitted: amplitude threshold [0-9.e+-]+ um \(95 % interval [0-9.e+-]+ to [0-9.e+-]+ um; "
-                     r"psychometric fit of 6 trials", out), out
+    assert re.search(r"fitted threshold +[0-9.]+ µm \(95 % interval [0-9.]+ µm to [0-9.]+ µm; psychometric fit\)",
+                     out), out
+    assert re.search(r"^  trials +\d+ trials at \d+ levels from [0-9.]+ µm to [0-9.]+ µm$", out, re.M), out
     assert factory.next_session_path(session.parent, "S01", "cli") == (
         session.parent / "sub-S01_ses-02_task-cli.sqlite", "02")
 
 
 def test_bids_export_with_sidecar(session, capsys):
     assert cli_main(["experiment", "export", str(session), "--format", "bids"]) == 0
-    folder = session.parent / "sub-S01" / "ses-01" / "beh"
+    folder = session.parent / "bids" / "sub-S01" / "ses-01" / "beh"  # default: a BIDS root beside the session
     tsv, sidecar = folder / "sub-S01_ses-01_task-cli_beh.tsv", folder / "sub-S01_ses-01_task-cli_beh.json"
     assert f"wrote {tsv}" in capsys.readouterr().out
     table = pd.read_csv(tsv, sep="\t", keep_default_na=False)
     meta = json.loads(sidecar.read_text())
-    assert set(table.columns) <= set(meta) and meta["response_time"]["Units"] == "s"
+    assert set(table.columns) <= set(meta) and meta["rt_s"]["Units"] == "s"
     assert meta["TaskName"] == "cli" and meta["Seed"] == 21 and meta["SoftwareName"] == "tactilab"
     trials = SessionLog(session).trials()
     assert list(table["trial_index"]) == [t.trial_index for t in trials]
-    assert list(table["response_time"].astype(float)) == pytest.approx([t.rt_s for t in trials])
+    assert list(table["rt_s"].astype(float)) == pytest.approx([t.rt_s for t in trials])
     assert all(str(v) in ("True", "False", "n/a") for v in table["correct"])
 
 
@@ -161,11 +167,16 @@ def test_resume_and_status_of_an_interrupted_session(session, tmp_path, capsys):
     connection.close()
     assert cli_main(["experiment", "status", str(session)]) == 0
     out = capsys.readouterr().out
-    assert "status: interrupted" in out and "completed: 3" in out and "interrupted_trial: 3" in out
-    assert "interrupted_was_presented: False" in out
-    assert cli_main(["experiment", "resume", str(session), "--no-wait", "--quiet"]) == 0
-    out = capsys.readouterr().out
-    assert "3 trials done, repeating interrupted trial 3" in out and "complete after" in out
+    assert re.search(r"^status +interrupted: killed or crashed \(no stop was recorded\); resume to go on$", out, re.M)
+    assert re.search(r"^progress +3 of 6 planned trials \(50 %\)$", out, re.M), out
+    assert f"resume with: tactilab experiment resume {session}" in out
+    assert cli_main(["experiment", "resume", str(session), "--no-wait", "--quiet", "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "3 trials done, repeating interrupted trial 3" in captured.err and "complete after" in captured.err
+    summary = json.loads(captured.out)  # --json: one object on stdout, messages on stderr
+    assert summary["command"] == "experiment resume" and summary["status"] == "complete"
+    assert summary["repeated_trials"] == [{"trial_index": 3, "attempts": 2, "felt_before": False,
+                                           "why": "the run was killed during it (no stop was recorded)"}]
     trial3 = SessionLog(session).trials()[3]
     assert trial3.attempt == 1 and not trial3.repeated  # planned, never presented: not felt
 
@@ -335,4 +346,5 @@ def test_resume_replays_the_log_once(session, monkeypatch, capsys):
     original = resume.replay_log
     monkeypatch.setattr(resume, "replay_log", lambda log: (calls.append(1), original(log))[1])
     assert cli_main(["experiment", "resume", str(session), "--no-wait", "--quiet"]) == 0
-    assert len(calls) == 1 and "3 trials done" in capsys.readouterr().out
+    # one replay to resume, one more (read only) for the end-of-run summary's status
+    assert len(calls) == 2 and "3 trials done" in capsys.readouterr().out

@@ -238,7 +238,8 @@ def test_trial_records_round_trip_through_json_and_dataframe():
     trials = [trial(0), trial(1, target=None, correct=None, response="1"), trial(2, attempt=1, repeated=True)]
     assert [TrialRecord.model_validate_json(t.model_dump_json()) for t in trials] == trials
     frame = trials_to_dataframe(trials)
-    assert list(frame["amplitude_m"]) == [2e-6] * 3 and frame["utc_presented"].dt.tz is not None
+    assert list(frame["interval2_amplitude_m"]) == [2e-6] * 3 and "amplitude_m" not in frame
+    assert list(frame["interval1_surface"]) == ["sinusoid"] * 3 and frame["utc_presented"].dt.tz is not None
     assert trials_from_dataframe(frame) == trials
 
 

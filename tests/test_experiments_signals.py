@@ -45,7 +45,7 @@ def _entries(record):
 def test_sighup_and_sigquit_mid_stimulus_zero_the_display_and_log_the_stop(tmp_path, signum):
     record = tmp_path / "emu.jsonl"
     emulator = subprocess.Popen([sys.executable, "-m", "tactilab.cli.main", "device", "emulate", "--port", "0",
-                                 "--record", str(record), "--watchdog", "10s", "--max-seconds", "60"],
+                                 "--record", str(record), "--watchdog", "10s", "--max-seconds", "60s"],
                                 stdout=subprocess.PIPE, text=True)
     try:
         port = int(emulator.stdout.readline().split(":")[2].split()[0])
