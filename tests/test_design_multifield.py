@@ -152,3 +152,16 @@ def test_bad_multifield_candidates(changes, match):
     raw["candidates"] = {**raw["candidates"], **changes}
     with pytest.raises(ValueError, match=match):
         ModelDiscriminationConfig.model_validate(raw)
+
+
+def test_a_design_built_in_python_plans_every_field_its_candidates_vary():
+    from tactilab.data_schemas.experiment import Stimulus
+
+    cands = [Stimulus(surface=w, amplitude_m=a, pitch_m=p, speed_m_per_s=0.02, duration_s=d)
+             for w in ("sinusoid", "square") for a in (5e-6, 1e-5) for p in (2e-3, 5e-3) for d in (0.05,)]
+    design = ModelDiscrimination(["xx@1mm", "zx@1mm"], cands, rng=0, parameter="pitch_m")
+    assert design.stimulus_fields == ("surface", "amplitude_m")  # duration_s is the same for all: not carried
+    planned = design.next_trial(0, np.random.default_rng(0))
+    chosen = design.candidates[planned.track]
+    assert isinstance(planned, PlannedStimulus) and planned.level == chosen.pitch_m
+    assert dict(planned.fields) == {"surface": chosen.surface, "amplitude_m": chosen.amplitude_m}
