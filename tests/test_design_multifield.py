@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import functools
 import json
 import tomllib
 
@@ -42,7 +41,7 @@ max_trials = 16
 
 [procedure.candidates]
 pitch_m = ["2mm", "3mm", "5mm"]
-amplitude_m = ["5um", "10um"]
+amplitude_m = ["3um", "6um"]
 surface = ["sinusoid", "square"]
 speed_m_per_s = ["20mm/s"]
 """
@@ -69,7 +68,7 @@ def test_planned_stimulus_fields_replace_the_protocol_stimulus():
     assert plan.level == 0.005 and plan.track == 3
 
 
-def test_protocol_file_with_several_varied_fields_runs_through_the_cli(tmp_path, capsys):
+def test_protocol_file_with_several_varied_fields_runs_through_the_cli(tmp_path, capsys, monkeypatch):
     path = tmp_path / "design.toml"
     path.write_text(PROTOCOL)
     argv = ["experiment", "run", str(path), "--subject", "S01", "--responses", "simulated", "--no-wait", "--quiet",
@@ -93,12 +92,13 @@ def test_protocol_file_with_several_varied_fields_runs_through_the_cli(tmp_path,
     import tactilab.experiments.analysis as analysis
 
     original = analysis.compare_sessions
-    try:
-        analysis.compare_sessions = functools.partial(original, sampler_options=FAST)
-        assert main(["experiment", "compare", str(session), "--model", "xx@1mm", "--model", "zx@1mm",
-                     "--out", str(tmp_path / "figs")]) == 0
-    finally:
-        analysis.compare_sessions = original
+
+    def fast(*args, sampler_options=None, **kwargs):
+        return original(*args, sampler_options={**(sampler_options or {}), **FAST}, **kwargs)
+
+    monkeypatch.setattr(analysis, "compare_sessions", fast)
+    assert main(["experiment", "compare", str(session), "--model", "xx@1mm", "--model", "zx@1mm",
+                 "--out", str(tmp_path / "figs")]) == 0
     out = capsys.readouterr().out
     assert "xx@1mm" in out and "zx@1mm" in out and "best" in out
     assert (tmp_path / "figs" / "compare.png").stat().st_size > 10_000
