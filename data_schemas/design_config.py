@@ -17,7 +17,8 @@ as parameter lists with units, e.g.::
 The candidates are the product of the lists; several fields may take several values (pitch,
 amplitude and ``surface = ["sinusoid", "square"]``, say). Each trial shows the chosen candidate:
 the protocol's ``[stimulus]`` with EVERY listed field set to the candidate's value (the runner's
-``PlannedStimulus``), so the fields the procedure predicts with are the fields commanded. The
+``PlannedStimulus``; surface, amplitude and pitch always come from the candidate), so the
+fields the procedure predicts with are the fields commanded. The
 trial's recorded ``level`` is the candidate's value of ``parameter``. The procedure is
 registered by :mod:`tactilab.experiments.design` (import it before loading such a protocol).
 """

@@ -304,15 +304,17 @@ class ModelDiscrimination(Procedure):
 
     @cached_property
     def stimulus_fields(self) -> tuple[str, ...]:
-        """The stimulus fields a planned trial carries besides the level: those a protocol lists
-        under ``candidates`` (built from a protocol), else those that differ between candidates
-        plus the fields the ideal-surface statistic reads (surface, amplitude, pitch)."""
+        """The stimulus fields a planned trial carries besides the level: the fields the
+        ideal-surface statistic reads (surface, amplitude, pitch: what is shown is what was
+        predicted, even where ``[stimulus]`` says otherwise), plus those a protocol lists under
+        ``candidates`` (built from a protocol) or those that differ between candidates."""
+        names = ["surface", "amplitude_m", "pitch_m"]
         if isinstance(self.config, ModelDiscriminationConfig):
-            names = list(self.config.candidates)
+            names += list(self.config.candidates)
         else:
             first = [c[0] if isinstance(c, tuple) else c for c in self.candidates]
             dumps = [s.model_dump() for s in first]
-            names = ["surface", "amplitude_m", "pitch_m"] + [k for k in dumps[0] if len({d[k] for d in dumps}) > 1]
+            names += [k for k in dumps[0] if len({d[k] for d in dumps}) > 1]
         return tuple(dict.fromkeys(k for k in names if k != self.parameter))
 
     def _next(self, rng):

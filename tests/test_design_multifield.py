@@ -161,6 +161,17 @@ def test_a_design_built_in_python_plans_every_field_its_candidates_vary():
              for w in ("sinusoid", "square") for a in (5e-6, 1e-5) for p in (2e-3, 5e-3) for d in (0.05,)]
     design = ModelDiscrimination(["xx@1mm", "zx@1mm"], cands, rng=0, parameter="pitch_m")
     assert design.stimulus_fields == ("surface", "amplitude_m")  # duration_s is the same for all: not carried
+    # from a protocol: the listed fields, and always those the statistic reads (here the waveform is
+    # not listed, so the candidates are sinusoids, and that is what is shown, not [stimulus]'s square)
+    raw = tomllib.loads(PROTOCOL)
+    raw["stimulus"]["surface"] = "square"
+    del raw["procedure"]["candidates"]["surface"]
+    protocol = Protocol.model_validate(raw)
+    from_file = ModelDiscrimination(protocol.procedure.models[:1] + ["zx@2mm"], protocol.procedure.stimuli(),
+                                    config=protocol.procedure, parameter="pitch_m")
+    assert from_file.stimulus_fields == ("surface", "amplitude_m", "speed_m_per_s")
+    plan = plan_trial(protocol, 0, from_file.next_trial(0, np.random.default_rng(0)), np.random.default_rng(0))
+    assert {s.surface for s in plan.stimuli} == {"sinusoid"}
     planned = design.next_trial(0, np.random.default_rng(0))
     chosen = design.candidates[planned.track]
     assert isinstance(planned, PlannedStimulus) and planned.level == chosen.pitch_m
