@@ -48,6 +48,7 @@ def test_exact_routes_match_the_independent_dense_posterior(bench):
     rows = bench.inversion_rows(tols=(1e-10,), steps=(), repeats=1)
     by = {r["method"]: r for r in rows}
     assert by["fft"]["error"] < 1e-10 and by["dense"]["error"] < 1e-10
+    assert by["fft"]["std_error"] < 1e-12 and by["dense"]["std_error"] < 1e-12
     assert by["iterative"]["error"] < 1e-6
 
 
