@@ -37,6 +37,11 @@ def _status_words(info: dict[str, Any], events: list[dict[str, Any]]) -> str:
                                                               "display_fault", "session_started",
                                                               "session_resumed")), None)
     reason = (last or {}).get("payload", {}).get("reason")
+    fault = next((e for e in reversed(events) if e["kind"] in ("display_fault", "session_started", "session_resumed")),
+                 None)
+    if status == "failed" and fault is not None and fault["kind"] == "display_fault":
+        return (f"failed: a display fault in trial {fault['trial_index']} ({fault['payload'].get('reason')}); "
+                "resume repeats the trial")
     if status == "failed":
         return f"failed: {reason or 'an unexpected error'}; resume to go on"
     if last is not None and last["kind"] == "session_stopped":

@@ -163,3 +163,36 @@ def test_export_json_lists_the_files(weak_run, tmp_path, capsys):
     out = json.loads(capsys.readouterr().out)
     assert out == {"command": "experiment export", "format": "csv", "out": str(tmp_path),
                    "files": [str(tmp_path / "sub-S01_ses-01_task-status_trials.csv")]}
+
+
+def test_a_run_that_ends_in_a_display_fault_still_prints_its_summary(tmp_path, monkeypatch, capsys):
+    """Late frames on every stimulus, then a stale acknowledgement (a display fault) in trial 3:
+    the summary block reports both on stdout, the error stays one line on stderr, exit 3."""
+    import dataclasses
+
+    from tactilab.experiments import factory
+    from tactilab.experiments.simulated_display import SimulatedDisplay
+
+    class LateThenStale(SimulatedDisplay):
+        plays = 0
+
+        def _play(self, frames, frame_rate_hz):
+            report = super()._play(frames, frame_rate_hz)
+            LateThenStale.plays += 1
+            late = dataclasses.replace(report, late=report.frames_sent // 4)
+            return dataclasses.replace(late, stale=3) if LateThenStale.plays == 7 else late
+
+    monkeypatch.setattr(factory, "display_from_spec",
+                        lambda spec, description, **kw: LateThenStale(description, realtime=False))
+    (tmp_path / "p.toml").write_text(PROTOCOL)
+    code = cli_main(["experiment", "run", str(tmp_path / "p.toml"), "--subject", "S03", "--responses", "simulated",
+                     "--no-wait", "--quiet", "--out", str(tmp_path)])
+    captured = capsys.readouterr()
+    assert code == 3 and captured.err.count("\n") == 1 and "ALARM" in captured.err
+    out = captured.out
+    assert "--- tactilab experiment run: summary ---" in out
+    assert re.search(r"^status +failed: a display fault in trial 3 \(ALARM: 3 of \d+ frames .*\); resume repeats the trial$", out, re.M), out
+    assert re.search(r"^progress +3 of 8 planned trials \(38 %\)$", out, re.M), out
+    assert re.search(r"^frames +\d+ sent; \d+ late \(2[45] %\)", out, re.M), out
+    assert re.search(r"^display faults +1$", out, re.M) and re.search(r"^  - \d+ of \d+ frames late \(2[45]\.\d %", out, re.M)
+    assert re.search(r"^  - display fault in trial 3: ALARM", out, re.M)

@@ -55,7 +55,8 @@ def session(tmp_path, capsys):
     assert code == 0, out
     path = tmp_path / "sessions" / "sub-S01_ses-01_task-cli.sqlite"
     assert f"session file: {path}" in out and "complete after" in out and "amplitude threshold" in out
-    assert "fitted: amplitude threshold" in out and "95 % interval" in out
+    assert re.search(r"^  fitted threshold +[0-9.]+ µm \(95 % interval [0-9.]+ µm to [0-9.]+ µm; psychometric fit\)$",
+                     out, re.M), out
     return path
 
 
