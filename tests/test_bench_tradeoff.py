@@ -31,7 +31,7 @@ def test_tiny_run_writes_table_rows_and_png_with_finite_true_errors(bench, tmp_p
     for r in forward + inversion:
         assert math.isfinite(r["error"]) and r["error"] >= 0 and r["time_ms"] > 0
     for r in forward:
-        assert math.isfinite(r["estimate"])
+        assert math.isfinite(r["estimate"]) and r["covers"] == "method+sampling"
     md = bench.write_page(forward, inversion, tmp_path, "python benchmarks/bench_tradeoff.py", "load average 0.0")
     text = md.read_text()
     png = tmp_path / "accuracy.png"
