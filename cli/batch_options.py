@@ -1,5 +1,9 @@
 """Batch options of the CLI (``--batch DIR``, ``--workers N``, ``--scheduler ADDRESS``) and the batch inversion.
 
+:func:`add_worker_options` gives any batch command ``--workers`` and ``--scheduler``
+(``tactilab experiment compare | power``, ``tactilab synthesis``, ``tactilab metamer``);
+:func:`add_batch_options` adds ``--batch DIR`` for ``tactilab invert``.
+
 ``tactilab invert --batch DIR --scene SCENE [--workers N] [--scheduler ADDRESS]`` inverts every
 recording file below ``DIR`` with :func:`tactilab.inversion.batch.invert_many`: serial with
 ``--workers 0``, on a LocalCluster of N one-thread processes without ``--scheduler``, or on the
@@ -22,18 +26,38 @@ def _workers(text: str) -> int:
     return n
 
 
-def add_batch_options(parser: argparse.ArgumentParser) -> None:
-    """Add ``--batch``, ``--workers`` and ``--scheduler`` to a command's parser."""
+def add_worker_options(parser: argparse.ArgumentParser, *, default_help: str = "serial in-process"):
+    """Add ``--workers`` and ``--scheduler`` (an argument group of their own, returned) to a command's parser.
+
+    ``default_help`` says what happens without ``--workers`` (``args.workers`` is then None).
+    """
     group = parser.add_argument_group("batch (Dask; needs pip install 'tactilab[dask]' unless --workers 0)")
-    group.add_argument("--batch", type=Path, default=None, metavar="DIR",
-                       help="invert every recording file (.nc, .json, .parquet) below DIR, one task each; results "
-                            "in --out (default ./<DIR name>-batch); a rerun with the same --out resumes")
     group.add_argument("--workers", type=_workers, default=None, metavar="N",
-                       help="worker processes of a LocalCluster on this machine (count; default: one per core); "
+                       help=f"worker processes of a LocalCluster on this machine (count; default: {default_help}); "
                             "0 runs serially in-process")
     group.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="address of a running Dask scheduler (e.g. tcp://host:8786); default: start a "
                             "LocalCluster here (its dashboard address is printed)")
+    return group
+
+
+def add_batch_options(parser: argparse.ArgumentParser) -> None:
+    """Add ``--batch``, ``--workers`` and ``--scheduler`` to ``tactilab invert``'s parser."""
+    group = add_worker_options(parser, default_help="one per core")
+    group.add_argument("--batch", type=Path, default=None, metavar="DIR",
+                       help="invert every recording file (.nc, .json, .parquet) below DIR, one task each; results "
+                            "in --out (default ./<DIR name>-batch); a rerun with the same --out resumes")
+
+
+def wants_batch(args: argparse.Namespace) -> bool:
+    """True when ``--workers`` or ``--scheduler`` was given (the command then runs as a batch)."""
+    return args.workers is not None or args.scheduler is not None
+
+
+def batch_where(args: argparse.Namespace) -> dict:
+    """``workers`` and ``scheduler`` keywords of a batch call: no ``--workers`` means serial (0)."""
+    return dict(workers=0 if args.workers is None and args.scheduler is None else args.workers,
+                scheduler=args.scheduler)
 
 
 def run_invert_batch(args: argparse.Namespace) -> int:

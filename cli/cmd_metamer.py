@@ -1,4 +1,8 @@
-"""``tactilab metamer``: the tractor-display metamer of a sliding sinusoid, and how well receptors tell them apart."""
+"""``tactilab metamer``: the tractor-display metamer of a sliding sinusoid, and how well receptors tell them apart.
+
+With ``--scan-pitch``, ``--scan-phase``, ``--scan-display`` (or ``--workers`` / ``--scheduler``) it
+scans every (display, pitch, phase) as a batch through ``tactilab.inversion.metamer_scan``.
+"""
 
 from __future__ import annotations
 
@@ -6,11 +10,13 @@ import argparse
 import json
 from pathlib import Path
 
+from .batch_options import add_worker_options, batch_where, wants_batch
 from .common import make_out
 
 NAME = "metamer"
 HELP = ("tactile metamer of a sinusoidal surface on a tractor display: residual, d' and tractor loads (N/mm) "
-        "for a receptor hypothesis such as xx,zx@1.25mm; PNGs of the strain at depth and the singular spectrum")
+        "for a receptor hypothesis such as xx,zx@1.25mm; PNGs of the strain at depth and the singular spectrum; "
+        "--scan-pitch/--scan-phase/--scan-display scan (display, pitch, phase) as a batch (--workers N)")
 
 PRESETS = ("wh2008", "stress2", "braille-row")
 
@@ -33,6 +39,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--unbounded", action="store_true", help="ignore the display's load limits")
     parser.add_argument("--out", type=Path, default=None, help="folder for the PNGs (default: metamer-<display>)")
     parser.add_argument("--json", action="store_true", help="print one JSON object (SI units) instead of text")
+    scan = add_worker_options(parser, default_help="serial in-process")
+    scan.add_argument("--scan-pitch", default=None, metavar="LIST",
+                      help="scan: grating pitches, comma-separated lengths (e.g. 2mm,4mm,8mm; default: the target's)")
+    scan.add_argument("--scan-phase", default=None, metavar="LIST",
+                      help="scan: grating phases, comma-separated, rad (e.g. 0,0.785,1.571; default: the target's)")
+    scan.add_argument("--scan-display", default=None, metavar="LIST",
+                      help="scan: displays, comma-separated presets or .json files (default: --display)")
 
 
 def _target(spec: str) -> dict:
@@ -86,7 +99,64 @@ def _positive(text: str, dimension: str, name: str) -> float:
     return value
 
 
+def _scan(args: argparse.Namespace) -> int:
+    """``--scan-*`` / ``--workers``: the metamer of every (display, pitch, phase) as a batch (no PNGs)."""
+    import numpy as np
+
+    from tactilab.data_schemas.units import to_si
+    from tactilab.forward import ReceptorHypothesis
+    from tactilab.inversion import metamer_scan
+
+    target = _target(args.target)
+    pitches = ([_positive(t.strip(), "length", "--scan-pitch") for t in args.scan_pitch.split(",") if t.strip()]
+               if args.scan_pitch is not None else [target["pitch"]])
+    phases = ([to_si(t.strip(), "dimensionless", name="--scan-phase") for t in args.scan_phase.split(",") if t.strip()]
+              if args.scan_phase is not None else [target["phase"]])
+    displays = [_display(t.strip()) for t in (args.scan_display or args.display).split(",") if t.strip()]
+    hypothesis = ReceptorHypothesis.parse(args.hypothesis).with_noise(_positive(args.noise, "dimensionless", "--noise"))
+    window = _positive(args.window, "length", "--window")
+    x = np.linspace(-window / 2, window / 2, _count(args.receptors, "--receptors", 2))
+    out = make_out(args.out if args.out is not None else Path("metamer-scan"))
+    scan = metamer_scan(pitches, phases, displays, hypothesis, amplitude=target["amplitude"],
+                        young_modulus=_positive(args.young_modulus, "pressure", "--young-modulus"), receptors=x,
+                        out_dir=out, bounds=None if args.unbounded else "family",
+                        scan_frames=_count(args.scan, "--scan", 1), progress=not args.json,
+                        echo=(lambda _: None) if args.json else print, **batch_where(args))
+    a = scan.attrs
+    points = []
+    for d in scan["display"].values:
+        for p in scan["pitch"].values:
+            for ph in scan["phase"].values:
+                v = scan.sel(display=d, pitch=p, phase=ph)
+                ok = bool(v["finished"])
+                points.append(dict(display=str(d), pitch_m=float(p), phase_rad=float(ph), finished=ok,
+                                   **{k: (float(v[k]) if ok else None) for k in
+                                      ("relative_residual", "dprime", "p_correct_2ifc", "scan_rms")},
+                                   metameric=bool(v["metameric"]) if ok else None,
+                                   n_at_limit=int(v["n_at_limit"]) if ok else None))
+    if args.json:
+        print(json.dumps(dict(hypothesis=str(hypothesis), amplitude_m=target["amplitude"], points=points,
+                              n_run=a["n_run"], n_skipped=a["n_skipped"], n_failed=a["n_failed"],
+                              failed=[k for k in a["failed"].split(";") if k], out=str(out))))
+        return 1 if a["n_failed"] else 0
+    print(f"metamer scan: sinusoid A = {target['amplitude'] * 1e3:g} mm; hypothesis {hypothesis}; {x.size} receptors")
+    print(f"{'display':12s} {'pitch_mm':>8s} {'phase_rad':>9s} {'rel_res':>8s} {'dprime':>9s} {'P_2ifc':>7s} "
+          f"{'scan_rms':>8s} {'at_limit':>8s}  metameric")
+    for r in points:
+        head = f"{r['display']:12s} {r['pitch_m'] * 1e3:8.3g} {r['phase_rad']:9.4g}"
+        if not r["finished"]:
+            print(f"{head}   failed (see {out / 'errors.tsv'})")
+            continue
+        print(f"{head} {r['relative_residual']:8.4f} {r['dprime']:9.4g} {r['p_correct_2ifc']:7.4f} "
+              f"{r['scan_rms']:8.4f} {r['n_at_limit']:8d}  {r['metameric']}")
+    print(f"batch: {a['n_run']} point(s) run, {a['n_skipped']} skipped (done before), {a['n_failed']} failed; "
+          f"files: {out / 'results'} (one per point, with the tractor loads in N/m), {out / 'metamer_scan.nc'}")
+    return 1 if a["n_failed"] else 0
+
+
 def run(args: argparse.Namespace) -> int:
+    if wants_batch(args) or any(v is not None for v in (args.scan_pitch, args.scan_phase, args.scan_display)):
+        return _scan(args)
     import numpy as np
 
     from tactilab.forward import ReceptorHypothesis

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-from .common import RunReport, add_report_options
+from .batch_options import add_worker_options, batch_where, wants_batch
+from .common import RunReport, add_report_options, make_out
 
 NAME = "synthesis"
 HELP = ("design a laterotactile display: optimal tractor half spacing d (mm) for receptors at a depth, "
@@ -32,7 +34,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sensitivity-pairs", default=None,
                         help="comma list of pair counts for the sensitivity rows (default 1,2,3,4,5,6,7)")
     parser.add_argument("--no-sensitivity", action="store_true", help="print only the design rows")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="with --workers or --scheduler: folder of the batch results, one file per design point "
+                             "(default ./synthesis-batch; the same folder resumes)")
     add_report_options(parser, out=False)
+    add_worker_options(parser, default_help="no batch; with --workers or --scheduler the table over every depth x "
+                                            "sensitivity width x sensitivity pair count runs as a batch, one task "
+                                            "per design point")
 
 
 def _lengths(text: str, name: str) -> list[float]:
@@ -126,6 +134,8 @@ def run(args: argparse.Namespace) -> int:
     from tactilab.forward import synthesis
 
     opts = _Options(args)
+    if wants_batch(args):
+        return _run_batch(args, opts)
     report = RunReport("synthesis")
     say = (lambda *a: None) if args.json else print
     footprint = "d (half the tractor pitch)" if opts.footprint is None else f"{opts.footprint * 1e3:g} mm"
@@ -196,3 +206,51 @@ def _summarise(report: RunReport, designs, opts: _Options) -> None:
                                f"receptors at {row['depth_mm']:g} mm, window {row['width_mm']:g} mm, "
                                f"{d.pairs} pairs")
     report.data["designs"] = rows
+
+
+def _run_batch(args: argparse.Namespace, opts: _Options) -> int:
+    """The design table over depths x widths x pairs as a batch (``tactilab.experiments.design_sweep``)."""
+    import numpy as np
+
+    from tactilab.experiments.batch import design_sweep
+
+    if opts.amplitude is not None or opts.limit is not None:
+        raise ValueError("--workers/--scheduler: the batch design table has no matching columns; drop --amplitude "
+                         "and --traction-limit (run without --workers for them)")
+    widths = [opts.width] if args.no_sensitivity else opts.widths
+    pairs = [opts.pairs] if args.no_sensitivity else opts.pairs_list
+    out = make_out(args.out if args.out is not None else Path("synthesis-batch"))
+    say = (lambda *a: None) if args.json else print
+    report = RunReport("synthesis")
+    report.watch(out)
+    table = design_sweep(opts.depths, widths, pairs, out_dir=out, progress=not args.json, echo=say,
+                         **batch_where(args))
+    report.method = ("lowest non-trivial local minimum of J(d) over d in [0.2 Z, 5 Z] (docs/theory.md 4a; plane "
+                     "strain, nu = 1/2, tractors as line loads), one batch task per design point")
+    say(f"design table: {len(opts.depths)} depth(s) x {len(widths)} width(s) x {len(pairs)} pair count(s)")
+    say(HEADER)
+    rows = []
+    for z in table["depth"].values:
+        for w in table["width"].values:
+            for n in table["pairs"].values:
+                p = table.sel(depth=z, width=w, pairs=n)
+                if np.isnan(float(p["d_m"])):
+                    say(f"{z * 1e3:8.3f} {w * 1e3:8.2f} {int(n):5d}   failed (see {out / 'errors.tsv'})")
+                    continue
+                say(f"{z * 1e3:8.3f} {w * 1e3:8.2f} {int(n):5d} {float(p['d_m']) * 1e3:8.4f} "
+                    f"{float(p['d_over_depth']):6.3f} {float(p['k2_per_m']) * 1e-3:8.4f} "
+                    f"{float(p['k2_prime_per_m']) * 1e-3:8.4f} {float(p['objective_per_m']):10.4g} "
+                    f"{float(p['relative_residual']):8.4f} {int(p['n_minima']):6d}")
+                rows.append({"depth_mm": z * 1e3, "width_mm": w * 1e3, "pairs": int(n), "d_mm": float(p["d_m"]) * 1e3,
+                             "d_over_depth": float(p["d_over_depth"]),
+                             "relative_residual": float(p["relative_residual"]), "n_local_minima": int(p["n_minima"])})
+    a = table.attrs
+    report.computed.append(f"design table of {len(rows)} point(s): {a['n_run']} run, {a['n_skipped']} skipped (done "
+                           f"before), {a['n_failed']} failed")
+    worst = max((r["relative_residual"] for r in rows), default=float("nan"))
+    report.error_estimate = f"relative residual of the matched strain profile, largest {worst:.3g} (0 = exact match)"
+    if a["n_failed"]:
+        report.dropped.append(f"{a['n_failed']} design point(s) failed: {a['failed']} (reasons in {out / 'errors.tsv'})")
+    report.data["designs"] = rows
+    report.emit(args.json)
+    return 1 if a["n_failed"] else 0

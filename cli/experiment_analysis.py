@@ -7,10 +7,14 @@ its own ``_run`` default, so the dispatcher calls it directly.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 from pathlib import Path
 
+from .batch_options import add_worker_options, batch_where, wants_batch
 from .common import make_out
+
+_JSON_HELP = "print one JSON object (the summary, SI units or units in the key names) instead of text"
 
 
 def add_subcommands(sub) -> None:
@@ -21,6 +25,7 @@ def add_subcommands(sub) -> None:
     fit.add_argument("--sigmoid", default="norm", help="norm, logistic, gumbel, rgumbel, tdist or weibull (default norm)")
     fit.add_argument("--out", type=Path, default=None, help="folder for the PNGs (default: the first session's folder)")
     fit.add_argument("--seed", type=int, default=0, help="seed for posterior draws (default 0)")
+    fit.add_argument("--json", action="store_true", help=_JSON_HELP)
     fit.set_defaults(_run=run_fit)
 
     cmp = sub.add_parser("compare", help="fit transduction models (receptor hypotheses, strain dimensionless) to "
@@ -31,7 +36,15 @@ def add_subcommands(sub) -> None:
                           "xx,zx@1.25mm; give two or more")
     cmp.add_argument("--statistic", default="peak", help="'peak' (largest |readout|) or 'rms' (default peak)")
     cmp.add_argument("--seed", type=int, default=0, help="seed for the samplers (default 0)")
-    cmp.add_argument("--out", type=Path, default=None, help="folder for the PNG (default: the first session's folder)")
+    cmp.add_argument("--max-steps", type=int, default=20000,
+                     help="emcee step limit per ensemble (steps; default 20000); stops earlier once converged")
+    cmp.add_argument("--out", type=Path, default=None,
+                     help="folder for the PNG (default: the first session's folder); with --workers or --scheduler "
+                          "the batch folder (default: <first session's folder>/compare-batch; the same folder resumes)")
+    cmp.add_argument("--json", action="store_true", help=_JSON_HELP)
+    add_worker_options(cmp, default_help="one pooled fit per model in-process, no batch; with --workers or "
+                                         "--scheduler the sessions are grouped by their subject and each "
+                                         "(subject, model) is fitted as one batch task")
     cmp.set_defaults(_run=run_compare)
 
     power = sub.add_parser("power", help="trials needed to tell a true transduction model from a rival over a design "
@@ -48,7 +61,19 @@ def add_subcommands(sub) -> None:
     power.add_argument("--exponent", type=float, default=1.0, help="transducer exponent (dimensionless, default 1)")
     power.add_argument("--lapse", type=float, default=0.02, help="lapse rate in [0, 0.5) (default 0.02)")
     power.add_argument("--false-alarm", type=float, default=0.16, help="yes/no false-alarm rate (default 0.16)")
-    power.add_argument("--out", type=Path, default=Path("."), help="folder for the PNG (default .)")
+    power.add_argument("--out", type=Path, default=Path("."),
+                       help="folder for the PNG (default .); the simulated sweep's results go to <out>/power-batch")
+    power.add_argument("--seeds", type=int, default=None, metavar="N",
+                       help="also simulate: N independent power estimates per trial count (count), one batch task "
+                            "each (with --trials)")
+    power.add_argument("--trials", default=None, metavar="LIST",
+                       help="trial counts N of the simulated sweep, comma-separated counts (default: the design's "
+                            "total, x2 and x4)")
+    power.add_argument("--seed", type=int, default=0, help="batch seed of the simulated sweep (integer, default 0)")
+    power.add_argument("--repeats", type=int, default=100,
+                       help="simulated experiments per power estimate (count, default 100)")
+    power.add_argument("--json", action="store_true", help=_JSON_HELP)
+    add_worker_options(power, default_help="serial in-process")
     power.set_defaults(_run=run_power)
 
 
@@ -61,6 +86,17 @@ def run_fit(args: argparse.Namespace) -> int:
 
     fits = fit_conditions(args.sessions, sigmoid=args.sigmoid, rng=args.seed)
     out = _out(args)
+    if args.json:
+        rows = []
+        for i, c in enumerate(fits):
+            path = out / f"fit_{i + 1:02d}.png"
+            c.fit.plot(path, xlabel=f"{c.parameter.rsplit('_', 1)[0]} ({c.unit.replace('um', 'µm')})", title=c.label)
+            th = c.fit.params["threshold"]
+            rows.append(dict(condition=c.label, parameter=c.parameter, unit=c.unit, n_trials=c.n_trials,
+                             threshold=th.map, threshold_ci95=list(th.ci95), width=c.fit.params["width"].map,
+                             lapse=c.fit.params["lapse"].map, gof_p=c.fit.gof_p, png=str(path)))
+        print(json.dumps({"command": "experiment fit", "conditions": rows}))
+        return 0
     print(f"{'condition':52s} {'trials':>6s} {'threshold [95 % interval]':>32s} {'width':>9s} {'lapse':>6s} {'gof p':>6s}")
     for i, c in enumerate(fits):
         th, w, lam = (c.fit.params[k] for k in ("threshold", "width", "lapse"))
@@ -72,19 +108,78 @@ def run_fit(args: argparse.Namespace) -> int:
     return 0
 
 
+def _compare_row(row, converged) -> dict:
+    return dict(elpd=float(row["elpd"]), elpd_diff=float(row["elpd_diff"]), dse=float(row["dse"]), z=float(row["z"]),
+                pareto_k_max=float(row["pareto_k_max"]), converged=bool(converged), verdict=str(getattr(row["verdict"], "values", row["verdict"])))
+
+
+def _sampler(args: argparse.Namespace) -> dict:
+    if args.max_steps < 1:
+        raise ValueError(f"--max-steps: must be >= 1 step, got {args.max_steps}; e.g. 20000")
+    return {"max_steps": args.max_steps}
+
+
 def run_compare(args: argparse.Namespace) -> int:
+    if wants_batch(args):
+        return _run_compare_batch(args)
     from tactilab.experiments.analysis import compare_sessions, plot_comparison
 
-    table, fits = compare_sessions(args.sessions, args.model, statistic=args.statistic, rng=args.seed)
+    table, fits = compare_sessions(args.sessions, args.model, statistic=args.statistic, rng=args.seed,
+                                   sampler_options=_sampler(args))
     out = _out(args)
+    path = out / "compare.png"
+    plot_comparison(table, fits, path)
+    if args.json:
+        print(json.dumps({"command": "experiment compare", "models": {
+            name: _compare_row(row, fits[name].converged) for name, row in table.iterrows()}, "png": str(path)}))
+        return 0
     print(f"{'model':24s} {'elpd':>10s} {'elpd_diff':>10s} {'dse':>8s} {'z':>7s} {'k max':>6s} {'converged':>9s}  verdict")
     for name, row in table.iterrows():
         print(f"{name:24s} {row['elpd']:10.2f} {row['elpd_diff']:10.2f} {row['dse']:8.2f} {row['z']:7.2f} "
               f"{row['pareto_k_max']:6.2f} {str(fits[name].converged):>9s}  {row['verdict']}")
-    path = out / "compare.png"
-    plot_comparison(table, fits, path)
     print(f"wrote {path}")
     return 0
+
+
+def _run_compare_batch(args: argparse.Namespace) -> int:
+    from tactilab.experiments.batch import compare_many, sessions_by_subject
+
+    if len(args.model) < 2 or len(set(args.model)) != len(args.model):
+        raise ValueError(f"--model: give two or more different hypotheses, got {args.model}; e.g. --model zx@1mm "
+                         "--model xx@1mm")
+    subjects = sessions_by_subject(args.sessions)
+    out = make_out(args.out if args.out is not None else Path(args.sessions[0]).parent / "compare-batch")
+    table = compare_many(subjects, args.model, seed=args.seed, out_dir=out, statistic=args.statistic,
+                         sampler_options=_sampler(args),
+                         progress=not args.json, echo=(lambda _: None) if args.json else print, **batch_where(args))
+    a = table.attrs
+    if args.json:
+        print(json.dumps({"command": "experiment compare", "subjects": {
+            s: {m: _compare_row(table.sel(subject=s, model=m), table["converged"].sel(subject=s, model=m))
+                for m in table["model"].values} for s in table["subject"].values},
+            "n_run": a["n_run"], "n_skipped": a["n_skipped"], "n_failed": a["n_failed"],
+            "failed": [k for k in a["failed"].split(";") if k], "out": str(out)}))
+        return 1 if a["n_failed"] else 0
+    for s in table["subject"].values:
+        print(f"subject {s}")
+        print(f"  {'model':22s} {'elpd':>10s} {'elpd_diff':>10s} {'dse':>8s} {'z':>7s} {'k max':>6s} {'converged':>9s}  verdict")
+        for m in table["model"].values:
+            row = table.sel(subject=s, model=m)
+            print(f"  {m:22s} {float(row['elpd']):10.2f} {float(row['elpd_diff']):10.2f} {float(row['dse']):8.2f} "
+                  f"{float(row['z']):7.2f} {float(row['pareto_k_max']):6.2f} {str(bool(row['converged'])):>9s}  "
+                  f"{row['verdict'].values}")
+    print(f"batch: {a['n_run']} fit(s) run, {a['n_skipped']} skipped (done before), {a['n_failed']} failed; "
+          f"files: {out / 'results'} (one DataTree per subject and model), {out / 'compare_many.nc'} (the table)"
+          + (f", {out / 'errors.tsv'}" if a["n_failed"] else ""))
+    return 1 if a["n_failed"] else 0
+
+
+def _counts(text: str, name: str) -> list[int]:
+    try:
+        return [int(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise ValueError(f"{name}: expected comma-separated trial counts (integers >= 1), got {text!r}; "
+                         "e.g. 100,200,400") from None
 
 
 def run_power(args: argparse.Namespace) -> int:
@@ -93,6 +188,9 @@ def run_power(args: argparse.Namespace) -> int:
     from tactilab.experiments.analysis import plot_power, read_design
     from tactilab.experiments.models import TransductionModel, power_analysis
 
+    if args.seeds is None and (wants_batch(args) or args.trials is not None):
+        raise ValueError("--seeds: --workers, --scheduler and --trials belong to the simulated sweep; give the number "
+                         "of simulated power estimates per trial count, e.g. --seeds 4")
     design = read_design(args.design)
     true_model, rival = TransductionModel(args.true_model), TransductionModel(args.rival)
     threshold = args.threshold
@@ -104,18 +202,54 @@ def run_power(args: argparse.Namespace) -> int:
         params["false_alarm"] = args.false_alarm
     result = power_analysis(true_model, params, rival, design, task=args.task)
     n_design = sum(n for _, n in design)
+    make_out(args.out)
+    path = args.out / "power.png"
+    plot_power(result, path, int(min(max(2 * result.trials_for(4.0), 4 * n_design), 1e6))
+               if math.isfinite(result.trials_for(4.0)) else 4 * n_design)
+    sweep = None
+    if args.seeds is not None:
+        from tactilab.experiments.batch import power_sweep
+
+        ns = _counts(args.trials, "--trials") if args.trials is not None else [n_design, 2 * n_design, 4 * n_design]
+        if args.repeats < 1:
+            raise ValueError(f"--repeats: must be >= 1 simulated experiment, got {args.repeats}; e.g. 100")
+        sweep = power_sweep(true_model, params, rival, design, ns, n_seeds=args.seeds, seed=args.seed,
+                            out_dir=args.out / "power-batch", task=args.task, n_repeats=args.repeats, progress=not args.json,
+                            echo=(lambda _: None) if args.json else print, **batch_where(args))
+    need = {z: result.trials_for(z) for z in (2.0, 4.0)}
+    if args.json:
+        summary = dict(command="experiment power", true=args.true_model, rival=args.rival, threshold_strain=threshold,
+                       exponent=args.exponent, lapse=args.lapse, rival_params=result.rival_params,
+                       mu_nats_per_trial=result.mu, sigma_nats_per_trial=result.sigma,
+                       trials_for_z2=need[2.0] if math.isfinite(need[2.0]) else None,
+                       trials_for_z4=need[4.0] if math.isfinite(need[4.0]) else None,
+                       design_trials=n_design, p_select_design=result.p_select(n_design), png=str(path))
+        if sweep is not None:
+            summary["simulated"] = dict(
+                n_trials=[int(n) for n in sweep["n_trials"].values], repeats=args.repeats, seeds=args.seeds,
+                p_select=[[None if np.isnan(v) else float(v) for v in row] for row in sweep["p_select"].values],
+                p_select_mean=[None if np.isnan(v) else float(v) for v in sweep["p_select_mean"].values],
+                p_asymptotic=[float(v) for v in sweep["p_asymptotic"].values], n_run=sweep.attrs["n_run"],
+                n_skipped=sweep.attrs["n_skipped"], n_failed=sweep.attrs["n_failed"], out=str(args.out / "power-batch"))
+        print(json.dumps(summary))
+        return 1 if sweep is not None and sweep.attrs["n_failed"] else 0
     print(f"true {args.true_model} at threshold strain {threshold:.3g}, exponent {args.exponent:g}, "
           f"lapse {args.lapse:g}; rival {args.rival}")
     print("rival's pseudo-true parameters: " + ", ".join(f"{k} {v:.4g}" for k, v in result.rival_params.items()))
     print(f"mu {result.mu:.4g} nats/trial, sigma {result.sigma:.4g} nats/trial")
     for z in (2.0, 4.0):
-        need = result.trials_for(z)
-        print(f"trials for z = {z:g}: " + (f"{math.ceil(need)}" if math.isfinite(need) else
+        print(f"trials for z = {z:g}: " + (f"{math.ceil(need[z])}" if math.isfinite(need[z]) else
                                            "never (identical predictions on this design)"))
     print(f"P(z > 4) with the design's {n_design} trials: {result.p_select(n_design):.3f}")
-    make_out(args.out)
-    path = args.out / "power.png"
-    plot_power(result, path, int(min(max(2 * result.trials_for(4.0), 4 * n_design), 1e6))
-               if math.isfinite(result.trials_for(4.0)) else 4 * n_design)
+    if sweep is not None:
+        print(f"simulated P(z > 4) ({args.seeds} estimate(s) of {args.repeats} simulated experiments each):")
+        print(f"{'trials':>8s} {'mean':>7s} {'min':>7s} {'max':>7s} {'asymptotic':>10s}")
+        for j, n in enumerate(sweep["n_trials"].values):
+            col = sweep["p_select"].values[:, j]
+            print(f"{int(n):8d} {sweep['p_select_mean'].values[j]:7.3f} {np.nanmin(col) if np.isfinite(col).any() else np.nan:7.3f} "
+                  f"{np.nanmax(col) if np.isfinite(col).any() else np.nan:7.3f} {sweep['p_asymptotic'].values[j]:10.3f}")
+        a = sweep.attrs
+        print(f"batch: {a['n_run']} point(s) run, {a['n_skipped']} skipped (done before), {a['n_failed']} failed; "
+              f"files in {args.out / 'power-batch'}")
     print(f"wrote {path}")
-    return 0
+    return 1 if sweep is not None and sweep.attrs["n_failed"] else 0

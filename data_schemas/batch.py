@@ -19,8 +19,8 @@ keys and imports nothing from forward, inversion or experiments. The rules it en
   (``key``, one-line reason) and never aborts the batch; failed keys are retried on a rerun.
 - **Small items are batched** ``per_task`` to a Dask task; objects shared by every item
   (operators, kernels, scenes) are scattered once to every worker (``broadcast=True``).
-- **One BLAS/FFT thread** per worker and on the serial path (threadpoolctl when installed; the
-  variables ``OMP_NUM_THREADS``, ``OPENBLAS_NUM_THREADS``, ``MKL_NUM_THREADS`` = 1 are set
+- **One BLAS/FFT thread** per worker and on the serial path (threadpoolctl, part of the ``dask``
+  extra, when installed; the variables ``OMP_NUM_THREADS``, ``OPENBLAS_NUM_THREADS``, ``MKL_NUM_THREADS`` = 1 are set
   for the worker processes in any case).
 
 Dask (``dask``, ``distributed``) is optional: ``pip install 'tactilab[dask]'``. ``workers=0``
@@ -103,15 +103,36 @@ def _write_atomic(result, path: pathlib.Path, key: str, seed: int, compute_s: fl
         tmp.unlink(missing_ok=True)
 
 
+_CONTROLLER: list = []  # this process's threadpoolctl controller, made once (scanning the libraries costs ~1 ms)
+
+
+def _controller():
+    if not _CONTROLLER:
+        try:
+            from threadpoolctl import ThreadpoolController
+        except ImportError:  # the worker processes get ONE_THREAD_ENV instead
+            _CONTROLLER.append(None)
+        else:
+            import scipy.linalg  # noqa: F401 - load scipy's own BLAS first, so that it is limited too
+
+            _CONTROLLER.append(ThreadpoolController())
+    return _CONTROLLER[0]
+
+
 @contextlib.contextmanager
 def one_thread() -> Iterator[None]:
-    """Limit BLAS/OpenMP to one thread inside the block (threadpoolctl when installed)."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # the worker processes get ONE_THREAD_ENV instead
+    """Limit BLAS/OpenMP to one thread inside the block (threadpoolctl, from the dask extra, when installed).
+
+    FFTs need no limit: ``numpy.fft`` runs on one thread and ``scipy.fft`` uses one unless given
+    ``workers``. Without threadpoolctl the serial path keeps the caller's BLAS threads (start
+    Python with ``OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1`` then); worker processes get
+    ``ONE_THREAD_ENV`` in any case.
+    """
+    controller = _controller()
+    if controller is None:
         yield
         return
-    with threadpool_limits(limits=1):
+    with controller.limit(limits=1):
         yield
 
 

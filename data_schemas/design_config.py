@@ -14,10 +14,11 @@ as parameter lists with units, e.g.::
     pitch_m = ["3mm"]
     speed_m_per_s = ["40mm/s"]
 
-The candidates are the product of the lists. The runner builds each trial's stimulus from the
-protocol's ``[stimulus]`` with ``parameter`` set to the chosen level, so ``parameter`` is the
-only field that may take several values, and the other listed fields must equal the protocol's
-stimulus (the procedure reads them to predict each hypothesis's strain). The procedure is
+The candidates are the product of the lists; several fields may take several values (pitch,
+amplitude and ``surface = ["sinusoid", "square"]``, say). Each trial shows the chosen candidate:
+the protocol's ``[stimulus]`` with EVERY listed field set to the candidate's value (the runner's
+``PlannedStimulus``), so the fields the procedure predicts with are the fields commanded. The
+trial's recorded ``level`` is the candidate's value of ``parameter``. The procedure is
 registered by :mod:`tactilab.experiments.design` (import it before loading such a protocol).
 """
 
@@ -29,10 +30,11 @@ from typing import Any, Literal
 from pydantic import Field, model_validator
 
 from .experiment import Stimulus
-from .experiment_procedures import PARAMETERS, ProcedureConfigBase, _grid
+from .experiment_procedures import PARAMETERS, ProcedureConfigBase, _grid, register_procedure_config
 from .hypothesis import parse_hypothesis
 
 #: stimulus fields a candidate list may name, with their dimension ("text" for the waveform)
+MAX_CANDIDATES = 1000  # the design's table is candidates x models x grid points
 CANDIDATE_FIELDS = {**PARAMETERS, "surface": "text", "ramp_s": "time", "frame_rate_hz": "frequency"}
 
 
@@ -86,10 +88,18 @@ class ModelDiscriminationConfig(ProcedureConfigBase):
                              "each hypothesis's strain")
         if self.parameter not in self.candidates:
             raise ValueError(f"candidates: must list the varied parameter {self.parameter!r}")
-        several = [k for k, v in self.candidates.items() if k != self.parameter and len(v) > 1]
-        if several:
-            raise ValueError(f"candidates.{several[0]}: the runner varies only {self.parameter!r}; give one value "
-                             "for every other field (several are possible from Python with ModelDiscrimination)")
+        n = 1
+        for values in self.candidates.values():
+            n *= len(values)
+        if n > MAX_CANDIDATES:
+            raise ValueError(f"candidates: the lists give {n} candidates (their product), above the cap of "
+                             f"{MAX_CANDIDATES}; use fewer values per field")
+        for combo in itertools.product(*self.candidates.values()):
+            try:
+                Stimulus.model_validate(dict(zip(self.candidates, combo)))
+            except ValueError as exc:
+                raise ValueError(f"candidates: {dict(zip(self.candidates, combo))} is not a valid stimulus "
+                                 f"({exc.errors()[0]['msg'] if hasattr(exc, 'errors') else exc}); change the lists")
         return self
 
     def stimuli(self) -> list[Stimulus]:
@@ -103,3 +113,6 @@ class ModelDiscriminationConfig(ProcedureConfigBase):
 
     def n_planned(self) -> int:
         return self.max_trials
+
+
+register_procedure_config("model_discrimination", ModelDiscriminationConfig)

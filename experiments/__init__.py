@@ -58,6 +58,8 @@ _EXPORTS = {
     "PowerResult": "models",
     "power_sweep": "batch",
     "design_sweep": "batch",
+    "compare_many": "batch",
+    "sessions_by_subject": "batch",
     "ModelDiscrimination": "design",
 }
 

@@ -1,6 +1,6 @@
-"""Batch sweeps of the experiments part on the generic batch layer: power over (seed, N), design tables.
+"""Batch jobs of the experiments part on the generic batch layer: model fits per subject, power, design tables.
 
-Both run through :func:`tactilab.data_schemas.batch.run_batch`: serial with ``workers=0``, on a
+All run through :func:`tactilab.data_schemas.batch.run_batch`: serial with ``workers=0``, on a
 LocalCluster or a running Dask scheduler otherwise; one result file per key in ``out_dir``;
 a rerun with the same ``out_dir`` resumes; a failing point goes into ``errors.tsv``.
 
@@ -10,19 +10,25 @@ a rerun with the same ``out_dir`` resumes; a failing point goes into ``errors.ts
   from ``SeedSequence(seed, spawn_key=(stable_hash(key),))`` whatever the worker count.
 - :func:`design_sweep`: the synthesis design table (:func:`tactilab.forward.design_table`) over
   (depth, window width, number of pairs), one task per design point.
+- :func:`compare_many`: transduction fits (:func:`~.models.fit_transduction`) of every model to
+  every subject's sessions, one task per (subject, model) with the key ``<subject>/<model name>``,
+  then one PSIS-LOO comparison (:func:`~.models.compare_models`) per subject, gathered into a
+  table over (subject, model); :func:`sessions_by_subject` groups session files by the subject
+  code they recorded.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import pathlib
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from tactilab.data_schemas.batch import read_result, run_batch
+from tactilab.data_schemas.batch import batch_client, read_result, result_path, run_batch
 
 from .model_power import power_analysis
 
-__all__ = ["power_sweep", "design_sweep"]
+__all__ = ["power_sweep", "design_sweep", "compare_many", "sessions_by_subject"]
 
 
 def _power_point(item, rng, *, true_model, true_params, rival, design, task, n_repeats, z):
@@ -154,3 +160,191 @@ def design_sweep(depths, widths, pairs_list, *, out_dir, seed: int = 0, client=N
                               "pairs": ps},
                       attrs=dict(n_run=rep.n_run, n_skipped=rep.n_skipped, n_failed=rep.n_failed,
                                  failed=";".join(rep.errors)))
+
+
+# ----------------------------------------------------------------------------- model fits per subject
+#: variables of the gathered comparison table (arviz_stats.compare's columns and compare_models' additions)
+COMPARE_COLUMNS = ("rank", "elpd", "p", "elpd_diff", "weight", "se", "dse", "z", "pareto_k_max")
+
+
+def sessions_by_subject(paths) -> dict[str, list[str]]:
+    """Session files grouped by the subject code each recorded: subject -> absolute paths, sorted.
+
+    Parameters
+    ----------
+    paths : sequence of path
+        Session ``.sqlite`` files (any subjects, any order).
+    """
+    from .resume import session_header
+
+    out: dict[str, list[str]] = {}
+    for path in paths:
+        if not pathlib.Path(path).is_file():
+            raise ValueError(f"sessions: no session file at {str(path)!r}")
+        out.setdefault(str(session_header(path).meta["subject"]), []).append(str(pathlib.Path(path).resolve()))
+    if not out:
+        raise ValueError("sessions: empty; give at least one session .sqlite file")
+    return {k: sorted(v) for k, v in sorted(out.items())}
+
+
+def _fit_point(item, rng, *, models, options):
+    """One task: fit one model to one subject's trials -> the fit's DataTree plus a ``summary`` group."""
+    import xarray as xr
+
+    from .models import fit_transduction
+
+    fit = fit_transduction(models[item["model"]], item["trials"], rng=rng, **options)
+    tree = fit.tree.copy()
+    for group in tree.children:
+        tree[group].attrs = {}  # arviz stamps the creation time: keep the file a function of the inputs only
+    names = list(fit.params)
+    summary = xr.Dataset({stat: ("parameter", [getattr(fit.params[n], stat) for n in names])
+                          for stat in ("map", "mean", "median")} |
+                         {"lower": ("parameter", [fit.params[n].ci95[0] for n in names]),
+                          "upper": ("parameter", [fit.params[n].ci95[1] for n in names])},
+                         coords={"parameter": names},
+                         attrs={"units": "threshold_strain in strain (dimensionless); exponent, lapse, false_alarm "
+                                         "dimensionless", "interval": "2.5 % and 97.5 % posterior quantiles"})
+    tree["summary"] = xr.DataTree(summary)
+    tree.attrs.update(subject=item["subject"], model=item["model"], converged=int(fit.converged))
+    return tree
+
+
+def _compare_subject(paths: dict[str, str]):
+    """Compare the finished fits of one subject (model -> result file); run where the files are."""
+    import warnings
+
+    import xarray as xr
+
+    from .models import compare_models
+
+    trees = {m: xr.open_datatree(p, engine="h5netcdf").load() for m, p in paths.items()}
+    summaries = {m: t["summary"].to_dataset() for m, t in trees.items()}
+    converged = {m: bool(t.attrs["converged"]) for m, t in trees.items()}
+    if len(trees) < 2:
+        return None, summaries, converged, []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UserWarning)
+        table = compare_models(trees)
+    return table, summaries, converged, sorted({" ".join(str(w.message).split())[:200] for w in caught})
+
+
+def compare_many(subjects: Mapping, models: Sequence, *, seed: int, out_dir, statistic: str = "peak",
+                 n_ensembles: int = 4, sampler_options: Mapping | None = None, client=None,
+                 workers: int | None = None, scheduler: str | None = None, per_task: int = 1, progress: bool = True,
+                 echo: Callable[[str], None] = print):
+    """Fit every transduction model to every subject's trials and compare the models per subject.
+
+    One batch task per (subject, model), key ``<subject>/<model name>``, seeded by
+    ``SeedSequence(seed, spawn_key=(stable_hash(key),))``: a fit does not depend on the worker
+    count, the order or the other subjects. Each fit is ``<out_dir>/results/<key>.nc`` (its
+    DataTree: ``posterior``, ``log_likelihood``, ``observed_data``, ``sample_stats`` and a
+    ``summary`` group); a rerun with the same ``out_dir`` resumes; a failing fit goes into
+    ``errors.tsv``. The PSIS-LOO comparison of each subject then runs where the files are (on the
+    workers when there are any).
+
+    Parameters
+    ----------
+    subjects : mapping of str to trials
+        Subject code -> what :func:`~.models.fit_transduction` takes: session ``.sqlite`` path(s),
+        a list of TrialRecord or a DataFrame (see :func:`sessions_by_subject`).
+    models : sequence of str or TransductionModel
+        At least two; hypothesis strings (``"zx@1mm"``) are built with ``statistic``. Names unique.
+    seed : int
+        Batch seed.
+    out_dir : path
+        Output folder (resumable): ``results/``, ``errors.tsv``, ``compare_many.nc``.
+    statistic : {"peak", "rms"}
+        Statistic of models given as strings.
+    n_ensembles, sampler_options
+        As in :func:`~.models.fit_transduction`.
+    client, workers, scheduler, per_task, progress
+        See :func:`tactilab.data_schemas.batch.run_batch`.
+
+    Returns
+    -------
+    xarray.Dataset
+        Over (subject, model): ``rank`` (0 = best; -1 where not compared), ``elpd``, ``p``,
+        ``elpd_diff``, ``weight``, ``se``, ``dse``, ``z``, ``pareto_k_max`` (nats, NaN where not
+        compared), ``verdict`` (``best``, ``worse``, ``weakly worse``, ``indistinguishable``;
+        ``failed`` for a fit that failed, ``not compared`` when fewer than two fits of a subject
+        finished), ``converged``; over (subject, model, parameter): ``map``, ``mean``, ``median``,
+        ``lower``, ``upper`` (95 %). Attrs: ``seed``, ``n_run``, ``n_skipped``, ``n_failed``,
+        ``failed`` (keys, ``;``-separated), ``warnings`` (PSIS warnings, ``|``-separated).
+    """
+    from .models import TransductionModel
+
+    if not isinstance(subjects, Mapping) or not subjects:
+        raise ValueError("subjects: give a mapping subject code -> trials (session paths, TrialRecords or a "
+                         "DataFrame), e.g. sessions_by_subject(paths)")
+    built = [m if isinstance(m, TransductionModel) else TransductionModel(m, statistic=statistic) for m in models]
+    names = [m.name for m in built]
+    if len(built) < 2 or len(set(names)) != len(names):
+        raise ValueError(f"models: give at least two different models, got {names}; e.g. ['zx@1mm', 'xx@1mm']")
+    subs = [str(s) for s in subjects]
+    for s in subs:
+        if not s or "/" in s:
+            raise ValueError(f"subjects: a subject code must be non-empty without '/', got {s!r}; e.g. 'S01'")
+    items = {f"{s}/{m}": {"subject": s, "model": m, "trials": _trials(t)} for s, t in zip(subs, subjects.values())
+             for m in names}
+    options = dict(n_ensembles=int(n_ensembles), sampler_options=dict(sampler_options or {}, progress=False))
+    shared = dict(models=dict(zip(names, built)), options=options)
+    with batch_client(workers, scheduler, client=client, echo=echo) as cl:
+        rep = run_batch(_fit_point, items, seed=seed, out_dir=out_dir, client=cl, workers=0 if cl is None else None,
+                        shared=shared, per_task=per_task, progress=progress, echo=echo)
+        done = set(rep.done)
+        jobs = [{m: str(result_path(out_dir, f"{s}/{m}")) for m in names if f"{s}/{m}" in done} for s in subs]
+        parts = [_compare_subject(j) for j in jobs] if cl is None else cl.gather(cl.map(_compare_subject, jobs,
+                                                                                         pure=False))
+    return _gather_comparison(subs, names, parts, dict(
+        seed=int(seed), n_run=rep.n_run, n_skipped=rep.n_skipped, n_failed=rep.n_failed, failed=";".join(rep.errors)),
+        out_dir)
+
+
+def _trials(trials):
+    if isinstance(trials, str | pathlib.PurePath):
+        return str(pathlib.Path(trials).resolve())
+    if isinstance(trials, list | tuple) and trials and all(isinstance(t, str | pathlib.PurePath) for t in trials):
+        return [str(pathlib.Path(t).resolve()) for t in trials]
+    return trials
+
+
+def _gather_comparison(subs, names, parts, attrs, out_dir):
+    import xarray as xr
+
+    shape = (len(subs), len(names))
+    data = {c: np.full(shape, np.nan) for c in COMPARE_COLUMNS}
+    data["rank"] = np.full(shape, -1, dtype=np.int64)
+    verdict = np.full(shape, "failed", dtype=object)
+    converged = np.zeros(shape, dtype=bool)
+    params = sorted({p for _, summaries, _, _ in parts for s in summaries.values() for p in s["parameter"].values},
+                    key=["threshold_strain", "exponent", "lapse", "false_alarm"].index)
+    stats = {k: np.full(shape + (len(params),), np.nan) for k in ("map", "mean", "median", "lower", "upper")}
+    notes = set()
+    for i, (table, summaries, conv, warns) in enumerate(parts):
+        notes.update(warns)
+        for m, summary in summaries.items():
+            j = names.index(m)
+            converged[i, j] = conv[m]
+            verdict[i, j] = "not compared"
+            for k in stats:
+                for p, v in zip(summary["parameter"].values, summary[k].values):
+                    stats[k][i, j, params.index(p)] = v
+        if table is not None:
+            for m, row in table.iterrows():
+                j = names.index(m)
+                for c in COMPARE_COLUMNS:
+                    data[c][i, j] = row[c]
+                verdict[i, j] = row["verdict"]
+    dims = ("subject", "model")
+    ds = xr.Dataset({**{c: (dims, v) for c, v in data.items()}, "verdict": (dims, verdict.astype(str)),
+                     "converged": (dims, converged),
+                     **{k: (dims + ("parameter",), v) for k, v in stats.items()}},
+                    coords={"subject": subs, "model": names, "parameter": params},
+                    attrs={**attrs, "warnings": " | ".join(sorted(notes)),
+                           "units": "elpd, elpd_diff, se, dse in nats (PSIS-LOO); threshold_strain in strain"})
+    path = pathlib.Path(out_dir) / "compare_many.nc"
+    tmp = path.with_name(f".{path.name}.tmp")
+    ds.to_netcdf(tmp, engine="h5netcdf")
+    tmp.replace(path)
+    return ds

@@ -33,16 +33,19 @@ import json
 import math
 import warnings
 from collections.abc import Mapping, Sequence
+from functools import cached_property
 
 import numpy as np
 
 from tactilab.data_schemas.design_config import ModelDiscriminationConfig
 from tactilab.data_schemas.experiment import Stimulus
 
+from ._design_math import _entropy, information_gain, metameric_groups
 from ._transduction_data import Beta1, LogNormal, p_correct_table
 from .models import TransductionModel
-from .procedures import PlannedLevel, Procedure
+from .procedures import Procedure
 from .registry import register_procedure
+from .tasks import PlannedStimulus
 
 __all__ = ["ModelDiscrimination", "ModelDiscriminationConfig", "UTILITIES", "information_gain", "metameric_groups",
            "from_config"]
@@ -51,90 +54,6 @@ UTILITIES = ("model", "parameters", "both")
 _LAPSES = (0.0, 0.01, 0.03, 0.08)
 _RELATIVE_THRESHOLDS = (1e-2, 3.0)  # threshold grid range / the models' largest candidate statistics
 _EXPONENTS = (0.4, 3.0)
-
-
-def _entropy(p: np.ndarray) -> np.ndarray:
-    """Binary entropy in nats (0 at p = 0 or 1)."""
-    p = np.clip(p, 1e-15, 1 - 1e-15)
-    return -(p * np.log(p) + (1 - p) * np.log1p(-p))
-
-
-def information_gain(table: np.ndarray, weights: np.ndarray, utility: str = "model",
-                     entropy_table: np.ndarray | None = None, groups: np.ndarray | None = None) -> np.ndarray:
-    """Expected information (nats) of one binary response per candidate.
-
-    Parameters
-    ----------
-    table : ndarray, shape (n_candidates, n_models, n_grid)
-        P(correct | candidate, model, grid point).
-    weights : ndarray, shape (n_models, n_grid)
-        Joint posterior probabilities (sum 1).
-    utility : {"model", "parameters", "both"}
-        I(Y; m), I(Y; theta | m) or I(Y; m, theta).
-    entropy_table : ndarray, optional
-        ``H(table)`` (precomputed; needed only for "parameters" and "both").
-    groups : ndarray of int, shape (n_models,), optional
-        Metameric group of each model: the "model" term is then I(Y; group), the information
-        about the question the candidates CAN answer (default: every model its own group).
-
-    Returns
-    -------
-    ndarray, shape (n_candidates,)
-    """
-    pi = weights.sum(axis=1)  # (M,)
-    cond = weights / np.where(pi > 0, pi, 1.0)[:, None]
-    p_m = np.einsum("cmg,mg->cm", table, cond)  # predictive P(correct) per model
-    h_m = _entropy(p_m)
-    out = np.zeros(table.shape[0])
-    if utility in ("model", "both"):
-        if groups is None:
-            out += _entropy(p_m @ pi) - h_m @ pi
-        else:
-            onehot = (np.asarray(groups)[:, None] == np.unique(groups)[None, :]).astype(float)  # (M, n_groups)
-            pg = onehot.T @ pi
-            p_g = (p_m * pi) @ onehot / np.where(pg > 0, pg, 1.0)
-            out += _entropy(p_g @ pg) - _entropy(p_g) @ pg
-    if utility in ("parameters", "both"):
-        h = entropy_table if entropy_table is not None else _entropy(table)
-        out += (h_m - np.einsum("cmg,mg->cm", h, cond)) @ pi
-    return np.maximum(out, 0.0)
-
-
-def metameric_groups(stats: np.ndarray, names: Sequence[str], rtol: float = 1e-6) -> list[tuple[str, ...]]:
-    """Groups of models whose statistics are related by s_i = k s_j^a (a > 0) over every candidate.
-
-    ``stats``: shape (n_models, n_candidates, n_intervals), readout units. Two models are
-    metameric when their zero statistics coincide and log s_i is an increasing affine function
-    of log s_j on the rest (within ``rtol``): a free threshold and exponent then make their
-    predictions identical, so no data on these candidates can tell them apart. Returns every
-    group (singletons included), in model order.
-    """
-    m = stats.shape[0]
-    flat = stats.reshape(m, -1)
-    parent = list(range(m))
-
-    def root(i):
-        while parent[i] != i:
-            i = parent[i]
-        return i
-
-    for i in range(m):
-        for j in range(i + 1, m):
-            zi, zj = flat[i] > 0, flat[j] > 0
-            if not np.array_equal(zi, zj):
-                continue
-            x, y = np.log(flat[j][zj]), np.log(flat[i][zi])
-            if np.ptp(x) <= rtol:  # one distinct value: any rival fits it exactly
-                same = np.ptp(y) <= rtol
-            else:
-                a, b = np.polyfit(x, y, 1)
-                same = a > 0 and np.max(np.abs(a * x + b - y)) <= rtol * max(1.0, np.max(np.abs(y)))
-            if same:
-                parent[root(j)] = root(i)
-    groups: dict[int, list[str]] = {}
-    for i in range(m):
-        groups.setdefault(root(i), []).append(names[i])
-    return [tuple(g) for g in groups.values()]
 
 
 def _key(candidate) -> str:
@@ -383,11 +302,25 @@ class ModelDiscrimination(Procedure):
         return self.winner is not None or any(p >= self.stop_probability and len(g) > 1
                                               for g, p in self.group_probabilities().items())
 
+    @cached_property
+    def stimulus_fields(self) -> tuple[str, ...]:
+        """The stimulus fields a planned trial carries besides the level: those a protocol lists
+        under ``candidates`` (built from a protocol), else those that differ between candidates
+        plus the fields the ideal-surface statistic reads (surface, amplitude, pitch)."""
+        if isinstance(self.config, ModelDiscriminationConfig):
+            names = list(self.config.candidates)
+        else:
+            first = [c[0] if isinstance(c, tuple) else c for c in self.candidates]
+            dumps = [s.model_dump() for s in first]
+            names = ["surface", "amplitude_m", "pitch_m"] + [k for k in dumps[0] if len({d[k] for d in dumps}) > 1]
+        return tuple(dict.fromkeys(k for k in names if k != self.parameter))
+
     def _next(self, rng):
         index = self.choose(rng)
         c = self.candidates[index]
-        level = (c[0] if isinstance(c, tuple) else c).model_dump()[self.parameter]
-        return PlannedLevel(float(level), index, 0)
+        stimulus = c[0] if isinstance(c, tuple) else c
+        fields = tuple((k, getattr(stimulus, k)) for k in self.stimulus_fields)
+        return PlannedStimulus(float(getattr(stimulus, self.parameter)), index, 0, fields)
 
     def _update(self, planned, outcome):
         if outcome is not None:

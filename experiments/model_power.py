@@ -25,6 +25,10 @@ from scipy.special import expit, ndtr
 
 from ._transduction_data import p_correct_table
 
+#: mean log-likelihood ratios per trial at or below this (nats) are the optimiser's floor: the
+#: rival fits the design exactly (a rate of zero, never "a huge number of trials")
+ZERO_RATE_NATS = 1e-9
+
 _NAMES = {"2ifc": ("threshold_strain", "exponent", "lapse"),
           "yes_no": ("threshold_strain", "exponent", "lapse", "false_alarm")}
 
@@ -37,7 +41,8 @@ def _bernoulli_kl(p, q):
 
 
 def _from_free(u, task):
-    out = [math.exp(u[0]), math.exp(u[1]), 0.5 * float(expit(u[2]))]
+    # clipped: on a design the rival fits exactly, Nelder-Mead may wander far along a flat valley
+    out = [math.exp(min(max(u[0], -700.0), 700.0)), math.exp(min(max(u[1], -700.0), 700.0)), 0.5 * float(expit(u[2]))]
     if task == "yes_no":
         out.append(float(expit(u[3])))
     return np.array(out)
@@ -70,11 +75,26 @@ class PowerResult:
     task: str
     _sim: dict = field(default_factory=dict, repr=False)
 
+    @property
+    def exact_fit(self) -> bool:
+        """True when the rival fits the truth's P(correct) exactly over the design: the mean
+        log-likelihood ratio is at the optimiser's floor (``mu <= ZERO_RATE_NATS`` nats per trial).
+        A design with few distinct stimuli (one, two or three: as many as the rival's free
+        threshold, exponent and lapse) is typically fitted exactly, whatever the models."""
+        return self.mu <= ZERO_RATE_NATS
+
+    @property
+    def rate(self) -> float:
+        """Evidence rate per trial ``mu / sigma`` (1/sqrt(trial)); exactly 0 when :attr:`exact_fit`."""
+        if self.exact_fit or self.sigma <= 0:
+            return 0.0
+        return self.mu / self.sigma
+
     def trials_for(self, z: float = 4.0) -> float:
-        """Trials needed for the expected difference to reach z standard errors (inf if mu = 0)."""
-        if self.mu <= 1e-15:
+        """Trials needed for the expected difference to reach z standard errors (inf if the rate is 0)."""
+        if self.rate == 0.0:
             return math.inf
-        return (z * self.sigma / self.mu) ** 2
+        return (z / self.rate) ** 2
 
     def p_select(self, n: int, z: float = 4.0) -> float:
         """P(the truth beats the rival by more than z standard errors after n trials).

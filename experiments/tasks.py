@@ -10,12 +10,32 @@ trials) or the test. ``magnitude_estimation``: the test; no answer is correct.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from tactilab.data_schemas.experiment import Protocol, Stimulus
 
 from .procedures import PlannedLevel
+
+
+@dataclass(frozen=True)
+class PlannedStimulus(PlannedLevel):
+    """A planned level that also fixes other stimulus fields (a multi-field candidate).
+
+    ``fields``: ``(name, value)`` pairs, SI (``surface``: ``"sinusoid"`` or ``"square"``), that
+    replace the protocol's ``[stimulus]`` values before the level is set.
+    """
+
+    fields: tuple[tuple[str, Any], ...] = ()
+
+
+def base_stimulus(protocol: Protocol, planned: PlannedLevel) -> Stimulus:
+    """The protocol's ``[stimulus]`` with the planned trial's ``fields`` (if any) put in, validated."""
+    fields = dict(getattr(planned, "fields", ()))
+    if not fields:
+        return protocol.stimulus
+    return Stimulus.model_validate({**protocol.stimulus.model_dump(), **fields})
 
 
 @dataclass(frozen=True)
@@ -41,7 +61,8 @@ def plan_trial(protocol: Protocol, trial_index: int, planned: PlannedLevel,
                rng: np.random.Generator) -> TrialPlan:
     """Build the trial's stimuli from the procedure's level and the trial's task generator."""
     task, parameter = protocol.task, protocol.procedure.parameter
-    test = protocol.stimulus.with_level(parameter, planned.level)
+    base = base_stimulus(protocol, planned)
+    test = base.with_level(parameter, planned.level)
     kind = task.kind
     if kind == "2ifc":
         other = protocol.reference if protocol.reference is not None else blank(test)
@@ -50,7 +71,7 @@ def plan_trial(protocol: Protocol, trial_index: int, planned: PlannedLevel,
     elif kind == "2afc":
         label = task.labels[int(rng.integers(2))]
         override = task.alternatives[label]
-        shown = Stimulus.model_validate({**protocol.stimulus.model_dump(), **override}).with_level(
+        shown = Stimulus.model_validate({**base.model_dump(), **override}).with_level(
             parameter, planned.level)
         stimuli, target = (shown,), label
     elif kind == "yes_no":

@@ -62,6 +62,7 @@ _EXPORTS = {
     "Ambiguity": "metamer_spectra",
     "invert_many": "batch",
     "recording_keys": "batch",
+    "metamer_scan": "metamer_batch",
 }
 
 __version__ = package_version()

@@ -351,6 +351,11 @@ def sample_posterior(model: PosteriorModel, rng: np.random.Generator, *, n_ensem
                               None if starts_given is None else starts_given[i])
             maps.append(dict(zip(names, best.tolist())))
             p0 = best + 1e-3 * scale * sub.standard_normal((n_walkers, ndim))
+            for _ in range(30):  # a MAP on the prior's edge (lapse 0): redraw the walkers outside it
+                bad = ~np.isfinite(target.many(p0))
+                if not bad.any():
+                    break
+                p0[bad] = best + 1e-3 * scale * sub.standard_normal((int(bad.sum()), ndim))
             p0[~np.isfinite(target.many(p0))] = best
             # emcee draws its proposals from a legacy RandomState: seed it from this ensemble's rng
             sampler.random_state = np.random.RandomState(int(sub.integers(2**31))).get_state()

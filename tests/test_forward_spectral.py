@@ -290,3 +290,89 @@ def test_pressure_from_deflection_is_periodic_and_matches_the_inversion_model(rn
         want = np.fft.ifftn(np.fft.fftn(deflection) * p_to_szz * E * rho / (2 * (1 - nu**2))).real
     true_error = np.abs(got - want.reshape(got.shape)).max() / np.abs(got).max()
     assert true_error <= result.error_estimate
+
+
+# -- the hot path (forward/halfspace/_hotpath.py): caches, transforms into place, threads ----------
+def _random_periodic_load(rng, shape=(24, 32), h=1e-4):
+    return SurfaceLoad(p=rng.normal(size=shape) * 1e3, qx=rng.normal(size=shape) * 1e3,
+                       qy=rng.normal(size=shape) * 1e3, spacing=h, periodic=True)
+
+
+def test_cached_transfer_tables_give_bitwise_the_fresh_result(rng, monkeypatch):
+    from tactilab.forward.halfspace import _hotpath
+    from tactilab.forward.halfspace.spectral import clear_transfer_cache
+
+    load = _random_periodic_load(rng)
+    weights = np.vstack([I6, rng.normal(size=(2, 6))])  # stress rows and mixed (strain-like) rows
+    clear_transfer_cache()
+    miss = periodic_stress(load, [3e-4, 1e-3], 0.3, weights)
+    hit = periodic_stress(load, [3e-4, 1e-3], 0.3, weights)
+    monkeypatch.setattr(_hotpath, "TRANSFER_CACHE_BYTES", 0)  # too small: tables built per call
+    uncached = periodic_stress(load, [3e-4, 1e-3], 0.3, weights)
+    assert np.array_equal(miss, hit) and np.array_equal(miss, uncached)
+
+
+def test_transfer_cache_stays_within_its_budget_over_a_depth_sweep(rng, monkeypatch):
+    from tactilab.forward.halfspace import _hotpath
+
+    load = _random_periodic_load(rng)
+    one_depth = 6 * 3 * 24 * (32 // 2 + 1) * 16  # bytes of the 18 complex tables of one depth
+    monkeypatch.setattr(_hotpath, "TRANSFER_CACHE_BYTES", 3 * one_depth)
+    _hotpath.clear_transfer_cache()
+    depths = np.linspace(1e-4, 2e-3, 10)
+    for z in depths:
+        periodic_stress(load, [z], 0.5, I6)
+    held = sum(_hotpath._table_bytes(entry) for entry in _hotpath._TRANSFER_CACHE.values())
+    assert 0 < held <= 3 * one_depth and len(_hotpath._TRANSFER_CACHE) == 3
+    # the latest depths are the ones kept (least recently used out first)
+    assert [key[2] for key in _hotpath._TRANSFER_CACHE] == [float(z) for z in depths[-3:]]
+
+
+def test_fft_threads_and_the_public_fft_fallback_give_bitwise_identical_results(rng, monkeypatch):
+    import scipy.fft as sfft
+
+    from tactilab.forward.halfspace import _hotpath
+
+    for shape in [(24, 32), (25, 33), (64,)]:
+        load = _random_periodic_load(rng, shape)
+        one = periodic_stress(load, [5e-4], 0.4, I6, workers=1)
+        assert np.array_equal(one, periodic_stress(load, [5e-4], 0.4, I6, workers=2))
+        assert np.array_equal(one, periodic_stress(load, [5e-4], 0.4, I6, workers=-1))
+        with sfft.set_workers(2):
+            assert np.array_equal(one, periodic_stress(load, [5e-4], 0.4, I6))
+        with monkeypatch.context() as m:
+            m.setattr(_hotpath, "_RAW", None)  # scipy's public rfftn/irfftn and a copy
+            assert np.array_equal(one, periodic_stress(load, [5e-4], 0.4, I6))
+
+
+def test_bad_fft_thread_count_is_refused(rng):
+    load = _random_periodic_load(rng)
+    with pytest.raises(ValueError, match=r"workers: must be a thread count >= 1, or negative .* got 0"):
+        periodic_stress(load, [5e-4], 0.4, I6, workers=0)
+
+
+def test_successive_results_never_share_the_reused_work_buffers(rng):
+    a, b = _random_periodic_load(rng), _random_periodic_load(rng)
+    first = periodic_stress(a, [5e-4], 0.5, I6)
+    kept = first.copy()
+    second = periodic_stress(b, [5e-4], 0.5, I6)
+    assert np.array_equal(first, kept) and not np.shares_memory(first, second)
+    assert np.array_equal(periodic_stress(a, [5e-4], 0.5, I6), kept)
+
+
+def test_labelled_results_are_independent_and_their_shared_coordinates_read_only(rng):
+    load = _random_periodic_load(rng)
+    hs = HalfSpace(1e6, 0.5)
+    pts = np.array([[1e-4, 2e-4], [3e-4, -4e-4], [0.0, 5e-4]])
+    one = hs.stress(load, [5e-4], points=pts, method="spectral")
+    pts[0, 0] = 9.0  # the caller reuses its array: earlier and later results keep their coordinates
+    two = hs.stress(load.scaled(2.0), [5e-4], points=pts, method="spectral")
+    assert one.data.x.values[0] == 1e-4 and two.data.x.values[0] == 9.0
+    three = hs.stress(load.scaled(2.0), [5e-4], method="spectral")
+    four = hs.stress(load, [5e-4], method="spectral")
+    assert np.allclose(three.data["stress"].values, 2 * four.data["stress"].values, rtol=1e-12, atol=1e-9)
+    assert not np.shares_memory(three.data["stress"].values, four.data["stress"].values)
+    three.data["stress"].attrs["note"] = "mine"
+    assert "note" not in four.data["stress"].attrs
+    with pytest.raises(ValueError, match="read-only"):
+        four.data.x.values[0] = 1.0

@@ -8,6 +8,7 @@ eps = ((1 + nu) sigma - nu tr(sigma) I) / E, so nu = 0.5 is exact (no 1 / (1 - 2
 
 from __future__ import annotations
 
+import collections
 from collections.abc import Sequence
 
 import numpy as np
@@ -116,13 +117,51 @@ def invariants(strain: xr.DataArray, stress: xr.DataArray | None = None) -> xr.D
     return ds
 
 
+_LABEL_TEMPLATES: collections.OrderedDict = collections.OrderedDict()
+_LABEL_TEMPLATES_MAX = 16
+
+
+def _key_bytes(a) -> bytes | None:
+    return None if a is None else np.ascontiguousarray(a, dtype=float).tobytes()
+
+
 def label(values: np.ndarray, quantity: str, components: Sequence[str], depths: np.ndarray,
           x: np.ndarray, y: np.ndarray | None, points: np.ndarray | None) -> xr.DataArray:
-    """Wrap an array (n_depth, n_comp, *grid) or (n_depth, n_comp, n_points) with coordinates."""
+    """Wrap an array (n_depth, n_comp, *grid) or (n_depth, n_comp, n_points) with coordinates.
+
+    The coordinates (and their pandas indexes) are built once per (quantity, components, depths,
+    grid or points, shape, dtype) and kept in a small cache of templates holding no field data;
+    each call returns a shallow copy carrying ``values`` (not copied) and its own attrs dict.
+    """
+    key = (quantity, tuple(components), values.shape, values.dtype.str, _key_bytes(depths), _key_bytes(x),
+           _key_bytes(y), _key_bytes(points))
+    template = _LABEL_TEMPLATES.get(key)
+    if template is None:
+        placeholder = np.broadcast_to(np.zeros((), values.dtype), values.shape)  # no memory, no data kept
+        template = _build_label(placeholder, quantity, components, depths, x, y, points)
+        _LABEL_TEMPLATES[key] = template
+        if len(_LABEL_TEMPLATES) > _LABEL_TEMPLATES_MAX:
+            _LABEL_TEMPLATES.popitem(last=False)
+    else:
+        _LABEL_TEMPLATES.move_to_end(key)
+    return template.copy(deep=False, data=values)
+
+
+def _frozen(a) -> np.ndarray:
+    """A private read-only float copy: cached coordinates must not change under a later caller."""
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+def _build_label(values: np.ndarray, quantity: str, components: Sequence[str], depths: np.ndarray,
+                 x: np.ndarray, y: np.ndarray | None, points: np.ndarray | None) -> xr.DataArray:
+    x, y, depths = _frozen(x), (None if y is None else _frozen(y)), _frozen(depths)
+    points = None if points is None else _frozen(points)
     attrs = {"units": "Pa" if quantity == "stress" else "1", "quantity": quantity}
     if quantity == "strain":
         attrs["shear_convention"] = SHEAR_CONVENTION
-    coords = {"depth": ("depth", np.asarray(depths, float), {"units": "m"}),
+    coords = {"depth": ("depth", depths, {"units": "m"}),
               "component": list(components)}
     if points is not None:
         dims = ["depth", "component", "point"]
@@ -136,4 +175,8 @@ def label(values: np.ndarray, quantity: str, components: Sequence[str], depths: 
         dims = ["depth", "component", "y", "x"]
         coords["x"] = ("x", x, {"units": "m"})
         coords["y"] = ("y", y, {"units": "m"})
-    return xr.DataArray(values, dims=dims, coords=coords, name=quantity, attrs=attrs)
+    da = xr.DataArray(values, dims=dims, coords=coords, name=quantity, attrs=attrs)
+    for coord in da.coords.values():  # shared by every result built from this template: read-only
+        if isinstance(coord.variable.data, np.ndarray):
+            coord.variable.data.setflags(write=False)
+    return da

@@ -31,8 +31,10 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.fft as sfft
 
+from . import _hotpath
 from . import _validation as check
 from ._validation import COMPONENTS as VOIGT
+from ._hotpath import clear_transfer_cache  # noqa: F401  (re-export)
 from .loads import SurfaceLoad
 
 
@@ -191,49 +193,6 @@ def _real_coefficients(g: _Geometry, nu: float, spectra: dict, row: np.ndarray) 
     return coefs
 
 
-class _Buffers:
-    """Preallocated work arrays: fresh large temporaries cost page faults on every call."""
-
-    def __init__(self, shape, dtype, cdtype):
-        self.mult = np.empty(shape, dtype)
-        self.tmp = np.empty(shape, dtype)
-        self.acc = {"re": np.empty(shape, cdtype), "im": np.empty(shape, cdtype)}
-        self.term = np.empty(shape, cdtype)
-
-
-def _multiplier(a0, a1, e, rze, buf: _Buffers) -> np.ndarray:
-    """a0 e + a1 rze into buf.mult (a0, a1 arrays or scalars)."""
-    np.multiply(e, a0, out=buf.mult)
-    if np.ndim(a1) or a1 != 0.0:
-        np.multiply(rze, a1, out=buf.tmp)
-        buf.mult += buf.tmp
-    return buf.mult
-
-
-def _apply(coefs: dict, spectra: dict, e: np.ndarray, rze: np.ndarray, buf: _Buffers) -> np.ndarray:
-    """Spectrum of one output at one depth: sum over loads of (real multiplier) x L~."""
-    used = {"re": False, "im": False}
-    for (name, kind), (a0, a1) in coefs.items():
-        mult = _multiplier(a0, a1, e, rze, buf)
-        if used[kind]:
-            np.multiply(spectra[name], mult, out=buf.term)
-            buf.acc[kind] += buf.term
-        else:
-            np.multiply(spectra[name], mult, out=buf.acc[kind])
-            used[kind] = True
-    re, im = buf.acc["re"], buf.acc["im"]
-    if used["im"]:
-        im *= 1j
-        if used["re"]:
-            re += im
-            return re
-        return im
-    if used["re"]:
-        return re
-    re.fill(0)
-    return re
-
-
 def multiplier(g: _Geometry, nu: float, load_component: str, row: np.ndarray, depth: float) -> np.ndarray:
     """Exact complex multiplier from one load component to the output ``row @ sigma_voigt``.
 
@@ -294,7 +253,10 @@ def periodic_stress(load: SurfaceLoad, depths: Sequence[float], nu: float,
         Hooke rows give strains.
     dtype : float32 or float64
         Working precision (float32 halves memory and FFT time, error ~1e-6 relative).
-
+    workers : int, optional
+        FFT threads. None (default): scipy's default, one thread unless the call sits inside
+        ``scipy.fft.set_workers(n)``; -1: all CPUs. The result is bitwise the same for any
+        number of threads.
     points : ndarray, shape (n, 2) or (n, 1), optional
         Off-grid evaluation points (x, y) in m: the exact trigonometric interpolant is
         summed there (cost n x n_modes) instead of the inverse FFT.
@@ -305,29 +267,29 @@ def periodic_stress(load: SurfaceLoad, depths: Sequence[float], nu: float,
     """
     dtype = np.dtype(dtype)
     cdtype = np.result_type(dtype, np.complex64)
+    workers = _hotpath.threads(workers)
     shape = load.shape
-    axes = tuple(range(-load.ndim, 0))
-    g = _cached_geometry(tuple(shape), tuple(load.spacing), dtype.name)
-    # one forward FFT per load component, reused for every depth and output
-    spectra = {k: sfft.rfftn(v.astype(dtype, copy=False), axes=axes, workers=workers).astype(cdtype, copy=False)
-               for k, v in load.components.items()}
+    grid_key = (tuple(shape), tuple(load.spacing), dtype.name)
+    g = _cached_geometry(*grid_key)
+    names = tuple(sorted(load.components))
+    n_spec = len(names)
+    # work arrays: the load spectra, then two accumulators (reused between calls, see _hotpath)
+    buffers = _hotpath.work_buffers(g.rho.shape, cdtype, n_spec + 2)
+    spectra = {}  # one forward FFT per load component, reused for every depth and output
+    for name, buf in zip(names, buffers):
+        _hotpath.rfftn_into(load.components[name].astype(dtype, copy=False), buf, workers)
+        spectra[name] = buf
+    acc, term = buffers[n_spec], buffers[n_spec + 1]
     weights = np.atleast_2d(np.asarray(weights, dtype=float))
     out_shape = shape if points is None else (len(points),)
     out = np.empty((len(depths), weights.shape[0], *out_shape), dtype=dtype)
     phases = None if points is None else _point_phases(shape, load.spacing, np.asarray(points, float))
-    cache = {}
-    buf = _Buffers(g.rho.shape, dtype, cdtype)
     for d, z in enumerate(depths):
-        rz = g.rho * dtype.type(z)
-        e = np.exp(-rz)  # underflows to 0 for rho z > ~745: harmless
-        rze = rz * e
-        for o, row in enumerate(weights):
-            key = row.tobytes()
-            if key not in cache:
-                cache[key] = _real_coefficients(g, nu, spectra, row)
-            spectrum = _apply(cache[key], spectra, e, rze, buf)
+        tables = _hotpath.depth_tables(g, grid_key, nu, names, weights, z, dtype, cdtype, _real_coefficients)
+        for o, terms in enumerate(tables):  # per output: its (load, multiplier) pairs, cached
+            spectrum = _hotpath.apply(terms, spectra, acc, term)
             if phases is None:
-                out[d, o] = sfft.irfftn(spectrum, s=shape, axes=axes, workers=workers)
+                _hotpath.irfftn_into(spectrum, out[d, o], workers)
             else:
                 out[d, o] = _eval_points(spectrum, phases, int(np.prod(shape)))
     return out

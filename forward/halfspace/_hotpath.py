@@ -1,0 +1,206 @@
+"""The periodic solver's hot path: cached transfer tables, transforms into given arrays, work buffers.
+
+Measured (benchmarks/bench_forward.py, docs/forward_benchmark.md): at 256^2 a call of
+:func:`~tactilab.forward.halfspace.spectral.periodic_stress` spent as long building its Fourier
+multipliers and on fresh large temporaries (page faults when the allocator hands memory back to
+the system and asks again) as on its FFTs. So
+
+- :func:`depth_tables` keeps the complex multiplier of every (output, load) pair at a depth, with
+  exp(-rho z) folded in, per (grid, spacing, dtype, nu, depth, loads, weights), within a memory
+  budget :data:`TRANSFER_CACHE_BYTES` (least recently used out first; thread-safe). A repeated
+  call (time series, scans over frames) then costs five elementwise passes per output
+  (:func:`apply`) between its FFTs. :func:`clear_transfer_cache` frees it.
+- :func:`rfftn_into` / :func:`irfftn_into` write a transform straight into a given array
+  (the inverse straight into the caller's output slice). They call the transform binding that
+  ``scipy.fft`` itself calls, checked once at import to give bitwise the same result as
+  ``scipy.fft.rfftn`` / ``irfftn``; where that binding is missing or differs (another scipy),
+  they fall back to the public functions and a copy.
+- :func:`work_buffers` keeps one set of spectrum-sized work arrays per thread (for grids whose
+  buffers stay below :data:`BUFFER_BYTES`), so repeated calls reuse warm memory.
+
+``workers``: None means scipy's default (1 thread unless inside ``scipy.fft.set_workers``);
+results are bitwise the same for any number of workers (tests/test_forward_spectral.py).
+"""
+
+from __future__ import annotations
+
+import collections
+import importlib
+import os
+import threading
+
+import numpy as np
+import scipy.fft as sfft
+
+#: Largest total size (bytes) of the per-thread work buffers kept between calls
+BUFFER_BYTES = 32 * 2**20
+_LOCAL = threading.local()
+
+
+def _binding():
+    """scipy.fft's own transform module if it has r2c/c2r with ``out`` and matches the public API."""
+    for name in ("scipy.fft._duccfft.pyduccfft", "scipy.fft._pocketfft.pypocketfft"):
+        try:
+            mod = importlib.import_module(name)
+        except ImportError:
+            continue
+        try:
+            rng = np.random.default_rng(0)
+            for shape in ((6, 8), (5, 7), (9,)):
+                axes = tuple(range(-len(shape), 0))
+                a = rng.normal(size=shape)
+                spec = np.empty(shape[:-1] + (shape[-1] // 2 + 1,), complex)
+                mod.r2c(a, axes, True, 0, spec, 1)
+                back = np.empty(shape)
+                mod.c2r(spec, axes, shape[-1], False, 2, back, 1)
+                if not (np.array_equal(spec, sfft.rfftn(a, axes=axes))
+                        and np.array_equal(back, sfft.irfftn(spec, s=shape, axes=axes))):
+                    return None
+        except (TypeError, ValueError, AttributeError):
+            return None
+        return mod
+    return None
+
+
+_RAW = _binding()
+
+
+def threads(workers: int | None) -> int:
+    """scipy.fft's rule: None -> the set_workers default; negative -> counts back from all CPUs."""
+    if workers is None:
+        return int(sfft.get_workers())
+    count = int(workers)
+    if count < 0:
+        count += (os.cpu_count() or 1) + 1
+    if count < 1:
+        raise ValueError(f"workers: must be a thread count >= 1, or negative to count back from all "
+                         f"{os.cpu_count()} CPUs (-1: all), got {workers!r}; use None for scipy's default")
+    return count
+
+
+def rfftn_into(values: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
+    """``out[...] = scipy.fft.rfftn(values)`` over all axes of ``values`` (float -> complex)."""
+    axes = tuple(range(values.ndim))
+    if _RAW is not None:
+        return _RAW.r2c(values, axes, True, 0, out, threads(workers))
+    out[...] = sfft.rfftn(values, axes=axes, workers=workers)
+    return out
+
+
+def irfftn_into(spectrum: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
+    """``out[...] = scipy.fft.irfftn(spectrum, s=out.shape)`` over all axes (the input is kept)."""
+    axes = tuple(range(out.ndim))
+    if _RAW is not None:
+        return _RAW.c2r(spectrum, axes, out.shape[-1], False, 2, out, threads(workers))
+    out[...] = sfft.irfftn(spectrum, s=out.shape, axes=axes, workers=workers)
+    return out
+
+
+def work_buffers(spectrum_shape: tuple, cdtype, count: int) -> list[np.ndarray]:
+    """``count`` complex arrays of ``spectrum_shape`` (contents undefined), reused per thread.
+
+    Only one grid's buffers are kept per thread (the latest), and only when they total at most
+    :data:`BUFFER_BYTES`; larger grids get fresh arrays.
+    """
+    cdtype = np.dtype(cdtype)
+    key = (tuple(spectrum_shape), cdtype.str, count)
+    held = getattr(_LOCAL, "buffers", None)
+    if held is not None and held[0] == key:
+        return held[1]
+    buffers = [np.empty(spectrum_shape, cdtype) for _ in range(count)]
+    if count * buffers[0].nbytes <= BUFFER_BYTES:
+        _LOCAL.buffers = (key, buffers)
+    return buffers
+
+
+#: Memory budget of the transfer-table cache (bytes). Tables are kept per (grid, spacing, dtype,
+#: nu, depth, output row, loads present); least recently used entries go first. One 512^2 call
+#: with six components from p, qx, qy holds 18 complex tables, about 38 MiB.
+TRANSFER_CACHE_BYTES = 64 * 2**20
+_TRANSFER_CACHE: collections.OrderedDict = collections.OrderedDict()
+_CACHE_LOCK = threading.Lock()
+
+
+def clear_transfer_cache() -> None:
+    """Empty the transfer-table cache of ``periodic_stress`` (frees its memory)."""
+    with _CACHE_LOCK:
+        _TRANSFER_CACHE.clear()
+
+
+def _output_tables(coefficients, g, nu: float, names: tuple, row: np.ndarray, e: np.ndarray,
+                   rze: np.ndarray, cdtype) -> list:
+    """[(load, complex multiplier)] of one output row at one depth, zero terms left out.
+
+    The multiplier of a load is ``a0 e + a1 rz e`` (real coefficients from
+    ``coefficients``, i.e. ``spectral._real_coefficients``),
+    times 1j where the coefficient is imaginary; a load that enters both ways gets one table.
+    """
+    tables: dict = {}
+    for (name, kind), (a0, a1) in coefficients(g, nu, names, row).items():
+        m = np.multiply(e, a0)
+        if np.ndim(a1) or a1 != 0.0:
+            m += np.multiply(rze, a1)
+        t = np.empty(m.shape, cdtype)
+        if kind == "re":
+            t.real, t.imag = m, 0.0
+        else:
+            t.real, t.imag = 0.0, m
+        if name in tables:
+            tables[name] += t
+        else:
+            tables[name] = t
+    for t in tables.values():
+        t.setflags(write=False)  # cached and shared between calls
+    return list(tables.items())
+
+
+def _table_bytes(tables: list) -> int:
+    return sum(t.nbytes for out in tables for _, t in out)
+
+
+def depth_tables(g, grid_key: tuple, nu: float, names: tuple, weights: np.ndarray, z: float,
+                 dtype, cdtype, coefficients) -> list:
+    """Per output row, the list of (load, complex multiplier) at depth ``z``.
+
+    ``g`` is the grid's ``spectral._Geometry``, ``coefficients`` ``spectral._real_coefficients``.
+    Cached per (grid, spacing, dtype, nu, depth, loads, weights) within :data:`TRANSFER_CACHE_BYTES`
+    (least recently used first out); tables of a grid too large for the budget are built per call.
+    """
+    cache = g.rho.size * len(names) * weights.shape[0] * np.dtype(cdtype).itemsize <= TRANSFER_CACHE_BYTES
+    key = (grid_key, float(nu), float(z), names, weights.tobytes(), weights.shape)
+    if cache:
+        with _CACHE_LOCK:
+            hit = _TRANSFER_CACHE.get(key)
+            if hit is not None:
+                _TRANSFER_CACHE.move_to_end(key)
+                return hit
+    rz = g.rho * dtype.type(z)
+    e = np.exp(-rz)  # underflows to 0 for rho z > ~745: harmless
+    rze = rz * e
+    tables = [_output_tables(coefficients, g, nu, names, row, e, rze, cdtype) for row in weights]
+    if cache and _table_bytes(tables) <= TRANSFER_CACHE_BYTES:
+        with _CACHE_LOCK:
+            _TRANSFER_CACHE[key] = tables
+            total = sum(_table_bytes(entry) for entry in _TRANSFER_CACHE.values())
+            while total > TRANSFER_CACHE_BYTES:
+                _, old = _TRANSFER_CACHE.popitem(last=False)
+                total -= _table_bytes(old)
+    return tables
+
+
+def apply(tables: list, spectra: dict, acc: np.ndarray, term: np.ndarray) -> np.ndarray:
+    """Spectrum of one output: sum over loads of (complex multiplier) x L~, into ``acc``.
+
+    Five memory-bound passes for three loads (numpy has no fused multiply-add); blocking the
+    rows for cache, mirror-symmetric half tables and BLAS diagonal products were measured and
+    were not faster.
+    """
+    if not tables:
+        acc.fill(0)
+        return acc
+    (name, t), rest = tables[0], tables[1:]
+    np.multiply(spectra[name], t, out=acc)
+    for name, t in rest:
+        np.multiply(spectra[name], t, out=term)
+        acc += term
+    return acc

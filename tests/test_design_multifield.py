@@ -1,0 +1,154 @@
+"""Model discrimination over candidates that differ in several fields, from a protocol file:
+``tactilab experiment run`` end to end, exact resume, and ``tactilab experiment compare``."""
+
+from __future__ import annotations
+
+import functools
+import json
+import tomllib
+
+import numpy as np
+import pytest
+
+from tactilab.cli.main import main
+from tactilab.data_schemas.design_config import ModelDiscriminationConfig
+from tactilab.data_schemas.display import DisplayDescription
+from tactilab.data_schemas.experiment import Protocol
+from tactilab.experiments import SimulatedDisplay, SimulatedObserver, new_session, resume_session, session_dataframe
+from tactilab.experiments.design import ModelDiscrimination
+from tactilab.experiments.models import TransductionModel
+from tactilab.experiments.tasks import PlannedStimulus, plan_trial
+
+PROTOCOL = """
+name = "designmulti"
+seed = 5
+iti_s = 0
+
+[task]
+kind = "2ifc"
+
+[stimulus]
+amplitude_m = "10um"
+pitch_m = "3mm"
+speed_m_per_s = "20mm/s"
+duration_s = "50ms"
+ramp_s = "5ms"
+
+[procedure]
+method = "model_discrimination"
+parameter = "pitch_m"
+models = ["xx@1mm", "zx@1mm"]
+max_trials = 16
+
+[procedure.candidates]
+pitch_m = ["2mm", "3mm", "5mm"]
+amplitude_m = ["5um", "10um"]
+surface = ["sinusoid", "square"]
+speed_m_per_s = ["20mm/s"]
+"""
+FAST = {"tau_factor": 10.0, "check_every": 200}  # shorter chains; the convergence checks still run
+
+
+def _interval(stimuli):
+    """The shown (non-blank) interval of a 2IFC trial's recorded stimuli."""
+    items = json.loads(stimuli) if isinstance(stimuli, str) else stimuli
+    items = [s if isinstance(s, dict) else s.model_dump() for s in items]
+    return next(s for s in items if s["amplitude_m"] > 0)
+
+
+def test_planned_stimulus_fields_replace_the_protocol_stimulus():
+    protocol = Protocol.model_validate(tomllib.loads(PROTOCOL))
+    planned = PlannedStimulus(0.005, 3, 0, (("surface", "square"), ("amplitude_m", 5e-6)))
+    plan = plan_trial(protocol, 0, planned, np.random.default_rng(0))
+    shown = [s for s in plan.stimuli if s.amplitude_m > 0]
+    blank = [s for s in plan.stimuli if s.amplitude_m == 0]
+    assert len(shown) == len(blank) == 1
+    assert (shown[0].surface, shown[0].amplitude_m, shown[0].pitch_m) == ("square", 5e-6, 0.005)
+    assert shown[0].duration_s == protocol.stimulus.duration_s  # unlisted fields from [stimulus]
+    assert blank[0].surface == "square" and blank[0].pitch_m == 0.005
+    assert plan.level == 0.005 and plan.track == 3
+
+
+def test_protocol_file_with_several_varied_fields_runs_through_the_cli(tmp_path, capsys):
+    path = tmp_path / "design.toml"
+    path.write_text(PROTOCOL)
+    argv = ["experiment", "run", str(path), "--subject", "S01", "--responses", "simulated", "--no-wait", "--quiet",
+            "--out", str(tmp_path / "out"), "--observer-threshold", "2e-4"]
+    assert main(argv) == 0
+    assert "P(xx@1mm)" in capsys.readouterr().out
+    (session,) = (tmp_path / "out").glob("*.sqlite")
+    frame = session_dataframe(session)
+    protocol = Protocol.from_toml(path)
+    design = ModelDiscrimination(protocol.procedure.models, protocol.procedure.stimuli())
+    for stimuli, level, track in zip(frame["stimuli"], frame["level"], frame["track"]):
+        shown, candidate = _interval(stimuli), design.candidates[track]
+        # the commanded interval IS the candidate the design predicted (every listed field)
+        assert (shown["surface"], shown["amplitude_m"], shown["pitch_m"]) == \
+            (candidate.surface, candidate.amplitude_m, candidate.pitch_m)
+        assert level == candidate.pitch_m
+    shown = [_interval(s) for s in frame["stimuli"]]
+    assert len({s["surface"] for s in shown}) == 2  # the design used both waveforms (they separate xx from zx)
+
+    # compare works on the design session as on any other (shorter chains for the test)
+    import tactilab.experiments.analysis as analysis
+
+    original = analysis.compare_sessions
+    try:
+        analysis.compare_sessions = functools.partial(original, sampler_options=FAST)
+        assert main(["experiment", "compare", str(session), "--model", "xx@1mm", "--model", "zx@1mm",
+                     "--out", str(tmp_path / "figs")]) == 0
+    finally:
+        analysis.compare_sessions = original
+    out = capsys.readouterr().out
+    assert "xx@1mm" in out and "zx@1mm" in out and "best" in out
+    assert (tmp_path / "figs" / "compare.png").stat().st_size > 10_000
+
+
+class StopAfter(SimulatedObserver):
+    """The same simulated observer, with Ctrl-C pressed at trial ``stop_at``."""
+
+    stop_at = None
+
+    def collect(self, plan):
+        if plan.trial_index == self.stop_at:
+            raise KeyboardInterrupt("test stop")
+        return super().collect(plan)
+
+
+def _observer(protocol, stop_at=None):
+    obs = StopAfter.from_model(protocol, TransductionModel("zx@1mm"), threshold_strain=2e-4, exponent=1.2,
+                               lapse=0.02, seed=11)
+    obs.stop_at = stop_at
+    return obs
+
+
+def test_multifield_session_resumes_equal_to_the_uninterrupted_one(tmp_path):
+    protocol = Protocol.model_validate(tomllib.loads(PROTOCOL))
+    frames, estimates = [], []
+    for name, stop_at in (("whole", None), ("cut", 5)):
+        path = tmp_path / f"{name}.sqlite"
+        display = SimulatedDisplay(DisplayDescription.braille_row(), realtime=False)
+        result = new_session(protocol, path, display, _observer(protocol, stop_at), subject="S01", realtime=False)
+        if stop_at is not None:
+            assert result.status == "interrupted" and result.n_completed == stop_at
+            result = resume_session(path, SimulatedDisplay(DisplayDescription.braille_row(), realtime=False),
+                                    _observer(protocol), realtime=False)
+        assert result.status == "complete"
+        frames.append(session_dataframe(path))
+        estimates.append(result.estimate)
+    assert estimates[0] == estimates[1]
+    for col in ("level", "track", "correct", "response", "procedure_state", "stimuli"):
+        assert frames[0][col].tolist() == frames[1][col].tolist(), col
+    assert len({_interval(s)["surface"] for s in frames[0]["stimuli"]}) == 2
+
+
+@pytest.mark.parametrize("changes, match", [
+    ({"pitch_m": {"start": "1mm", "stop": "8mm", "n": 40}, "amplitude_m": {"start": "1um", "stop": "9um", "n": 30}},
+     "candidates: the lists give 2400 candidates"),
+    ({"duration_s": ["0ms"]}, "candidates: .* is not a valid stimulus"),
+])
+def test_bad_multifield_candidates(changes, match):
+    raw = tomllib.loads(PROTOCOL)["procedure"]
+    raw["candidates"] = {**raw["candidates"], **changes}
+    with pytest.raises(ValueError, match=match):
+        ModelDiscriminationConfig.model_validate(raw)
