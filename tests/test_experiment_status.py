@@ -196,3 +196,21 @@ def test_a_run_that_ends_in_a_display_fault_still_prints_its_summary(tmp_path, m
     assert re.search(r"^frames +\d+ sent; \d+ late \(2[45] %\)", out, re.M), out
     assert re.search(r"^display faults +1$", out, re.M) and re.search(r"^  - \d+ of \d+ frames late \(2[45]\.\d %", out, re.M)
     assert re.search(r"^  - display fault in trial 3: ALARM", out, re.M)
+
+
+def test_a_running_session_says_who_runs_it(weak_run, tmp_path, capsys):
+    from tactilab.experiments.recording import Recorder
+
+    source = weak_run / "s" / "sub-S01_ses-01_task-status.sqlite"
+    if not source.exists():
+        test_run_json_is_one_object_with_interventions_by_kind_and_the_files(weak_run, capsys)
+    path = tmp_path / source.name
+    shutil.copy(source, path)
+    _edit(path, [("DELETE FROM events WHERE kind = 'session_complete'", ())])
+    recorder = Recorder.open(path)  # holds the lock and records itself as the owner, like a runner
+    try:
+        s = session_summary(path)
+    finally:
+        recorder.close()
+    assert s["status"] == "running" and re.fullmatch(r"running: pid \d+ on .+, last heartbeat \S+", s["status_text"])
+    assert 1e-7 < s["procedure_estimate_si"]["threshold"] < 1e-5  # SI: an amplitude threshold in m, not um
