@@ -111,6 +111,8 @@ def _finish(result, parameter: str, args: argparse.Namespace, warned: list[str])
         out = result.path.parent / "bids" if args.export == "bids" else result.path.parent
         with _flags({"format": "--export", "out": "--export"}):
             exported = [str(p) for p in export_session(result.path, out, args.export, overwrite=False)]
+    elif args.export is not None:
+        print(f"--export: not exported, the session is {result.status}; export it once it is complete", file=info)
     _print_summary(result.path, f"experiment {args.action}", args.json, warned, exported)
     if result.status == "interrupted":
         print(f"resume with: tactilab experiment resume {result.path}", file=info)
