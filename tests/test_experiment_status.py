@@ -214,3 +214,42 @@ def test_a_running_session_says_who_runs_it(weak_run, tmp_path, capsys):
         recorder.close()
     assert s["status"] == "running" and re.fullmatch(r"running: pid \d+ on .+, last heartbeat \S+", s["status_text"])
     assert 1e-7 < s["procedure_estimate_si"]["threshold"] < 1e-5  # SI: an amplitude threshold in m, not um
+
+
+def test_an_interrupted_run_reports_the_stop_and_exports_nothing(tmp_path, monkeypatch, capsys):
+    """q pressed in trial 2: exit 130, the summary says it stopped cleanly, --export says why it did not run."""
+    from tactilab.experiments import factory
+
+    real = factory.make_responses
+
+    class QuitsInTrial2:
+        def __init__(self, inner):
+            self.inner, self.n = inner, 0
+
+        def arm(self, plan, onset_ns):
+            self.inner.arm(plan, onset_ns)
+
+        def collect(self, plan):
+            self.n += 1
+            if self.n == 3:
+                raise KeyboardInterrupt("q")
+            return self.inner.collect(plan)
+
+        def close(self):
+            self.inner.close()
+
+        def __getattr__(self, name):  # name, config, ...: the real source's
+            return getattr(self.inner, name)
+
+    monkeypatch.setattr(factory, "make_responses", lambda *a, **kw: QuitsInTrial2(real(*a, **kw)))
+    (tmp_path / "p.toml").write_text(PROTOCOL)
+    code = cli_main(["experiment", "run", str(tmp_path / "p.toml"), "--subject", "S04", "--responses", "simulated",
+                     "--no-wait", "--quiet", "--out", str(tmp_path), "--export", "bids", "--json"])
+    captured = capsys.readouterr()
+    assert code == 130
+    s = json.loads(captured.out)
+    assert s["status"] == "interrupted" and s["trials_completed"] == 2 and s["interrupted_trial"] == 2
+    assert s["status_text"] == "interrupted: stopped cleanly (interrupted (q)); resume to go on"
+    assert s["files"] == [str(tmp_path / "sub-S04_ses-01_task-status.sqlite")] and not (tmp_path / "bids").exists()
+    assert "--export: not exported, the session is interrupted" in captured.err
+    assert "resume with: tactilab experiment resume" in captured.err
