@@ -111,11 +111,27 @@ def _finish(result, parameter: str, args: argparse.Namespace, warned: list[str])
         out = result.path.parent / "bids" if args.export == "bids" else result.path.parent
         with _flags({"format": "--export", "out": "--export"}):
             exported = [str(p) for p in export_session(result.path, out, args.export, overwrite=False)]
+    elif args.export is not None:
+        print(f"--export: not exported, the session is {result.status}; export it once it is complete", file=info)
     _print_summary(result.path, f"experiment {args.action}", args.json, warned, exported)
     if result.status == "interrupted":
         print(f"resume with: tactilab experiment resume {result.path}", file=info)
         return 130
     return 0
+
+
+def _check_export(fmt: str | None) -> None:
+    """Refuse a bad ``--export`` before the session starts, not after it ends."""
+    from tactilab.experiments.export import FORMATS
+
+    if fmt is not None and fmt not in FORMATS:
+        raise ValueError(f"--export: must be one of {', '.join(FORMATS)}, got {fmt!r}")
+    if fmt == "parquet":
+        try:
+            import pyarrow  # noqa: F401
+        except ImportError:
+            raise ValueError("--export: 'parquet' needs the optional dependency pyarrow, which is not installed; "
+                             "install it (`pip install pyarrow`) or use --export csv") from None
 
 
 def _print_summary(path, command: str, as_json: bool, warned: list[str] = (), exported: list[str] = ()) -> None:
@@ -202,6 +218,8 @@ def _run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
     from tactilab.experiments import factory
 
+    if args.action in ("run", "resume"):
+        _check_export(args.export)
     if args.action == "run":
         check_subject(args.subject, "--subject", args.subject_pattern)
         if args.session_label is not None:

@@ -134,7 +134,7 @@ def session_summary(path: str | Path, *, rng: int = 0) -> dict[str, Any]:
         "rt_min_s": min(rts) if rts else None, "rt_max_s": max(rts) if rts else None,
         "created_utc": meta.get("created_utc"),
         "elapsed_s": (max(stamps) - min(stamps)).total_seconds() if stamps else 0.0,
-        "procedure_estimate": info["estimate"], "conditions": conditions, "fit_note": fit_note,
+        "procedure_estimate_si": info["estimate"], "conditions": conditions, "fit_note": fit_note,
         "display_id": info["display_id"], "display_sha256": info["display_sha256"],
         "seed": info["seed"], "package_version": info["package_version"],
     }
@@ -196,7 +196,7 @@ def summary_lines(s: dict[str, Any]) -> list[str]:
     from .runner import format_estimate
 
     try:
-        running = format_estimate(s["procedure_estimate"], s["parameter"]).replace(" um", " µm")
+        running = format_estimate(s["procedure_estimate_si"], s["parameter"]).replace(" um", " µm")
     except (KeyError, TypeError, ValueError):
         running = "n/a"
     rows.append(("procedure's estimate", running))

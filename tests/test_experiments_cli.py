@@ -118,6 +118,8 @@ def test_parquet_without_pyarrow_names_the_missing_dependency(session, tmp_path,
         export_session(session, tmp_path, "parquet")
     assert cli_main(["experiment", "export", str(session), "--format", "parquet"]) == 2
     assert "pip install pyarrow" in capsys.readouterr().err
+    assert cli_main(["experiment", "resume", str(session), "--export", "parquet"]) == 2  # before any trial
+    assert "--export: 'parquet' needs the optional dependency pyarrow" in capsys.readouterr().err
     with pytest.raises(ValueError, match="format: must be one of"):
         export_session(session, tmp_path, "xlsx")
 
@@ -140,6 +142,8 @@ def test_user_mistakes_give_one_line_and_exit_2(session, tmp_path, capsys):
         (["run", str(toml), "--subject", "S02", "--display", "udp://h", "--responses", "simulated"],
          "--display: expected udp://HOST:PORT"),
         (["export", str(session), "--format", "xml"], "--format: must be one of"),
+        (["run", str(toml), "--subject", "S02", "--export", "xlsx"], "--export: must be one of bids, csv, parquet, json"),
+        (["resume", str(session), "--export", "xlsx"], "--export: must be one of"),
         (["run", str(toml), "--subject", "S02", "--responses", "simulated", "--observer-threshold", "2mm"],
          "--observer-threshold: unit 'mm' measures length"),
         (["run", str(toml), "--subject", "S01", "--session", "01", "--out", str(session.parent),
