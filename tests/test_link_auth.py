@@ -322,3 +322,29 @@ def test_cli_emulate_json_prints_one_summary_object(tmp_path, capsys):
     assert summary["frame_format_version"] == 2 and summary["sessions"] == 0 and summary["foreign"] == 0
     assert summary["watchdog_s"] == 0.05 and summary["record"] == str(tmp_path / "r.jsonl")
     assert err.startswith("listening on udp://127.0.0.1:")
+
+
+def test_a_tripped_watchdog_releases_the_pin_to_another_host(tmp_path):
+    """A host that goes silent holds the device only for the watchdog time: then another address may
+    arm, and the old host's messages are refused as foreign."""
+    stop, logs = threading.Event(), []
+    thread = threading.Thread(target=emulate, kwargs=dict(port=0, watchdog_s=0.5, max_seconds=60, log=logs.append,
+                                                          stop=stop, handle_signals=False), daemon=True)
+    thread.start()
+    while not logs:
+        time.sleep(0.005)
+    port = int(logs[0].split(":")[2].split()[0])
+    first, second = RawLink(port), RawLink(port, bind="127.0.0.2")
+    try:
+        assert first.arm().kind == ARMED
+        assert second.arm().status == STATUS_CODE["busy"]  # armed: refused
+        while not any(line.startswith("watchdog:") for line in logs):  # count events, not time
+            time.sleep(0.01)
+        assert second.arm().kind == ARMED  # the trip ended the first session
+        assert second.ask(FRAME, [1.0, 1.0]).status == STATUS_CODE["applied"]
+        assert first.ask(FRAME, [1.0, 1.0]).status == STATUS_CODE["foreign"]  # the old host is now foreign
+    finally:
+        first.close()
+        second.close()
+        stop.set()
+        thread.join(timeout=10)
