@@ -1,4 +1,8 @@
-"""``tactilab metamer``: the tractor-display metamer of a sliding sinusoid, and how well receptors tell them apart."""
+"""``tactilab metamer``: the tractor-display metamer of a sliding sinusoid, and how well receptors tell them apart.
+
+With ``--scan-pitch``, ``--scan-phase``, ``--scan-display`` (or ``--workers`` / ``--scheduler``) it
+scans every (display, pitch, phase) as a batch through ``tactilab.inversion.metamer_scan``.
+"""
 
 from __future__ import annotations
 
@@ -11,7 +15,8 @@ from .common import make_out
 
 NAME = "metamer"
 HELP = ("tactile metamer of a sinusoidal surface on a tractor display: residual, d' and tractor loads (N/mm) "
-        "for a receptor hypothesis such as xx,zx@1.25mm; PNGs of the strain at depth and the singular spectrum")
+        "for a receptor hypothesis such as xx,zx@1.25mm; PNGs of the strain at depth and the singular spectrum; "
+        "--scan-pitch/--scan-phase/--scan-display scan (display, pitch, phase) as a batch (--workers N)")
 
 PRESETS = ("wh2008", "stress2", "braille-row")
 

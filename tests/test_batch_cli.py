@@ -18,6 +18,7 @@ from tactilab.data_schemas import DisplayDescription, Protocol, task_rng
 from tactilab.data_schemas import batch as B
 from tactilab.experiments import SimulatedDisplay, TransductionModel, new_session, power_analysis
 from tactilab.experiments.analysis import read_design
+from tactilab.experiments.batch import sessions_by_subject
 from tactilab.experiments.responses import SimulatedObserver
 from tactilab.forward import design_table
 
@@ -75,6 +76,15 @@ def test_experiment_compare_per_subject_serial_and_on_a_scheduler(sessions, tmp_
     assert "subject S01" in text and "subject S02" in text and "0 fit(s) run, 4 skipped (done before)" in text
 
 
+def test_sessions_by_subject_groups_by_the_recorded_subject(sessions, tmp_path):
+    grouped = sessions_by_subject(list(reversed(sessions)))
+    assert grouped == {"S01": sorted([sessions[0], sessions[2]]), "S02": [sessions[1]]}
+    with pytest.raises(ValueError, match="sessions: no session file at"):
+        sessions_by_subject([tmp_path / "missing.sqlite"])
+    with pytest.raises(ValueError, match="sessions: empty; give at least one session"):
+        sessions_by_subject([])
+
+
 def test_experiment_compare_pooled_json_and_errors(sessions, tmp_path, capsys):
     argv = ["experiment", "compare", sessions[0], "--model", "zx@1mm", "--model", "zx@3mm", "--max-steps", "60"]
     assert main([*argv, "--out", str(tmp_path), "--json"]) == 0
@@ -106,6 +116,8 @@ def test_experiment_power_simulated_sweep_json(tmp_path, capsys):
     assert "--seeds: --workers, --scheduler and --trials belong to the simulated sweep" in capsys.readouterr().err
     assert main([*argv, "--seeds", "1", "--trials", "50,x"]) == 2
     assert "--trials: expected comma-separated trial counts" in capsys.readouterr().err
+    assert main([*argv, "--seeds", "1", "--repeats", "0"]) == 2
+    assert "--repeats: must be >= 1 simulated experiment, got 0" in capsys.readouterr().err
 
 
 def test_synthesis_design_table_as_a_batch(tmp_path, capsys):
