@@ -95,6 +95,7 @@ def test_deflection_load_matches_pressure_from_deflection():
         (lambda: TractionField(p=np.cos, shape=10, spacing=1e-4, periodic=True), "divisible by 4"),
         (lambda: DeflectionLoad(1e-5, 1e6, 0.5, shape=8, spacing=1e-4), "height: expected a function"),
         (lambda: CONTACT.load(spacing=-1.0), "spacing"),
+        (lambda: CONTACT.load(half_width=0.0), "half_width"),
         (lambda: CONTACT.load(condition="partial"), "tangential_force"),
         (lambda: CONTACT.load().sample((9,), (1e-4,)), "shape: this contact needs a 2-D grid"),
     ],

@@ -267,3 +267,20 @@ def test_callable_traction_field_against_gaussian_quadrature():
         assert result.data.attrs["error_covers"] == "method+sampling"
         _check(_true_error(result.data["stress"].values[0, 0], _gaussian_answer(n, width, depth, p0)),
                result.error_estimate, useful=False)
+
+
+def test_auto_refines_a_smooth_callable_load_and_keeps_its_promise():
+    """tol chooses the grid: the Gaussian above at 5 spacings deep with tol=1e-6 is refined (its
+    estimate on the given grid errs large), and the refined result meets tol against quadrature."""
+    width, p0, n, depth = 1.5 * H, -1e4, 41, 5 * H
+    field = TractionField(p=lambda x, y: p0 * np.exp(-(x**2 + y**2) / (2 * width**2)), shape=(n, n),
+                          spacing=H)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AccuracyWarning)
+        result = HalfSpace(1e6, 0.5).stress(field, depth, components=("zz",), tol=1e-6)
+    k = result.data.attrs["grid_refinements"]
+    assert k >= 1 and result.error_estimate <= 1e-6
+    got = result.data["stress"].values[0, 0][:: 2**k, :: 2**k]  # the given grid's nodes
+    assert got.shape == (n, n)
+    true = _true_error(got, _gaussian_answer(n, width, depth, p0))
+    assert true <= result.error_estimate

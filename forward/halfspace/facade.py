@@ -66,7 +66,9 @@ class FieldResult:
             unit = {"1": "strain", "": "strain" if "strain" in str(name) else ""}.get(unit, unit)
             dims = ", ".join(f"{d}={n}" for d, n in var.sizes.items())
             parts.append(f"{name} ({dims}) [{unit}]" if unit else f"{name} ({dims})")
-        return (f"FieldResult(method={self.method!r}, est. rel. error {self.error_estimate:.1e}; "
+        covers = self.data.attrs.get("error_covers")
+        covers = f" ({covers})" if covers else ""
+        return (f"FieldResult(method={self.method!r}, est. rel. error {self.error_estimate:.1e}{covers}; "
                 + "; ".join(parts) + ")")
 
     def _repr_html_(self) -> str:

@@ -5,8 +5,8 @@ estimate for the sampled nodal load plus the sampling error of representing the 
 the grid (:func:`~.continuous.sampling_error`, from solves at spacing 2h and 4h); the result's
 ``attrs["error_covers"]`` is ``"method+sampling"``. With ``method="auto"``, when the total exceeds
 ``tol``, the grid is refined (the spacing halved k times, k predicted from the observed convergence
-order) as long as it stays within :data:`MAX_NODES`; otherwise an :class:`AccuracyWarning` names
-the spacing that would meet ``tol``.
+order, then estimated again) as long as it stays within :data:`MAX_NODES`; otherwise an
+:class:`AccuracyWarning` names the spacing predicted to meet ``tol``.
 """
 
 from __future__ import annotations
@@ -22,6 +22,8 @@ from .methods import AccuracyWarning, Method, user_stacklevel
 
 #: largest grid (nodes) the automatic refinement of a continuous load may choose
 MAX_NODES = 1 << 20
+#: most refinement rounds (each: predict the halvings, refine, estimate again)
+MAX_ROUNDS = 3
 
 
 @dataclass(frozen=True)
@@ -64,19 +66,25 @@ def _levels(hs, load: ContinuousLoad, shape, spacing, depths, comps, points, met
     return fine, pts, sol, sampling, order
 
 
-def _needed_halvings(sampling: float, target: float, order: float) -> int | None:
-    """Halvings of the spacing predicted to bring ``sampling`` to ``target`` (None: unknown)."""
-    if not (target > 0 and math.isfinite(sampling)):
+def _needed_halvings(total: float, target: float, order: float) -> int | None:
+    """Halvings of the spacing predicted to bring ``total`` to ``target`` at the observed order
+    (clipped to [1, 8]; 1 when unknown), or None when that cannot be predicted."""
+    if not (target > 0 and math.isfinite(total) and total > target):
         return None
-    p = min(max(order, 1.0), 2.0) if math.isfinite(order) else 1.0
-    return max(1, math.ceil(math.log2(sampling / target) / p))
+    p = min(max(order, 1.0), 8.0) if math.isfinite(order) else 1.0
+    return max(1, math.ceil(math.log2(total / target) / p))
 
 
 def continuous_field(hs, load: ContinuousLoad, depths, points, comps, method, tol, quantity, invariants):
-    """:meth:`HalfSpace.stress` / ``strain`` for a continuous load (see the module docstring)."""
+    """:meth:`HalfSpace.stress` / ``strain`` for a continuous load (see the module docstring).
+
+    With ``method="auto"`` the grid is refined by the number of halvings predicted at the observed
+    order, and the estimate recomputed on the new grid, for at most :data:`MAX_ROUNDS` rounds and
+    :data:`MAX_NODES` nodes; the prediction only chooses the grid, the estimate on it decides.
+    """
     shape, spacing = load.shape, load.spacing
     auto = isinstance(method, str) and method == "auto"
-    refinements = 0
+    refinements = rounds = 0
     while True:
         with warnings.catch_warnings(record=True) as caught:  # only the final grid's warnings reach the user
             warnings.simplefilter("always", AccuracyWarning)
@@ -84,11 +92,12 @@ def continuous_field(hs, load: ContinuousLoad, depths, points, comps, method, to
                                                       quantity, invariants)
         total = sol.err + sampling
         # refining the grid shrinks the sampling error and the nodal methods' kernel-sampling error
-        k = _needed_halvings(total, 0.5 * tol, order) if total > tol else None
-        if auto and refinements == 0 and k is not None:
+        k = _needed_halvings(total, 0.5 * tol, order)
+        if auto and k is not None and rounds < MAX_ROUNDS:
             new_shape, new_spacing = refined_grid(shape, spacing, load.periodic, k)
             if int(np.prod(new_shape)) <= MAX_NODES:
-                shape, spacing, refinements = new_shape, new_spacing, k
+                shape, spacing = new_shape, new_spacing
+                refinements, rounds = refinements + k, rounds + 1
                 continue
         break
     for w in caught:
