@@ -314,7 +314,7 @@ def test_cli_emulate_json_prints_one_summary_object(tmp_path, capsys):
 
     from tactilab.cli.main import main as cli_main
 
-    assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "0.2", "--json",
+    assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "0.2s", "--json",
                      "--record", str(tmp_path / "r.jsonl")]) == 0
     out, err = capsys.readouterr()
     summary = json.loads(out)  # stdout is exactly one JSON object
