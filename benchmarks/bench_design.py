@@ -1,6 +1,7 @@
 """Benchmark: adaptive model discrimination against the method of constant stimuli.
 
-Run: ``python benchmarks/bench_design.py [--observers 50] [--max-trials 5000] [--selection-only]``
+Run: ``python benchmarks/bench_design.py [--observers 50] [--max-trials 5000] [--calibration 200]
+[--tables 1234]``
 
 Scenarios (2IFC against a blank interval, ideal surface, peak statistic):
 
@@ -13,17 +14,30 @@ Each simulated observer reads one model (the first half of the observers the fir
 rest the second) with threshold_strain log-uniform over [0.3, 3] x the median statistic of
 its model over the candidates, exponent lognormal (median 1.2, log-sd 0.25) and lapse uniform
 on [0, 0.04]; responses are Bernoulli draws from the model's 2IFC link (what
-``SimulatedObserver.from_model`` answers). Both designs use the same grid posterior and the same
+``SimulatedObserver.from_model`` answers). Every design uses the same grid posterior and the same
 stopping rule (a model at 0.99 that is not metameric with a rival over the stimuli shown):
 
 - adaptive: :class:`ModelDiscrimination` (``utility="model"``);
-- constant stimuli: every candidate once per block, in a new random order each block.
+- constant stimuli: every candidate once per block, in a new random order each block;
+- best prior allocation: fixed proportions over the candidates, chosen in advance to maximise
+  the per-trial rate mu / sigma of ``power_analysis`` averaged over 16 draws per model from the
+  design's grid prior (exponentiated-gradient ascent on the simplex; the rival's pseudo-true
+  parameters by Nelder-Mead in power_analysis's coordinates, started from its best grid point;
+  the result and its 10 % mixture with uniform are scored by ``power_analysis`` itself and the
+  better kept); trials are shown in proportion (the candidate furthest behind its share next);
+- bound: the same, chosen for each observer knowing its true model and parameters (not a
+  competitor: no lab knows them).
 
-Table 1: trials to stop (median and 90th percentile over observers), the share that ended on
-the wrong model, and the share that reached ``--max-trials`` undecided. Table 2: selection time
-per trial with 200 candidates, per utility. Table 3: grid accuracy: the posterior log-odds of
-the true model after the same 200 constant-stimuli trials with the default grid and with a grid
-twice as fine in threshold and exponent.
+An allocation whose ``power_analysis`` rate is 0 (the rival's free threshold, exponent and lapse
+fit it exactly, e.g. one stimulus or one pitch) is reported as "rate 0" and not simulated.
+
+Table 1: trials to stop (median and 90th percentile over observers), the number that ended on
+the wrong model, and the number that reached ``--max-trials`` undecided, with each allocation's
+rate. Table 2: selection time per trial with 200 candidates, per utility. Table 3: grid
+accuracy: the posterior log-odds of the true model after the same 200 constant-stimuli trials
+with the default grid and with a grid twice as fine in threshold and exponent. Table 4:
+calibration of the stopping rule: adaptive runs stopping at 0.9 and 0.99 on fresh observers,
+the wrong count against its expectation under a calibrated posterior (the sum of 1 - P(winner)).
 """
 
 from __future__ import annotations

@@ -59,7 +59,7 @@ safe.play()
 
 
 def start_emulator(record: Path, watchdog: str) -> tuple[subprocess.Popen, int]:
-    proc = subprocess.Popen([*EMULATOR, "--record", str(record), "--watchdog", watchdog, "--max-seconds", "300"],
+    proc = subprocess.Popen([*EMULATOR, "--record", str(record), "--watchdog", watchdog, "--max-seconds", "300s"],
                             stdout=subprocess.PIPE, text=True)
     line = proc.stdout.readline()
     return proc, int(line.split(":")[2].split()[0])

@@ -31,7 +31,7 @@ def test_tiny_run_writes_table_rows_and_png_with_finite_true_errors(bench, tmp_p
     for r in forward + inversion:
         assert math.isfinite(r["error"]) and r["error"] >= 0 and r["time_ms"] > 0
     for r in forward:
-        assert math.isfinite(r["estimate"])
+        assert math.isfinite(r["estimate"]) and r["covers"] == "method+sampling"
     md = bench.write_page(forward, inversion, tmp_path, "python benchmarks/bench_tradeoff.py", "load average 0.0")
     text = md.read_text()
     png = tmp_path / "accuracy.png"
@@ -48,6 +48,7 @@ def test_exact_routes_match_the_independent_dense_posterior(bench):
     rows = bench.inversion_rows(tols=(1e-10,), steps=(), repeats=1)
     by = {r["method"]: r for r in rows}
     assert by["fft"]["error"] < 1e-10 and by["dense"]["error"] < 1e-10
+    assert by["fft"]["std_error"] < 1e-12 and by["dense"]["std_error"] < 1e-12
     assert by["iterative"]["error"] < 1e-6
 
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import re
 import pickle
 import sqlite3
 import struct
@@ -219,7 +218,7 @@ def test_a_likelihood_installed_as_a_plugin_is_found_through_the_entry_point_gro
                 == "plugin_psy"  # the name, never a path
         fresh = subprocess.run([sys.executable, "-m", "tactilab.cli.main", "experiment", "status", str(path)],
                                capture_output=True, text=True, env={**__import__("os").environ, "PYTHONPATH": str(site)})
-        assert fresh.returncode == 0 and re.search(r"^progress +4 of 4 planned trials", fresh.stdout, re.M), fresh.stderr
+        assert fresh.returncode == 0 and "all 4 planned trials done" in fresh.stdout, fresh.stderr
         capsys.readouterr()
         assert _run(tmp_path, _protocol(tmp_path, "plugin_absent")) == 2
         err = capsys.readouterr().err

@@ -28,10 +28,11 @@ DESC = DisplayDescription.braille_row(n_tractors=2)
 
 @pytest.fixture
 def device(tmp_path):
-    """The emulator in a thread with DESC's limits; yields (port, finish() -> summary, record, logs)."""
+    """The emulator in a thread with DESC's limits (watchdog 30 s: no session expires while a test
+    waits for a subprocess on a loaded machine); yields (port, finish() -> summary, record, logs)."""
     stop, logs, record, result = threading.Event(), [], tmp_path / "link.jsonl", {}
     thread = threading.Thread(target=lambda: result.update(summary=emulate(
-        0, watchdog_s=1.0, record=record, max_seconds=60, log=logs.append, stop=stop, handle_signals=False,
+        0, watchdog_s=30.0, record=record, max_seconds=120, log=logs.append, stop=stop, handle_signals=False,
         limits=DESC)), daemon=True)
     thread.start()
     while not logs:
@@ -314,7 +315,7 @@ def test_cli_emulate_json_prints_one_summary_object(tmp_path, capsys):
 
     from tactilab.cli.main import main as cli_main
 
-    assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "0.2s", "--json",
+    assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "200ms", "--json",
                      "--record", str(tmp_path / "r.jsonl")]) == 0
     out, err = capsys.readouterr()
     summary = json.loads(out)  # stdout is exactly one JSON object
