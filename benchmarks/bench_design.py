@@ -1,6 +1,7 @@
 """Benchmark: adaptive model discrimination against the method of constant stimuli.
 
-Run: ``python benchmarks/bench_design.py [--observers 50] [--max-trials 5000] [--selection-only]``
+Run: ``python benchmarks/bench_design.py [--observers 50] [--max-trials 5000] [--calibration 200]
+[--tables 1234]``
 
 Scenarios (2IFC against a blank interval, ideal surface, peak statistic):
 
@@ -13,17 +14,30 @@ Each simulated observer reads one model (the first half of the observers the fir
 rest the second) with threshold_strain log-uniform over [0.3, 3] x the median statistic of
 its model over the candidates, exponent lognormal (median 1.2, log-sd 0.25) and lapse uniform
 on [0, 0.04]; responses are Bernoulli draws from the model's 2IFC link (what
-``SimulatedObserver.from_model`` answers). Both designs use the same grid posterior and the same
+``SimulatedObserver.from_model`` answers). Every design uses the same grid posterior and the same
 stopping rule (a model at 0.99 that is not metameric with a rival over the stimuli shown):
 
 - adaptive: :class:`ModelDiscrimination` (``utility="model"``);
-- constant stimuli: every candidate once per block, in a new random order each block.
+- constant stimuli: every candidate once per block, in a new random order each block;
+- best prior allocation: fixed proportions over the candidates, chosen in advance to maximise
+  the per-trial rate mu / sigma of ``power_analysis`` averaged over 16 draws per model from the
+  design's grid prior (exponentiated-gradient ascent on the simplex; the rival's pseudo-true
+  parameters by Nelder-Mead in power_analysis's coordinates, started from its best grid point;
+  the result and its 10 % mixture with uniform are scored by ``power_analysis`` itself and the
+  better kept); trials are shown in proportion (the candidate furthest behind its share next);
+- bound: the same, chosen for each observer knowing its true model and parameters (not a
+  competitor: no lab knows them).
 
-Table 1: trials to stop (median and 90th percentile over observers), the share that ended on
-the wrong model, and the share that reached ``--max-trials`` undecided. Table 2: selection time
-per trial with 200 candidates, per utility. Table 3: grid accuracy: the posterior log-odds of
-the true model after the same 200 constant-stimuli trials with the default grid and with a grid
-twice as fine in threshold and exponent.
+An allocation whose ``power_analysis`` rate is 0 (the rival's free threshold, exponent and lapse
+fit it exactly, e.g. one stimulus or one pitch) is reported as "rate 0" and not simulated.
+
+Table 1: trials to stop (median and 90th percentile over observers), the number that ended on
+the wrong model, and the number that reached ``--max-trials`` undecided, with each allocation's
+rate. Table 2: selection time per trial with 200 candidates, per utility. Table 3: grid
+accuracy: the posterior log-odds of the true model after the same 200 constant-stimuli trials
+with the default grid and with a grid twice as fine in threshold and exponent. Table 4:
+calibration of the stopping rule: adaptive runs stopping at 0.9 and 0.99 on fresh observers,
+the wrong count against its expectation under a calibrated posterior (the sum of 1 - P(winner)).
 """
 
 from __future__ import annotations
@@ -35,10 +49,13 @@ import time
 import warnings
 
 import numpy as np
+from scipy.optimize import minimize
 
 from tactilab.data_schemas.experiment import Stimulus
 from tactilab.experiments import ModelDiscrimination, TransductionModel
 from tactilab.experiments._transduction_data import p_correct_table
+from tactilab.experiments.model_power import ZERO_RATE_NATS, _from_free, _to_free
+from tactilab.experiments.models import power_analysis
 
 
 def _grid(surfaces, amps, pitches):
@@ -55,45 +72,203 @@ SCENARIOS = {
 
 
 def _observer(design, truth, rng):
+    """(P(correct) per candidate, theta) of a simulated observer reading model ``truth``."""
     s = design.stats[truth]
     theta = [float(np.median(s[:, 0]) * math.exp(rng.uniform(math.log(0.3), math.log(3)))),
              float(1.2 * math.exp(0.25 * rng.standard_normal())), float(rng.uniform(0, 0.04))]
-    return p_correct_table("2ifc", s[:, 0], s[:, 1], np.array([theta]))[0]
+    return p_correct_table("2ifc", s[:, 0], s[:, 1], np.array([theta]))[0], np.array(theta)
 
 
-def _run(models, candidates, truth, seed, adaptive, max_trials):
+def _run(models, candidates, truth, seed, design_kind, max_trials, allocation=None, fine=None, n_grid=(25, 9),
+         stop=0.99):
+    """One simulated session. ``design_kind``: adaptive, constant, allocation (fixed weights) or
+    bound (the best allocation for this observer's true parameters, computed here).
+    Returns (trials, winner, true name, P(winner) at the end, allocation rate or None)."""
     rng = np.random.default_rng(seed)
-    d = ModelDiscrimination(models, candidates, rng=seed, max_trials=max_trials)
-    p = _observer(d, truth, rng)
+    d = ModelDiscrimination(models, candidates, rng=seed, max_trials=max_trials, n_grid=n_grid, stop_probability=stop)
+    p, theta = _observer(d, truth, rng)
+    rate = None
+    if design_kind == "bound":
+        allocation, rate, _, _ = best_allocation([(truth, theta)], d, fine, d.candidates)
+        if rate == 0.0:  # the rival fits this allocation exactly: it never decides
+            return max_trials, None, d.names[truth], float("nan"), rate
     order: list[int] = []
+    counts = np.zeros(len(d.candidates))
     while not d.finished:
-        if adaptive:
+        if design_kind == "adaptive":
             i = d.choose()
-        else:
+        elif design_kind == "constant":
             if not order:
                 order = list(rng.permutation(len(d.candidates)))
             i = order.pop()
+        else:  # a fixed allocation, shown in proportion: the candidate furthest behind its share
+            i = int(np.argmax(allocation * (counts.sum() + 1) - counts))
+            counts[i] += 1
         d.observe(i, bool(rng.random() < p[i]))
-    return len(d.probabilities), d.winner, d.names[truth]
+    win = d.winner
+    return len(d.probabilities), win, d.names[truth], (d.model_probabilities()[win] if win else float("nan")), rate
 
 
-def table_trials(n_observers, max_trials):
+# ----- fixed allocations: maximise the per-trial rate mu / sigma of power_analysis ----------------
+class _Truth:
+    """One true (model, theta) against the rival: P(correct) of both, and the rival's projection.
+
+    The rival's pseudo-true parameters (the KL projection of the truth over an allocation) are
+    found as in power_analysis, in its free coordinates, by Nelder-Mead started from the best of
+    the rival's grid points and the previous projection (a grid alone would let the optimiser
+    exploit the grid's gaps: a single candidate the grid cannot fit exactly, a spurious rate).
+    """
+
+    def __init__(self, design, fine, m, theta):
+        self.p = np.clip(p_correct_table("2ifc", design.stats[m, :, 0], design.stats[m, :, 1],
+                                         np.array([theta]))[0], 1e-12, 1 - 1e-12)
+        self.r = design.stats[1 - m]
+        q = np.clip(fine.table[:, 1 - m, :], 1e-12, 1 - 1e-12)
+        self.grid_kl = self.p[:, None] * np.log(self.p[:, None] / q) + (1 - self.p[:, None]) * np.log(
+            (1 - self.p[:, None]) / (1 - q))
+        self.grid = fine.grid
+        self.u = None
+
+    def q(self, u):
+        return np.clip(p_correct_table("2ifc", self.r[:, 0], self.r[:, 1], _from_free(u, "2ifc")[None])[0],
+                       1e-12, 1 - 1e-12)
+
+    def kl(self, q):
+        p = self.p
+        return p * np.log(p / q) + (1 - p) * np.log((1 - p) / (1 - q))
+
+    def rate(self, w):
+        """(mu / sigma, d(mu / sigma)/dw) at allocation w (envelope theorem at the projection)."""
+        g = int(np.argmin(w @ self.grid_kl))
+        starts = [_to_free(self.grid[g], "2ifc")] + ([self.u] if self.u is not None else [])
+        best = min((minimize(lambda u: float(w @ self.kl(self.q(u))), u0, method="Nelder-Mead",
+                             options=dict(xatol=1e-6, fatol=1e-14, maxiter=600)) for u0 in starts),
+                   key=lambda r: r.fun)
+        self.u = best.x
+        q = self.q(best.x)
+        l1, l0 = np.log(self.p / q), np.log((1 - self.p) / (1 - q))
+        k, s2 = self.p * l1 + (1 - self.p) * l0, self.p * l1 ** 2 + (1 - self.p) * l0 ** 2
+        mu = float(w @ k)
+        var = float(w @ s2) - mu * mu
+        if mu <= ZERO_RATE_NATS or var <= 0:
+            return 0.0, np.zeros_like(w)
+        sd = math.sqrt(var)
+        return mu / sd, (k * sd - mu * (s2 - 2 * mu * k) / (2 * sd)) / var
+
+
+def optimise_allocation(truths, n_candidates, iters=80, eta=0.3):
+    """Exponentiated-gradient ascent of the truths' mean rate over the simplex, from the uniform allocation."""
+    w = np.full(n_candidates, 1.0 / n_candidates)
+    best, best_val = w, -1.0
+    for _ in range(iters):
+        out = [t.rate(w) for t in truths]
+        val, grad = float(np.mean([o[0] for o in out])), np.mean([o[1] for o in out], axis=0)
+        if val > best_val:
+            best, best_val = w, val
+        w = w * np.exp(eta * grad / (np.abs(grad).max() + 1e-300))
+        w /= w.sum()
+    return best
+
+
+def verified_rate(w, truths, design, candidates, n_total=1000):
+    """Mean over truths of power_analysis's rate (continuous rival; exactly 0 when it fits the design)."""
+    counts = np.round(w * n_total).astype(int)
+    items = [(candidates[i], int(c)) for i, c in enumerate(counts) if c > 0]
+    out = []
+    for m, theta in truths:
+        res = power_analysis(design.models[m], dict(zip(("threshold_strain", "exponent", "lapse"), map(float, theta))),
+                             design.models[1 - m], items)
+        out.append(res.rate)
+    return float(np.mean(out)), len(items)
+
+
+def best_allocation(truths, design, fine, candidates):
+    """The best fixed allocation for the truths (model index, theta): optimised on the rival's fine grid,
+    then the best by power_analysis's rate of it and of its mixtures with the uniform allocation."""
+    w = optimise_allocation([_Truth(design, fine, m, theta) for m, theta in truths], len(candidates))
+    u = np.full(len(candidates), 1.0 / len(candidates))
+    options = [(a, (1 - a) * w + a * u) for a in (0.0, 0.1)]
+    scored = [(verified_rate(v, truths, design, candidates), a, v) for a, v in options]
+    (rate, support), mix, v = max(scored, key=lambda s: s[0][0])
+    return v, rate, support, mix
+
+
+def prior_truths(design, n_per_model, rng):
+    """(model, theta) drawn from the design's grid prior."""
+    w = design.weights()
+    out = []
+    for m in range(w.shape[0]):
+        p = w[m] / w[m].sum()
+        out += [(m, design.grid[g]) for g in rng.choice(p.size, n_per_model, p=p)]
+    return out
+
+
+def _summary(rows, n_observers):
+    n = np.array([r[0] for r in rows])
+    wrong = sum(r[1] is not None and r[1] != r[2] for r in rows)
+    undecided = sum(r[1] is None for r in rows)
+    return n, wrong, undecided
+
+
+def table_trials(n_observers, max_trials, n_prior=16):
     print(f"Table 1 -- trials to 0.99 posterior probability, {n_observers} simulated observers per scenario")
-    print(f"{'scenario':24s} {'design':18s} {'median':>7s} {'p90':>7s} {'wrong':>7s} {'undecided':>9s} {'wall s':>7s}")
+    print(f"{'scenario':24s} {'design':26s} {'rate':>7s} {'median':>7s} {'p90':>7s} {'wrong':>9s} "
+          f"{'undecided':>10s} {'wall s':>7s}")
     for name, (hyps, cands) in SCENARIOS.items():
         models = [TransductionModel(h) for h in hyps]  # statistics computed once, shared by every run
+        t0 = time.perf_counter()
+        design = ModelDiscrimination(models, cands, max_trials=max_trials)
+        fine = ModelDiscrimination(models, cands, n_grid=(49, 17), max_trials=max_trials)
+        truths = prior_truths(design, n_prior, np.random.default_rng(7))
+        uniform = np.full(len(cands), 1.0 / len(cands))
+        cs_rate, _ = verified_rate(uniform, truths, design, design.candidates)
+        prior_w, prior_rate, support, mix = best_allocation(truths, design, fine, design.candidates)
+        print(f"{'':24s} (prior-chosen allocation: {support} candidates, {mix:.0%} uniform mixed in; "
+              f"prior-mean rate mu/sigma {prior_rate:.4f} vs {cs_rate:.4f} for constant stimuli; "
+              f"{time.perf_counter() - t0:.0f} s)")
         medians = {}
-        for label, adaptive in (("adaptive", True), ("constant stimuli", False)):
+        for label, kind, w, rate in (("adaptive", "adaptive", None, None),
+                                     ("constant stimuli", "constant", None, cs_rate),
+                                     ("best prior allocation", "allocation", prior_w, prior_rate),
+                                     ("bound: true-param alloc.", "bound", None, None)):
             t0 = time.perf_counter()
-            rows = [_run(models, cands, k * 2 // n_observers, 1000 + k, adaptive, max_trials)
+            if rate == 0.0:
+                print(f"{name:24s} {label:26s} {0:7.4f}  rate 0: the rival fits this design exactly, it never decides")
+                continue
+            rows = [_run(models, cands, k * 2 // n_observers, 1000 + k, kind, max_trials, w, fine)
                     for k in range(n_observers)]
-            n = np.array([r[0] for r in rows])
-            wrong = np.mean([r[1] is not None and r[1] != r[2] for r in rows])
-            undecided = np.mean([r[1] is None for r in rows])
+            n, wrong, undecided = _summary(rows, n_observers)
+            if kind == "bound":
+                rates = np.array([r[4] for r in rows])
+                rate = float(np.median(rates))
+                zero = int(np.sum(rates == 0))
             medians[label] = float(np.median(n))
-            print(f"{name:24s} {label:18s} {np.median(n):7.0f} {np.percentile(n, 90):7.0f} {wrong:7.1%} "
-                  f"{undecided:9.1%} {time.perf_counter() - t0:7.1f}")
-        print(f"{'':24s} {'ratio adaptive/CS':18s} {medians['adaptive'] / medians['constant stimuli']:7.2f}")
+            print(f"{name:24s} {label:26s} {rate if rate is not None else float('nan'):7.4f} {np.median(n):7.0f} "
+                  f"{np.percentile(n, 90):7.0f} {wrong:3d} ({wrong / n_observers:4.0%}) {undecided:3d} ({undecided / n_observers:4.0%})"
+                  f" {time.perf_counter() - t0:7.1f}" + (f"  [{zero} observers: rate 0]" if kind == "bound" and zero else ""))
+        ratio = medians["adaptive"] / medians["constant stimuli"]
+        prior_ratio = medians["adaptive"] / medians.get("best prior allocation", math.inf)
+        print(f"{'':24s} adaptive / constant stimuli {ratio:.2f} (goal <= 0.25); adaptive / best prior allocation "
+              f"{prior_ratio:.2f} (goal < 1)")
+
+
+def table_calibration(n_observers, max_trials):
+    """Among adaptive runs that stop with a winner at P >= stop, the share that is wrong: a calibrated
+    posterior gives at most 1 - stop, and about the sum over runs of 1 - P(winner) wrong runs."""
+    print(f"\nTable 4 -- calibration of the stopping rule: {n_observers} adaptive observers per scenario and level "
+          "(seeds 5000+, not those of table 1)")
+    print(f"{'scenario':24s} {'stop at':>7s} {'median':>7s} {'wrong':>13s} {'expected if calibrated':>23s} "
+          f"{'undecided':>9s} {'wall s':>7s}")
+    for name, (hyps, cands) in SCENARIOS.items():
+        models = [TransductionModel(h) for h in hyps]
+        for stop in (0.9, 0.99):
+            t0 = time.perf_counter()
+            rows = [_run(models, cands, k * 2 // n_observers, 5000 + k, "adaptive", max_trials, stop=stop)
+                    for k in range(n_observers)]
+            n, wrong, undecided = _summary(rows, n_observers)
+            expected = float(np.nansum([1 - r[3] for r in rows]))
+            print(f"{name:24s} {stop:7.2f} {np.median(n):7.0f} {wrong:4d} ({wrong / n_observers:5.1%}) "
+                  f"{expected:16.1f} ({expected / n_observers:4.1%}) {undecided:9d} {time.perf_counter() - t0:7.1f}")
 
 
 def table_selection():
@@ -127,7 +302,7 @@ def table_grid_accuracy(n_repeats=10):
         rng = np.random.default_rng(50 + k)
         coarse = ModelDiscrimination(models, cands, max_trials=10_000)
         fine = ModelDiscrimination(models, cands, n_grid=(49, 17), max_trials=10_000)
-        p = _observer(coarse, k % 2, rng)
+        p, _ = _observer(coarse, k % 2, rng)
         odds = []
         for _ in range(200):
             i = int(rng.integers(len(cands)))
@@ -147,14 +322,19 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--observers", type=int, default=50)
     parser.add_argument("--max-trials", type=int, default=5000)
-    parser.add_argument("--selection-only", action="store_true", help="only table 2 (selection time)")
+    parser.add_argument("--calibration", type=int, default=200, help="observers per scenario in table 4 (0: skip)")
+    parser.add_argument("--tables", default="1234", help="which tables to print, e.g. 14")
     args = parser.parse_args()
     warnings.simplefilter("ignore")  # metameric warnings of sub-designs are expected
-    if not args.selection_only:
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs at start")
+    if "1" in args.tables:
         table_trials(args.observers, args.max_trials)
-    table_selection()
-    if not args.selection_only:
+    if "2" in args.tables:
+        table_selection()
+    if "3" in args.tables:
         table_grid_accuracy()
+    if "4" in args.tables and args.calibration:
+        table_calibration(args.calibration, args.max_trials)
 
 
 if __name__ == "__main__":

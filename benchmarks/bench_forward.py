@@ -55,7 +55,14 @@ from tactilab.forward.halfspace.spectral import periodic_stress
 SPACING = 1e-4  # m, grid spacing of every scene
 E_PA = 1e6  # Pa
 DEPTHS = {1: (1e-3,), 3: (0.5e-3, 1e-3, 2e-3)}  # m
-TAMAAS_VENV = Path(os.environ.get("TACTILAB_TAMAAS_VENV", "/work/benchvenv-tamaas"))
+def _default_tamaas_venv() -> Path:
+    """$TACTILAB_TAMAAS_VENV, else .bench-venv at the repository root (see docs/forward_benchmark.md)."""
+    if "TACTILAB_TAMAAS_VENV" in os.environ:
+        return Path(os.environ["TACTILAB_TAMAAS_VENV"])
+    return Path(__file__).resolve().parents[1] / ".bench-venv"
+
+
+TAMAAS_VENV = _default_tamaas_venv()
 IDENTITY = np.eye(6)
 
 
@@ -519,11 +526,14 @@ def build(layers):
     return model, run
 models = {layers: build(layers) for layers in (2, 3)}
 times = {2: [], 3: []}
+cpu = []
 for _ in range(repeats):
     for layers, (_, run) in models.items():
-        t0 = time.perf_counter(); run(); times[layers].append(time.perf_counter() - t0)
+        t0, c0 = time.perf_counter(), time.thread_time(); run(); times[layers].append(time.perf_counter() - t0)
+        if layers == 2:
+            cpu.append(time.thread_time() - c0)
 np.savez(sys.argv[2], stress=np.array(models[2][0]["stress"])[1], times=np.array(times[2]),
-         times3=np.array(times[3]), version=tm.__version__)
+         times3=np.array(times[3]), cpu=np.array(cpu), version=tm.__version__)
 '''
 
 
@@ -535,23 +545,21 @@ def tamaas_python() -> Path | None:
     return exe if ok.returncode == 0 else None
 
 
-def bench_tamaas(n: int, rng, repeats: int) -> dict | str:
-    """Same periodic problem in tactilab and Tamaas (1 thread each); errors vs exact plane waves."""
+def _run_tamaas(load: SurfaceLoad, depth: float, nu: float, repeats: int) -> dict | str:
+    """Tamaas on ``load`` in its own venv (a subprocess, OMP_NUM_THREADS=1), timed inside it.
+
+    Returns the peer's stress in our layout (6, ny, nx), its wall times (2 and 3 layers), its
+    thread CPU times (2 layers) and version; or a line saying why it was skipped.
+    """
     exe = tamaas_python()
     if exe is None:
         return (f"Tamaas skipped: no importable tamaas in {TAMAAS_VENV} (create it with "
-                f"'python3.12 -m venv {TAMAAS_VENV} && {TAMAAS_VENV}/bin/pip install tamaas', or set "
-                "TACTILAB_TAMAAS_VENV)")
-    nu, depth = 0.49, 1e-3
-    modes = plane_wave_modes(n, rng)
-    load = plane_wave_load(n, modes)
-    ref = plane_wave_grid_stress(n, modes, [depth], nu)[0]  # (6, ny, nx)
+                "'python3.12 -m venv .bench-venv && .bench-venv/bin/pip install tamaas' at the repository "
+                "root, or set TACTILAB_TAMAAS_VENV)")
+    n = load.shape[-1]
     # Tamaas grids are indexed (x, y) from x = 0; ours (y, x) from x = -L/2: transpose, and the
     # shift by half a period is the same for load and field, so the fields compare node by node.
     traction = np.stack([load.qx.T, load.qy.T, load.p.T], axis=-1)
-    own = {"tactilab core": lambda: periodic_stress(load, [depth], nu, IDENTITY),
-           "tactilab facade": lambda: HalfSpace(E=E_PA, nu=nu).stress(load, depth, method="spectral", tol=1e-9)}
-    before = interleaved(own, repeats)
     with tempfile.TemporaryDirectory() as tmp:
         src, dst, script = Path(tmp, "in.npz"), Path(tmp, "out.npz"), Path(tmp, "peer.py")
         np.savez(src, traction=traction, depth=depth, size=n * SPACING, nu=nu, E=E_PA, repeats=repeats)
@@ -560,23 +568,115 @@ def bench_tamaas(n: int, rng, repeats: int) -> dict | str:
         proc = subprocess.run([str(exe), str(script), str(src), str(dst)], capture_output=True, text=True, env=env)
         if proc.returncode != 0:
             return f"Tamaas skipped: the peer subprocess failed: {proc.stderr.strip().splitlines()[-1:]}"
-        peer = np.load(dst)
-        peer_stress, peer_times, version = peer["stress"], peer["times"], str(peer["version"])
-        # Tamaas always evaluates the surface layer too: estimate its one-layer time as T2 - (T3 - T2)
-        one_layer = float(2 * np.median(peer_times) - np.median(peer["times3"]))
-    after = interleaved(own, repeats)
+        peer = dict(np.load(dst))
     # Tamaas shear is in Mandel form (x sqrt 2); measured on oblique plane waves, its channel 3
     # holds our xy and channel 5 our yz (channels 0-2 and 4 map to xx, yy, zz, zx directly).
-    mandel = np.sqrt(2.0)
-    peer_fields = np.stack([peer_stress[..., 0].T, peer_stress[..., 1].T, peer_stress[..., 2].T,
-                            peer_stress[..., 5].T / mandel, peer_stress[..., 4].T / mandel,
-                            peer_stress[..., 3].T / mandel])
+    st, mandel = peer["stress"], np.sqrt(2.0)
+    peer["fields"] = np.stack([st[..., 0].T, st[..., 1].T, st[..., 2].T, st[..., 5].T / mandel,
+                               st[..., 4].T / mandel, st[..., 3].T / mandel])
+    peer["version"] = str(peer["version"])
+    return peer
+
+
+def bench_tamaas(n: int, rng, repeats: int) -> dict | str:
+    """Same periodic problem in tactilab and Tamaas (1 thread each); errors vs exact plane waves."""
+    nu, depth = 0.49, 1e-3
+    modes = plane_wave_modes(n, rng)
+    load = plane_wave_load(n, modes)
+    ref = plane_wave_grid_stress(n, modes, [depth], nu)[0]  # (6, ny, nx)
+    own = {"tactilab core": lambda: periodic_stress(load, [depth], nu, IDENTITY),
+           "tactilab facade": lambda: HalfSpace(E=E_PA, nu=nu).stress(load, depth, method="spectral", tol=1e-9)}
+    before = interleaved(own, repeats)
+    peer = _run_tamaas(load, depth, nu, repeats)
+    if isinstance(peer, str):
+        return peer
+    peer_times = peer["times"]
+    # Tamaas always evaluates the surface layer too: estimate its one-layer time as T2 - (T3 - T2)
+    one_layer = float(2 * np.median(peer_times) - np.median(peer["times3"]))
+    after = interleaved(own, repeats)
     ours = periodic_stress(load, [depth], nu, IDENTITY)[0]
     own_t = {k: (float(np.median([before[k][0], after[k][0]])), min(before[k][1], after[k][1])) for k in own}
-    return dict(n=n, nu=nu, version=version, peer=(float(np.median(peer_times)), float(peer_times.min())),
+    return dict(n=n, nu=nu, version=peer["version"], peer=(float(np.median(peer_times)), float(peer_times.min())),
                 one_layer=one_layer,
-                own=own_t, err_own=rel_err(ours, ref), err_peer=rel_err(peer_fields, ref),
-                agree=rel_err(peer_fields, ours))
+                own=own_t, err_own=rel_err(ours, ref), err_peer=rel_err(peer["fields"], ref),
+                agree=rel_err(peer["fields"], ours))
+
+
+# -- table 0: the facade at the FFT floor, and against Tamaas ---------------------------------------
+def interleaved_cpu(funcs: dict, repeats: int) -> dict[str, dict[str, float]]:
+    """Like :func:`interleaved`, recording wall and thread-CPU time: {name: {wall_min, wall_med, cpu_min}}.
+
+    Thread CPU time leaves out the time the (shared) machine spent on other processes.
+    """
+    for f in funcs.values():
+        f()
+    wall = {name: [] for name in funcs}
+    cpu = {name: [] for name in funcs}
+    for _ in range(repeats):
+        for name, f in funcs.items():
+            t0, c0 = time.perf_counter(), time.thread_time()
+            f()
+            wall[name].append(time.perf_counter() - t0)
+            cpu[name].append(time.thread_time() - c0)
+    return {name: dict(wall_min=min(wall[name]), wall_med=float(np.median(wall[name])), cpu_min=min(cpu[name]))
+            for name in funcs}
+
+
+def bench_floor_table(sizes, repeats: int, rng, peer: bool = True) -> list[dict]:
+    """The facade ``HalfSpace.stress(load, 1 mm, method="spectral")`` on a periodic p, qx, qy load
+    (six stress components, one depth, float64, one FFT thread) against its FFT floor
+    (3 rfft2 + 6 irfft2, timed interleaved in this process) and against Tamaas (same load)."""
+    nu, depth = 0.49, 1e-3
+    rows = []
+    for n in sizes:
+        modes = plane_wave_modes(n, rng)
+        load = plane_wave_load(n, modes)
+        hs = HalfSpace(E=E_PA, nu=nu)
+        ref = plane_wave_grid_stress(n, modes, [depth], nu)[0]
+        got = hs.stress(load, depth, method="spectral", tol=1e-9).data["stress"].values[0]
+        t = interleaved_cpu({"facade": lambda: hs.stress(load, depth, method="spectral", tol=1e-9),
+                             "floor": spectral_floor(load, 1)}, repeats)
+        row = dict(n=n, err=rel_err(got, ref), **{f"{k}_{m}": v for k, d in t.items() for m, v in d.items()})
+        result = _run_tamaas(load, depth, nu, max(5, repeats // 2)) if peer else "Tamaas skipped (--no-peer)"
+        if isinstance(result, str):
+            row["peer_note"] = result
+        else:
+            row.update(peer_wall=float(result["times"].min()), peer_cpu=float(result["cpu"].min()),
+                       peer_one_layer=float(2 * np.median(result["times"]) - np.median(result["times3"])),
+                       peer_med=float(np.median(result["times"])), peer_agree=rel_err(result["fields"], got),
+                       peer_version=result["version"])
+        rows.append(row)
+    return rows
+
+
+def print_floor_table(rows: list[dict]) -> None:
+    print("\nTable 0. The facade at the FFT floor: HalfSpace(E, nu=0.49).stress(load, 1 mm, method='spectral'),\n"
+          "periodic p + qx + qy, six stress components, one depth, float64, 1 FFT thread; min over interleaved repeats")
+    head = (f"{'size':>6}{'facade ms':>11}{'floor ms':>10}{'ratio':>7}{'ratio med':>10}{'ratio cpu':>10}"
+            f"{'Tamaas ms':>11}{'speedup':>9}{'spd cpu':>9}{'spd 1-layer':>12}{'error':>9}")
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        fac, flo = r["facade_wall_min"], r["floor_wall_min"]
+        line = (f"{r['n']:>4}^2{1e3 * fac:11.2f}{1e3 * flo:10.2f}{fac / flo:7.2f}"
+                f"{r['facade_wall_med'] / r['floor_wall_med']:10.2f}{r['facade_cpu_min'] / r['floor_cpu_min']:10.2f}")
+        if "peer_wall" in r:
+            line += (f"{1e3 * r['peer_wall']:11.2f}{r['peer_wall'] / fac:9.2f}"
+                     f"{r['peer_cpu'] / r['facade_cpu_min']:9.2f}{r['peer_one_layer'] / r['facade_wall_med']:12.2f}")
+        else:
+            line += f"{'-':>11}{'-':>9}{'-':>9}{'-':>12}"
+        print(line + f"{r['err']:9.1e}")
+    notes = [r["peer_note"] for r in rows if "peer_note" in r]
+    agree = [f"{r['n']}^2: {r['peer_agree']:.1e}" for r in rows if "peer_agree" in r]
+    version = next((r["peer_version"] for r in rows if "peer_version" in r), None)
+    print("ratio = facade / floor (min wall times; 'ratio med': medians; 'ratio cpu': thread CPU time, which leaves\n"
+          "out time lost to other processes). Tamaas ms: its min wall time for the same load "
+          f"(Tamaas {version}, OMP_NUM_THREADS=1, two layers:\nit always evaluates the surface too); speedup = "
+          "Tamaas / facade (wall, cpu); 'spd 1-layer': Tamaas charged for one layer,\nT(2) - [T(3) - T(2)], "
+          "medians. error: facade vs the exact plane-wave closed form. Tamaas vs facade, max difference / peak: "
+          + (", ".join(agree) if agree else "-") + ".\nTargets: ratio <= 1.5, speedup >= 3 at 256^2.")
+    for note in dict.fromkeys(notes):
+        print(note)
 
 
 def print_tamaas(res) -> None:
@@ -618,6 +718,8 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="small grids and few repeats (< ~60 s)")
     parser.add_argument("--sizes", type=int, nargs="+", help="grid sizes n (n x n); default 128 256 512 1024")
     parser.add_argument("--no-peer", action="store_true", help="skip the Tamaas comparison")
+    parser.add_argument("--floor-only", action="store_true",
+                        help="only Table 0 (facade vs FFT floor vs Tamaas at 256^2 and 512^2), about a minute")
     parser.add_argument("--memory-child", help=argparse.SUPPRESS)
     parser.add_argument("--memory-n", type=int, default=1024, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -631,6 +733,10 @@ def main(argv=None) -> int:
     print(f"tactilab forward benchmark ({'quick' if args.quick else 'full'}): spacing {SPACING * 1e3} mm, "
           f"E = {E_PA:.0e} Pa, nu = 0.5 unless stated, float64, scipy {sfft.__name__} 1 thread, "
           f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}")
+    print_floor_table(bench_floor_table(args.sizes or [256, 512], 5 if args.quick else 31, rng, not args.no_peer))
+    if args.floor_only:
+        print(f"\nload average at end {os.getloadavg()[0]:.1f}")
+        return 0
     print_methods(run_methods(sizes, args.quick, rng))
     print_breakdown(256 if args.quick else 512)
     counts = [10, 100] if args.quick else [10, 100, 1000, 10000]

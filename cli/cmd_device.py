@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import argparse
 import functools
+import json
+import sys
+from dataclasses import asdict
 
 
 NAME = "device"
@@ -33,6 +36,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                           "frame to its full scale (Pa or m) and slew limit (full scale per s), recording each clamp")
     emu.add_argument("--late-after", default="1ms",
                      help="a frame whose transit exceeds the smallest by more than this is late (time; default 1ms)")
+    emu.add_argument("--json", action="store_true",
+                     help="print one JSON object summarising the run on stdout at the end (counts; duration in s); "
+                          "the event lines, 'listening on ...' first, go to stderr")
 
 
 #: library parameter -> the flag that sets it
@@ -47,14 +53,17 @@ def run(args: argparse.Namespace) -> int:
     watchdog = to_si(args.watchdog, "time", name="--watchdog")
     max_seconds = to_si(args.max_seconds, "time", name="--max-seconds")
     late_after = to_si(args.late_after, "time", name="--late-after")
+    log = functools.partial(print, flush=True, file=sys.stderr if args.json else sys.stdout)
     try:
-        emulate(args.port, watchdog_s=watchdog, record=args.record, max_seconds=max_seconds,
-                n_tractors=args.tractors, late_after_s=late_after, log=functools.partial(print, flush=True),
-                limits=args.limits)
+        summary = emulate(args.port, watchdog_s=watchdog, record=args.record, max_seconds=max_seconds,
+                          n_tractors=args.tractors, late_after_s=late_after, log=log, limits=args.limits)
     except ValueError as exc:
         text = str(exc)
         for parameter, flag in _FLAGS.items():
             if text.startswith(parameter + ":"):
                 raise ValueError(flag + text[len(parameter):]) from None
         raise
+    if args.json:
+        print(json.dumps({"command": "device emulate", "frame_format_version": 2, **asdict(summary),
+                          "watchdog_s": watchdog, "record": args.record, "limits": args.limits}), flush=True)
     return 0

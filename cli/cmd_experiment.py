@@ -97,26 +97,13 @@ def _summary_args(p: argparse.ArgumentParser) -> None:
                         "each key); progress and messages go to stderr")
 
 
-def _fitted_thresholds(path) -> list[str]:
-    """The psychometric fit's threshold with its 95 % interval, one line per condition."""
-    from tactilab.experiments.analysis import fit_summary
-
-    try:
-        return [f"fitted: {line}" for line in fit_summary([path])]
-    except ValueError as exc:  # too few trials, or a session with no levels to fit
-        return [f"fitted: no psychometric fit yet ({' '.join(str(exc).split())})"]
-
-
 def _finish(result, parameter: str, args: argparse.Namespace, warned: list[str]) -> int:
-    """The end of a run or resume: one line, the fitted thresholds, then the summary block (or JSON)."""
+    """The end of a run or resume: one line, then the summary block with the fitted thresholds (or JSON)."""
     from tactilab.experiments.runner import format_estimate
 
     info = sys.stderr if args.json else sys.stdout
     print(f"session {result.path}: {result.status} after {result.n_completed} trials; "
           f"procedure's running {format_estimate(result.estimate, parameter)}", file=info)
-    if result.n_completed:
-        for line in _fitted_thresholds(result.path):
-            print(line, file=info)
     exported = []
     if args.export is not None and result.status == "complete":
         from tactilab.experiments.export import export_session
@@ -124,11 +111,27 @@ def _finish(result, parameter: str, args: argparse.Namespace, warned: list[str])
         out = result.path.parent / "bids" if args.export == "bids" else result.path.parent
         with _flags({"format": "--export", "out": "--export"}):
             exported = [str(p) for p in export_session(result.path, out, args.export, overwrite=False)]
+    elif args.export is not None:
+        print(f"--export: not exported, the session is {result.status}; export it once it is complete", file=info)
     _print_summary(result.path, f"experiment {args.action}", args.json, warned, exported)
     if result.status == "interrupted":
         print(f"resume with: tactilab experiment resume {result.path}", file=info)
         return 130
     return 0
+
+
+def _check_export(fmt: str | None) -> None:
+    """Refuse a bad ``--export`` before the session starts, not after it ends."""
+    from tactilab.experiments.export import FORMATS
+
+    if fmt is not None and fmt not in FORMATS:
+        raise ValueError(f"--export: must be one of {', '.join(FORMATS)}, got {fmt!r}")
+    if fmt == "parquet":
+        try:
+            import pyarrow  # noqa: F401
+        except ImportError:
+            raise ValueError("--export: 'parquet' needs the optional dependency pyarrow, which is not installed; "
+                             "install it (`pip install pyarrow`) or use --export csv") from None
 
 
 def _print_summary(path, command: str, as_json: bool, warned: list[str] = (), exported: list[str] = ()) -> None:
@@ -204,6 +207,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         return _run(args)
     except DisplayError as exc:
+        path = getattr(args, "session_path", None)
+        if path is not None and Path(path).is_file():  # the run's summary first: what was done, what failed
+            _print_summary(path, f"experiment {args.action}", args.json)
         print(f"tactilab experiment: display error: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_DISPLAY_FAULT
 
@@ -212,6 +218,8 @@ def _run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
     from tactilab.experiments import factory
 
+    if args.action in ("run", "resume"):
+        _check_export(args.export)
     if args.action == "run":
         check_subject(args.subject, "--subject", args.subject_pattern)
         if args.session_label is not None:
@@ -238,6 +246,7 @@ def _run(args: argparse.Namespace) -> int:
         from tactilab.experiments.runner import new_session
 
         print(f"session file: {path}", flush=True, file=sys.stderr if args.json else sys.stdout)
+        args.session_path = path
         ended, report = False, RunReport("experiment run")
         try:
             with report.collecting_warnings():
@@ -278,6 +287,7 @@ def _run(args: argparse.Namespace) -> int:
               + (f", repeating interrupted trial {state.interrupted_trial}"
                  if state.interrupted_trial is not None else ""), flush=True,
               file=sys.stderr if args.json else sys.stdout)
+        args.session_path = args.session
         ended, report = False, RunReport("experiment resume")
         try:
             with report.collecting_warnings():

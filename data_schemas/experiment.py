@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import errno
 import tomllib
+import warnings
 from pathlib import Path
 from typing import Any, Literal
 
@@ -28,6 +29,8 @@ from .experiment_procedures import (  # noqa: F401 - the configs are part of thi
 MAX_PROTOCOL_BYTES = 1_000_000
 MAX_TEXT_CHARS = 2000
 MAX_PROMPT_CHARS = 300
+#: The pitches a stimulus may have, m (the drive's strain gain overflows far outside; usual: 1 um to 200 mm).
+PITCH_RANGE_M = (1e-7, 100.0)
 
 
 def _check_text(value: str | None, name: str, cap: int) -> None:
@@ -63,6 +66,9 @@ class Stimulus(_Model):
         if self.amplitude_m < 0:
             raise ValueError(f"amplitude_m: must be >= 0 m, got {self.amplitude_m!r}; give e.g. '20um'")
         _positive(self.pitch_m, "pitch_m", "m")
+        if not PITCH_RANGE_M[0] <= self.pitch_m <= PITCH_RANGE_M[1]:
+            raise ValueError(f"pitch_m: must lie in [{PITCH_RANGE_M[0]:g}, {PITCH_RANGE_M[1]:g}] m (a grating "
+                             f"pitch), got {self.pitch_m!r} m; check its unit, e.g. '2mm'")
         _finite(self.speed_m_per_s, "speed_m_per_s")
         _finite(self.phase_rad, "phase_rad")
         _positive(self.duration_s, "duration_s", "s")
@@ -265,7 +271,7 @@ class Protocol(_Model):
         size = path.stat().st_size
         if size > MAX_PROTOCOL_BYTES:
             raise ValueError(f"{path}: {size} bytes, above the {MAX_PROTOCOL_BYTES}-byte cap of a protocol file; "
-                             "a protocol is a short text file: give grids as {{start, stop, n}} tables")
+                             "a protocol is a short text file: give grids as {start, stop, n} tables")
         try:
             data = tomllib.loads(path.read_text(encoding="utf-8"))
         except tomllib.TOMLDecodeError as exc:
@@ -275,9 +281,16 @@ class Protocol(_Model):
         except RecursionError:
             raise ValueError(f"{path}: nested too deeply to be a protocol; fix the file") from None
         try:
-            return cls.model_validate(data)
+            with warnings.catch_warnings(record=True) as caught:  # an error supersedes the warnings
+                protocol = cls.model_validate(data)
+            for item in caught:  # valid: the plausibility warnings are shown now
+                warnings.warn_explicit(item.message, item.category, item.filename, item.lineno)
+            return protocol
         except ValidationError as err:
             raise ValueError(format_validation_error(err, f"{path} (protocol)")) from None
+        except (TypeError, RecursionError) as exc:  # a value of a type no validator expected
+            raise ValueError(f"{path} (protocol): a value has the wrong type ({' '.join(str(exc).split())[:200]}); "
+                             "compare the file with docs/experiments.md") from None
 
     def to_json(self) -> str:
         """Serialise to JSON (SI numbers); :meth:`model_validate_json` reads it back."""

@@ -162,7 +162,7 @@ def _convert_levels(data: Any, fields: tuple[str, ...], grids: tuple[str, ...] =
     if not isinstance(data, dict):
         return data
     parameter = data.get("parameter")
-    if parameter not in PARAMETERS:
+    if not isinstance(parameter, str) or parameter not in PARAMETERS:
         raise ValueError(
             f"parameter: must be one of {sorted(PARAMETERS)}, got {parameter!r}; name the "
             "stimulus field the procedure varies"

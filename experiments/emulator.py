@@ -1,21 +1,30 @@
 """A device emulator on loopback: acknowledges frames, counts late and missing ones, records
 everything it receives, and zeroes its outputs when frames stop (watchdog).
 
-It implements the device side of ``docs/udp-frame-format.md``:
+It is the reference device of ``docs/udp-frame-format.md`` (version 2; the logic is in
+:mod:`tactilab.experiments.emulator_device`):
 
-- states: ``idle`` (outputs 0, watchdog off), ``streaming`` (a FRAME was applied; the
-  watchdog runs), ``tripped`` (the watchdog zeroed the outputs; FRAMEs are refused with
-  status ``disarmed`` until a ZERO);
-- ZERO: outputs 0 at once, FIFO emptied, state ``idle``, ACK status ``zeroed``;
-- FRAME: accepted into a FIFO when newer than the last one (serial-number order), of the
-  expected count and finite (NaN or inf: status ``non_finite``; FIFO full: ``overflow``), and
-  acknowledged ``applied`` when its tick applies it. The device applies the oldest accepted frame on each of its OWN ticks
-  (one frame per tick, the last value held when the FIFO is empty; a tick never comes less
-  than one period after the previous one), so a burst of late frames from the host never
-  becomes an output burst. Each applied frame is clamped to the description's full scale and
-  to one slew step per tick (``limits``), and every clamp is recorded;
-- watchdog: in ``streaming``, no valid FRAME or ZERO for ``watchdog_s`` -> outputs 0,
-  state ``tripped``, the zeroing time recorded.
+- link sessions: ARM (from any address, only while no session is live) carries the host's
+  fresh key; the device answers ARMED with a fresh random nonce, zeroes its outputs and pins
+  the sender's (ip, port). While armed, every datagram from another address is refused
+  (``busy`` for an ARM, ``foreign`` otherwise), counted and logged; a second ARM is refused
+  until DISARM or the watchdog ends the session. Every message of the session must carry a
+  valid MAC over the nonce (``bad_mac``) and a seq above the last one (``stale``: replays and
+  resets). Version 1 datagrams are refused (``bad_version``);
+- states: ``disarmed`` (no session, outputs 0), ``idle`` (armed, outputs 0), ``streaming`` (a
+  FRAME was accepted), ``tripped`` (the watchdog ended the session; its messages are answered
+  ``disarmed``, a new ARM is accepted);
+- ZERO: outputs 0 at once, FIFO emptied, state ``idle``, ACK status ``zeroed``; DISARM: the
+  same, and the session ends (``released``);
+- FRAME: accepted into a FIFO when of the expected count and finite (NaN or inf: status
+  ``non_finite``; FIFO full: ``overflow``), and acknowledged ``applied`` when its tick
+  applies it. The device applies the oldest accepted frame on each of its OWN ticks (one frame
+  per tick, the last value held when the FIFO is empty; a tick never comes less than one
+  period after the previous one), so a burst of late frames from the host never becomes an
+  output burst. Each applied frame is clamped to the description's full scale and to one slew
+  step per tick (``limits``), and every clamp is recorded;
+- watchdog: while armed, no valid message for ``watchdog_s`` -> outputs 0, the session ends
+  (state ``tripped``), the zeroing time recorded.
 
 Lateness is judged from the host's timestamps, so no clock sharing is needed: a frame is late
 when its transit ``arrival - timestamp`` exceeds the smallest transit seen in the stream by more
@@ -28,29 +37,22 @@ writes a JSON-lines record (one line per applied frame, clamp or event, flushed 
 
 from __future__ import annotations
 
-import collections
 import json
 import math
 import pathlib
-import select
 import signal
 import socket
 import threading
-import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 
 from tactilab.data_schemas.display import DisplayDescription
 
-from .udp import ACK, FRAME, STATUS_CODE, ZERO, FLAG_WATCHDOG_TRIPPED, FrameFormatError, decode, encode
+from .emulator_device import DEFAULT_TICK_HZ, LOOPBACK, Device
 
-__all__ = ["LOOPBACK", "EmulatorSummary", "emulate", "read_record"]
-
-#: The only address the emulator ever binds to.
-LOOPBACK = "127.0.0.1"
-_SEQ_MOD = 2**32
+__all__ = ["LOOPBACK", "DEFAULT_TICK_HZ", "EmulatorSummary", "emulate", "read_record"]
 
 
 @dataclass
@@ -66,12 +68,14 @@ class EmulatorSummary:
     zero_commands: int = 0
     watchdog_trips: int = 0
     clamps: int = 0
+    sessions: int = 0
+    foreign: int = 0
+    refused_arms: int = 0
+    bad_mac: int = 0
     duration_s: float = 0.0
 
 
 _MAX_SECONDS = 1e7
-#: The device tick without a display description (``limits``), Hz.
-DEFAULT_TICK_HZ = 1000.0
 
 
 def _seconds(value, name: str, *, allow_none: bool = False) -> float | None:
@@ -161,7 +165,7 @@ def emulate(port: int = 0, *, watchdog_s: float = 0.05, record: str | pathlib.Pa
         if handle_signals and threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGTERM, signal.SIGINT):
                 previous[sig] = signal.signal(sig, lambda signum, frame: stop.set())
-        _Device(sock, summary, watchdog_s, max_seconds, n_tractors, late_after_s, log, out, stop,
+        Device(sock, summary, watchdog_s, max_seconds, n_tractors, late_after_s, log, out, stop,
                 limits, fifo_frames).run()
         return summary
     finally:
@@ -170,186 +174,6 @@ def emulate(port: int = 0, *, watchdog_s: float = 0.05, record: str | pathlib.Pa
         sock.close()
         if out is not None:
             out.close()
-
-
-class _Device:
-    """The device logic: a FIFO of accepted FRAMEs applied one per tick, clamped per tick."""
-
-    def __init__(self, sock, summary, watchdog_s, max_seconds, n_tractors, late_after_s, log, out, stop,
-                 limits=None, fifo_frames: int = 1000):
-        self.sock, self.summary, self.log, self.out, self.stop = sock, summary, log, out, stop
-        self.watchdog_ns = int(watchdog_s * 1e9)
-        self.max_ns = int(max_seconds * 1e9)
-        self.late_ns = int(late_after_s * 1e9)
-        self.n_tractors = n_tractors  # None: learned from the first FRAME of each stream
-        self.stream_tractors = n_tractors
-        self.state = "idle"
-        self.outputs = np.zeros(n_tractors or 0, dtype=np.float32)
-        self.last_seq: int | None = None
-        self.last_valid_ns = 0
-        self.min_transit: int | None = None
-        self.tripped_flag = False
-        self.fifo: collections.deque = collections.deque()
-        self.fifo_frames = fifo_frames
-        rate = float(limits.frame_rate_hz) if limits is not None else DEFAULT_TICK_HZ
-        self.period_ns = int(round(1e9 / rate))
-        self.next_tick_ns = 0
-        self.full, self.step, self.unit = math.inf, math.inf, None
-        if limits is not None:
-            kind = "traction" if limits.max_traction_pa is not None else "deflection"
-            self.full = float(limits.full_scale(kind))
-            self.unit = "Pa" if kind == "traction" else "m"
-            if limits.max_slew_rate_per_s is not None:
-                self.step = float(limits.max_slew_rate_per_s) * self.full / rate
-
-    def write(self, entry: dict) -> None:
-        if self.out is not None:
-            self.out.write(json.dumps(entry) + "\n")
-            self.out.flush()
-
-    def run(self) -> None:
-        start = time.monotonic_ns()
-        self.write({"type": "start", "t_ns": start, "port": self.summary.port,
-                    "watchdog_s": self.watchdog_ns / 1e9, "n_tractors": self.n_tractors,
-                    "tick_ns": self.period_ns, "full_scale": None if math.isinf(self.full) else self.full,
-                    "max_step": None if math.isinf(self.step) else self.step, "unit": self.unit})
-        self.log(f"listening on udp://{LOOPBACK}:{self.summary.port} (watchdog "
-                 f"{self.watchdog_ns / 1e6:g} ms, tick {self.period_ns / 1e6:g} ms, stops after "
-                 f"{self.max_ns / 1e9:g} s or on SIGTERM)")
-        end = start + self.max_ns
-        while not self.stop.is_set():
-            now = time.monotonic_ns()
-            if now >= end:
-                break
-            wake = end
-            if self.state == "streaming":
-                deadline = self.last_valid_ns + self.watchdog_ns
-                if now >= deadline:
-                    self.trip(now, deadline)
-                    continue
-                wake = min(wake, deadline)
-            if self.fifo:
-                if now >= self.next_tick_ns:
-                    self.tick(now)
-                    continue
-                wake = min(wake, self.next_tick_ns)
-            # sleep until the next event (a tick is never early; a late one delays the next)
-            timeout = (wake - now) / 1e9
-            readable, _, _ = select.select([self.sock], [], [], min(max(timeout, 0.0), 0.1))
-            if readable:
-                data, sender = self.sock.recvfrom(65536)
-                self.handle(data, sender, time.monotonic_ns())
-        self.summary.duration_s = (time.monotonic_ns() - start) / 1e9
-        self.write({"type": "summary", "t_ns": time.monotonic_ns(), **asdict(self.summary)})
-        self.log("summary: " + ", ".join(f"{k} {v}" for k, v in asdict(self.summary).items()))
-
-    def tick(self, now: int) -> None:
-        """Apply the oldest accepted FRAME, clamped to the limits and to one step per tick."""
-        seq, values, rx_ns, ts_ns, late, sender = self.fifo.popleft()
-        requested = values.astype(float)
-        target = np.clip(requested, -self.full, self.full)
-        self._clamped("amplitude", seq, now, requested, target, self.full)
-        previous = self.outputs.astype(float) if self.outputs.size == target.size else np.zeros(target.size)
-        applied = np.clip(target, previous - self.step, previous + self.step)
-        self._clamped("slew", seq, now, target, applied, self.step)
-        self.outputs = applied.astype(np.float32)
-        # the next tick comes one period after THIS one, never earlier: a late tick never makes
-        # the next step come sooner, so one step per tick is also the real-time slew limit
-        self.next_tick_ns = now + self.period_ns
-        self.summary.frames_applied += 1
-        self.write({"type": "frame", "t_ns": now, "rx_ns": rx_ns, "seq": seq, "ts_ns": ts_ns, "late": late,
-                    "values": [float(v) for v in self.outputs]})
-        flags = FLAG_WATCHDOG_TRIPPED if self.tripped_flag else 0
-        self.sock.sendto(encode(ACK, seq, ts_ns, status=STATUS_CODE["applied"], flags=flags,
-                                frames_applied=self.summary.frames_applied), sender)
-
-    def _clamped(self, kind: str, seq: int, now: int, wanted: np.ndarray, got: np.ndarray, limit: float) -> None:
-        changed = wanted != got
-        if not changed.any():
-            return
-        worst = int(np.argmax(np.abs(wanted - got)))
-        self.summary.clamps += 1
-        self.write({"type": "clamp", "t_ns": now, "seq": seq, "kind": kind,
-                    "tractors": [int(t) for t in np.flatnonzero(changed)], "tractor": worst,
-                    "requested": float(wanted[worst]), "applied": float(got[worst]), "limit": limit,
-                    "unit": self.unit if kind == "amplitude" else f"{self.unit} per tick"})
-
-    def trip(self, now: int, deadline: int) -> None:
-        self.outputs[:] = 0
-        dropped = len(self.fifo)
-        self.fifo.clear()
-        self.state = "tripped"
-        self.tripped_flag = True
-        self.summary.watchdog_trips += 1
-        entry = {"type": "watchdog", "t_ns": now, "last_valid_ns": self.last_valid_ns,
-                 "deadline_ns": deadline, "late_by_ns": now - deadline, "dropped": dropped}
-        self.write(entry)
-        self.log(f"watchdog: no frame for {(now - self.last_valid_ns) / 1e6:.1f} ms "
-                 f"(limit {self.watchdog_ns / 1e6:g} ms); outputs zeroed")
-
-    def reply(self, sender, message, status: str) -> None:
-        flags = FLAG_WATCHDOG_TRIPPED if self.tripped_flag else 0
-        self.sock.sendto(encode(ACK, message.seq, message.timestamp_ns, status=STATUS_CODE[status],
-                                flags=flags, frames_applied=self.summary.frames_applied), sender)
-
-    def refuse(self, sender, message, arrival: int, status: str, reason: str) -> None:
-        self.summary.rejected += 1
-        self.write({"type": "rejected", "t_ns": arrival, "seq": message.seq, "reason": reason})
-        self.reply(sender, message, status)
-
-    def handle(self, data: bytes, sender, arrival: int) -> None:
-        try:
-            message = decode(data)
-        except FrameFormatError as err:
-            self.summary.rejected += 1
-            self.write({"type": "rejected", "t_ns": arrival, "reason": str(err)})
-            return
-        if message.kind == ZERO:
-            self.outputs[:] = 0  # at once, exempt from the per-tick step: the safe state
-            self.fifo.clear()
-            self.state, self.last_seq, self.min_transit = "idle", None, None
-            self.stream_tractors = self.n_tractors
-            self.tripped_flag = False
-            self.last_valid_ns = arrival
-            self.summary.zero_commands += 1
-            self.write({"type": "zero", "t_ns": arrival, "seq": message.seq, "ts_ns": message.timestamp_ns})
-            self.reply(sender, message, "zeroed")
-            return
-        if message.kind != FRAME:
-            self.refuse(sender, message, arrival, "bad_message", f"unexpected type {message.kind}")
-            return
-        expected = self.stream_tractors if self.stream_tractors is not None else message.values.size
-        if message.values.size != expected:
-            self.refuse(sender, message, arrival, "bad_count", f"{message.values.size} values, expected {expected}")
-            return
-        if self.state == "tripped":
-            self.refuse(sender, message, arrival, "disarmed", "disarmed")
-            return
-        if not np.all(np.isfinite(message.values)):
-            self.refuse(sender, message, arrival, "non_finite", "NaN or infinite values")
-            return
-        if self.last_seq is not None:
-            gap = (message.seq - self.last_seq) % _SEQ_MOD
-            if gap == 0 or gap >= 2**31:
-                self.summary.stale += 1
-                self.write({"type": "stale", "t_ns": arrival, "seq": message.seq})
-                self.reply(sender, message, "stale")
-                return
-        if len(self.fifo) >= self.fifo_frames:
-            self.refuse(sender, message, arrival, "overflow", f"FIFO full ({self.fifo_frames} frames)")
-            return
-        if self.last_seq is not None:
-            self.summary.missing += gap - 1
-        transit = arrival - message.timestamp_ns
-        self.min_transit = transit if self.min_transit is None else min(self.min_transit, transit)
-        late = transit - self.min_transit > self.late_ns
-        self.summary.late += int(late)
-        self.stream_tractors = expected
-        if self.outputs.size != expected:
-            self.outputs = np.zeros(expected, dtype=np.float32)
-        self.fifo.append((message.seq, message.values.copy(), arrival, message.timestamp_ns, bool(late), sender))
-        self.state, self.last_seq, self.last_valid_ns = "streaming", message.seq, arrival
-        # acknowledged `applied` by the tick that applies it
 
 
 def read_record(path: str | pathlib.Path) -> dict:
@@ -393,7 +217,7 @@ def read_record(path: str | pathlib.Path) -> dict:
                 current.append(entry)
                 continue
             events.append(entry)
-            if entry["type"] in ("zero", "watchdog"):
+            if entry["type"] in ("zero", "watchdog", "arm", "disarm"):
                 close_stream()
             if entry["type"] == "summary":
                 summary = entry

@@ -38,6 +38,9 @@ from typing import Any
 
 from tactilab.data_schemas.experiment_records import TrialRecord
 
+#: Metadata every session has and every reader (status, export, resume) relies on.
+REQUIRED_META = ("protocol", "subject", "session", "seed", "display_id", "responses", "package_version")
+
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS events (
@@ -340,9 +343,14 @@ class SessionLog:
             If the file is torn, foreign or its metadata is not JSON (one line naming the file).
         """
         try:
-            return {k: json.loads(v) for k, v in self.connection.execute("SELECT key, value FROM meta")}
+            meta = {k: json.loads(v) for k, v in self.connection.execute("SELECT key, value FROM meta")}
         except (sqlite3.Error, ValueError) as exc:
             raise self._damaged(exc) from None
+        missing = [k for k in REQUIRED_META if k not in meta]
+        if missing:  # status, export and resume all read these: one line here, never a KeyError there
+            raise ValueError(f"session: {self.path} lacks the metadata {missing}; it is not a complete tactilab "
+                             "session (was it edited or cut short while being created?); restore it from a copy")
+        return meta
 
     def events(self, kind: str | None = None) -> list[dict[str, Any]]:
         """Events in order, each a dict with id, kind, trial_index, attempt, utc, monotonic_ns, payload."""

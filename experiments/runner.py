@@ -27,6 +27,7 @@ link), the run stops with :class:`DisplayFault`, and the trial is repeated on re
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 import signal
@@ -218,6 +219,8 @@ class Runner:
         """Zero the display, then log why the run stopped (when the log itself still works)."""
         try:
             self.display.zero()
+        except DisplayError as exc:  # the device may be what failed; its watchdog zeroes it
+            reason = f"{reason}; final ZERO failed: {' '.join(str(exc).split())}"
         finally:
             if kind is not None:
                 try:
@@ -251,10 +254,17 @@ class Runner:
             if k == 0:  # the response clock starts at the first stimulus onset
                 onset_ns = time.monotonic_ns()
                 self.responses.arm(plan, onset_ns)
-            report = self.display.play()
-            fault = display_fault(report)
+            try:
+                report = self.display.play()
+            except DisplayFault:
+                raise
+            except DisplayError as exc:  # the link failed mid-trial (device lost): a fault like any other
+                report, fault = None, {"reason": " ".join(str(exc).split())}
+            else:
+                fault = display_fault(report)
             if fault is not None:  # never scored: zero, log, stop; resume repeats the trial
-                self.display.zero()
+                with contextlib.suppress(DisplayError):  # a lost device cannot answer; its watchdog zeroes it
+                    self.display.zero()
                 self.recorder.log("display_fault", index, attempt, {**fault, "interval": k})
                 raise DisplayFault(
                     f"display fault in trial {index}, interval {k}: {fault['reason']}. The display is "

@@ -37,6 +37,11 @@ def _status_words(info: dict[str, Any], events: list[dict[str, Any]]) -> str:
                                                               "display_fault", "session_started",
                                                               "session_resumed")), None)
     reason = (last or {}).get("payload", {}).get("reason")
+    fault = next((e for e in reversed(events) if e["kind"] in ("display_fault", "session_started", "session_resumed")),
+                 None)
+    if status == "failed" and fault is not None and fault["kind"] == "display_fault":
+        return (f"failed: a display fault in trial {fault['trial_index']} ({fault['payload'].get('reason')}); "
+                "resume repeats the trial")
     if status == "failed":
         return f"failed: {reason or 'an unexpected error'}; resume to go on"
     if last is not None and last["kind"] == "session_stopped":
@@ -129,7 +134,7 @@ def session_summary(path: str | Path, *, rng: int = 0) -> dict[str, Any]:
         "rt_min_s": min(rts) if rts else None, "rt_max_s": max(rts) if rts else None,
         "created_utc": meta.get("created_utc"),
         "elapsed_s": (max(stamps) - min(stamps)).total_seconds() if stamps else 0.0,
-        "procedure_estimate": info["estimate"], "conditions": conditions, "fit_note": fit_note,
+        "procedure_estimate_si": info["estimate"], "conditions": conditions, "fit_note": fit_note,
         "display_id": info["display_id"], "display_sha256": info["display_sha256"],
         "seed": info["seed"], "package_version": info["package_version"],
     }
@@ -191,7 +196,7 @@ def summary_lines(s: dict[str, Any]) -> list[str]:
     from .runner import format_estimate
 
     try:
-        running = format_estimate(s["procedure_estimate"], s["parameter"]).replace(" um", " µm")
+        running = format_estimate(s["procedure_estimate_si"], s["parameter"]).replace(" um", " µm")
     except (KeyError, TypeError, ValueError):
         running = "n/a"
     rows.append(("procedure's estimate", running))

@@ -1,133 +1,38 @@
 """Network driver for real displays: frames over UDP at a fixed rate, each one acknowledged.
 
-The wire format is specified in ``docs/udp-frame-format.md`` (firmware implements it from
-there); :func:`encode` / :func:`decode` are its reference implementation. In short, every
-datagram is a 20-byte little-endian header, a payload and a CRC32::
+The wire format, version 2, is specified in ``docs/udp-frame-format.md`` (firmware implements it
+from there) and implemented in :mod:`tactilab.experiments.link` (:func:`encode` /
+:func:`decode`, re-exported here): a 20-byte header, a payload and a 16-byte HMAC-SHA256 tag.
 
-    offset  size  field
-    0       4     magic  b"TLDF"
-    4       1     version (1)
-    5       1     message type: 1 FRAME, 2 ZERO, 3 ACK
-    6       2     count: number of float32 values (FRAME), else 0
-    8       4     seq, uint32 (wraps)
-    12      8     timestamp_ns, uint64: the host's monotonic clock at sending (echoed in ACKs)
-    20      4*count values, float32 (FRAME), or 8 bytes (ACK: status u8, flags u8,
-                  reserved u16, frames_applied u32), or nothing (ZERO)
-    end-4   4     CRC32 (zlib / IEEE 802.3) of every byte before it
-
-:class:`UdpDisplay` sends ZERO (which must be acknowledged: the device is there and at rest),
-streams the frames with precise pacing (sleep, then busy-wait the last ``busy_wait_s`` on
-``perf_counter_ns``), collects the ACKs as they come, and sends ZERO at the end. It sends
-ZERO (without waiting) on any error.
+:class:`UdpDisplay` opens one authenticated link session per stimulus: ARM with a fresh random
+32-byte key (the device answers ARMED with its own random nonce, zeroes its outputs and pins
+this socket's address), then the FRAMEs with precise pacing (sleep, then busy-wait the last
+``busy_wait_s`` on ``perf_counter_ns``), collecting the ACKs as they come, then ZERO and DISARM.
+It sends ZERO and DISARM (without waiting) on any error. Only ACKs whose tag verifies count as
+``applied`` or ``zeroed``; a refusal counts even untagged (it only ever stops the host).
 """
 
 from __future__ import annotations
 
 import math
+import secrets
 import select
 import socket
-import struct
 import time
-import zlib
-from dataclasses import dataclass
 from urllib.parse import urlparse
 
 import numpy as np
 
 from .display import Display, DisplayError, PlaybackReport
+from .link import (ACK, ARM, ARMED, DISARM, FLAG_WATCHDOG_TRIPPED, FRAME, KEY_SIZE, MAGIC, MAX_VALUES, REFUSALS,
+                   STATUS, STATUS_CODE, VERSION, ZERO, FrameFormatError, Message, decode, encode)
 
 __all__ = ["UdpDisplay", "Message", "encode", "decode", "FrameFormatError", "MAGIC", "VERSION",
-           "FRAME", "ZERO", "ACK", "STATUS", "FLAG_WATCHDOG_TRIPPED", "parse_udp_url"]
+           "FRAME", "ZERO", "ACK", "ARM", "ARMED", "DISARM", "STATUS", "STATUS_CODE", "FLAG_WATCHDOG_TRIPPED",
+           "parse_udp_url"]
 
-MAGIC = b"TLDF"
-VERSION = 1
-#: Message kinds of the display UDP frame format (docs/udp-frame-format.md)
-FRAME, ZERO, ACK = 1, 2, 3
-HEADER = struct.Struct("<4sBBHIQ")  # 20 bytes
-ACK_BODY = struct.Struct("<BBHI")  # 8 bytes
-CRC = struct.Struct("<I")
-#: ACK status codes (docs/udp-frame-format.md).
-STATUS = {0: "applied", 1: "zeroed", 2: "bad_crc", 3: "bad_count", 4: "stale", 5: "disarmed",
-          6: "bad_message", 7: "non_finite", 8: "overflow"}
-STATUS_CODE = {name: code for code, name in STATUS.items()}
-FLAG_WATCHDOG_TRIPPED = 0x01
-MAX_VALUES = 16000  # keeps a FRAME under the 64 KiB UDP datagram limit
-_SEQ_MOD = 2**32
-
-
-class FrameFormatError(ValueError):
-    """A datagram that is not a valid message of this format."""
-
-
-@dataclass(frozen=True)
-class Message:
-    """One decoded datagram. ``values`` is float32 (FRAME) or empty; ACK fields are 0 otherwise."""
-
-    kind: int
-    seq: int
-    timestamp_ns: int
-    values: np.ndarray
-    status: int = 0
-    flags: int = 0
-    frames_applied: int = 0
-
-
-def encode(kind: int, seq: int, timestamp_ns: int, values=None, *, status: int = 0, flags: int = 0,
-           frames_applied: int = 0) -> bytes:
-    """Encode one message (see the module docstring for the layout).
-
-    Raises
-    ------
-    FrameFormatError
-        If ``kind`` is unknown, values are given for a non-FRAME message or are too many.
-    """
-    if kind not in (FRAME, ZERO, ACK):
-        raise FrameFormatError(f"kind: must be FRAME (1), ZERO (2) or ACK (3), got {kind!r}")
-    payload = b""
-    count = 0
-    if kind == FRAME:
-        array = np.ascontiguousarray(values if values is not None else [], dtype="<f4").ravel()
-        if array.size > MAX_VALUES:
-            raise FrameFormatError(f"values: at most {MAX_VALUES} per FRAME, got {array.size}; "
-                                   "split the display into several devices")
-        payload, count = array.tobytes(), array.size
-    elif values is not None and len(values):
-        raise FrameFormatError(f"values: only FRAME messages carry values, got {len(values)} for type {kind}")
-    if kind == ACK:
-        payload = ACK_BODY.pack(status, flags, 0, frames_applied % _SEQ_MOD)
-    body = HEADER.pack(MAGIC, VERSION, kind, count, seq % _SEQ_MOD, timestamp_ns % 2**64) + payload
-    return body + CRC.pack(zlib.crc32(body))
-
-
-def decode(data: bytes) -> Message:
-    """Decode and check one datagram.
-
-    Raises
-    ------
-    FrameFormatError
-        On a short datagram, wrong magic or version, bad CRC, unknown type, or a length that
-        does not match the count.
-    """
-    if len(data) < HEADER.size + CRC.size:
-        raise FrameFormatError(f"datagram: {len(data)} bytes, shorter than the {HEADER.size + CRC.size}-byte minimum")
-    magic, version, kind, count, seq, stamp = HEADER.unpack_from(data)
-    if magic != MAGIC:
-        raise FrameFormatError(f"magic: expected {MAGIC!r}, got {magic!r}")
-    if (CRC.unpack_from(data, len(data) - CRC.size)[0]) != zlib.crc32(data[:-CRC.size]):
-        raise FrameFormatError("crc: CRC32 mismatch (corrupted datagram)")
-    if version != VERSION:
-        raise FrameFormatError(f"version: expected {VERSION}, got {version}")
-    payload = data[HEADER.size:-CRC.size]
-    if kind == FRAME:
-        if len(payload) != 4 * count:
-            raise FrameFormatError(f"count: header says {count} values, payload holds {len(payload)} bytes")
-        return Message(FRAME, seq, stamp, np.frombuffer(payload, dtype="<f4"))
-    if kind == ZERO and not payload and count == 0:
-        return Message(ZERO, seq, stamp, np.zeros(0, dtype="<f4"))
-    if kind == ACK and len(payload) == ACK_BODY.size and count == 0:
-        status, flags, _, applied = ACK_BODY.unpack(payload)
-        return Message(ACK, seq, stamp, np.zeros(0, dtype="<f4"), status, flags, applied)
-    raise FrameFormatError(f"type: message type {kind} with count {count} and a {len(payload)}-byte payload is not valid")
+#: A host starts a new link session's seq from 0 once its counter passed this (seq never wraps).
+_SEQ_RESTART = 2**31
 
 
 def _step_per_frame(description, command: str) -> float:
@@ -159,7 +64,12 @@ def parse_udp_url(url: str) -> tuple[str, int]:
 
 
 class UdpDisplay(Display):
-    """Stream frames to a display over UDP (docs/udp-frame-format.md).
+    """Stream frames to a display over UDP (docs/udp-frame-format.md, version 2).
+
+    Each ``play()`` is one authenticated link session: ARM with a fresh random key (the device
+    answers ARMED with its nonce and pins this socket's address), the FRAMEs, ZERO, DISARM.
+    ``zero()`` outside playback is ARM, ZERO, DISARM. A device armed by another host refuses the
+    ARM (``busy``): :class:`DisplayError`.
 
     Parameters
     ----------
@@ -176,7 +86,7 @@ class UdpDisplay(Display):
     busy_wait_s : float
         The last part of each frame period spent busy-waiting instead of sleeping, s (>= 0).
     zero_retries : int
-        ZERO attempts before :meth:`zero` gives up (>= 1).
+        Attempts of each ARM, ZERO and DISARM exchange before giving up (>= 1).
     max_skipped_fraction : float
         A frame due more than half a period ago is skipped, never sent late in a burst; after a
         skip every value sent is re-limited to one slew step from the previous one. When more
@@ -212,7 +122,10 @@ class UdpDisplay(Display):
         self._sock.setblocking(False)
         self._sock.connect(self.address)  # only datagrams from the device reach us
         self._seq = 0
+        self._session: tuple[bytes, bytes] | None = None  # (key, device nonce) of the open link session
         self.last_ack: Message | None = None
+        #: The device's watchdog time from its last ARMED, s (None before the first ARM).
+        self.device_watchdog_s: float | None = None
 
     @classmethod
     def from_url(cls, url: str, description, **kwargs) -> UdpDisplay:
@@ -226,21 +139,36 @@ class UdpDisplay(Display):
         return f"udp://{self.address[0]}:{self.address[1]}"
 
     def close(self) -> None:
-        """Close the socket."""
+        """End an open link session (best effort, no wait) and close the socket."""
+        if self._session is not None and self._sock.fileno() >= 0:
+            self._abandon()
         self._sock.close()
 
     def _next_seq(self) -> int:
         seq = self._seq
-        self._seq = (self._seq + 1) % _SEQ_MOD
+        self._seq += 1
         return seq
 
-    def _send(self, kind: int, values=None) -> tuple[int, int]:
-        seq, now = self._next_seq(), time.perf_counter_ns()
-        self._sock.send(encode(kind, seq, now, values))
-        return seq, now
+    def _sealed(self, kind: int, values=None) -> tuple[bytes, int]:
+        """A message of the open session, tagged with its key and the device's nonce, and its seq."""
+        key, nonce = self._session
+        seq = self._next_seq()
+        return encode(kind, seq, time.perf_counter_ns(), values, key=key, nonce=nonce), seq
 
-    def _receive(self) -> list[tuple[Message, int]]:
-        """Drain the socket without blocking; return (ACK, arrival ns) pairs."""
+    def _abandon(self) -> None:
+        """ZERO and DISARM without waiting (unwinding an error or a signal), forget the session."""
+        try:
+            for kind in (ZERO, DISARM):
+                self._sock.send(self._sealed(kind)[0])
+        except OSError:
+            pass
+        self._session = None
+
+    def _receive(self, key: bytes | None = None, nonce: bytes | None = None) -> list[tuple[Message, int]]:
+        """Drain the socket without blocking; return (answer, arrival ns) pairs: ACKs and ARMEDs whose
+        tag verifies under the session (or the given) key, and refusals, tagged or not."""
+        if key is None and self._session is not None:
+            key, nonce = self._session
         out = []
         while True:
             try:
@@ -252,30 +180,80 @@ class UdpDisplay(Display):
                                    f"emulate --port {self.address[1]}`) running?") from err
             arrival = time.perf_counter_ns()
             try:
-                message = decode(data)
+                message = decode(data, key=key, nonce=nonce if nonce is not None else bytes(16))
             except FrameFormatError:
-                continue  # a corrupted ACK is a missing ACK
-            if message.kind == ACK:
+                continue  # a corrupted answer is a missing answer
+            if message.kind in (ACK, ARMED) and (message.authentic or
+                                                 (message.kind == ACK and message.status in REFUSALS)):
                 out.append((message, arrival))
 
-    def _zero(self) -> None:
+    def _exchange(self, what: str, make, key: bytes | None = None) -> Message:
+        """Send ``make() -> (datagram, seq)`` and wait for the answer to that seq, retrying."""
+        sent: set[int] = set()
         for _ in range(self.zero_retries):
-            seq, _ = self._send(ZERO)
+            data, seq = make()
+            self._sock.send(data)
+            sent.add(seq)  # a late answer to an earlier try counts too (a busy device answers late)
             deadline = time.perf_counter() + self.ack_timeout_s
             while (remaining := deadline - time.perf_counter()) > 0:
                 select.select([self._sock], [], [], remaining)
-                for message, _ in self._receive():
-                    if message.seq == seq:
+                for message, _ in self._receive(key):
+                    if message.seq in sent:
                         self.last_ack = message
-                        return
+                        return message
         raise DisplayError(
-            f"{self.url}: no acknowledgement of ZERO after {self.zero_retries} tries of "
+            f"{self.url}: no acknowledgement of {what} after {self.zero_retries} tries of "
             f"{self.ack_timeout_s * 1e3:.0f} ms; is the device (or `tactilab device emulate --port "
-            f"{self.address[1]}`) running? The device's watchdog zeroes it when frames stop"
+            f"{self.address[1]}`) running and does it speak frame format version {VERSION}? The device's "
+            "watchdog zeroes it when frames stop"
         )
 
+    def _arm(self) -> None:
+        """Open a link session: ARM with a fresh key; the device zeroes, pins us and sends its nonce."""
+        if self._seq > _SEQ_RESTART:
+            self._seq = 0  # a new session may start anywhere; seq never wraps within one
+        key, seq = secrets.token_bytes(KEY_SIZE), self._next_seq()
+        data = encode(ARM, seq, time.perf_counter_ns(), key=key)  # retries repeat it byte for byte
+        answer = self._exchange("ARM", lambda: (data, seq), key=key)
+        if answer.kind != ARMED:
+            status = STATUS.get(answer.status, str(answer.status))
+            hint = ("another host holds the device's link session (it is released when that host disarms or "
+                    "the device's watchdog trips); is another runner driving this display?" if status == "busy"
+                    else "see docs/udp-frame-format.md")
+            raise DisplayError(f"{self.url}: the device refused ARM ({status}); {hint}")
+        self._session = (key, answer.nonce)
+        self.device_watchdog_s = answer.watchdog_us / 1e6
+        if answer.n_tractors and answer.n_tractors != self.description.n_tractors:
+            self._abandon()
+            raise DisplayError(f"{self.url}: the device has {answer.n_tractors} tractors, display "
+                               f"{self.description.display_id!r} has {self.description.n_tractors}; check the "
+                               "device's configuration or give its display description")
+
+    def _close_session(self) -> None:
+        """ZERO (acknowledged: the outputs are zero) and DISARM (best effort) the open session."""
+        try:
+            answer = self._exchange("ZERO", lambda: self._sealed(ZERO))
+            if answer.status != STATUS_CODE["zeroed"] and answer.status not in (STATUS_CODE["disarmed"],):
+                raise DisplayError(f"{self.url}: the device refused ZERO ({STATUS.get(answer.status)}); its "
+                                   "watchdog zeroes it when frames stop; see docs/udp-frame-format.md")
+            try:
+                self._exchange("DISARM", lambda: self._sealed(DISARM))
+            except DisplayError:
+                pass  # the outputs are zero; the device's watchdog ends the session
+        except BaseException:
+            if self._session is not None:
+                self._abandon()
+            raise
+        self._session = None
+
+    def _zero(self) -> None:
+        if self._session is None:
+            self._arm()  # ARM zeroes the outputs
+        self._close_session()
+
     def _play(self, frames: np.ndarray, frame_rate_hz: float) -> PlaybackReport:
-        self._zero()  # the device answers, is at rest and armed
+        self._arm()  # the device answers, is at rest and pins this socket for the session
+        key, nonce = self._session
         n = frames.shape[0]
         wire = frames.astype("<f4")
         period_ns = 1e9 / frame_rate_hz
@@ -288,14 +266,20 @@ class UdpDisplay(Display):
 
         def collect() -> None:
             for message, arrival in self._receive():
-                index = (message.seq - seq0) % _SEQ_MOD
-                if index < sent and ack_ns[index] == 0:
+                index = message.seq - seq0
+                if 0 <= index < sent and ack_ns[index] == 0:
                     ack_ns[index], status[index] = arrival, message.status
                     self.last_ack = message
                     if message.status == STATUS_CODE["disarmed"]:
+                        self._session = None  # the device ended it; its outputs are zero
                         raise DisplayError(
                             f"{self.url}: the device's watchdog tripped during playback (frame {index}); "
                             "frames arrived too late. It stays at zero until the next play"
+                        )
+                    if message.status in (STATUS_CODE["not_armed"], STATUS_CODE["foreign"], STATUS_CODE["bad_mac"]):
+                        raise DisplayError(
+                            f"{self.url}: the device refused frame {index} ({STATUS[message.status]}): the link "
+                            "session was lost (did the device restart?); see docs/udp-frame-format.md"
                         )
                     if message.status in (STATUS_CODE["bad_count"], STATUS_CODE["bad_message"]):
                         raise DisplayError(
@@ -338,7 +322,8 @@ class UdpDisplay(Display):
                 values = wire[k]
                 if diverged:
                     values = (last + np.clip(values.astype(float) - last, -step, step)).astype("<f4")
-                self._sock.send(encode(FRAME, self._next_seq(), time.perf_counter_ns(), values))
+                self._sock.send(encode(FRAME, self._next_seq(), time.perf_counter_ns(), values, key=key,
+                                       nonce=nonce))
                 sent_ns[sent], frame_of[sent] = time.perf_counter_ns(), k
                 last = values
                 sent += 1
@@ -354,12 +339,10 @@ class UdpDisplay(Display):
                     if np.count_nonzero(ack_ns[:sent]) > before:
                         deadline = time.perf_counter_ns() + self.ack_timeout_s * 1e9
         except BaseException:
-            try:
-                self._send(ZERO)  # best effort, no wait: the caller may be unwinding a signal
-            except OSError:
-                pass
+            if self._session is not None:
+                self._abandon()  # ZERO and DISARM, no wait: the caller may be unwinding a signal
             raise
-        self._zero()
+        self._close_session()
         times = sent_ns[:sent]
         acked = ack_ns[:sent] > 0
         rtt_s = (ack_ns[:sent][acked] - times[acked]) / 1e9

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .halfspace import positive
+from .halfspace import ContinuousLoad, SurfaceLoad, positive
 from .halfspace import validation as check
 
 CONDITIONS = ("frictionless", "sliding", "partial", "stuck")
@@ -102,6 +102,23 @@ class HertzContact:
         """Hertz pressure ``p`` in Pa at points ``x`` (and ``y`` for 3-D), in m; 0 outside contact."""
         rho2 = self._rho2(x, y)
         return self.peak_pressure * np.sqrt(np.clip(1.0 - rho2 / self.contact_radius ** 2, 0.0, None))
+
+    def load(self, *, friction: float = 0.0, condition: str = "sliding", tangential_force: float | None = None,
+             spacing: float | None = None, half_width: float | None = None) -> "ContactLoad":
+        """This contact's tractions as a continuous load for :meth:`HalfSpace.stress` / ``strain``.
+
+        Parameters
+        ----------
+        friction, condition, tangential_force
+            As :func:`interfacial_traction`.
+        spacing : float, optional
+            Default grid spacing in m (a / 16); with ``method="auto"`` the solver refines it
+            until its error estimate, which covers the sampling, meets ``tol``.
+        half_width : float, optional
+            Half-width of the grid in m (2 a).
+        """
+        return ContactLoad(self, friction=friction, condition=condition, tangential_force=tangential_force,
+                           spacing=spacing, half_width=half_width)
 
     def _rho2(self, x, y) -> np.ndarray:
         x = np.asarray(x, dtype=float)
@@ -260,3 +277,43 @@ def _stuck_shape(contact: HertzContact, x, y, rho2, cell) -> np.ndarray:
         raise ValueError(f"cell: the grid (dx={dx:g} m, dy={dy:g} m) does not resolve the contact "
                          f"radius a={a:g} m; use a finer grid or a larger domain")
     return avg / (2.0 * math.pi * a) / weight
+
+
+class ContactLoad(ContinuousLoad):
+    """A contact's tractions as a continuous load (:class:`ContinuousLoad`): the solver samples it
+    on its grid and its error estimate covers that sampling (``error_covers="method+sampling"``).
+
+    Build it with :meth:`HertzContact.load`. ``sample(shape, spacing)`` returns
+    :func:`interfacial_traction` at the nodes (the stuck traction cell-averaged).
+    """
+
+    def __init__(self, contact: HertzContact, *, friction: float = 0.0, condition: str = "sliding",
+                 tangential_force: float | None = None, spacing: float | None = None,
+                 half_width: float | None = None):
+        a = contact.contact_radius
+        self.contact, self.friction, self.condition = contact, friction, condition
+        self.tangential_force = tangential_force
+        h = a / 16 if spacing is None else positive(spacing, "spacing", "m", "give the grid spacing in m")
+        w = 2 * a if half_width is None else positive(half_width, "half_width", "m",
+                                                      "give the half-width of the loaded grid in m")
+        n = 2 * math.ceil(w / h) + 1
+        self.shape = (n,) if contact.line else (n, n)
+        self.spacing = (h,) if contact.line else (h, h)
+        self.sample(tuple(min(s, 5) for s in self.shape), self.spacing)  # validate the condition now
+
+    def __repr__(self) -> str:
+        return (f"ContactLoad(a={self.contact.contact_radius:.3g} m, condition={self.condition!r}, "
+                f"friction={self.friction!r}; shape={self.shape}, spacing={self.spacing[0]:.3g} m)")
+
+    def sample(self, shape, spacing) -> SurfaceLoad:
+        template = SurfaceLoad(p=np.zeros(tuple(shape)), spacing=spacing)
+        if template.ndim != len(self.shape):
+            raise ValueError(f"shape: this contact needs a {len(self.shape)}-D grid, got shape {tuple(shape)}")
+        if self.contact.line:
+            p, qx = interfacial_traction(self.contact, template.x, friction=self.friction, condition=self.condition,
+                                         tangential_force=self.tangential_force, cell=template.spacing)
+        else:
+            xx, yy = np.meshgrid(template.x, template.y)
+            p, qx = interfacial_traction(self.contact, xx, yy, friction=self.friction, condition=self.condition,
+                                         tangential_force=self.tangential_force, cell=template.spacing)
+        return SurfaceLoad(p=p, qx=qx, spacing=template.spacing)

@@ -68,3 +68,16 @@ def test_memory_and_sensor_helpers_run(bench, rng):
     assert bench.traced_peak(lambda: np.zeros(1000)) > 0
     rows = bench.bench_sensors([5], rng, quick=True)
     assert rows[0]["trig_err"] < 1e-12 and rows[0]["dense_err"] < 1e-12 and rows[0]["fft_err"] < 1e-12
+
+
+def test_floor_table_runs_and_prints_its_columns(bench, rng, capsys, monkeypatch, tmp_path):
+    monkeypatch.setattr(bench, "TAMAAS_VENV", tmp_path / "no-venv")
+    rows = bench.bench_floor_table([32], 2, rng, peer=True)
+    (row,) = rows
+    assert row["n"] == 32 and row["err"] < 1e-12 and row["peer_note"].startswith("Tamaas skipped")
+    assert all(row[k] > 0 for k in ("facade_wall_min", "floor_wall_min", "facade_cpu_min", "floor_cpu_min"))
+    bench.print_floor_table(rows)
+    out = capsys.readouterr().out
+    for column in ("size", "facade ms", "floor ms", "ratio", "Tamaas ms", "speedup"):
+        assert column in out
+    assert "  32^2" in out and "Tamaas skipped" in out

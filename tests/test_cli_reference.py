@@ -17,14 +17,14 @@ from tactilab.cli.main import main as cli_main
 
 ROOT = Path(__file__).resolve().parents[1]
 RULES = {"length", "lengths", "pressure", "time", "frequency", "hypothesis", "surface", "dimensionless",
-         "fraction", "count", "counts", "seed", "path", "choice", "text", "flag"}
+         "fraction", "angles", "count", "counts", "seed", "path", "choice", "text", "flag"}
 #: rule -> a wrong value, and what the one-line error must say besides the option's name
 PROBES = {
     "length": ("2", "has no unit"), "lengths": ("2", "has no unit"), "pressure": ("2", "has no unit"),
     "time": ("2", "has no unit"), "frequency": ("2", "has no unit"),
     "surface": ("sinusoid:A=2,p=4mm", "has no unit"),
     "count": ("3mm", ""), "counts": ("3mm", ""), "seed": ("3mm", ""),
-    "dimensionless": ("3mm", ""), "fraction": ("3mm", ""),
+    "dimensionless": ("3mm", ""), "fraction": ("3mm", ""), "angles": ("3mm", ""),
 }
 
 

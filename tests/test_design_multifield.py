@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import functools
 import json
 import tomllib
 
@@ -42,7 +41,7 @@ max_trials = 16
 
 [procedure.candidates]
 pitch_m = ["2mm", "3mm", "5mm"]
-amplitude_m = ["5um", "10um"]
+amplitude_m = ["3um", "6um"]
 surface = ["sinusoid", "square"]
 speed_m_per_s = ["20mm/s"]
 """
@@ -69,7 +68,7 @@ def test_planned_stimulus_fields_replace_the_protocol_stimulus():
     assert plan.level == 0.005 and plan.track == 3
 
 
-def test_protocol_file_with_several_varied_fields_runs_through_the_cli(tmp_path, capsys):
+def test_protocol_file_with_several_varied_fields_runs_through_the_cli(tmp_path, capsys, monkeypatch):
     path = tmp_path / "design.toml"
     path.write_text(PROTOCOL)
     argv = ["experiment", "run", str(path), "--subject", "S01", "--responses", "simulated", "--no-wait", "--quiet",
@@ -93,12 +92,13 @@ def test_protocol_file_with_several_varied_fields_runs_through_the_cli(tmp_path,
     import tactilab.experiments.analysis as analysis
 
     original = analysis.compare_sessions
-    try:
-        analysis.compare_sessions = functools.partial(original, sampler_options=FAST)
-        assert main(["experiment", "compare", str(session), "--model", "xx@1mm", "--model", "zx@1mm",
-                     "--out", str(tmp_path / "figs")]) == 0
-    finally:
-        analysis.compare_sessions = original
+
+    def fast(*args, sampler_options=None, **kwargs):
+        return original(*args, sampler_options={**(sampler_options or {}), **FAST}, **kwargs)
+
+    monkeypatch.setattr(analysis, "compare_sessions", fast)
+    assert main(["experiment", "compare", str(session), "--model", "xx@1mm", "--model", "zx@1mm",
+                 "--out", str(tmp_path / "figs")]) == 0
     out = capsys.readouterr().out
     assert "xx@1mm" in out and "zx@1mm" in out and "best" in out
     assert (tmp_path / "figs" / "compare.png").stat().st_size > 10_000
@@ -152,3 +152,16 @@ def test_bad_multifield_candidates(changes, match):
     raw["candidates"] = {**raw["candidates"], **changes}
     with pytest.raises(ValueError, match=match):
         ModelDiscriminationConfig.model_validate(raw)
+
+
+def test_a_design_built_in_python_plans_every_field_its_candidates_vary():
+    from tactilab.data_schemas.experiment import Stimulus
+
+    cands = [Stimulus(surface=w, amplitude_m=a, pitch_m=p, speed_m_per_s=0.02, duration_s=d)
+             for w in ("sinusoid", "square") for a in (5e-6, 1e-5) for p in (2e-3, 5e-3) for d in (0.05,)]
+    design = ModelDiscrimination(["xx@1mm", "zx@1mm"], cands, rng=0, parameter="pitch_m")
+    assert design.stimulus_fields == ("surface", "amplitude_m")  # duration_s is the same for all: not carried
+    planned = design.next_trial(0, np.random.default_rng(0))
+    chosen = design.candidates[planned.track]
+    assert isinstance(planned, PlannedStimulus) and planned.level == chosen.pitch_m
+    assert dict(planned.fields) == {"surface": chosen.surface, "amplitude_m": chosen.amplitude_m}

@@ -163,3 +163,93 @@ def test_export_json_lists_the_files(weak_run, tmp_path, capsys):
     out = json.loads(capsys.readouterr().out)
     assert out == {"command": "experiment export", "format": "csv", "out": str(tmp_path),
                    "files": [str(tmp_path / "sub-S01_ses-01_task-status_trials.csv")]}
+
+
+def test_a_run_that_ends_in_a_display_fault_still_prints_its_summary(tmp_path, monkeypatch, capsys):
+    """Late frames on every stimulus, then a stale acknowledgement (a display fault) in trial 3:
+    the summary block reports both on stdout, the error stays one line on stderr, exit 3."""
+    import dataclasses
+
+    from tactilab.experiments import factory
+    from tactilab.experiments.simulated_display import SimulatedDisplay
+
+    class LateThenStale(SimulatedDisplay):
+        plays = 0
+
+        def _play(self, frames, frame_rate_hz):
+            report = super()._play(frames, frame_rate_hz)
+            LateThenStale.plays += 1
+            late = dataclasses.replace(report, late=report.frames_sent // 4)
+            return dataclasses.replace(late, stale=3) if LateThenStale.plays == 7 else late
+
+    monkeypatch.setattr(factory, "display_from_spec",
+                        lambda spec, description, **kw: LateThenStale(description, realtime=False))
+    (tmp_path / "p.toml").write_text(PROTOCOL)
+    code = cli_main(["experiment", "run", str(tmp_path / "p.toml"), "--subject", "S03", "--responses", "simulated",
+                     "--no-wait", "--quiet", "--out", str(tmp_path)])
+    captured = capsys.readouterr()
+    assert code == 3 and captured.err.count("\n") == 1 and "ALARM" in captured.err
+    out = captured.out
+    assert "--- tactilab experiment run: summary ---" in out
+    assert re.search(r"^status +failed: a display fault in trial 3 \(ALARM: 3 of \d+ frames .*\); resume repeats the trial$", out, re.M), out
+    assert re.search(r"^progress +3 of 8 planned trials \(38 %\)$", out, re.M), out
+    assert re.search(r"^frames +\d+ sent; \d+ late \(2[45] %\)", out, re.M), out
+    assert re.search(r"^display faults +1$", out, re.M) and re.search(r"^  - \d+ of \d+ frames late \(2[45]\.\d %", out, re.M)
+    assert re.search(r"^  - display fault in trial 3: ALARM", out, re.M)
+
+
+def test_a_running_session_says_who_runs_it(weak_run, tmp_path, capsys):
+    from tactilab.experiments.recording import Recorder
+
+    source = weak_run / "s" / "sub-S01_ses-01_task-status.sqlite"
+    if not source.exists():
+        test_run_json_is_one_object_with_interventions_by_kind_and_the_files(weak_run, capsys)
+    path = tmp_path / source.name
+    shutil.copy(source, path)
+    _edit(path, [("DELETE FROM events WHERE kind = 'session_complete'", ())])
+    recorder = Recorder.open(path)  # holds the lock and records itself as the owner, like a runner
+    try:
+        s = session_summary(path)
+    finally:
+        recorder.close()
+    assert s["status"] == "running" and re.fullmatch(r"running: pid \d+ on .+, last heartbeat \S+", s["status_text"])
+    assert 1e-7 < s["procedure_estimate_si"]["threshold"] < 1e-5  # SI: an amplitude threshold in m, not um
+
+
+def test_an_interrupted_run_reports_the_stop_and_exports_nothing(tmp_path, monkeypatch, capsys):
+    """q pressed in trial 2: exit 130, the summary says it stopped cleanly, --export says why it did not run."""
+    from tactilab.experiments import factory
+
+    real = factory.make_responses
+
+    class QuitsInTrial2:
+        def __init__(self, inner):
+            self.inner, self.n = inner, 0
+
+        def arm(self, plan, onset_ns):
+            self.inner.arm(plan, onset_ns)
+
+        def collect(self, plan):
+            self.n += 1
+            if self.n == 3:
+                raise KeyboardInterrupt("q")
+            return self.inner.collect(plan)
+
+        def close(self):
+            self.inner.close()
+
+        def __getattr__(self, name):  # name, config, ...: the real source's
+            return getattr(self.inner, name)
+
+    monkeypatch.setattr(factory, "make_responses", lambda *a, **kw: QuitsInTrial2(real(*a, **kw)))
+    (tmp_path / "p.toml").write_text(PROTOCOL)
+    code = cli_main(["experiment", "run", str(tmp_path / "p.toml"), "--subject", "S04", "--responses", "simulated",
+                     "--no-wait", "--quiet", "--out", str(tmp_path), "--export", "bids", "--json"])
+    captured = capsys.readouterr()
+    assert code == 130
+    s = json.loads(captured.out)
+    assert s["status"] == "interrupted" and s["trials_completed"] == 2 and s["interrupted_trial"] == 2
+    assert s["status_text"] == "interrupted: stopped cleanly (interrupted (q)); resume to go on"
+    assert s["files"] == [str(tmp_path / "sub-S04_ses-01_task-status.sqlite")] and not (tmp_path / "bids").exists()
+    assert "--export: not exported, the session is interrupted" in captured.err
+    assert "resume with: tactilab experiment resume" in captured.err

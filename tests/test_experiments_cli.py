@@ -55,7 +55,8 @@ def session(tmp_path, capsys):
     assert code == 0, out
     path = tmp_path / "sessions" / "sub-S01_ses-01_task-cli.sqlite"
     assert f"session file: {path}" in out and "complete after" in out and "amplitude threshold" in out
-    assert "fitted: amplitude threshold" in out and "95 % interval" in out
+    assert re.search(r"^  fitted threshold +[0-9.]+ µm \(95 % interval [0-9.]+ µm to [0-9.]+ µm; psychometric fit\)$",
+                     out, re.M), out
     return path
 
 
@@ -117,6 +118,8 @@ def test_parquet_without_pyarrow_names_the_missing_dependency(session, tmp_path,
         export_session(session, tmp_path, "parquet")
     assert cli_main(["experiment", "export", str(session), "--format", "parquet"]) == 2
     assert "pip install pyarrow" in capsys.readouterr().err
+    assert cli_main(["experiment", "resume", str(session), "--export", "parquet"]) == 2  # before any trial
+    assert "--export: 'parquet' needs the optional dependency pyarrow" in capsys.readouterr().err
     with pytest.raises(ValueError, match="format: must be one of"):
         export_session(session, tmp_path, "xlsx")
 
@@ -139,6 +142,8 @@ def test_user_mistakes_give_one_line_and_exit_2(session, tmp_path, capsys):
         (["run", str(toml), "--subject", "S02", "--display", "udp://h", "--responses", "simulated"],
          "--display: expected udp://HOST:PORT"),
         (["export", str(session), "--format", "xml"], "--format: must be one of"),
+        (["run", str(toml), "--subject", "S02", "--export", "xlsx"], "--export: must be one of bids, csv, parquet, json"),
+        (["resume", str(session), "--export", "xlsx"], "--export: must be one of"),
         (["run", str(toml), "--subject", "S02", "--responses", "simulated", "--observer-threshold", "2mm"],
          "--observer-threshold: unit 'mm' measures length"),
         (["run", str(toml), "--subject", "S01", "--session", "01", "--out", str(session.parent),

@@ -14,7 +14,7 @@ from tactilab.experiments import (
     DisplayFault, SessionLog, SimulatedObserver, UdpDisplay, emulate, new_session, resume_session, session_status)
 from tactilab.experiments.display import PlaybackReport
 from tactilab.experiments.runner import MAX_UNACKED_FRACTION, display_fault
-from tactilab.experiments.udp import ACK, FRAME, STATUS_CODE, ZERO, decode, encode
+from tactilab.experiments.link import ACK, ARM, ARMED, DISARM, FRAME, STATUS_CODE, ZERO, decode, encode
 
 PROTOCOL = {
     "name": "faults", "seed": 3, "iti_s": 0, "task": {"kind": "yes_no"},
@@ -25,10 +25,12 @@ PROTOCOL = {
 
 
 class FakeDevice:
-    """Acknowledges ZERO; answers FRAMEs with ``mode``: 'stale', 'silent' (nothing) or 'applied'."""
+    """Speaks frame format 2 (ARM, ZERO, DISARM are answered, tagged); answers FRAMEs with ``mode``:
+    'stale', 'silent' (nothing) or 'applied'."""
 
     def __init__(self, mode: str) -> None:
         self.mode, self.log = mode, []
+        self.key, self.nonce = None, bytes(16)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
         self.sock.settimeout(0.05)
@@ -43,12 +45,18 @@ class FakeDevice:
                 data, sender = self.sock.recvfrom(65536)
             except TimeoutError:
                 continue
-            message = decode(data)
+            message = decode(data, key=self.key, nonce=self.nonce)
             self.log.append(message.kind)
-            if message.kind == ZERO:
-                self.sock.sendto(encode(ACK, message.seq, message.timestamp_ns, status=STATUS_CODE["zeroed"]), sender)
-            elif message.kind == FRAME and self.mode != "silent":
-                self.sock.sendto(encode(ACK, message.seq, message.timestamp_ns, status=STATUS_CODE[self.mode]), sender)
+            if message.kind == ARM:
+                self.key, self.nonce = message.key, bytes(range(16))
+                self.sock.sendto(encode(ARMED, message.seq, message.timestamp_ns, key=self.key, nonce=self.nonce),
+                                 sender)
+                continue
+            assert message.authentic
+            status = {ZERO: "zeroed", DISARM: "released"}.get(message.kind, self.mode)
+            if status != "silent":
+                self.sock.sendto(encode(ACK, message.seq, message.timestamp_ns, status=STATUS_CODE[status],
+                                        key=self.key, nonce=self.nonce), sender)
 
     def close(self) -> None:
         self.stop.set()
@@ -71,7 +79,7 @@ def test_a_trial_whose_frames_were_not_applied_is_never_scored(tmp_path, mode, m
                 new_session(protocol, path, display, SimulatedObserver(protocol), subject="S01", realtime=False)
     finally:
         device.close()
-    assert device.log[-1] == ZERO, "the display is zeroed after the fault"
+    assert device.log[-2:] == [ZERO, DISARM], "the display is zeroed after the fault"
     log = SessionLog(path)
     try:
         assert log.trials() == []

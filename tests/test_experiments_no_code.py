@@ -183,3 +183,47 @@ def test_status_of_an_unregistered_likelihood_from_the_cli_is_one_line(tmp_path)
                           capture_output=True, text=True, cwd=tmp_path)
     assert proc.returncode == 2, proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1 and "'test_custom_cli' is not registered" in proc.stderr
+
+
+PLUGIN = '''
+def psy(level, threshold, slope, lapse):
+    return 0.5 + 0.5 * (1 - lapse) * (1 - 2.0 ** (-(level / threshold) ** slope))
+'''
+
+
+def test_a_likelihood_installed_as_a_plugin_is_found_through_the_entry_point_group(tmp_path, monkeypatch, capsys):
+    """An installed distribution (a *.dist-info with entry_points.txt, on sys.path) that declares a
+    likelihood in the group: a protocol naming it runs, in this process and in a fresh one, with no
+    register_likelihood call; a name no plug-in declares is refused with the registration hint."""
+    from importlib import metadata
+
+    site = tmp_path / "site"
+    (site / "tl_plugin_psy-1.0.dist-info").mkdir(parents=True)
+    (site / "tl_plugin_psy.py").write_text(PLUGIN)
+    (site / "tl_plugin_psy-1.0.dist-info" / "METADATA").write_text(
+        "Metadata-Version: 2.1\nName: tl-plugin-psy\nVersion: 1.0\n")
+    (site / "tl_plugin_psy-1.0.dist-info" / "entry_points.txt").write_text(
+        f"[{registry.ENTRY_POINT_GROUP}]\nplugin_psy = tl_plugin_psy:psy\n")
+    monkeypatch.syspath_prepend(str(site))
+    try:
+        assert registry.ENTRY_POINT_GROUP == "tactilab.likelihoods"
+        declared = {e.name: e.value for e in metadata.entry_points(group=registry.ENTRY_POINT_GROUP)}
+        assert declared.get("plugin_psy") == "tl_plugin_psy:psy"
+        assert "plugin_psy" not in registry.registered_likelihoods()  # nobody registered it from Python
+        assert _run(tmp_path, _protocol(tmp_path, "plugin_psy")) == 0
+        assert "plugin_psy" in registry.registered_likelihoods()  # loaded from the entry point on first use
+        path = next((tmp_path / "sessions").glob("*.sqlite"))
+        with contextlib.closing(sqlite3.connect(path)) as db, db:
+            assert json.loads(db.execute("SELECT value FROM meta WHERE key = 'likelihood'").fetchone()[0]) \
+                == "plugin_psy"  # the name, never a path
+        fresh = subprocess.run([sys.executable, "-m", "tactilab.cli.main", "experiment", "status", str(path)],
+                               capture_output=True, text=True, env={**__import__("os").environ, "PYTHONPATH": str(site)})
+        assert fresh.returncode == 0 and "all 4 planned trials done" in fresh.stdout, fresh.stderr
+        capsys.readouterr()
+        assert _run(tmp_path, _protocol(tmp_path, "plugin_absent")) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "'plugin_absent' is not registered" in err
+        assert "register_likelihood('plugin_absent', f)" in err and "'tactilab.likelihoods' entry-point group" in err
+    finally:
+        registry._LIKELIHOODS.pop("plugin_psy", None)
+        sys.modules.pop("tl_plugin_psy", None)

@@ -4,7 +4,6 @@ the host (or anyone) never becomes an output burst, even on a loaded CPU."""
 
 from __future__ import annotations
 
-import socket
 import subprocess
 import sys
 import threading
@@ -16,7 +15,7 @@ import pytest
 from tactilab.cli.main import main as cli_main
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.experiments.emulator import LOOPBACK, emulate, read_record
-from tactilab.experiments.udp import FRAME, STATUS_CODE, ZERO, decode, encode
+from tactilab.experiments.link import ARMED, FRAME, STATUS_CODE, RawLink
 
 DESC = DisplayDescription.braille_row(n_tractors=2, max_slew_rate_per_s=100.0)  # 5 kPa per 1 ms tick
 FULL = DESC.max_traction_pa
@@ -33,38 +32,34 @@ def device(tmp_path):
     thread.start()
     while not logs:
         time.sleep(0.005)
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.settimeout(5)
-    sock.connect((LOOPBACK, int(logs[0].split(":")[2].split()[0])))
-    yield sock, record
+    link = RawLink(int(logs[0].split(":")[2].split()[0]))
+    yield link, record
     stop.set()
     thread.join(timeout=10)
-    sock.close()
+    link.close()
 
 
-def _acks(sock, n):
-    return [decode(sock.recv(1024)) for _ in range(n)]
+def _acks(link, n):
+    return [link.recv() for _ in range(n)]
 
 
 def test_a_burst_is_applied_one_frame_per_tick_within_the_real_time_slew_under_load(device):
     """200 frames sent at once, each a full slew step from the last, while two processes load the
     CPU: the record shows one frame per tick (never less than a period apart) and a real-time
     change never above the limit; nothing was clamped."""
-    sock, record = device
+    link, record = device
     load = [subprocess.Popen([sys.executable, "-c", BUSY]) for _ in range(2)]
     try:
-        assert _acks(sock, 0) == []
-        sock.send(encode(ZERO, 0, 0))
-        assert decode(sock.recv(1024)).status == STATUS_CODE["zeroed"]
+        assert link.arm().kind == ARMED
         levels = np.minimum(np.arange(1, 201) * STEP * 0.999, FULL * 0.99)
-        for k, level in enumerate(levels):
-            sock.send(encode(FRAME, k + 1, time.monotonic_ns(), [level, -level]))
-        acks = _acks(sock, 200)
+        for level in levels:
+            link.send(link.message(FRAME, [level, -level]))
+        acks = _acks(link, 200)
     finally:
         for p in load:
             p.kill()
             p.wait()
-    assert all(a.status == STATUS_CODE["applied"] for a in acks)
+    assert all(a.status == STATUS_CODE["applied"] and a.authentic for a in acks)
     rec = read_record(record)
     stream = rec["streams"][-1]
     assert len(stream["seq"]) == 200 and rec["clamps"] == []
@@ -75,14 +70,11 @@ def test_a_burst_is_applied_one_frame_per_tick_within_the_real_time_slew_under_l
 
 
 def test_the_device_clamps_to_its_limits_records_each_clamp_and_refuses_non_finite(device):
-    sock, record = device
-    sock.send(encode(ZERO, 0, 0))
-    _acks(sock, 1)
-    for seq, values in ((1, [np.nan, 0.0]), (2, [np.inf, 0.0])):
-        sock.send(encode(FRAME, seq, time.monotonic_ns(), values))
-        assert decode(sock.recv(1024)).status == STATUS_CODE["non_finite"]
-    sock.send(encode(FRAME, 3, time.monotonic_ns(), [1e12, -1e12]))  # far beyond full scale
-    assert decode(sock.recv(1024)).status == STATUS_CODE["applied"]
+    link, record = device
+    assert link.arm().kind == ARMED
+    for values in ([np.nan, 0.0], [np.inf, 0.0]):
+        assert link.ask(FRAME, values).status == STATUS_CODE["non_finite"]
+    assert link.ask(FRAME, [1e12, -1e12]).status == STATUS_CODE["applied"]  # far beyond full scale
     rec = read_record(record)
     kinds = [(c["kind"], c["requested"], c["applied"]) for c in rec["clamps"]]
     assert kinds[0][0] == "amplitude" and abs(kinds[0][1]) == float(np.float32(1e12)) and abs(kinds[0][2]) == FULL
@@ -108,8 +100,8 @@ def test_the_host_skips_late_frames_forward_and_never_bursts(device, monkeypatch
     from tactilab.experiments import SafeDisplay, UdpDisplay
     from tactilab.experiments import udp
 
-    sock, record = device
-    port = sock.getpeername()[1]
+    link, record = device
+    port = link.sock.getpeername()[1]
     calls = {"frames": 0}
     real_encode = udp.encode
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import hmac
 import os
 import signal
 import socket
@@ -10,7 +12,6 @@ import subprocess
 import sys
 import threading
 import time
-import zlib
 
 import numpy as np
 import pytest
@@ -23,6 +24,7 @@ from tactilab.experiments.display import DisplayError, render_drive
 from tactilab.experiments.display_limits import limit_violations
 from tactilab.experiments.emulator import LOOPBACK, emulate, read_record
 from tactilab.experiments.safety import SafeDisplay
+from tactilab.experiments.link import ARM, ARMED, DISARM, RawLink
 from tactilab.experiments.udp import (
     ACK,
     FRAME,
@@ -76,40 +78,66 @@ def assert_record_within_limits(values, desc, rate=1000.0, whole_stream=True):
     assert [v for v in limit_violations(values, rate, desc) if whole_stream or v["kind"] != "duty"] == []
 
 
-# ----- the frame format -----------------------------------------------------------------------
+# ----- the frame format ---------------------------------------------------------------------
+KEY, NONCE = bytes(range(32)), bytes(range(0xA0, 0xB0))
+
+
+def _tag(body: bytes, key=KEY, nonce=NONCE) -> bytes:
+    """The documented MAC, computed independently of the encoder."""
+    return hmac.new(key, nonce + body, hashlib.sha256).digest()[:16]
+
+
 def test_frame_layout_matches_the_documented_offsets():
-    data = encode(FRAME, 0x01020304, 0x1122334455667788, [1.5, -2.0])
-    assert data[:4] == b"TLDF" and data[4] == 1 and data[5] == FRAME
+    data = encode(FRAME, 0x01020304, 0x1122334455667788, [1.5, -2.0], key=KEY, nonce=NONCE)
+    assert data[:4] == b"TLDF" and data[4] == 2 and data[5] == FRAME
     assert struct.unpack_from("<H", data, 6)[0] == 2
     assert struct.unpack_from("<I", data, 8)[0] == 0x01020304
     assert struct.unpack_from("<Q", data, 12)[0] == 0x1122334455667788
     assert struct.unpack_from("<2f", data, 20) == (1.5, -2.0)
-    assert len(data) == 20 + 8 + 4 and struct.unpack_from("<I", data, 28)[0] == zlib.crc32(data[:28])
-    ack = encode(ACK, 7, 99, status=STATUS_CODE["applied"], flags=1, frames_applied=12)
-    assert len(ack) == 32 and struct.unpack_from("<BBHI", ack, 20) == (0, 1, 0, 12)
-    assert len(encode(ZERO, 3, 4)) == 24
+    assert len(data) == 20 + 8 + 16 and data[28:] == _tag(data[:28])
+    ack = encode(ACK, 7, 99, status=STATUS_CODE["applied"], flags=1, frames_applied=12, key=KEY, nonce=NONCE)
+    assert len(ack) == 44 and struct.unpack_from("<BBHI", ack, 20) == (0, 1, 0, 12) and ack[28:] == _tag(ack[:28])
+    assert len(encode(ZERO, 3, 4, key=KEY, nonce=NONCE)) == 36
+    arm = encode(ARM, 1, 2, key=KEY)
+    assert len(arm) == 68 and arm[20:52] == KEY and arm[52:] == _tag(arm[:52], nonce=bytes(16))
+    armed = encode(ARMED, 1, 2, key=KEY, nonce=NONCE, watchdog_us=50_000, n_tractors=60)
+    assert len(armed) == 60 and struct.unpack_from("<16sIHH", armed, 20) == (NONCE, 50_000, 60, 0)
+    assert armed[44:] == _tag(armed[:44])
+    refusal = encode(ACK, 7, 99, status=STATUS_CODE["busy"])  # no key: the all-zero tag
+    assert refusal[28:] == bytes(16)
 
 
-def test_roundtrip_of_each_message_type():
-    frame = decode(encode(FRAME, 2**32 + 5, 10, np.array([0.1, 2.0])))
-    assert (frame.kind, frame.seq, frame.timestamp_ns) == (FRAME, 5, 10)  # seq wraps at 2**32
+def test_roundtrip_of_each_message_type_and_the_tag_check():
+    frame = decode(encode(FRAME, 5, 10, np.array([0.1, 2.0]), key=KEY, nonce=NONCE), key=KEY, nonce=NONCE)
+    assert (frame.kind, frame.seq, frame.timestamp_ns, frame.authentic) == (FRAME, 5, 10, True)
     np.testing.assert_array_equal(frame.values, np.float32([0.1, 2.0]))
-    assert decode(encode(ZERO, 1, 2)).kind == ZERO
-    ack = decode(encode(ACK, 1, 2, status=5, flags=1, frames_applied=9))
-    assert (ack.kind, ack.status, ack.flags, ack.frames_applied) == (ACK, 5, 1, 9)
+    assert decode(encode(ZERO, 1, 2, key=KEY, nonce=NONCE), key=KEY, nonce=NONCE).authentic
+    ack = decode(encode(ACK, 1, 2, status=5, flags=1, frames_applied=9, key=KEY, nonce=NONCE), key=KEY, nonce=NONCE)
+    assert (ack.kind, ack.status, ack.flags, ack.frames_applied, ack.authentic) == (ACK, 5, 1, 9, True)
+    arm = decode(encode(ARM, 1, 2, key=KEY))
+    assert arm.key == KEY and arm.authentic  # integrity under the key it carries
+    armed = decode(encode(ARMED, 1, 2, key=KEY, nonce=NONCE, watchdog_us=7, n_tractors=3), key=KEY)
+    assert (armed.nonce, armed.watchdog_us, armed.n_tractors, armed.authentic) == (NONCE, 7, 3, True)
+    data = encode(FRAME, 5, 10, [1.0], key=KEY, nonce=NONCE)
+    assert not decode(data, key=bytes(32), nonce=NONCE).authentic  # another session's key
+    assert not decode(data, key=KEY, nonce=bytes(16)).authentic  # another session's nonce
+    assert not decode(data).authentic  # no key: nothing is authentic
+    flipped = data[:20] + bytes([data[20] ^ 1]) + data[21:]
+    assert not decode(flipped, key=KEY, nonce=NONCE).authentic  # one bit of a value changed
 
 
-def _with_crc(body: bytes) -> bytes:
-    return body + struct.pack("<I", zlib.crc32(body))
+def _header(version, kind, count=0, seq=1):
+    return struct.pack("<4sBBHIQ", b"TLDF", version, kind, count, seq, 2)
 
 
 @pytest.mark.parametrize("data,match", [
-    (b"TLDF", "shorter than the 24-byte minimum"),
-    (_with_crc(b"XXXX" + bytes(16)), "magic: expected b'TLDF'"),
-    (encode(ZERO, 1, 2)[:-1] + b"\x00", "crc: CRC32 mismatch"),
-    (_with_crc(struct.pack("<4sBBHIQ", b"TLDF", 9, 2, 0, 1, 2)), "version: expected 1, got 9"),
-    (_with_crc(struct.pack("<4sBBHIQ", b"TLDF", 1, 1, 3, 1, 2) + bytes(4)), "count: header says 3 values"),
-    (_with_crc(struct.pack("<4sBBHIQ", b"TLDF", 1, 7, 0, 1, 2)), "type: message type 7"),
+    (b"TLDF", "shorter than the 36-byte minimum"),
+    (b"XXXX" + bytes(32), "magic: expected b'TLDF'"),
+    (_header(1, 2) + bytes(16), "version: 1 is refused .*version 2"),
+    (_header(9, 2) + bytes(16), "version: expected 2, got 9"),
+    (_header(2, 1, 3) + bytes(4) + bytes(16), "count: header says 3 values"),
+    (_header(2, 7) + bytes(16), "type: message type 7"),
+    (_header(2, 4) + bytes(16), "type: message type 4 with count 0 and a 0-byte payload"),  # ARM without a key
 ])
 def test_decode_rejects(data, match):
     with pytest.raises(FrameFormatError, match=match):
@@ -117,12 +145,20 @@ def test_decode_rejects(data, match):
 
 
 def test_encode_rejects():
-    with pytest.raises(FrameFormatError, match="kind: must be FRAME"):
+    with pytest.raises(FrameFormatError, match="kind: must be one of"):
         encode(9, 0, 0)
     with pytest.raises(FrameFormatError, match="values: at most 16000 per FRAME"):
         encode(FRAME, 0, 0, np.zeros(16001))
     with pytest.raises(FrameFormatError, match="values: only FRAME messages carry values"):
         encode(ZERO, 0, 0, [1.0])
+    with pytest.raises(FrameFormatError, match="seq: must be an integer in 0..4294967295"):
+        encode(ZERO, 2**32, 0)
+    with pytest.raises(FrameFormatError, match="key: ARM needs the session key"):
+        encode(ARM, 0, 0)
+    with pytest.raises(FrameFormatError, match=r"key: must be 32 bytes, got 5 bytes"):
+        encode(ZERO, 0, 0, key=b"short")
+    with pytest.raises(FrameFormatError, match=r"nonce: must be 16 bytes, got 3 bytes"):
+        encode(ZERO, 0, 0, key=KEY, nonce=b"abc")
 
 
 @pytest.mark.parametrize("url", ["tcp://127.0.0.1:9000", "udp://127.0.0.1", "udp://:9000", "udp://h:99999"])
@@ -201,7 +237,7 @@ def test_stop_ends_the_stream_and_zeroes(emulator):
     timer.join()
     safe.close()
     assert report.stopped and report.frames_sent < 2000 and events[-1]["kind"] == "zero_on_stop"
-    assert read_record(record)["events"][-1]["type"] == "zero"
+    assert [e["type"] for e in read_record(record)["events"]][-2:] == ["zero", "disarm"]
 
 
 def test_no_device_is_a_clear_error():
@@ -209,7 +245,7 @@ def test_no_device_is_a_clear_error():
         silent.bind((LOOPBACK, 0))
         display = UdpDisplay(DisplayDescription.braille_row(), LOOPBACK, silent.getsockname()[1],
                              ack_timeout_s=0.01, zero_retries=2)
-        with pytest.raises(DisplayError, match="no acknowledgement of ZERO after 2 tries"):
+        with pytest.raises(DisplayError, match="no acknowledgement of ARM after 2 tries.*version 2"):
             display.zero()
         display.close()
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
@@ -228,7 +264,7 @@ def test_wrong_tractor_count_and_watchdog_trip_raise_and_zero(tmp_path):
         events = []
         safe = SafeDisplay(UdpDisplay(DisplayDescription.braille_row(), LOOPBACK, port), events.append)
         safe.load(np.zeros((5, 10)), 1000.0)
-        with pytest.raises(DisplayError, match=r"rejected frame 0 \(bad_count\).*10 tractors"):
+        with pytest.raises(DisplayError, match=r"the device has 4 tractors, display 'VirtualBrailleRow' has 10"):
             safe.play()
         assert events[-1]["kind"] == "zero_on_exception"
         # 20 Hz frames against a 5 ms watchdog: the device trips, then refuses frames.
@@ -241,8 +277,9 @@ def test_wrong_tractor_count_and_watchdog_trip_raise_and_zero(tmp_path):
     finally:
         out = stop_emulator(proc)
     assert "watchdog: no frame for" in out
-    summary = read_record(record)["summary"]
-    assert summary["watchdog_trips"] >= 1 and summary["rejected"] >= 2
+    rec = read_record(record)
+    assert rec["summary"]["watchdog_trips"] >= 1 and rec["summary"]["rejected"] >= 1
+    assert any(e["type"] == "rejected" and e["status"] == "disarmed" for e in rec["events"])
 
 
 HOST = """
@@ -325,25 +362,37 @@ def thread_emulator(tmp_path):
 
 def test_emulator_statuses_gaps_and_rearming(thread_emulator):
     ask, sock, finish, record = thread_emulator
-    assert ask(encode(ZERO, 1, 0)).status == STATUS_CODE["zeroed"]
-    assert ask(encode(FRAME, 2, time.monotonic_ns(), [1.0, 2.0])).status == STATUS_CODE["applied"]
-    assert ask(encode(FRAME, 2, time.monotonic_ns(), [1.0, 2.0])).status == STATUS_CODE["stale"]
-    assert ask(encode(FRAME, 6, time.monotonic_ns(), [1.0, 2.0])).status == STATUS_CODE["applied"]  # 3 missing
-    assert ask(encode(FRAME, 7, time.monotonic_ns(), [1.0, 2.0, 3.0])).status == STATUS_CODE["bad_count"]
-    assert ask(encode(ACK, 8, 0)).status == STATUS_CODE["bad_message"]
-    sock.send(encode(ZERO, 9, 0)[:-1] + b"\xff")  # corrupted: no answer, counted as rejected
-    time.sleep(0.2)  # > watchdog: the device zeroes and disarms
-    tripped = ask(encode(FRAME, 10, time.monotonic_ns(), [1.0, 2.0]))
-    assert tripped.status == STATUS_CODE["disarmed"] and tripped.flags == 1
-    assert ask(encode(ZERO, 11, 0)).status == STATUS_CODE["zeroed"]
-    assert ask(encode(FRAME, 12, time.monotonic_ns(), [0.5, 0.5])).status == STATUS_CODE["applied"]
-    ask(encode(ZERO, 13, 0))
-    sock.settimeout(0.05)
-    with pytest.raises(socket.timeout):
-        sock.recv(1024)  # nothing else was sent
+    port = sock.getpeername()[1]
+    link = RawLink(port)
+    try:
+        refused = link.ask(ZERO)
+        assert (refused.status, refused.authentic) == (STATUS_CODE["not_armed"], False)  # no session yet
+        armed = link.arm()
+        assert (armed.kind, armed.authentic, armed.watchdog_us, armed.n_tractors) == (ARMED, True, 50_000, 2)
+        assert link.ask(FRAME, [1.0, 2.0]).status == STATUS_CODE["applied"]
+        assert link.ask(FRAME, [1.0, 2.0], seq=link.seq).status == STATUS_CODE["stale"]  # the same seq again
+        assert link.ask(FRAME, [1.0, 2.0], seq=link.seq + 4).status == STATUS_CODE["applied"]  # 3 missing
+        assert link.ask(FRAME, [1.0, 2.0, 3.0]).status == STATUS_CODE["bad_count"]
+        assert link.ask(ACK).status == STATUS_CODE["bad_message"]
+        corrupted = link.message(ZERO)
+        link.send(corrupted[:-1] + bytes([corrupted[-1] ^ 0xFF]))  # a bad tag: refused, untagged
+        answer = link.recv()
+        assert (answer.status, answer.authentic) == (STATUS_CODE["bad_mac"], False)
+        time.sleep(0.2)  # > watchdog: the device zeroes and the session ends
+        tripped = link.ask(FRAME, [1.0, 2.0])
+        assert tripped.status == STATUS_CODE["disarmed"] and tripped.flags == 1 and tripped.authentic
+        assert link.arm().kind == ARMED  # after a trip, a new session
+        assert link.ask(FRAME, [0.5, 0.5]).status == STATUS_CODE["applied"]
+        assert link.ask(DISARM).status == STATUS_CODE["released"]
+        assert link.ask(FRAME, [0.5, 0.5]).status == STATUS_CODE["not_armed"]
+        link.sock.settimeout(0.05)
+        with pytest.raises(socket.timeout):
+            link.sock.recv(1024)  # nothing else was sent
+    finally:
+        link.close()
     summary = finish()
-    assert (summary.frames_applied, summary.stale, summary.missing, summary.rejected,
-            summary.watchdog_trips, summary.zero_commands) == (3, 1, 3, 4, 1, 3)
+    assert (summary.frames_applied, summary.stale, summary.missing, summary.rejected, summary.watchdog_trips,
+            summary.sessions, summary.bad_mac, summary.zero_commands) == (3, 1, 3, 6, 1, 2, 1, 0)
     rec = read_record(record)
     assert [e["type"] for e in rec["events"]].count("watchdog") == 1
     assert [len(st_["seq"]) for st_ in rec["streams"]] == [2, 1]  # the watchdog ended the first
@@ -395,7 +444,17 @@ def test_documented_example_bytes_match_the_encoder():
     doc = (Path(__file__).resolve().parents[1] / "docs" / "udp-frame-format.md").read_text()
     block = doc.split("FRAME, seq 5, timestamp 1 000 000 ns")[1].split("```")[1]
     hex_bytes = " ".join(line.split("   ")[0].strip() for line in block.strip().splitlines())
-    assert bytes.fromhex(hex_bytes) == encode(FRAME, 5, 1_000_000, [1.5, -2.0])
+    assert bytes.fromhex(hex_bytes) == encode(FRAME, 5, 1_000_000, [1.5, -2.0], key=KEY, nonce=NONCE)
+    block = doc.split("The ARM that opened this session")[1].split("```")[1]
+    messages = {}
+    for line in block.strip().splitlines():
+        if line.startswith(("ARM:", "ARMED:")):
+            name, line = line.split(":", 1)
+            messages[name] = ""
+        messages[name] += " " + line.strip().split("   ")[0]
+    assert bytes.fromhex(messages["ARM"]) == encode(ARM, 4, 1_000_000, key=KEY)
+    assert bytes.fromhex(messages["ARMED"]) == encode(ARMED, 4, 1_000_000, key=KEY, nonce=NONCE, watchdog_us=50_000,
+                                                      n_tractors=2)
 
 
 def test_emulator_can_only_listen_on_loopback():

@@ -15,11 +15,13 @@ _EXPORTS = {
     "AccuracyWarning": "facade",
     "angular_wavenumbers": "spectral",
     "compliance_matrix": "fields",
+    "ContinuousLoad": "continuous",
     "COMPONENTS": "kernels",
     "dcfft_convolve": "dcfft",
     "dcfft_correlate": "dcfft",
     "dcfft_kernel_spectrum": "dcfft",
     "dcfft_stress": "dcfft",
+    "DeflectionLoad": "continuous",
     "dottest": "adjoint",
     "FieldResult": "facade",
     "HalfSpace": "facade",
@@ -41,6 +43,7 @@ _EXPORTS = {
     "SHEAR_CONVENTION": "fields",
     "SurfaceLoad": "loads",
     "to_engineering": "fields",
+    "TractionField": "continuous",
     "transfer": "spectral",
 }
 

@@ -159,12 +159,13 @@ def _table_bytes(tables: list) -> int:
 
 
 def depth_tables(g, grid_key: tuple, nu: float, names: tuple, weights: np.ndarray, z: float,
-                 dtype, cdtype, coefficients) -> list:
-    """Per output row, the list of (load, complex multiplier) at depth ``z``.
+                 dtype, cdtype, coefficients):
+    """Per output row, the list of (load, complex multiplier) at depth ``z`` (an iterable over rows).
 
     ``g`` is the grid's ``spectral._Geometry``, ``coefficients`` ``spectral._real_coefficients``.
     Cached per (grid, spacing, dtype, nu, depth, loads, weights) within :data:`TRANSFER_CACHE_BYTES`
-    (least recently used first out); tables of a grid too large for the budget are built per call.
+    (least recently used first out). The tables of a grid too large for the budget are built one
+    output at a time while the caller iterates, so only one output's tables are alive at once.
     """
     cache = g.rho.size * len(names) * weights.shape[0] * np.dtype(cdtype).itemsize <= TRANSFER_CACHE_BYTES
     key = (grid_key, float(nu), float(z), names, weights.tobytes(), weights.shape)
@@ -177,8 +178,10 @@ def depth_tables(g, grid_key: tuple, nu: float, names: tuple, weights: np.ndarra
     rz = g.rho * dtype.type(z)
     e = np.exp(-rz)  # underflows to 0 for rho z > ~745: harmless
     rze = rz * e
+    if not cache:  # lazily, one output at a time (memory: see docs/forward_benchmark.md, Table 4)
+        return (_output_tables(coefficients, g, nu, names, row, e, rze, cdtype) for row in weights)
     tables = [_output_tables(coefficients, g, nu, names, row, e, rze, cdtype) for row in weights]
-    if cache and _table_bytes(tables) <= TRANSFER_CACHE_BYTES:
+    if _table_bytes(tables) <= TRANSFER_CACHE_BYTES:
         with _CACHE_LOCK:
             _TRANSFER_CACHE[key] = tables
             total = sum(_table_bytes(entry) for entry in _TRANSFER_CACHE.values())

@@ -24,6 +24,8 @@ from .fields import SHEAR_CONVENTION, compliance_matrix, invariants, label, outp
 from .loads import SurfaceLoad
 from .methods import AccuracyWarning, Problem, select_method  # noqa: F401  (AccuracyWarning: re-export)
 from .spectral import pressure_from_deflection
+from .continuous import ContinuousLoad
+from .sampled import Solution, continuous_field
 
 FLOAT32_TOL = 1e-4
 
@@ -41,7 +43,9 @@ class FieldResult:
     method : str
         The method that ran.
     error_estimate : float
-        Estimated max error relative to the field's peak magnitude.
+        Estimated max error relative to the field's peak magnitude; ``data.attrs["error_covers"]``
+        says what it covers: ``"method"`` (a nodal ``SurfaceLoad``: the method's error for the
+        values as given) or ``"method+sampling"`` (a ``ContinuousLoad``: also its sampling).
     reason : str
         Why this method was chosen.
     candidates : dict
@@ -117,8 +121,13 @@ class HalfSpace:
 
         Parameters
         ----------
-        load : SurfaceLoad
-            Tractions on the surface (Pa); ``load.periodic`` says whether the grid repeats.
+        load : SurfaceLoad or ContinuousLoad
+            Tractions on the surface (Pa); ``load.periodic`` says whether the grid repeats. A
+            ``SurfaceLoad`` is nodal values: the error estimate is for those values as given
+            (``attrs["error_covers"] == "method"``). A ``ContinuousLoad`` (``HertzContact.load``,
+            ``TractionField``, ``DeflectionLoad``) is sampled on its grid, and the estimate covers
+            that sampling too (``"method+sampling"``); with ``method="auto"`` the grid is refined
+            until the estimate meets ``tol``, or an ``AccuracyWarning`` names the spacing that would.
         depth : float or sequence of float
             Depths z > 0 in m.
         points : ndarray, shape (n, 2), optional
@@ -127,7 +136,13 @@ class HalfSpace:
             Voigt names from ("xx", "yy", "zz", "yz", "zx", "xy"); default all six.
         method : {"auto", "closed_form", "spectral", "dcfft"} or Method subclass
         tol : float
-            Requested max error relative to the field's peak.
+            Requested max error relative to the largest magnitude of the requested field.
+
+        Returns
+        -------
+        FieldResult
+            ``error_estimate`` is relative to the largest magnitude of the requested field;
+            ``data.attrs["error_covers"]`` says what it covers.
         """
         return self._field(load, depth, points, components, method, tol, "stress", False)
 
@@ -159,15 +174,25 @@ class HalfSpace:
 
     # -- machinery -------------------------------------------------------------------------
     def _field(self, load, depth, points, components, method, tol, quantity, want_invariants) -> FieldResult:
-        if not isinstance(load, SurfaceLoad):
-            raise ValueError(f"load: expected a SurfaceLoad, got {type(load).__name__}; build one with SurfaceLoad(p=..., spacing=...)")
+        continuous = isinstance(load, ContinuousLoad)
+        if not (continuous or isinstance(load, SurfaceLoad)):
+            raise ValueError(f"load: expected a SurfaceLoad or a ContinuousLoad (HertzContact.load(...), "
+                             f"TractionField, DeflectionLoad), got {type(load).__name__}; build one with "
+                             "SurfaceLoad(p=..., spacing=...)")
         if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not math.isfinite(tol) or tol <= 0:
             raise ValueError(f"tol: must be a finite relative tolerance > 0, got {tol!r} (e.g. 1e-6)")
         depths = check.depths(depth)
         comps = check.components(components)
-        pts = _check_points(points, load)
         if want_invariants and comps != check.COMPONENTS:
             raise ValueError("invariants: need all six components; call with components=None")
+        if continuous:
+            return continuous_field(self, load, depths, points, comps, method, tol, quantity, want_invariants)
+        pts = _check_points(points, load)
+        sol = self._solve(load, depths, comps, pts, method, tol, quantity, want_invariants)
+        return self._package(load, sol, depths, comps, pts, want_invariants, error_covers="method")
+
+    def _solve(self, load, depths, comps, pts, method, tol, quantity, want_invariants) -> Solution:
+        """Choose a method and compute on a nodal load; values have the load's grid (or points)."""
         reduced = load.periodic and load.ndim == 2 and not load.varies_in_y()
         work_load = load.row() if reduced else load
         work_pts = pts[:, :1] if (reduced and pts is not None) else pts
@@ -182,13 +207,22 @@ class HalfSpace:
         err = chosen.field_error(problem, values, self.E if weight_quantity == "strain" else 1.0)
         if reduced and pts is None:  # broadcast the plane-strain row over y
             values = np.broadcast_to(values[..., None, :], values.shape[:-1] + load.shape).copy()
-        da = label(values, weight_quantity, comps, depths, load.x, load.y, pts)
-        ds = da.to_dataset()  # the DataArray is named weight_quantity (fields.label); 5x cheaper than Dataset({...})
+        return Solution(values, chosen, reason, candidates, float(err), weight_quantity, reduced, str(problem.dtype))
+
+    def _package(self, load, sol: Solution, depths, comps, pts, want_invariants, error_covers: str,
+                 sampling_estimate: float | None = None, extra: dict | None = None) -> FieldResult:
+        err = sol.err if sampling_estimate is None else sol.err + sampling_estimate
+        da = label(sol.values, sol.quantity, comps, depths, load.x, load.y, pts)
+        ds = da.to_dataset()  # the DataArray is named sol.quantity (fields.label); 5x cheaper than Dataset({...})
         if want_invariants:
-            strain_vals = np.einsum("ij,dj...->di...", compliance_matrix(self.E, self.nu), values)
+            strain_vals = np.einsum("ij,dj...->di...", compliance_matrix(self.E, self.nu), sol.values)
             strain = label(strain_vals, "strain", comps, depths, load.x, load.y, pts)
             ds["strain"] = strain
             ds = ds.merge(invariants(strain, da))
-        ds.attrs.update(method=chosen.name, error_estimate=err, reason=reason, E_pa=self.E, nu=self.nu,
-                        reduced_to_1d=int(reduced), dtype=str(problem.dtype), shear_convention=SHEAR_CONVENTION)
-        return FieldResult(ds, chosen.name, err, reason, candidates)
+        ds.attrs.update(method=sol.chosen.name, error_estimate=err, error_covers=error_covers,
+                        method_error_estimate=sol.err, reason=sol.reason, E_pa=self.E, nu=self.nu,
+                        reduced_to_1d=int(sol.reduced), dtype=sol.dtype, shear_convention=SHEAR_CONVENTION)
+        if sampling_estimate is not None:
+            ds.attrs["sampling_error_estimate"] = sampling_estimate
+        ds.attrs.update(extra or {})
+        return FieldResult(ds, sol.chosen.name, err, sol.reason, sol.candidates)

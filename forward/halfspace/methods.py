@@ -71,6 +71,19 @@ def _grid_index(problem: Problem):
     return None
 
 
+def user_stacklevel() -> int:
+    """``stacklevel`` for ``warnings.warn`` called here that points at the first caller outside the
+    solver package (the user's line, however deep the facade's call chain is)."""
+    import os
+    import sys
+
+    here = os.path.dirname(os.path.abspath(__file__))
+    frame, level = sys._getframe(1), 1
+    while frame is not None and os.path.dirname(os.path.abspath(frame.f_code.co_filename)) == here:
+        frame, level = frame.f_back, level + 1
+    return level
+
+
 class AccuracyWarning(UserWarning):
     """No method meets the requested tolerance; the result says how far off it may be."""
 
@@ -372,7 +385,7 @@ def _warn_forced(chosen: Method, err: float, tol: float, runnable: list) -> None
     else:
         advice = "no registered method does better: refine the grid spacing below the depth, or loosen tol"
     warnings.warn(f"method {chosen.name!r} was forced, but its error estimate {err:.1e} exceeds tol={tol:.0e}; "
-                  f"{advice}", AccuracyWarning, stacklevel=4)
+                  f"{advice}", AccuracyWarning, stacklevel=user_stacklevel())
 
 
 def select_method(problem: Problem, tol: float, method="auto") -> tuple[Method, str, dict]:
@@ -420,5 +433,5 @@ def select_method(problem: Problem, tol: float, method="auto") -> tuple[Method, 
     warnings.warn(
         f"no method meets tol={tol:.0e}; using {m.name!r} with estimated relative error {err:.1e} "
         "(refine the grid spacing below the depth, enlarge the grid, or loosen tol)",
-        AccuracyWarning, stacklevel=4)
+        AccuracyWarning, stacklevel=user_stacklevel())
     return m, f"most accurate method available (error estimate {err:.1e} > tol {tol:.0e})", candidates

@@ -1,0 +1,238 @@
+"""Loads given as continuous objects, and the error of representing them on a grid.
+
+A :class:`SurfaceLoad` is nodal values: the solver's error estimate covers its method for those
+values as given. A *continuous* load (a Hertz contact with its friction condition, a callable
+p(x, y), the pressure of a prescribed deflection) is what the user actually asks about; sampling it
+on a grid adds an error of its own (the edge of a Hertz contact, a profile finer than the grid).
+The protocol is small:
+
+- :class:`ContinuousLoad` has a default grid (``shape``, ``spacing``), says whether it is
+  ``periodic``, and samples itself on any grid: ``sample(shape, spacing) -> SurfaceLoad``.
+
+:meth:`HalfSpace.stress` / ``strain`` accept one in place of a ``SurfaceLoad``. They solve on the
+load's grid and on the grids of spacing 2h and 4h (nodes shared with the fine grid), and bound the
+sampling error by Richardson extrapolation of the differences, d1 = |F_h - F_2h| and
+d2 = |F_2h - F_4h| (max over the shared nodes or sensor points): with the observed ratio
+rho = d2/d1 = 2^p the error of F_h is d1/(rho - 1); :func:`sampling_error` returns twice that (a
+safety factor for grids not yet in the asymptotic range), with rho clipped to [1.5, 4]: a faster
+observed convergence than second order is not trusted (on coarse grids a Hertz contact's square-root
+edge shows an apparent order near 4 while its asymptotic order is about 1.8), and a slower one than
+about 0.6 is taken as 0.6 (then the bound is 4 d1). The bound therefore errs large for loads that
+converge faster than h^2 (smooth, well-resolved loads), by about the ratio of their errors at 2h and h.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from . import _validation as check
+from .loads import LOAD_COMPONENTS, SurfaceLoad
+from .spectral import pressure_from_deflection
+
+__all__ = ["ContinuousLoad", "TractionField", "DeflectionLoad", "refined_grid", "coarse_grid", "shared_nodes",
+           "sampling_error"]
+
+SAFETY = 2.0
+
+
+def _shape(value, ndim: int | None = None) -> tuple[int, ...]:
+    shape = (int(value),) if np.ndim(value) == 0 else tuple(int(v) for v in value)
+    if len(shape) not in (1, 2) or (ndim is not None and len(shape) != ndim) or min(shape) < 1:
+        raise ValueError(f"shape: expected (nx,) or (ny, nx) of positive node counts, got {value!r}")
+    return shape
+
+
+class ContinuousLoad(abc.ABC):
+    """A surface load defined everywhere, with a default grid to sample it on.
+
+    Subclasses set ``shape`` ((nx,) or (ny, nx)), ``spacing`` (m, (dx,) or (dx, dy)) and
+    ``periodic``, and implement :meth:`sample`. Grid nodes follow :class:`SurfaceLoad`
+    (index n // 2 is the origin); a periodic load repeats with period ``n h`` per axis.
+    """
+
+    shape: tuple[int, ...]
+    spacing: tuple[float, ...]
+    periodic: bool = False
+
+    @property
+    def ndim(self) -> int:
+        """1 for a plane-strain load, 2 for a surface load."""
+        return len(self.shape)
+
+    @abc.abstractmethod
+    def sample(self, shape, spacing) -> SurfaceLoad:
+        """The tractions (Pa) at the nodes of the grid ``shape`` x ``spacing`` (m)."""
+
+    def nodal(self) -> SurfaceLoad:
+        """The load sampled on its own grid."""
+        return self.sample(self.shape, self.spacing)
+
+
+def _grid(shape, spacing, periodic: bool) -> tuple[tuple[int, ...], tuple[float, ...]]:
+    shape = _shape(shape)
+    spacing = check.spacing(spacing, len(shape))
+    if periodic and any(n % 4 for n in shape):
+        raise ValueError(f"shape: a periodic continuous load needs node counts divisible by 4 (the error estimate "
+                         f"samples it at 2h and 4h over the same period), got {shape}")
+    return shape, spacing
+
+
+def _coords(shape, spacing):
+    axes = [(np.arange(n) - n // 2) * h for n, h in zip(shape[::-1], spacing)]  # x first
+    if len(shape) == 1:
+        return (axes[0],)
+    xx, yy = np.meshgrid(axes[0], axes[1])
+    return xx, yy
+
+
+class TractionField(ContinuousLoad):
+    """Tractions given as functions of position, sampled at the grid nodes.
+
+    Parameters
+    ----------
+    p, qx, qy : callable or None
+        ``f(x)`` (1-D, plane strain) or ``f(x, y)`` (2-D), positions in m, returning the traction
+        in Pa (p pushes into the skin; qx, qy along +x, +y). ``None`` means zero.
+    shape : int or (ny, nx)
+        Default grid: ``nx`` (1-D) or ``(ny, nx)`` nodes.
+    spacing : float or (dx, dy)
+        Default grid spacing in m.
+    periodic : bool
+        True when the functions repeat with period ``n h`` (node counts divisible by 4).
+    """
+
+    def __init__(self, p: Callable | None = None, qx: Callable | None = None, qy: Callable | None = None, *,
+                 shape, spacing, periodic: bool = False):
+        self.functions = {k: f for k, f in zip(LOAD_COMPONENTS, (p, qx, qy)) if f is not None}
+        if not self.functions:
+            raise ValueError("TractionField: give at least one of p, qx, qy (functions of position returning Pa)")
+        for name, f in self.functions.items():
+            if not callable(f):
+                raise ValueError(f"{name}: expected a function of position (m) returning Pa, got {type(f).__name__}")
+        self.periodic = bool(periodic)
+        self.shape, self.spacing = _grid(shape, spacing, self.periodic)
+
+    def __repr__(self) -> str:
+        return f"TractionField({', '.join(self.functions)}; shape={self.shape}, spacing={self.spacing})"
+
+    def sample(self, shape, spacing) -> SurfaceLoad:
+        shape = _shape(shape, self.ndim)
+        spacing = check.spacing(spacing, self.ndim)
+        xy = _coords(shape, spacing)
+        values = {}
+        for name, f in self.functions.items():
+            v = np.broadcast_to(np.asarray(f(*xy), dtype=float), shape)
+            values[name] = v
+        return SurfaceLoad(**values, spacing=spacing, periodic=self.periodic)
+
+
+class DeflectionLoad(ContinuousLoad):
+    """The pressure that imposes a prescribed normal deflection (a rigid profile in full, frictionless
+    contact), periodic: ``P~ = E rho H~ / (2 (1 - nu^2))`` of the deflection sampled on the grid
+    (docs/theory.md section 2).
+
+    Parameters
+    ----------
+    height : callable
+        Deflection into the skin in m, ``h(x)`` (1-D) or ``h(x, y)`` (2-D), positions in m,
+        periodic with period ``n h`` per axis (a ``Surface.height`` qualifies).
+    young_modulus : float
+        E in Pa.
+    nu : float
+        Poisson's ratio.
+    shape, spacing
+        Default grid, as :class:`TractionField` (node counts divisible by 4).
+    """
+
+    periodic = True
+
+    def __init__(self, height: Callable, young_modulus: float, nu: float, *, shape, spacing):
+        if not callable(height):
+            raise ValueError(f"height: expected a function of position (m) returning m, got {type(height).__name__}")
+        self.height = height
+        self.young_modulus = check.young_modulus(young_modulus)
+        self.nu = check.poisson_ratio(nu)
+        self.shape, self.spacing = _grid(shape, spacing, True)
+
+    def __repr__(self) -> str:
+        return f"DeflectionLoad(shape={self.shape}, spacing={self.spacing}, E={self.young_modulus}, nu={self.nu})"
+
+    def sample(self, shape, spacing) -> SurfaceLoad:
+        shape = _shape(shape, self.ndim)
+        spacing = check.spacing(spacing, self.ndim)
+        h = np.broadcast_to(np.asarray(self.height(*_coords(shape, spacing)), dtype=float), shape)
+        return pressure_from_deflection(np.array(h), spacing, self.young_modulus, self.nu)
+
+
+# ------------------------------------------------------------------------------------------ grids
+def refined_grid(shape, spacing, periodic: bool, halvings: int = 1):
+    """The grid of spacing h / 2^k over the same domain; every old node is a new node."""
+    for _ in range(halvings):
+        shape = tuple(2 * n if (periodic or n % 2 == 0) else 2 * n - 1 for n in shape)
+        spacing = tuple(h / 2 for h in spacing)
+    return shape, spacing
+
+
+def coarse_grid(shape, spacing, periodic: bool):
+    """The grid of spacing 2h over (about) the same domain, or None when it would have < 3 nodes."""
+    if periodic:
+        if any(n % 2 for n in shape):
+            return None
+        new = tuple(n // 2 for n in shape)
+    else:
+        new = tuple((n + 1) // 2 for n in shape)
+    if min(new) < 3:
+        return None
+    return new, tuple(2 * h for h in spacing)
+
+
+def shared_nodes(fine_shape, coarse_shape) -> tuple[tuple[slice, ...], tuple[slice, ...]]:
+    """Index slices (fine, coarse) of the nodes the 2h grid shares with the h grid."""
+    fine, coarse = [], []
+    for n, m in zip(fine_shape, coarse_shape):
+        off = n // 2 - 2 * (m // 2)  # fine index of coarse node i is 2 i + off
+        i0 = max(0, math.ceil(-off / 2))
+        i1 = min(m, (n - 1 - off) // 2 + 1)
+        coarse.append(slice(i0, i1))
+        fine.append(slice(2 * i0 + off, 2 * (i1 - 1) + off + 1, 2))
+    return tuple(fine), tuple(coarse)
+
+
+def sampling_error(levels: list[np.ndarray], shapes: list[tuple[int, ...]] | None) -> tuple[float, float]:
+    """Richardson bound on the sampling error of ``levels[0]`` (the module docstring).
+
+    Parameters
+    ----------
+    levels : list of ndarray
+        Outputs on the h, 2h (and 4h) grids, each ``(n_depth, n_out, *grid)``; or, with
+        ``shapes=None``, at the same sensor points ``(n_depth, n_out, n_points)``.
+    shapes : list of tuple or None
+        The grids' shapes (None for sensor points).
+
+    Returns
+    -------
+    estimate : float
+        Bound on max |F_h - F| relative to max |F_h|; ``inf`` with fewer than two levels.
+    order : float
+        Observed convergence order p = log2(rho) (nan when unknown).
+    """
+    peak = float(np.abs(levels[0]).max())
+    if len(levels) < 2 or peak == 0.0:
+        return (math.inf if len(levels) < 2 else 0.0), math.nan
+
+    def diff(i: int) -> float:
+        if shapes is None:
+            return float(np.abs(levels[i] - levels[i + 1]).max())
+        f, c = shared_nodes(shapes[i], shapes[i + 1])
+        return float(np.abs(levels[i][(..., *f)] - levels[i + 1][(..., *c)]).max())
+
+    d1 = diff(0)
+    if len(levels) < 3 or d1 == 0.0:
+        return SAFETY * d1 / 0.5 / peak, math.nan
+    rho = diff(1) / d1
+    estimate = SAFETY * d1 / (min(max(rho, 1.5), 4.0) - 1.0)
+    return estimate / peak, math.log2(rho) if rho > 0 else math.nan

@@ -1,0 +1,113 @@
+"""The facade's path for continuous loads: solve, bound the sampling error, refine the grid.
+
+For a :class:`~.continuous.ContinuousLoad` the reported ``error_estimate`` is the chosen method's
+estimate for the sampled nodal load plus the sampling error of representing the continuous load on
+the grid (:func:`~.continuous.sampling_error`, from solves at spacing 2h and 4h); the result's
+``attrs["error_covers"]`` is ``"method+sampling"``. With ``method="auto"``, when the total exceeds
+``tol``, the grid is refined (the spacing halved k times, k predicted from the observed convergence
+order) as long as it stays within :data:`MAX_NODES`; otherwise an :class:`AccuracyWarning` names
+the spacing that would meet ``tol``.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from .continuous import ContinuousLoad, coarse_grid, refined_grid, sampling_error
+from .methods import AccuracyWarning, Method, user_stacklevel
+
+#: largest grid (nodes) the automatic refinement of a continuous load may choose
+MAX_NODES = 1 << 20
+
+
+@dataclass(frozen=True)
+class Solution:
+    """One solve on a nodal load (internal to the facade)."""
+
+    values: np.ndarray
+    chosen: Method
+    reason: str
+    candidates: dict
+    err: float
+    quantity: str
+    reduced: bool
+    dtype: str
+
+
+def _levels(hs, load: ContinuousLoad, shape, spacing, depths, comps, points, method, tol, quantity, invariants):
+    """The solve on (shape, spacing) and the outputs at 2h and 4h (same points, or shared nodes)."""
+    from .facade import _check_points
+
+    fine = load.sample(shape, spacing)
+    pts = _check_points(points, fine)
+    sol = hs._solve(fine, depths, comps, pts, method, tol, quantity, invariants)
+    levels, shapes = [sol.values], [fine.shape]
+    grid = (fine.shape, fine.spacing)
+    for _ in range(2):
+        grid = coarse_grid(*grid, load.periodic)
+        if grid is None:
+            break
+        coarse = load.sample(*grid)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", AccuracyWarning)
+            try:
+                v = hs._solve(coarse, depths, comps, pts, type(sol.chosen), tol, quantity, invariants).values
+            except ValueError:  # the fine grid's method cannot run on the coarse one (off-grid sensors)
+                v = hs._solve(coarse, depths, comps, pts, "auto", tol, quantity, invariants).values
+        levels.append(v)
+        shapes.append(coarse.shape)
+    sampling, order = sampling_error(levels, None if pts is not None else shapes)
+    return fine, pts, sol, sampling, order
+
+
+def _needed_halvings(sampling: float, target: float, order: float) -> int | None:
+    """Halvings of the spacing predicted to bring ``sampling`` to ``target`` (None: unknown)."""
+    if not (target > 0 and math.isfinite(sampling)):
+        return None
+    p = min(max(order, 1.0), 2.0) if math.isfinite(order) else 1.0
+    return max(1, math.ceil(math.log2(sampling / target) / p))
+
+
+def continuous_field(hs, load: ContinuousLoad, depths, points, comps, method, tol, quantity, invariants):
+    """:meth:`HalfSpace.stress` / ``strain`` for a continuous load (see the module docstring)."""
+    shape, spacing = load.shape, load.spacing
+    auto = isinstance(method, str) and method == "auto"
+    refinements = 0
+    while True:
+        with warnings.catch_warnings(record=True) as caught:  # only the final grid's warnings reach the user
+            warnings.simplefilter("always", AccuracyWarning)
+            fine, pts, sol, sampling, order = _levels(hs, load, shape, spacing, depths, comps, points, method, tol,
+                                                      quantity, invariants)
+        total = sol.err + sampling
+        # refining the grid shrinks the sampling error and the nodal methods' kernel-sampling error
+        k = _needed_halvings(total, 0.5 * tol, order) if total > tol else None
+        if auto and refinements == 0 and k is not None:
+            new_shape, new_spacing = refined_grid(shape, spacing, load.periodic, k)
+            if int(np.prod(new_shape)) <= MAX_NODES:
+                shape, spacing, refinements = new_shape, new_spacing, k
+                continue
+        break
+    for w in caught:
+        warnings.warn(str(w.message), w.category, stacklevel=user_stacklevel())
+    if total > tol and sampling > 0.5 * sol.err:
+        _warn_sampling(sol, sampling, total, tol, shape, spacing, load, k)
+    extra = {"sampling_order": order, "grid_refinements": refinements,
+             "sampled_spacing_m": tuple(float(h) for h in fine.spacing)}
+    return hs._package(fine, sol, depths, comps, pts, invariants, error_covers="method+sampling",
+                       sampling_estimate=sampling, extra=extra)
+
+
+def _warn_sampling(sol, sampling, total, tol, shape, spacing, load, k) -> None:
+    if k is None:
+        advice = "no finer grid is predicted to meet it; loosen tol"
+    else:
+        need_shape, need_spacing = refined_grid(shape, spacing, load.periodic, k)
+        advice = (f"sampling the load at spacing {', '.join(f'{h:.3g}' for h in need_spacing)} m (shape "
+                  f"{need_shape}, {int(np.prod(need_shape))} nodes) is predicted to meet it")
+    warnings.warn(f"continuous load: error estimate {total:.1e} (sampling {sampling:.1e}, method {sol.err:.1e}) "
+                  f"exceeds tol={tol:.0e} on the grid of spacing {', '.join(f'{h:.3g}' for h in spacing)} m; "
+                  f"{advice}", AccuracyWarning, stacklevel=user_stacklevel())

@@ -1,0 +1,75 @@
+"""Smoke test of benchmarks/bench_tradeoff.py: a tiny configuration writes the page and the figure
+(no timing checks), and its references are checked so the page cannot rot into comparing against a
+wrong answer."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_tradeoff.py"
+
+
+@pytest.fixture(scope="module")
+def bench():
+    spec = importlib.util.spec_from_file_location("bench_tradeoff", BENCH)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_tiny_run_writes_table_rows_and_png_with_finite_true_errors(bench, tmp_path):
+    forward = bench.forward_rows(per_a=(4,), repeats=1, box=4)
+    inversion = bench.inversion_rows(tols=(1e-4,), steps=(20,), repeats=1)
+    assert {r["method"] for r in forward} == set(bench.FORWARD_METHODS)
+    assert {r["method"] for r in inversion} == set(bench.INVERSION_METHODS)
+    for r in forward + inversion:
+        assert math.isfinite(r["error"]) and r["error"] >= 0 and r["time_ms"] > 0
+    for r in forward:
+        assert math.isfinite(r["estimate"]) and r["covers"] == "method+sampling"
+    md = bench.write_page(forward, inversion, tmp_path, "python benchmarks/bench_tradeoff.py", "load average 0.0")
+    text = md.read_text()
+    png = tmp_path / "accuracy.png"
+    assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "![time against true error](accuracy.png)" in text
+    for method in bench.FORWARD_METHODS:
+        assert re.search(rf"^\| {method} \| a/4 \| \d+\^2 \| ", text, re.M)
+    for method in bench.INVERSION_METHODS:
+        assert re.search(rf"^\| {method} \| ", text, re.M)
+    assert "## Which method for which need" in text and "load average 0.0" in text
+
+
+def test_exact_routes_match_the_independent_dense_posterior(bench):
+    rows = bench.inversion_rows(tols=(1e-10,), steps=(), repeats=1)
+    by = {r["method"]: r for r in rows}
+    assert by["fft"]["error"] < 1e-10 and by["dense"]["error"] < 1e-10
+    assert by["fft"]["std_error"] < 1e-12 and by["dense"]["std_error"] < 1e-12
+    assert by["iterative"]["error"] < 1e-6
+
+
+def test_forward_reference_agrees_with_the_solver_on_a_fine_grid(bench):
+    """The sampled contact converges to Hamilton's solution: the page's 'true error' is a real error."""
+    coarse, fine = (bench.forward_rows(per_a=(m,), repeats=1, box=4)[1] for m in (4, 16))
+    assert coarse["method"] == fine["method"] == "dcfft"
+    assert fine["error"] < coarse["error"] / 4 and fine["error"] < 1e-2
+
+
+def test_mcmc_model_peaks_at_the_exact_posterior_mean(bench):
+    prob = bench.profile_problem()
+    model = bench.GaussianProfileModel(prob["matrix"], prob["data"], prob["noise"], prob["cov"])
+
+    def gradient(theta, step):
+        def target(t):
+            return float(model.log_prior(t) + model.log_likelihood(t).sum())
+        return np.array([(target(theta + step * e) - target(theta - step * e)) / (2 * step)
+                         for e in np.eye(theta.size)])
+
+    step = 1e-3 * np.abs(prob["mean"]).max()
+    at_mean = gradient(prob["mean"], step)
+    off_mean = gradient(prob["mean"] + 0.1 * prob["std"], step)
+    assert np.abs(at_mean).max() < 1e-6 * np.abs(off_mean).max()
