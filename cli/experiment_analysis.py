@@ -188,6 +188,7 @@ def run_power(args: argparse.Namespace) -> int:
     from tactilab.experiments.analysis import plot_power, read_design
     from tactilab.experiments.models import TransductionModel, power_analysis
 
+    ns = _counts(args.trials, "--trials") if args.trials is not None else None
     if args.seeds is None and (wants_batch(args) or args.trials is not None):
         raise ValueError("--seeds: --workers, --scheduler and --trials belong to the simulated sweep; give the number "
                          "of simulated power estimates per trial count, e.g. --seeds 4")
@@ -210,7 +211,7 @@ def run_power(args: argparse.Namespace) -> int:
     if args.seeds is not None:
         from tactilab.experiments.batch import power_sweep
 
-        ns = _counts(args.trials, "--trials") if args.trials is not None else [n_design, 2 * n_design, 4 * n_design]
+        ns = ns if ns is not None else [n_design, 2 * n_design, 4 * n_design]
         if args.repeats < 1:
             raise ValueError(f"--repeats: must be >= 1 simulated experiment, got {args.repeats}; e.g. 100")
         sweep = power_sweep(true_model, params, rival, design, ns, n_seeds=args.seeds, seed=args.seed,

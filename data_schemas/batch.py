@@ -16,7 +16,9 @@ keys and imports nothing from forward, inversion or experiments. The rules it en
   that Dask re-runs after a worker died), so a rerun with the same ``out_dir`` finishes the
   batch without recomputing anything that had finished.
 - **Failures are data**: an item whose callable raises goes into ``<out_dir>/errors.tsv``
-  (``key``, one-line reason) and never aborts the batch; failed keys are retried on a rerun.
+  (``key``, one-line reason) and never aborts the batch; failed keys are retried on a rerun. A
+  task the cluster loses (cancelled, a dropped connection) is submitted again, up to
+  ``TASK_TRIES`` times, before its items are recorded as failed.
 - **Small items are batched** ``per_task`` to a Dask task; objects shared by every item
   (operators, kernels, scenes) are scattered once to every worker (``broadcast=True``).
 - **One BLAS/FFT thread** per worker and on the serial path (threadpoolctl, part of the ``dask``
@@ -47,6 +49,8 @@ __all__ = ["stable_hash", "task_rng", "result_path", "read_result", "BatchReport
 ONE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 #: seconds to wait for a scheduler given by address before giving up
 CONNECT_TIMEOUT_S = 5.0
+#: submissions of one task in all before its items are recorded as failed (a task the cluster lost)
+TASK_TRIES = 3
 _INSTALL = "pip install 'tactilab[dask]'"
 
 
@@ -338,17 +342,46 @@ def run_batch(func: Callable, items: Mapping[str, object], *, seed: int, out_dir
             for chunk in chunks:
                 collect(_run_chunk(func, chunk, seed, str(out), shared))
         elif chunks:
-            from distributed import as_completed
-
-            remote = {name: cl.scatter([obj], broadcast=True, hash=False)[0] for name, obj in shared.items()}
-            futures = [cl.submit(_run_chunk, func, chunk, seed, str(out), remote, pure=False) for chunk in chunks]
-            for fut in as_completed(futures):
-                collect(fut.result())
-                fut.release()
+            _run_on_dask(cl, func, chunks, seed, str(out), shared, collect)
         report.wall_s = time.perf_counter() - t0
     bar.close()
     report.done = [k for k in keys if result_path(out, k).exists()]
     return report
+
+
+def _scatter(cl, shared: dict) -> dict:
+    return {name: cl.scatter([obj], broadcast=True, hash=False)[0] for name, obj in shared.items()}
+
+
+def _run_on_dask(cl, func: Callable, chunks: list, seed: int, out: str, shared: dict, collect: Callable) -> None:
+    """Submit one task per chunk; a task lost by the cluster (cancelled, its worker killed too often, a
+    dropped connection) is submitted again up to ``TASK_TRIES`` times in all, re-scattering the shared
+    objects if they were lost too; after that its items are recorded as failed. Items that finished
+    before are skipped inside the task, so nothing is computed twice."""
+    from distributed import as_completed
+
+    remote = _scatter(cl, shared)
+    pending = {}
+    for i, chunk in enumerate(chunks):
+        pending[cl.submit(_run_chunk, func, chunk, seed, out, remote, pure=False)] = (i, 1)
+    done = as_completed(list(pending))
+    for fut in done:
+        i, tries = pending.pop(fut)
+        try:
+            rows = fut.result()
+        except Exception as exc:  # noqa: BLE001 - the items' own errors are caught inside the task
+            if tries >= TASK_TRIES:
+                rows = [(key, "failed", f"task lost by the cluster {tries} times, last: {_one_line(exc)}")
+                        for key, _ in chunks[i]]
+            else:
+                if any(f.status != "finished" for f in remote.values()):
+                    remote = _scatter(cl, shared)
+                again = cl.submit(_run_chunk, func, chunks[i], seed, out, remote, pure=False)
+                pending[again] = (i, tries + 1)
+                done.add(again)
+                continue
+        collect(rows)
+        fut.release()
 
 
 def unquote_key(name: str) -> str:

@@ -238,3 +238,47 @@ def test_one_blas_thread_serially_and_on_workers_same_bits(tmp_path, client):
         a, b = read_result(tmp_path / "s", k), read_result(tmp_path / "p", k)
         assert list(a["blas_threads"].values) == [1] and list(b["blas_threads"].values) == [1]
         assert np.array_equal(a["out"].values, b["out"].values)
+
+
+# ----------------------------------------------------------------------------- tasks the cluster loses
+def logged(item, rng, *, log):
+    with open(log, "a") as f:
+        f.write(f"{item}\n")
+    return xr.Dataset({"v": ("i", rng.standard_normal(2))})
+
+
+def _cancelling(client, monkeypatch, which):
+    """Make ``client.submit`` cancel the futures whose submission index is in ``which`` (a lost task)."""
+    real, count = client.submit, [0]
+
+    def submit(*args, **kwargs):
+        fut = real(*args, **kwargs)
+        if which(count[0]):
+            fut.cancel()
+        count[0] += 1
+        return fut
+
+    monkeypatch.setattr(client, "submit", submit)
+    return count
+
+
+def test_a_lost_task_is_submitted_again_and_nothing_is_computed_twice(tmp_path, client, monkeypatch):
+    log = tmp_path / "calls.log"
+    items = {f"k{i}": f"k{i}" for i in range(6)}
+    count = _cancelling(client, monkeypatch, lambda i: i == 0)
+    rep = run_batch(logged, items, seed=2, out_dir=tmp_path / "o", client=client, shared={"log": str(log)},
+                    per_task=2, progress=False)
+    assert count[0] == 4  # 3 tasks + the lost one again
+    assert rep.n_failed == 0 and rep.done == list(items) and rep.n_run + rep.n_skipped == 6
+    assert sorted(log.read_text().split()) == sorted(items)  # every item computed exactly once
+    assert np.array_equal(read_result(tmp_path / "o", "k0")["v"].values, task_rng(2, "k0").standard_normal(2))
+
+
+def test_a_task_lost_every_time_records_its_items_as_failed(tmp_path, client, monkeypatch):
+    items = {f"k{i}": f"k{i}" for i in range(4)}
+    _cancelling(client, monkeypatch, lambda i: i in (0, 2, 3))  # the first task's three submissions
+    rep = run_batch(logged, items, seed=2, out_dir=tmp_path, client=client, shared={"log": str(tmp_path / "l")},
+                    per_task=2, progress=False)
+    assert rep.n_run == 2 and sorted(rep.errors) == ["k0", "k1"]
+    assert rep.errors["k0"].startswith(f"task lost by the cluster {B.TASK_TRIES} times, last: FutureCancelledError")
+    assert (tmp_path / "errors.tsv").read_text().count("task lost by the cluster") == 2
