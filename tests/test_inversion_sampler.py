@@ -234,3 +234,49 @@ def test_backends_with_different_progress_are_refused(rng):
     backends[0] = emcee.backends.Backend()
     with pytest.raises(ValueError, match=r"backend: the ensembles hold different numbers of steps \[0, 50\]"):
         sample_posterior(model, rng, backend=backends, **dict(FAST, max_steps=100))
+
+
+class CorrelatedGaussian:
+    """y = X theta + noise in 10 dimensions, prior sd 30-50 x the posterior sd, strongly correlated
+    posterior: the case where a Nelder-Mead-only MAP search stopped tens of posterior sd from the
+    mode and the ensembles' pooled draws had several times the true sd."""
+
+    vectorized = True
+
+    def __init__(self, rng, p=10, n=30, prior_sd=1.0, noise_std=0.01):
+        t = np.linspace(0, 1, n)[:, None]
+        self.x = np.exp(-((t - np.linspace(0, 1, p)[None, :]) ** 2) / 0.02)  # overlapping bumps
+        self.prior_sd, self.noise_std = prior_sd, noise_std
+        self.observed = self.x @ rng.normal(0, prior_sd, p) + rng.normal(0, noise_std, n)
+        self.param_names = tuple(f"t{i}" for i in range(p))
+
+    def log_prior(self, theta):
+        return -0.5 * np.sum(np.asarray(theta) ** 2, axis=-1) / self.prior_sd**2
+
+    def log_likelihood(self, theta):
+        return -0.5 * ((self.observed - np.asarray(theta) @ self.x.T) / self.noise_std) ** 2
+
+    def initial(self, rng, n):
+        return rng.normal(0.0, self.prior_sd, (n, len(self.param_names)))
+
+    def exact(self):
+        cov = np.linalg.inv(self.x.T @ self.x / self.noise_std**2 + np.eye(self.x.shape[1]) / self.prior_sd**2)
+        return cov @ self.x.T @ self.observed / self.noise_std**2, cov
+
+
+def test_correlated_gaussian_map_start_and_moments(rng):
+    model = CorrelatedGaussian(rng)
+    mean, cov = model.exact()
+    sd, prec = np.sqrt(np.diag(cov)), np.linalg.inv(cov)
+    assert sd.max() < 0.05 * model.prior_sd  # the data dominate: the MAP search has far to go
+    tree = sample_posterior(model, rng, n_walkers=24, max_steps=2000, check_every=2000, n_start=32,
+                            info_tol=None)
+    for est in eval(tree.attrs["map_estimates"]):  # noqa: S307 (JSON list of dicts)
+        d = np.array([est[q] for q in model.param_names]) - mean
+        assert np.sqrt(d @ prec @ d) < 1e-2  # at the mode, in posterior sd (a draw is ~3 away)
+    x = draws(tree, model.param_names)
+    # Monte Carlo error with the measured autocorrelation time: ESS ~ draws x walkers / tau
+    ess = tree.attrs["n_kept"] * 24 * 4 / tree.attrs["tau_max"]
+    assert ess > 200, tree.attrs["message"]
+    np.testing.assert_array_less(np.abs(x.mean(axis=0) - mean), 5 * sd / np.sqrt(ess))
+    np.testing.assert_array_less(np.abs(x.std(axis=0) / sd - 1), 5 / np.sqrt(2 * ess) + 0.05)
