@@ -32,7 +32,6 @@ what was done, ``attrs["log_likelihood_dropped"]`` lists what was dropped and
 from __future__ import annotations
 
 import json
-import math
 import pickle
 from typing import Protocol, Sequence, runtime_checkable
 
@@ -186,6 +185,27 @@ def _map_start(target: _Target, model, rng, n_start: int, scale: np.ndarray, sta
     return polished if np.isfinite(target(polished)) else best + z * scale
 
 
+def _thin(n: int, w: int, per_chain: int) -> tuple[np.ndarray, np.ndarray]:
+    """Step and walker indices (each shape (D,), D <= max(per_chain, 1)) of the draws kept from a chain
+    of ``n`` steps x ``w`` walkers: evenly spaced steps with every walker, or, when fewer than ``w``
+    draws fit, one distinct walker per evenly spaced step.
+
+    Thinning with a stride over the flattened (step, walker) array would keep the same few walkers
+    whenever the stride shares a factor with ``w`` (2 of 64 walkers for the 16-parameter benchmark in
+    benchmarks/bench_tradeoff.py), throwing away most of the ensemble's effective sample size.
+    """
+    if per_chain >= n * w:
+        steps = np.arange(n)
+    elif per_chain >= w:
+        steps = np.unique(np.round(np.linspace(0, n - 1, per_chain // w)).astype(int))
+    else:
+        m = min(n, per_chain)
+        steps = np.unique(np.round(np.linspace(0, n - 1, m)).astype(int))
+        walkers = (np.arange(steps.size) * w) // steps.size
+        return steps, walkers
+    return np.repeat(steps, w), np.tile(np.arange(w), steps.size)
+
+
 def mcmc_diagnostics(chains: np.ndarray, tau_factor: float, rhat_target: float, min_ess: float) -> dict:
     """R-hat, ESS and autocorrelation checks of ``chains``, shape (n_ensembles, steps, walkers, P).
 
@@ -285,7 +305,8 @@ def sample_posterior(model: PosteriorModel, rng: np.random.Generator, *, n_ensem
     n_start : int
         ``initial`` candidates per ensemble for its MAP search.
     max_draws : int
-        Total draws kept in the tree (chains thinned evenly).
+        Most draws kept in the tree: evenly spaced steps with all their walkers (one distinct walker
+        per step when fewer than ``n_walkers`` draws per ensemble fit).
     burn_fraction : float in [0, 0.9]
         Leading share of every chain discarded as burn-in.
     info_tol : float or None
@@ -411,9 +432,8 @@ def sample_posterior(model: PosteriorModel, rng: np.random.Generator, *, n_ensem
     lps = np.stack([s.get_log_prob() for s in samplers])[:, burn:]
     _, n, w, _ = kept.shape
     # one DataTree chain per ensemble; its draws run step by step over the walkers
-    kept, lps = kept.reshape(k, n * w, ndim), lps.reshape(k, n * w)
-    stride = max(1, math.ceil(k * n * w / max_draws))
-    kept, lps = kept[:, ::stride], lps[:, ::stride]
+    steps_kept, walkers_kept = _thin(n, w, max(1, int(max_draws) // k))
+    kept, lps = kept[:, steps_kept, walkers_kept], lps[:, steps_kept, walkers_kept]
     n = kept.shape[1]
     flat = kept.reshape(k * n, ndim)
     posterior = {q: flat[:, j].reshape(k, n) for j, q in enumerate(names)}

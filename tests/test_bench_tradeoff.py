@@ -73,3 +73,22 @@ def test_mcmc_model_peaks_at_the_exact_posterior_mean(bench):
     at_mean = gradient(prob["mean"], step)
     off_mean = gradient(prob["mean"] + 0.1 * prob["std"], step)
     assert np.abs(at_mean).max() < 1e-6 * np.abs(off_mean).max()
+
+
+def test_mcmc_model_log_density_is_the_exact_gaussian_up_to_a_constant(bench):
+    """log_prior + sum(log_likelihood) (the sampler's target, vectorized as the sampler calls it)
+    differs from the exact posterior's log density by one constant at random points."""
+    prob = bench.profile_problem()
+    model = bench.GaussianProfileModel(prob["matrix"], prob["data"], prob["noise"], prob["cov"])
+    precision = np.linalg.inv(prob["cov"]) + prob["matrix"].T @ prob["matrix"] / prob["noise"] ** 2
+    cov = np.linalg.inv(precision)
+    np.testing.assert_allclose(np.sqrt(np.diag(cov)), prob["std"], rtol=1e-10)
+    rng = np.random.default_rng(3)
+    points = rng.multivariate_normal(prob["mean"], 9 * cov, size=20)  # out to ~ 3 posterior sd and beyond
+    loglik = model.log_likelihood(points)
+    assert loglik.shape == (20, prob["data"].size)  # per observation, as PosteriorModel asks
+    target = model.log_prior(points) + loglik.sum(axis=1)
+    d = points - prob["mean"]
+    exact = -0.5 * np.einsum("ni,ij,nj->n", d, precision, d)
+    assert np.ptp(exact) > 50  # the points span a wide range of density
+    np.testing.assert_allclose(target - exact, (target - exact)[0], atol=1e-8 * np.ptp(exact))

@@ -13,7 +13,7 @@ import pytest
 
 from tactilab.inversion import PosteriorModel, sample_posterior
 from tactilab.inversion.mcmc import DefectPosterior
-from tactilab.inversion.sampler import _Target
+from tactilab.inversion.sampler import _Target, _thin
 from tactilab.inversion.scene_params import DefectScanModel, Normal, Uniform
 
 FAST = dict(n_walkers=8, check_every=200, max_steps=3000, min_ess=400, tau_factor=20, n_start=64)
@@ -280,3 +280,31 @@ def test_correlated_gaussian_map_start_and_moments(rng):
     assert ess > 200, tree.attrs["message"]
     np.testing.assert_array_less(np.abs(x.mean(axis=0) - mean), 5 * sd / np.sqrt(ess))
     np.testing.assert_array_less(np.abs(x.std(axis=0) / sd - 1), 5 / np.sqrt(2 * ess) + 0.05)
+
+
+def test_thinning_keeps_every_walker(rng):
+    """max_draws thins by steps, not by a stride over (step, walker): a stride of 60 over 24 walkers
+    kept only walkers 0 and 12 of every ensemble."""
+    model = toy(rng)
+    backends = [emcee.backends.Backend() for _ in range(4)]
+    tree = sample_posterior(model, rng, backend=backends, max_draws=480, info_tol=None,
+                            **dict(FAST, n_walkers=24, max_steps=400, check_every=400))
+    burn = int(tree.attrs["burn_in"])
+    x = draws(tree)
+    assert x.shape[0] <= 480
+    per_chain = x.reshape(4, -1, 2)
+    steps, walkers = _thin(400 - burn, 24, 120)
+    assert set(walkers.tolist()) == set(range(24)) and np.unique(steps).size == 5
+    assert steps[0] == 0 and steps[-1] == 400 - burn - 1  # spread over the whole kept chain
+    for chain, backend in zip(per_chain, backends):
+        np.testing.assert_array_equal(chain, backend.get_chain()[burn:][steps, walkers])
+
+
+def test_thin_with_fewer_draws_than_walkers():
+    steps, walkers = _thin(100, 24, 10)
+    assert steps.size == walkers.size == 10
+    assert np.unique(steps).size == 10 and np.unique(walkers).size == 10
+    assert steps[0] == 0 and steps[-1] == 99 and walkers.max() < 24
+    s_all, w_all = _thin(5, 4, 1000)  # everything fits: every state, step by step over the walkers
+    np.testing.assert_array_equal(s_all, np.repeat(np.arange(5), 4))
+    np.testing.assert_array_equal(w_all, np.tile(np.arange(4), 5))
