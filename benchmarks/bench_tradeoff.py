@@ -433,7 +433,7 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     if args.quick:
         forward = forward_rows(per_a=(4, 8), repeats=2)
-        inversion = inversion_rows(tols=(1e-3, 1e-8), steps=(200,), repeats=2)
+        inversion = inversion_rows(tols=(1e-3, 1e-8), steps=(1000,), repeats=2)
     else:
         forward = forward_rows()
         inversion = inversion_rows()
