@@ -401,7 +401,8 @@ def _advice(forward: list[dict], inversion: list[dict]) -> list[str]:
                      f"autocorrelation time is about {mc['tau']:.0f} steps; after {mc['setting']} "
                      f"({mc['time_ms'] / 1e3:.3g} s) the mean was {mc['error']:.1e} and the pointwise std "
                      f"{mc['std_error']:.1e} off the exact ones, Monte Carlo error of one run (so it does not "
-                     "fall steadily from setting to setting). The sampler calls a run converged only when the kept chain (after "
+                     "fall steadily from setting to setting). The sampler calls a run converged only when the "
+                     "kept chain (after "
                      f"its 25 % burn-in) is 50 tau long, here about {math.ceil(50 * mc['tau'] / 0.75):,} steps. "
                      "One run per setting, so its times are single measurements.")
     return lines

@@ -8,7 +8,8 @@ in a small ball around its OWN MAP estimate (best of the model's ``initial`` can
 the ensemble's own rng, polished by BFGS with a finite-difference gradient and then Nelder-Mead,
 both in scaled coordinates), so ensembles that find different modes disagree visibly. (Nelder-Mead
 alone stopped tens of posterior sd short of the mode in 10-16 dimensions; walkers started there
-took thousands of steps to reach the posterior or stayed stuck, inflating the pooled sd.) Every ``check_every`` steps, on the chains after burn-in:
+took thousands of steps to reach the posterior or stayed stuck, inflating the pooled sd.)
+Every ``check_every`` steps, on the chains after burn-in:
 
 - rank-normalised split R-hat (arviz_stats) between ensembles (each ensemble's draws, step by
   step over its walkers, pooled as one chain) < ``rhat_target``; the R-hat with every walker as
