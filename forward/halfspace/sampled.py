@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .continuous import ContinuousLoad, coarse_grid, refined_grid, sampling_error
+from .continuous import ContinuousLoad, coarse_grid, refined_grid, sampling_error, spectral_sampling_error
+from .fields import output_weights
 from .methods import AccuracyWarning, Method, user_stacklevel
 
 #: largest grid (nodes) the automatic refinement of a continuous load may choose
@@ -62,8 +63,11 @@ def _levels(hs, load: ContinuousLoad, shape, spacing, depths, comps, points, met
                 v = hs._solve(coarse, depths, comps, pts, "auto", tol, quantity, invariants).values
         levels.append(v)
         shapes.append(coarse.shape)
-    sampling, order = sampling_error(levels, None if pts is not None else shapes)
-    return fine, pts, sol, sampling, order
+    richardson, order = sampling_error(levels, None if pts is not None else shapes)
+    weights = output_weights(sol.quantity, comps, hs.E, hs.nu)
+    spectral = spectral_sampling_error(load, fine, depths, hs.nu, weights, band_limited=sol.chosen.name == "spectral",
+                                       peak=float(np.abs(sol.values).max()))
+    return fine, pts, sol, min(richardson, spectral), order, richardson, spectral
 
 
 def _needed_halvings(total: float, target: float, order: float) -> int | None:
@@ -88,7 +92,7 @@ def continuous_field(hs, load: ContinuousLoad, depths, points, comps, method, to
     while True:
         with warnings.catch_warnings(record=True) as caught:  # only the final grid's warnings reach the user
             warnings.simplefilter("always", AccuracyWarning)
-            fine, pts, sol, sampling, order = _levels(hs, load, shape, spacing, depths, comps, points, method, tol,
+            fine, pts, sol, sampling, order, richardson, spectral = _levels(hs, load, shape, spacing, depths, comps, points, method, tol,
                                                       quantity, invariants)
         total = sol.err + sampling
         # refining the grid shrinks the sampling error and the nodal methods' kernel-sampling error
@@ -104,7 +108,7 @@ def continuous_field(hs, load: ContinuousLoad, depths, points, comps, method, to
         warnings.warn(str(w.message), w.category, stacklevel=user_stacklevel())
     if total > tol and sampling > 0.5 * sol.err:
         _warn_sampling(sol, sampling, total, tol, shape, spacing, load, k)
-    extra = {"sampling_order": order, "grid_refinements": refinements,
+    extra = {"sampling_order": order, "sampling_richardson": richardson, "sampling_spectral": spectral, "grid_refinements": refinements,
              "sampled_spacing_m": tuple(float(h) for h in fine.spacing)}
     return hs._package(fine, sol, depths, comps, pts, invariants, error_covers="method+sampling",
                        sampling_estimate=sampling, extra=extra)
