@@ -11,7 +11,7 @@ import json
 from pathlib import Path
 
 from .batch_options import add_worker_options, batch_where, wants_batch
-from .common import make_out
+from .common import check_hypothesis, make_out
 
 NAME = "metamer"
 HELP = ("tactile metamer of a sinusoidal surface on a tractor display: residual, d' and tractor loads (N/mm) "
@@ -104,7 +104,6 @@ def _scan(args: argparse.Namespace) -> int:
     import numpy as np
 
     from tactilab.data_schemas.units import to_si
-    from tactilab.forward import ReceptorHypothesis
     from tactilab.inversion import metamer_scan
 
     target = _target(args.target)
@@ -113,7 +112,7 @@ def _scan(args: argparse.Namespace) -> int:
     phases = ([to_si(t.strip(), "dimensionless", name="--scan-phase") for t in args.scan_phase.split(",") if t.strip()]
               if args.scan_phase is not None else [target["phase"]])
     displays = [_display(t.strip()) for t in (args.scan_display or args.display).split(",") if t.strip()]
-    hypothesis = ReceptorHypothesis.parse(args.hypothesis).with_noise(_positive(args.noise, "dimensionless", "--noise"))
+    hypothesis = check_hypothesis(args.hypothesis, "--hypothesis").with_noise(_positive(args.noise, "dimensionless", "--noise"))
     window = _positive(args.window, "length", "--window")
     x = np.linspace(-window / 2, window / 2, _count(args.receptors, "--receptors", 2))
     out = make_out(args.out if args.out is not None else Path("metamer-scan"))
@@ -159,13 +158,12 @@ def run(args: argparse.Namespace) -> int:
         return _scan(args)
     import numpy as np
 
-    from tactilab.forward import ReceptorHypothesis
     from tactilab.inversion import SinusoidFamily, TractorFamily, metamer_pair, resolvable_subspace
 
     target_spec = _target(args.target)
     description = _display(args.display)
     noise = _positive(args.noise, "dimensionless", "--noise")
-    hypothesis = ReceptorHypothesis.parse(args.hypothesis).with_noise(noise)
+    hypothesis = check_hypothesis(args.hypothesis, "--hypothesis").with_noise(noise)
     young = _positive(args.young_modulus, "pressure", "--young-modulus")
     window = _positive(args.window, "length", "--window")
     x = np.linspace(-window / 2, window / 2, _count(args.receptors, "--receptors", 2))

@@ -140,8 +140,8 @@ def run(args: argparse.Namespace) -> int:
     say = (lambda *a: None) if args.json else print
     footprint = "d (half the tractor pitch)" if opts.footprint is None else f"{opts.footprint * 1e3:g} mm"
     say("tactile synthesis design (docs/theory.md 4a; plane strain, nu = 1/2, tractors as line loads)")
-    say(f"objective J(d) over x in [-w/2, w/2]; optimum = lowest non-trivial local minimum, d in "
-          f"[0.2 Z, 5 Z]; k2 = max S_Psi, k2p = S_Psi(d)")
+    say("objective J(d) over x in [-w/2, w/2]; optimum = lowest non-trivial local minimum, d in "
+          "[0.2 Z, 5 Z]; k2 = max S_Psi, k2p = S_Psi(d)")
     if opts.amplitude is not None:
         say(f"matching: A = {opts.amplitude * 1e6:g} µm at pitch p = 4d, E = {opts.young * 1e-3:g} kPa; "
               f"Q = line load (N/m), tau = Q / footprint, footprint = {footprint}")

@@ -154,3 +154,17 @@ def _json_default(value):
     if isinstance(value, Path):
         return str(value)
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def check_hypothesis(text: str, option: str):
+    """Parse a receptor hypothesis (``zx@1mm``) given on the command line; an error names the option.
+
+    Returns the parsed ``tactilab.forward.ReceptorHypothesis``; on bad input the library's own
+    message follows the option and the value.
+    """
+    from tactilab.forward import ReceptorHypothesis
+
+    try:
+        return ReceptorHypothesis.parse(text)
+    except ValueError as exc:
+        raise ValueError(f"{option} {text!r}: {' '.join(str(exc).split())}") from None

@@ -12,7 +12,7 @@ import math
 from pathlib import Path
 
 from .batch_options import add_worker_options, batch_where, wants_batch
-from .common import make_out
+from .common import check_hypothesis, make_out
 
 _JSON_HELP = "print one JSON object (the summary, SI units or units in the key names) instead of text"
 
@@ -120,6 +120,8 @@ def _sampler(args: argparse.Namespace) -> dict:
 
 
 def run_compare(args: argparse.Namespace) -> int:
+    for text in args.model:
+        check_hypothesis(text, "--model")
     if wants_batch(args):
         return _run_compare_batch(args)
     from tactilab.experiments.analysis import compare_sessions, plot_comparison
@@ -192,6 +194,8 @@ def run_power(args: argparse.Namespace) -> int:
     if args.seeds is None and (wants_batch(args) or args.trials is not None):
         raise ValueError("--seeds: --workers, --scheduler and --trials belong to the simulated sweep; give the number "
                          "of simulated power estimates per trial count, e.g. --seeds 4")
+    check_hypothesis(args.true_model, "--true")
+    check_hypothesis(args.rival, "--rival")
     design = read_design(args.design)
     true_model, rival = TransductionModel(args.true_model), TransductionModel(args.rival)
     threshold = args.threshold
