@@ -2,8 +2,12 @@
 
 For a :class:`~.continuous.ContinuousLoad` the reported ``error_estimate`` is the chosen method's
 estimate for the sampled nodal load plus the sampling error of representing the continuous load on
-the grid (:func:`~.continuous.sampling_error`, from solves at spacing 2h and 4h); the result's
-``attrs["error_covers"]`` is ``"method+sampling"``. With ``method="auto"``, when the total exceeds
+the grid: the smaller of two bounds, the Richardson bound from solves at spacing 2h and 4h
+(:func:`~.continuous.sampling_error`, tight for rough loads) and the spectral bound from the load
+sampled on a finer grid pushed through the depth's transfer (:func:`~.continuous.spectral_sampling_error`,
+tight for smooth loads; skipped when the Richardson bound is already below the method's estimate).
+Both are in the result's attributes (``sampling_richardson``, ``sampling_spectral``, NaN when
+skipped); ``attrs["error_covers"]`` is ``"method+sampling"``. With ``method="auto"``, when the total exceeds
 ``tol``, the grid is refined (the spacing halved k times, k predicted from the observed convergence
 order, then estimated again) as long as it stays within :data:`MAX_NODES`; otherwise an
 :class:`AccuracyWarning` names the spacing predicted to meet ``tol``.
@@ -64,6 +68,8 @@ def _levels(hs, load: ContinuousLoad, shape, spacing, depths, comps, points, met
         levels.append(v)
         shapes.append(coarse.shape)
     richardson, order = sampling_error(levels, None if pts is not None else shapes)
+    if richardson <= sol.err:  # the method's estimate dominates: the spectral one could lower the total < 2x
+        return fine, pts, sol, richardson, order, richardson, math.nan
     weights = output_weights(sol.quantity, comps, hs.E, hs.nu)
     spectral = spectral_sampling_error(load, fine, depths, hs.nu, weights, band_limited=sol.chosen.name == "spectral",
                                        peak=float(np.abs(sol.values).max()))
