@@ -259,7 +259,7 @@ def test_callable_traction_field_against_gaussian_quadrature():
     h; the Richardson bound (which trusts at most second-order convergence) erred large, 5x to 1e6x
     (true error 2.1e-9, estimate 1.9e-3 at 5 spacings). The spectral estimate (the load's content
     near and beyond the grid scale through the depth's transfer, forward/halfspace/continuous.py)
-    brings it to 2.5x to 3.3x; see docs/forward_methods.md."""
+    brings it to 3x to 4.3x; see docs/forward_methods.md."""
     width, p0 = 1.5 * H, -1e4
     n = 41
     field = TractionField(p=lambda x, y: p0 * np.exp(-(x**2 + y**2) / (2 * width**2)), shape=(n, n),
