@@ -69,6 +69,13 @@ def test_the_smaller_of_two_sampling_bounds_is_reported():
     load = CONTACT.load(friction=0.3, spacing=A / 8)
     attrs = HalfSpace(1e6).stress(load, A / 2, method="dcfft", tol=1.0).data.attrs
     assert attrs["sampling_error_estimate"] == min(attrs["sampling_richardson"], attrs["sampling_spectral"])
+    # a sinusoidal deflection: the Richardson bound is below the method's rounding estimate, the
+    # spectral bound is not computed (it could lower the total by less than 2x)
+    n, pitch = 64, 2e-3
+    sine = DeflectionLoad(lambda x: 2e-5 * np.sin(2 * np.pi * x / pitch), 2e5, 0.3, shape=n, spacing=pitch / n)
+    attrs = HalfSpace(2e5, 0.3).strain(sine, 0.5e-3).data.attrs
+    assert np.isnan(attrs["sampling_spectral"])
+    assert attrs["sampling_error_estimate"] == attrs["sampling_richardson"] <= attrs["method_error_estimate"]
 
 
 def test_auto_refines_the_grid_until_tol_is_met():
