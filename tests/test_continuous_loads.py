@@ -11,7 +11,9 @@ import pytest
 
 from tactilab.forward import (AccuracyWarning, DeflectionLoad, HalfSpace, HertzContact, SurfaceLoad,
                               TractionField)
-from tactilab.forward.halfspace.continuous import coarse_grid, refined_grid, shared_nodes, sampling_error
+from tactilab.forward.halfspace.continuous import (coarse_grid, refined_grid, sampling_error, shared_nodes,
+                                                  spectral_sampling_error)
+from tactilab.forward.halfspace.fields import output_weights
 
 CONTACT = HertzContact(0.5, finger_radius=0.01, young_modulus=1e6, poisson_ratio=0.5)
 A = CONTACT.contact_radius
@@ -38,6 +40,42 @@ def test_sampling_error_recovers_a_known_order():
     est, order = sampling_error([v[None, None] for v in levels], None)
     assert order == pytest.approx(2.0)
     assert est == pytest.approx(2 * 0.01 / levels[0][0], rel=1e-9)
+
+
+@pytest.mark.parametrize("shape", [(32,), (8, 32)])
+def test_spectral_sampling_estimate_sees_only_what_the_grid_misses(shape):
+    """A cosine of 3 periods is represented exactly by the trigonometric interpolant of its
+    samples (estimate at rounding level) but not by nodal forces, whose spectrum repeats beyond
+    the Nyquist wavenumber (images at k +- 2 pi / h, attenuated by the depth: the estimate falls
+    like (1 + k z) exp(-k z) with k = 2 pi / h - k0)."""
+    n, h = shape[-1], 1e-4
+    k0 = 2 * np.pi * 3 / (n * h)
+    f = (lambda x: 1e3 * np.cos(k0 * x)) if len(shape) == 1 else (lambda x, y: 1e3 * np.cos(k0 * x) + 0 * y)
+    load = TractionField(p=f, shape=shape, spacing=h, periodic=True)
+    coarse = load.nodal()
+    weights = output_weights("stress", ("zz",), 1e6, 0.3)
+    for depth in (0.5 * h, 2 * h):
+        depths = np.array([depth])
+        peak = 1e3 * (1 + k0 * depth) * np.exp(-k0 * depth)
+        exact = spectral_sampling_error(load, coarse, depths, 0.3, weights, band_limited=True, peak=peak)
+        assert exact < 1e-13
+        nodal = spectral_sampling_error(load, coarse, depths, 0.3, weights, band_limited=False, peak=peak)
+        k1 = 2 * np.pi / h - k0  # the nearest image; the estimate carries the safety factor 2 (1-D) or 3 (2-D)
+        image = (1 + k1 * depth) * np.exp(-k1 * depth) * 1e3 / peak
+        assert image < nodal < (4 if len(shape) == 1 else 8) * image  # 2-D: images at 2 pi / h along y too
+
+
+def test_the_smaller_of_two_sampling_bounds_is_reported():
+    load = CONTACT.load(friction=0.3, spacing=A / 8)
+    attrs = HalfSpace(1e6).stress(load, A / 2, method="dcfft", tol=1.0).data.attrs
+    assert attrs["sampling_error_estimate"] == min(attrs["sampling_richardson"], attrs["sampling_spectral"])
+    # a sinusoidal deflection: the Richardson bound is below the method's rounding estimate, the
+    # spectral bound is not computed (it could lower the total by less than 2x)
+    n, pitch = 64, 2e-3
+    sine = DeflectionLoad(lambda x: 2e-5 * np.sin(2 * np.pi * x / pitch), 2e5, 0.3, shape=n, spacing=pitch / n)
+    attrs = HalfSpace(2e5, 0.3).strain(sine, 0.5e-3).data.attrs
+    assert np.isnan(attrs["sampling_spectral"])
+    assert attrs["sampling_error_estimate"] == attrs["sampling_richardson"] <= attrs["method_error_estimate"]
 
 
 def test_auto_refines_the_grid_until_tol_is_met():

@@ -2,8 +2,12 @@
 
 For a :class:`~.continuous.ContinuousLoad` the reported ``error_estimate`` is the chosen method's
 estimate for the sampled nodal load plus the sampling error of representing the continuous load on
-the grid (:func:`~.continuous.sampling_error`, from solves at spacing 2h and 4h); the result's
-``attrs["error_covers"]`` is ``"method+sampling"``. With ``method="auto"``, when the total exceeds
+the grid: the smaller of two bounds, the Richardson bound from solves at spacing 2h and 4h
+(:func:`~.continuous.sampling_error`, tight for rough loads) and the spectral bound from the load
+sampled on a finer grid pushed through the depth's transfer (:func:`~.continuous.spectral_sampling_error`,
+tight for smooth loads; skipped when the Richardson bound is already below the method's estimate).
+Both are in the result's attributes (``sampling_richardson``, ``sampling_spectral``, NaN when
+skipped); ``attrs["error_covers"]`` is ``"method+sampling"``. With ``method="auto"``, when the total exceeds
 ``tol``, the grid is refined (the spacing halved k times, k predicted from the observed convergence
 order, then estimated again) as long as it stays within :data:`MAX_NODES`; otherwise an
 :class:`AccuracyWarning` names the spacing predicted to meet ``tol``.
@@ -17,7 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .continuous import ContinuousLoad, coarse_grid, refined_grid, sampling_error
+from .continuous import ContinuousLoad, coarse_grid, refined_grid, sampling_error, spectral_sampling_error
+from .fields import output_weights
 from .methods import AccuracyWarning, Method, user_stacklevel
 
 #: largest grid (nodes) the automatic refinement of a continuous load may choose
@@ -62,8 +67,13 @@ def _levels(hs, load: ContinuousLoad, shape, spacing, depths, comps, points, met
                 v = hs._solve(coarse, depths, comps, pts, "auto", tol, quantity, invariants).values
         levels.append(v)
         shapes.append(coarse.shape)
-    sampling, order = sampling_error(levels, None if pts is not None else shapes)
-    return fine, pts, sol, sampling, order
+    richardson, order = sampling_error(levels, None if pts is not None else shapes)
+    if richardson <= sol.err:  # the method's estimate dominates: the spectral one could lower the total < 2x
+        return fine, pts, sol, richardson, order, richardson, math.nan
+    weights = output_weights(sol.quantity, comps, hs.E, hs.nu)
+    spectral = spectral_sampling_error(load, fine, depths, hs.nu, weights, band_limited=sol.chosen.name == "spectral",
+                                       peak=float(np.abs(sol.values).max()))
+    return fine, pts, sol, min(richardson, spectral), order, richardson, spectral
 
 
 def _needed_halvings(total: float, target: float, order: float) -> int | None:
@@ -88,7 +98,7 @@ def continuous_field(hs, load: ContinuousLoad, depths, points, comps, method, to
     while True:
         with warnings.catch_warnings(record=True) as caught:  # only the final grid's warnings reach the user
             warnings.simplefilter("always", AccuracyWarning)
-            fine, pts, sol, sampling, order = _levels(hs, load, shape, spacing, depths, comps, points, method, tol,
+            fine, pts, sol, sampling, order, richardson, spectral = _levels(hs, load, shape, spacing, depths, comps, points, method, tol,
                                                       quantity, invariants)
         total = sol.err + sampling
         # refining the grid shrinks the sampling error and the nodal methods' kernel-sampling error
@@ -104,7 +114,7 @@ def continuous_field(hs, load: ContinuousLoad, depths, points, comps, method, to
         warnings.warn(str(w.message), w.category, stacklevel=user_stacklevel())
     if total > tol and sampling > 0.5 * sol.err:
         _warn_sampling(sol, sampling, total, tol, shape, spacing, load, k)
-    extra = {"sampling_order": order, "grid_refinements": refinements,
+    extra = {"sampling_order": order, "sampling_richardson": richardson, "sampling_spectral": spectral, "grid_refinements": refinements,
              "sampled_spacing_m": tuple(float(h) for h in fine.spacing)}
     return hs._package(fine, sol, depths, comps, pts, invariants, error_covers="method+sampling",
                        sampling_estimate=sampling, extra=extra)
