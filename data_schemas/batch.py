@@ -257,9 +257,15 @@ def batch_client(workers: int | None = None, scheduler: str | None = None, *, cl
     n = int(workers) if workers is not None else (os.cpu_count() or 1)
     import logging
 
+    import dask
+
     logging.getLogger("distributed").setLevel(logging.ERROR)  # no dashboard/bokeh chatter
-    with distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                                  env=dict(ONE_THREAD_ENV)) as cluster, distributed.Client(cluster) as cl:
+    # The workers' statistical profiler samples every thread's stack every 10 ms; with
+    # Python-heavy tasks (emcee) it took ~10 % of each task's time (docs/scale-out.md). The
+    # nannies pass this config to the worker processes they start.
+    with dask.config.set({"distributed.worker.profile.enabled": False}), \
+            distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                     env=dict(ONE_THREAD_ENV)) as cluster, distributed.Client(cluster) as cl:
         echo(f"dask: LocalCluster of {n} worker process(es) x 1 thread, dashboard {cl.dashboard_link}")
         yield cl
 
