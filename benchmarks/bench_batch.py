@@ -72,9 +72,10 @@ def _peak_rss_mib() -> float:
 def _cluster(n: int):
     import distributed
 
+    from tactilab.data_schemas.batch import local_cluster
+
     t0 = time.perf_counter()
-    cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                                       env={"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"})
+    cluster = local_cluster(n, dashboard_address=None)  # the cluster a batch starts
     client = distributed.Client(cluster)
     return cluster, client, time.perf_counter() - t0
 
@@ -244,8 +245,8 @@ def main(argv=None) -> None:
         if args.recordings:
             rows = bench_recordings(args.recordings, workers, tmp)
             print(f"\n{args.recordings} defect-scan recordings, one task each")
-            print(f"| run | start-up (s) | wall (s) | speedup | compute per task (s) | busy | overhead per task (ms) "
-                  f"| peak RSS per worker (MiB) | bitwise = serial |\n|---|---|---|---|---|---|---|---|---|")
+            print("| run | start-up (s) | wall (s) | speedup | compute per task (s) | busy | overhead per task (ms) "
+                  "| peak RSS per worker (MiB) | bitwise = serial |\n|---|---|---|---|---|---|---|---|---|")
             for r in rows:
                 print(f"| {r['run']} | {r['start']:.1f} | {r['wall']:.1f} | {r['speedup']:.2f} | {r['compute']:.2f} | "
                       f"{r['busy']:.2f} | {1e3 * r['overhead']:.0f} | {r['rss']:.0f} | {'yes' if r['same'] else 'NO'} |")

@@ -257,17 +257,25 @@ def batch_client(workers: int | None = None, scheduler: str | None = None, *, cl
     n = int(workers) if workers is not None else (os.cpu_count() or 1)
     import logging
 
-    import dask
-
     logging.getLogger("distributed").setLevel(logging.ERROR)  # no dashboard/bokeh chatter
-    # The workers' statistical profiler samples every thread's stack every 10 ms; with
-    # Python-heavy tasks (emcee) it took ~10 % of each task's time (docs/scale-out.md). The
-    # nannies pass this config to the worker processes they start.
-    with dask.config.set({"distributed.worker.profile.enabled": False}), \
-            distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                                     env=dict(ONE_THREAD_ENV)) as cluster, distributed.Client(cluster) as cl:
+    with local_cluster(n) as cluster, distributed.Client(cluster) as cl:
         echo(f"dask: LocalCluster of {n} worker process(es) x 1 thread, dashboard {cl.dashboard_link}")
         yield cl
+
+
+def local_cluster(n: int, dashboard_address: str | None = ":0"):
+    """A ``distributed.LocalCluster`` of ``n`` one-thread worker processes set up for batches.
+
+    One BLAS/OpenMP thread per worker (:data:`ONE_THREAD_ENV`), and no statistical profiler on the
+    workers: it samples every thread's stack every 10 ms, which Python-heavy tasks (emcee) pay for.
+    The nannies hand this configuration to the worker processes they start.
+    """
+    import dask
+    import distributed
+
+    with dask.config.set({"distributed.worker.profile.enabled": False}):
+        return distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                        dashboard_address=dashboard_address, env=dict(ONE_THREAD_ENV))
 
 
 def _validate(keys: list, per_task: int) -> None:
