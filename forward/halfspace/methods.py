@@ -46,6 +46,11 @@ class Problem:
         """Length in m over which the load varies: :func:`load_width` of the load (cached)."""
         return load_width(self.load)
 
+    @functools.cached_property
+    def estimates(self) -> dict:
+        """Memo of :meth:`Method.error_estimate` per method instance (the problem is immutable)."""
+        return {}
+
     @property
     def stress_rows(self) -> list[int]:
         """Voigt stress components the outputs depend on."""
@@ -114,11 +119,14 @@ class Method(ABC):
         return None
 
     def error_estimate(self, problem: Problem) -> float:
-        """Estimated max error relative to the field's peak magnitude."""
-        err = self._error(problem)
-        if problem.dtype == np.float32:
-            err += 5e-7 * np.log2(max(problem.n_eval, 2))
-        return float(err)
+        """Estimated max error relative to the field's peak magnitude (computed once per problem)."""
+        memo = problem.estimates
+        if self not in memo:
+            err = self._error(problem)
+            if problem.dtype == np.float32:
+                err += 5e-7 * np.log2(max(problem.n_eval, 2))
+            memo[self] = float(err)
+        return memo[self]
 
     def cost(self, problem: Problem) -> float:
         """A flop-count model used only to rank methods."""
