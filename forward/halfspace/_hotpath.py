@@ -19,6 +19,22 @@ the system and asks again) as on its FFTs. So
 - :func:`work_buffers` keeps one set of spectrum-sized work arrays per thread (for grids whose
   buffers stay below :data:`BUFFER_BYTES`), so repeated calls reuse warm memory.
 
+Where a facade call goes now (``HalfSpace.stress(load, 1 mm, method="spectral")``, p + qx + qy,
+six components, one depth, float64, one thread; minimum over 201 (256^2) and 61 (512^2)
+interleaved repeats at a load average of 3.9 on 2 shared cores, in units of the FFT floor of
+3 ``rfft2`` + 6 ``irfft2``): the three forward transforms 0.29 / 0.34 (the floor's own: 0.30 /
+0.34), the 30 multiply-add passes of :func:`apply` 0.33 / 0.36, the six inverse transforms
+0.66 / 0.63 (the floor's: 0.60 / 0.62); ``periodic_stress`` 1.34 / 1.38 in all, the facade 1.4
+to 1.5 (docs/forward_benchmark.md, Table 0). Measured and not kept:
+tables stored for eta >= 0 only and mirrored (half the table memory, no faster: the extra
+half-size calls and reversed rows cost what the smaller tables save), real tables applied through
+float views or with a cast (slower than complex x complex: numpy's complex multiply is
+vectorised, its broadcast over a pair axis is not), batched forward or inverse transforms over
+the loads or outputs (no faster), ``np.einsum`` / ``np.vecdot`` / ``np.matmul`` over the loads
+(slower), blocking the passes for cache (no faster). Each pass is memory-bound (about 17 us per
+pass over a 256^2 half spectrum hot in L2), so what is left is the number of passes, which numpy
+cannot fuse.
+
 ``workers``: None means scipy's default (1 thread unless inside ``scipy.fft.set_workers``);
 results are bitwise the same for any number of workers (tests/test_forward_spectral.py).
 """
