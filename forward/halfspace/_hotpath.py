@@ -19,13 +19,14 @@ the system and asks again) as on its FFTs. So
 - :func:`work_buffers` keeps one set of spectrum-sized work arrays per thread (for grids whose
   buffers stay below :data:`BUFFER_BYTES`), so repeated calls reuse warm memory.
 
-Where a facade call goes now (``HalfSpace.stress(load, 1 mm, method="spectral")``, p + qx + qy,
-six components, one depth, float64, one thread; minimum over 201 (256^2) and 61 (512^2)
-interleaved repeats at a load average of 3.9 on 2 shared cores, in units of the FFT floor of
-3 ``rfft2`` + 6 ``irfft2``): the three forward transforms 0.29 / 0.34 (the floor's own: 0.30 /
-0.34), the 30 multiply-add passes of :func:`apply` 0.33 / 0.36, the six inverse transforms
-0.66 / 0.63 (the floor's: 0.60 / 0.62); ``periodic_stress`` 1.34 / 1.38 in all, the facade 1.4
-to 1.5 (docs/forward_benchmark.md, Table 0). Measured and not kept:
+Where a facade call goes now (``benchmarks/bench_forward.py --phases``, Table 0b of
+docs/forward_benchmark.md: ``HalfSpace.stress(load, 1 mm, method="spectral")``, p + qx + qy, six
+components, one depth, float64, one thread; minima over 101 interleaved repeats at a load average
+of 3.7 to 4.0 on 2 shared cores, in units of the FFT floor of 3 ``rfft2`` + 6 ``irfft2``, at
+256^2 / 512^2): the three forward transforms 0.29 / 0.35 (the floor's own: 0.32 / 0.33), the 30
+multiply-add passes of :func:`apply` 0.38 / 0.36, the six inverse transforms 0.73 / 0.67 (the
+floor's: 0.65 / 0.64); ``periodic_stress`` 1.46 / 1.42 in all, the facade 1.45 to 1.65 between
+runs (Table 0). Measured and not kept:
 tables stored for eta >= 0 only and mirrored (half the table memory, no faster: the extra
 half-size calls and reversed rows cost what the smaller tables save), real tables applied through
 float views or with a cast (slower than complex x complex: numpy's complex multiply is
