@@ -1,7 +1,9 @@
 """Benchmark: adaptive model discrimination against the method of constant stimuli.
 
 Run: ``python benchmarks/bench_design.py [--observers 50] [--max-trials 5000] [--calibration 200]
-[--tables 1234]``
+[--tables 1234] [--seed-offset 0] [--adaptive-only]`` (``--seed-offset N`` shifts the observers'
+seeds of tables 1 and 4 by N: a development set apart from the reported one; ``--adaptive-only``
+runs only table 1's adaptive rows).
 
 Scenarios (2IFC against a blank interval, ideal surface, peak statistic):
 
@@ -17,7 +19,9 @@ on [0, 0.04]; responses are Bernoulli draws from the model's 2IFC link (what
 ``SimulatedObserver.from_model`` answers). Every design uses the same grid posterior and the same
 stopping rule (a model at 0.99 that is not metameric with a rival over the stimuli shown):
 
-- adaptive: :class:`ModelDiscrimination` (``utility="model"``);
+- adaptive: :class:`ModelDiscrimination` with its default ``utility="odds"`` (the expected
+  increase of the true model's log posterior odds) and, for comparison, ``utility="model"``
+  (the mutual information I(Y; m));
 - constant stimuli: every candidate once per block, in a new random order each block;
 - best prior allocation: fixed proportions over the candidates, chosen in advance to maximise
   the per-trial rate mu / sigma of ``power_analysis`` averaged over 16 draws per model from the
@@ -80,12 +84,13 @@ def _observer(design, truth, rng):
 
 
 def _run(models, candidates, truth, seed, design_kind, max_trials, allocation=None, fine=None, n_grid=(25, 9),
-         stop=0.99):
+         stop=0.99, utility="odds"):
     """One simulated session. ``design_kind``: adaptive, constant, allocation (fixed weights) or
     bound (the best allocation for this observer's true parameters, computed here).
     Returns (trials, winner, true name, P(winner) at the end, allocation rate or None)."""
     rng = np.random.default_rng(seed)
-    d = ModelDiscrimination(models, candidates, rng=seed, max_trials=max_trials, n_grid=n_grid, stop_probability=stop)
+    d = ModelDiscrimination(models, candidates, rng=seed, max_trials=max_trials, n_grid=n_grid, stop_probability=stop,
+                            utility=utility)
     p, theta = _observer(d, truth, rng)
     rate = None
     if design_kind == "bound":
@@ -210,60 +215,68 @@ def _summary(rows, n_observers):
     return n, wrong, undecided
 
 
-def table_trials(n_observers, max_trials, n_prior=16):
+def table_trials(n_observers, max_trials, n_prior=16, seed_offset=0, adaptive_only=False):
     print(f"Table 1 -- trials to 0.99 posterior probability, {n_observers} simulated observers per scenario")
     print(f"{'scenario':24s} {'design':26s} {'rate':>7s} {'median':>7s} {'p90':>7s} {'wrong':>9s} "
           f"{'undecided':>10s} {'wall s':>7s}")
     for name, (hyps, cands) in SCENARIOS.items():
         models = [TransductionModel(h) for h in hyps]  # statistics computed once, shared by every run
         t0 = time.perf_counter()
-        design = ModelDiscrimination(models, cands, max_trials=max_trials)
-        fine = ModelDiscrimination(models, cands, n_grid=(49, 17), max_trials=max_trials)
-        truths = prior_truths(design, n_prior, np.random.default_rng(7))
-        uniform = np.full(len(cands), 1.0 / len(cands))
-        cs_rate, _ = verified_rate(uniform, truths, design, design.candidates)
-        prior_w, prior_rate, support, mix = best_allocation(truths, design, fine, design.candidates)
-        print(f"{'':24s} (prior-chosen allocation: {support} candidates, {mix:.0%} uniform mixed in; "
-              f"prior-mean rate mu/sigma {prior_rate:.4f} vs {cs_rate:.4f} for constant stimuli; "
-              f"{time.perf_counter() - t0:.0f} s)")
+        designs = [("adaptive", "adaptive", None, None), ('adaptive, utility="model"', "model", None, None)]
+        fine = None
+        if not adaptive_only:
+            design = ModelDiscrimination(models, cands, max_trials=max_trials)
+            fine = ModelDiscrimination(models, cands, n_grid=(49, 17), max_trials=max_trials)
+            truths = prior_truths(design, n_prior, np.random.default_rng(7))
+            uniform = np.full(len(cands), 1.0 / len(cands))
+            cs_rate, _ = verified_rate(uniform, truths, design, design.candidates)
+            prior_w, prior_rate, support, mix = best_allocation(truths, design, fine, design.candidates)
+            print(f"{'':24s} (prior-chosen allocation: {support} candidates, {mix:.0%} uniform mixed in; "
+                  f"prior-mean rate mu/sigma {prior_rate:.4f} vs {cs_rate:.4f} for constant stimuli; "
+                  f"{time.perf_counter() - t0:.0f} s)")
+            designs += [("constant stimuli", "constant", None, cs_rate),
+                        ("best prior allocation", "allocation", prior_w, prior_rate),
+                        ("bound: true-param alloc.", "bound", None, None)]
         medians = {}
-        for label, kind, w, rate in (("adaptive", "adaptive", None, None),
-                                     ("constant stimuli", "constant", None, cs_rate),
-                                     ("best prior allocation", "allocation", prior_w, prior_rate),
-                                     ("bound: true-param alloc.", "bound", None, None)):
+        for label, kind, w, rate in designs:
             t0 = time.perf_counter()
             if rate == 0.0:
                 print(f"{name:24s} {label:26s} {0:7.4f}  rate 0: the rival fits this design exactly, it never decides")
                 continue
-            rows = [_run(models, cands, k * 2 // n_observers, 1000 + k, kind, max_trials, w, fine)
-                    for k in range(n_observers)]
+            rows = [_run(models, cands, k * 2 // n_observers, seed_offset + 1000 + k,
+                         "adaptive" if kind == "model" else kind, max_trials, w, fine,
+                         utility="model" if kind == "model" else "odds") for k in range(n_observers)]
             n, wrong, undecided = _summary(rows, n_observers)
             if kind == "bound":
                 rates = np.array([r[4] for r in rows])
                 rate = float(np.median(rates))
                 zero = int(np.sum(rates == 0))
             medians[label] = float(np.median(n))
-            print(f"{name:24s} {label:26s} {rate if rate is not None else float('nan'):7.4f} {np.median(n):7.0f} "
+            print(f"{name:24s} {label:26s} {rate if rate is not None else float('nan'):7.4f} {np.median(n):7.1f} "
                   f"{np.percentile(n, 90):7.0f} {wrong:3d} ({wrong / n_observers:4.0%}) {undecided:3d} ({undecided / n_observers:4.0%})"
                   f" {time.perf_counter() - t0:7.1f}" + (f"  [{zero} observers: rate 0]" if kind == "bound" and zero else ""))
+        odds_model = medians["adaptive"] / medians['adaptive, utility="model"']
+        if adaptive_only:
+            print(f"{'':24s} utility odds / model {odds_model:.2f}")
+            continue
         ratio = medians["adaptive"] / medians["constant stimuli"]
         prior_ratio = medians["adaptive"] / medians.get("best prior allocation", math.inf)
-        print(f"{'':24s} adaptive / constant stimuli {ratio:.2f} (goal <= 0.25); adaptive / best prior allocation "
-              f"{prior_ratio:.2f} (goal < 1)")
+        print(f"{'':24s} adaptive / constant stimuli {ratio:.3f} (goal <= 0.25); adaptive / best prior allocation "
+              f"{prior_ratio:.2f} (goal < 1); utility odds / model {odds_model:.2f}")
 
 
-def table_calibration(n_observers, max_trials):
+def table_calibration(n_observers, max_trials, seed_offset=0):
     """Among adaptive runs that stop with a winner at P >= stop, the share that is wrong: a calibrated
     posterior gives at most 1 - stop, and about the sum over runs of 1 - P(winner) wrong runs."""
     print(f"\nTable 4 -- calibration of the stopping rule: {n_observers} adaptive observers per scenario and level "
-          "(seeds 5000+, not those of table 1)")
+          f"(seeds {5000 + seed_offset}+, not those of table 1)")
     print(f"{'scenario':24s} {'stop at':>7s} {'median':>7s} {'wrong':>13s} {'expected if calibrated':>23s} "
           f"{'undecided':>9s} {'wall s':>7s}")
     for name, (hyps, cands) in SCENARIOS.items():
         models = [TransductionModel(h) for h in hyps]
         for stop in (0.9, 0.99):
             t0 = time.perf_counter()
-            rows = [_run(models, cands, k * 2 // n_observers, 5000 + k, "adaptive", max_trials, stop=stop)
+            rows = [_run(models, cands, k * 2 // n_observers, seed_offset + 5000 + k, "adaptive", max_trials, stop=stop)
                     for k in range(n_observers)]
             n, wrong, undecided = _summary(rows, n_observers)
             expected = float(np.nansum([1 - r[3] for r in rows]))
@@ -275,7 +288,7 @@ def table_selection():
     print("\nTable 2 -- selection time per trial, 200 candidates (2 models, grid 28 x 9 x 4 per model)")
     cands = _grid(("sinusoid",), np.geomspace(2e-6, 6e-5, 20), np.geomspace(0.8e-3, 8e-3, 10))
     models = [TransductionModel(h) for h in ("zx@1mm", "zx@2mm")]
-    for utility in ("model", "parameters", "both"):
+    for utility in ("odds", "model", "parameters", "both"):
         d = ModelDiscrimination(models, cands, utility=utility, rng=0)
         rng = np.random.default_rng(0)
         d.choose()  # warm-up (first call allocates)
@@ -324,17 +337,21 @@ def main():
     parser.add_argument("--max-trials", type=int, default=5000)
     parser.add_argument("--calibration", type=int, default=200, help="observers per scenario in table 4 (0: skip)")
     parser.add_argument("--tables", default="1234", help="which tables to print, e.g. 14")
+    parser.add_argument("--adaptive-only", action="store_true",
+                        help="table 1: only the adaptive rows (both utilities), no allocations (fast)")
+    parser.add_argument("--seed-offset", type=int, default=0,
+                        help="added to the observers' seeds of tables 1 and 4 (a development set; default 0 reports)")
     args = parser.parse_args()
     warnings.simplefilter("ignore")  # metameric warnings of sub-designs are expected
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs at start")
     if "1" in args.tables:
-        table_trials(args.observers, args.max_trials)
+        table_trials(args.observers, args.max_trials, seed_offset=args.seed_offset, adaptive_only=args.adaptive_only)
     if "2" in args.tables:
         table_selection()
     if "3" in args.tables:
         table_grid_accuracy()
     if "4" in args.tables and args.calibration:
-        table_calibration(args.calibration, args.max_trials)
+        table_calibration(args.calibration, args.max_trials, seed_offset=args.seed_offset)
 
 
 if __name__ == "__main__":

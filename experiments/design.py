@@ -1,16 +1,22 @@
 """Adaptive design that tells transduction hypotheses apart: :class:`ModelDiscrimination`.
 
-Each trial shows the candidate stimulus whose response is expected to say most about WHICH
-model (receptor hypothesis) the observer uses: the mutual information between the next binary
-response Y and the model index m, computed exactly over Y in {correct, incorrect},
+Each trial shows the candidate stimulus whose response is expected to move the posterior most
+towards the model (receptor hypothesis) the observer uses. The default ``utility="odds"`` is the
+expected increase of the log posterior odds log(pi_m / (1 - pi_m)) of the model m that
+generates the response, m drawn from the posterior, computed exactly over the binary response
+(the extrinsic Jensen-Shannon divergence of Naghshvar and Javidi 2013, "Active sequential
+hypothesis testing"):
 
-    I(Y; m) = H(sum_m pi_m p_mc) - sum_m pi_m H(p_mc),   p_mc = sum_g w_g|m P(correct | c, m, g),
+    U(c) = sum_m pi_m KL(p_mc || sum_{j != m} pi_j p_jc / (1 - pi_m)),
+    p_mc = sum_g w_g|m P(correct | c, m, g),
 
 with ``pi_m`` the posterior model probabilities, ``w_g|m`` the posterior over the parameter
-grid g = (threshold_strain, exponent, lapse) within model m and H the binary
-entropy in nats (Cavagnaro, Myung, Pitt and Kujala 2010). ``utility="parameters"`` uses
-I(Y; theta | m) = sum_m pi_m [H(p_mc) - sum_g w_g|m H(P_cmg)] and ``"both"`` their sum
-I(Y; m, theta) (chain rule).
+grid g = (threshold_strain, exponent, lapse) within model m and KL between Bernoulli laws in
+nats. The session stops when a model's posterior probability, i.e. its log-odds, reaches a
+level, so this is the quantity the stopping rule measures. ``utility="model"`` is the mutual
+information I(Y; m) = H(sum_m pi_m p_mc) - sum_m pi_m H(p_mc) (H the binary entropy; Cavagnaro,
+Myung, Pitt and Kujala 2010), ``"parameters"`` I(Y; theta | m) = sum_m pi_m [H(p_mc) -
+sum_g w_g|m H(P_cmg)] and ``"both"`` their sum I(Y; m, theta) (chain rule).
 
 The state is a joint posterior on a GRID (not particles): the likelihood of a trial is one
 row of a precomputed table P[c, m, g], so the update is an exact Bayes step (an addition of
@@ -50,7 +56,7 @@ from .tasks import PlannedStimulus
 __all__ = ["ModelDiscrimination", "ModelDiscriminationConfig", "UTILITIES", "information_gain", "metameric_groups",
            "from_config"]
 
-UTILITIES = ("model", "parameters", "both")
+UTILITIES = ("odds", "model", "parameters", "both")
 _LAPSES = (0.0, 0.01, 0.03, 0.08)
 _RELATIVE_THRESHOLDS = (1e-2, 3.0)  # threshold grid range / the models' largest candidate statistics
 _EXPONENTS = (0.4, 3.0)
@@ -62,7 +68,7 @@ def _key(candidate) -> str:
 
 
 class ModelDiscrimination(Procedure):
-    """Adaptive stimulus selection that maximises the expected information about the model.
+    """Adaptive stimulus selection that maximises the expected evidence for the true model.
 
     Parameters
     ----------
@@ -76,7 +82,10 @@ class ModelDiscrimination(Procedure):
         ``model`` (one probability per model, default uniform), ``exponent``, ``lapse`` (objects
         with ``logpdf``, e.g. scipy.stats frozen; defaults lognormal with median 1 and log-sd 0.5,
         and Beta(1, 10) on [0, 0.5]). The threshold prior is log-uniform over the grid.
-    utility : {"model", "parameters", "both"}
+    utility : {"odds", "model", "parameters", "both"}
+        ``"odds"`` (default): the expected increase of the true model's log posterior odds;
+        ``"model"``: I(Y; m); ``"parameters"``: I(Y; theta | m); ``"both"``: I(Y; m, theta)
+        (docs/adaptive_design.md, "The utility").
     n_grid : int or (int, int)
         Threshold grid points (and exponent grid points; default 25 and 9), log-spaced.
     stop_probability : float
@@ -100,7 +109,7 @@ class ModelDiscrimination(Procedure):
 
     _STATE_KEYS = ("log_posterior",)
 
-    def __init__(self, models, candidates, *, priors: Mapping | None = None, utility: str = "model",
+    def __init__(self, models, candidates, *, priors: Mapping | None = None, utility: str = "odds",
                  n_grid: int | tuple[int, int] = (25, 9), stop_probability: float = 0.99, max_trials: int = 500,
                  rng=None, task: str = "2ifc", config=None, parameter: str = "amplitude_m") -> None:
         super().__init__(config)
@@ -210,7 +219,7 @@ class ModelDiscrimination(Procedure):
         self.table = table
         self._log_p = np.log(np.clip(table, 1e-300, 1))
         self._log_q = np.log(np.clip(1 - table, 1e-300, 1))
-        self._entropy_table = _entropy(table) if self.utility != "model" else None
+        self._entropy_table = _entropy(table) if self.utility in ("parameters", "both") else None
         log_w = log_w - np.logaddexp.reduce(log_w)
         self._log_posterior = np.log(pm / pm.sum())[:, None] + log_w[None, :]  # (M, G)
 
@@ -263,7 +272,7 @@ class ModelDiscrimination(Procedure):
 
     # ----- choice and update ------------------------------------------------------------------
     def utilities(self) -> np.ndarray:
-        """Expected information (nats) of each candidate (canonical order), shape (n_candidates,)."""
+        """The utility (nats) of each candidate (canonical order), shape (n_candidates,)."""
         return information_gain(self.table, self.weights(), self.utility, self._entropy_table, self._groups)
 
     def choose(self, rng: np.random.Generator | None = None) -> int:

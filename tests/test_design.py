@@ -19,7 +19,8 @@ def _sines(amps=(3e-6, 8e-6, 2e-5, 5e-5), pitches=(1.5e-3, 3e-3, 6e-3)):
 
 
 def _brute(table, w, utility):
-    """I(Y; m), I(Y; theta | m) and I(Y; m, theta) by enumerating every (y, m, g)."""
+    """I(Y; m), I(Y; theta | m), I(Y; m, theta), and the expected change of the generating model's
+    log posterior odds ("odds"), by enumerating every (y, m, g) and applying Bayes' rule."""
     n_c, n_m, n_g = table.shape
     out = []
     for c in range(n_c):
@@ -38,23 +39,28 @@ def _brute(table, w, utility):
         py, pm, pym, pmg = marg([0]), marg([1]), marg([0, 1]), marg([1, 2])
         i_model = sum(v * math.log(v / (py[(y,)] * pm[(m,)])) for (y, m), v in pym.items() if v > 0)
         i_both = sum(v * math.log(v / (py[(y,)] * pmg[(m, g)])) for (y, m, g), v in joint.items() if v > 0)
-        out.append({"model": i_model, "parameters": i_both - i_model, "both": i_both}[utility])
+        # "odds": E over (m, g, y) of log-odds of m after y (by Bayes' rule) minus log-odds of m before
+        odds = sum(v * (math.log(pym[(y, m)] / (py[(y,)] - pym[(y, m)])) - math.log(pm[(m,)] / (1 - pm[(m,)])))
+                   for (y, m, g), v in joint.items() if v > 0)
+        out.append({"model": i_model, "parameters": i_both - i_model, "both": i_both, "odds": odds}[utility])
     return np.array(out)
 
 
-@pytest.mark.parametrize("utility", ["model", "parameters", "both"])
+@pytest.mark.parametrize("utility", ["odds", "model", "parameters", "both"])
 def test_information_gain_matches_brute_force_enumeration(utility):
     rng = np.random.default_rng(4)
     table = rng.uniform(0.02, 0.98, (5, 3, 4))
     w = rng.random((3, 4))
     w /= w.sum()
     np.testing.assert_allclose(information_gain(table, w, utility), _brute(table, w, utility), rtol=1e-9, atol=1e-12)
-    if utility == "model":  # about metameric groups: models 0 and 1 merged into one model
+    if utility in ("model", "odds"):  # about metameric groups: models 0 and 1 merged into one model
         merged_w = np.concatenate([w[:2].reshape(1, -1), np.pad(w[2:], ((0, 0), (0, 4)))])
         merged_t = np.concatenate([table[:, :2].reshape(5, 1, -1), np.pad(table[:, 2:], ((0, 0), (0, 0), (0, 4)),
                                                                            constant_values=0.5)], axis=1)
-        np.testing.assert_allclose(information_gain(table, w, "model", groups=np.array([0, 0, 1])),
-                                   _brute(merged_t, merged_w, "model"), rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(information_gain(table, w, utility, groups=np.array([0, 0, 1])),
+                                   _brute(merged_t, merged_w, utility), rtol=1e-9, atol=1e-12)
+    if utility == "odds":  # every model in one group: no odds to gain
+        np.testing.assert_array_equal(information_gain(table, w, "odds", groups=np.array([0, 0, 0])), 0.0)
 
 
 def test_choice_is_invariant_to_candidate_order():
