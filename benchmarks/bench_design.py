@@ -19,9 +19,9 @@ on [0, 0.04]; responses are Bernoulli draws from the model's 2IFC link (what
 ``SimulatedObserver.from_model`` answers). Every design uses the same grid posterior and the same
 stopping rule (a model at 0.99 that is not metameric with a rival over the stimuli shown):
 
-- adaptive: :class:`ModelDiscrimination` with its default ``utility="odds"`` (the expected
-  increase of the true model's log posterior odds) and, for comparison, ``utility="model"``
-  (the mutual information I(Y; m));
+- adaptive: :class:`ModelDiscrimination` with ``utility="odds"`` (the expected increase of the
+  true model's log posterior odds) and with its default ``utility="model"`` (the mutual
+  information I(Y; m));
 - constant stimuli: every candidate once per block, in a new random order each block;
 - best prior allocation: fixed proportions over the candidates, chosen in advance to maximise
   the per-trial rate mu / sigma of ``power_analysis`` averaged over 16 draws per model from the
@@ -81,6 +81,9 @@ def _observer(design, truth, rng):
     theta = [float(np.median(s[:, 0]) * math.exp(rng.uniform(math.log(0.3), math.log(3)))),
              float(1.2 * math.exp(0.25 * rng.standard_normal())), float(rng.uniform(0, 0.04))]
     return p_correct_table("2ifc", s[:, 0], s[:, 1], np.array([theta]))[0], np.array(theta)
+
+
+ODDS, MODEL = 'adaptive, utility="odds"', 'adaptive, "model" (default)'
 
 
 def _run(models, candidates, truth, seed, design_kind, max_trials, allocation=None, fine=None, n_grid=(25, 9),
@@ -217,12 +220,12 @@ def _summary(rows, n_observers):
 
 def table_trials(n_observers, max_trials, n_prior=16, seed_offset=0, adaptive_only=False):
     print(f"Table 1 -- trials to 0.99 posterior probability, {n_observers} simulated observers per scenario")
-    print(f"{'scenario':24s} {'design':26s} {'rate':>7s} {'median':>7s} {'p90':>7s} {'wrong':>9s} "
+    print(f"{'scenario':24s} {'design':28s} {'rate':>7s} {'median':>7s} {'p90':>7s} {'wrong':>9s} "
           f"{'undecided':>10s} {'wall s':>7s}")
     for name, (hyps, cands) in SCENARIOS.items():
         models = [TransductionModel(h) for h in hyps]  # statistics computed once, shared by every run
         t0 = time.perf_counter()
-        designs = [("adaptive", "adaptive", None, None), ('adaptive, utility="model"', "model", None, None)]
+        designs = [(ODDS, "adaptive", None, None), (MODEL, "model", None, None)]
         fine = None
         if not adaptive_only:
             design = ModelDiscrimination(models, cands, max_trials=max_trials)
@@ -241,7 +244,7 @@ def table_trials(n_observers, max_trials, n_prior=16, seed_offset=0, adaptive_on
         for label, kind, w, rate in designs:
             t0 = time.perf_counter()
             if rate == 0.0:
-                print(f"{name:24s} {label:26s} {0:7.4f}  rate 0: the rival fits this design exactly, it never decides")
+                print(f"{name:24s} {label:28s} {0:7.4f}  rate 0: the rival fits this design exactly, it never decides")
                 continue
             rows = [_run(models, cands, k * 2 // n_observers, seed_offset + 1000 + k,
                          "adaptive" if kind == "model" else kind, max_trials, w, fine,
@@ -252,17 +255,19 @@ def table_trials(n_observers, max_trials, n_prior=16, seed_offset=0, adaptive_on
                 rate = float(np.median(rates))
                 zero = int(np.sum(rates == 0))
             medians[label] = float(np.median(n))
-            print(f"{name:24s} {label:26s} {rate if rate is not None else float('nan'):7.4f} {np.median(n):7.1f} "
+            print(f"{name:24s} {label:28s} {rate if rate is not None else float('nan'):7.4f} {np.median(n):7.1f} "
                   f"{np.percentile(n, 90):7.0f} {wrong:3d} ({wrong / n_observers:4.0%}) {undecided:3d} ({undecided / n_observers:4.0%})"
                   f" {time.perf_counter() - t0:7.1f}" + (f"  [{zero} observers: rate 0]" if kind == "bound" and zero else ""))
-        odds_model = medians["adaptive"] / medians['adaptive, utility="model"']
+        odds_model = medians[ODDS] / medians[MODEL]
         if adaptive_only:
             print(f"{'':24s} utility odds / model {odds_model:.2f}")
             continue
-        ratio = medians["adaptive"] / medians["constant stimuli"]
-        prior_ratio = medians["adaptive"] / medians.get("best prior allocation", math.inf)
-        print(f"{'':24s} adaptive / constant stimuli {ratio:.3f} (goal <= 0.25); adaptive / best prior allocation "
-              f"{prior_ratio:.2f} (goal < 1); utility odds / model {odds_model:.2f}")
+        for label in (ODDS, MODEL):
+            ratio = medians[label] / medians["constant stimuli"]
+            prior_ratio = medians[label] / medians.get("best prior allocation", math.inf)
+            print(f"{'':24s} {label}: / constant stimuli {ratio:.3f} (goal <= 0.25); / best prior allocation "
+                  f"{prior_ratio:.2f} (goal < 1)")
+        print(f"{'':24s} utility odds / model {odds_model:.2f}")
 
 
 def table_calibration(n_observers, max_trials, seed_offset=0):

@@ -47,7 +47,7 @@ class ModelDiscriminationConfig(ProcedureConfigBase):
     models: list[str] = Field(min_length=2, max_length=32)
     candidates: dict[str, list[Any]]
     task: Literal["2ifc"] = "2ifc"
-    utility: Literal["odds", "model", "parameters", "both"] = "odds"
+    utility: Literal["model", "odds", "parameters", "both"] = "model"
     n_grid: int = Field(25, ge=2, le=200, description="threshold grid points (log-spaced)")
     stop_probability: float = Field(0.99, gt=0.5, lt=1.0)
     max_trials: int = Field(500, ge=1, le=10_000)

@@ -1,22 +1,25 @@
 """Adaptive design that tells transduction hypotheses apart: :class:`ModelDiscrimination`.
 
-Each trial shows the candidate stimulus whose response is expected to move the posterior most
-towards the model (receptor hypothesis) the observer uses. The default ``utility="odds"`` is the
-expected increase of the log posterior odds log(pi_m / (1 - pi_m)) of the model m that
-generates the response, m drawn from the posterior, computed exactly over the binary response
-(the extrinsic Jensen-Shannon divergence of Naghshvar and Javidi 2013, "Active sequential
-hypothesis testing"):
+Each trial shows the candidate stimulus whose response is expected to tell most about the model
+(receptor hypothesis) the observer uses. The default ``utility="model"`` is the mutual
+information between the next response and the model index, I(Y; m) = H(sum_m pi_m p_mc) -
+sum_m pi_m H(p_mc) (H the binary entropy; Cavagnaro, Myung, Pitt and Kujala 2010), with
 
-    U(c) = sum_m pi_m KL(p_mc || sum_{j != m} pi_j p_jc / (1 - pi_m)),
     p_mc = sum_g w_g|m P(correct | c, m, g),
 
-with ``pi_m`` the posterior model probabilities, ``w_g|m`` the posterior over the parameter
-grid g = (threshold_strain, exponent, lapse) within model m and KL between Bernoulli laws in
-nats. The session stops when a model's posterior probability, i.e. its log-odds, reaches a
-level, so this is the quantity the stopping rule measures. ``utility="model"`` is the mutual
-information I(Y; m) = H(sum_m pi_m p_mc) - sum_m pi_m H(p_mc) (H the binary entropy; Cavagnaro,
-Myung, Pitt and Kujala 2010), ``"parameters"`` I(Y; theta | m) = sum_m pi_m [H(p_mc) -
-sum_g w_g|m H(P_cmg)] and ``"both"`` their sum I(Y; m, theta) (chain rule).
+``pi_m`` the posterior model probabilities and ``w_g|m`` the posterior over the parameter grid
+g = (threshold_strain, exponent, lapse) within model m. ``utility="odds"`` is the expected
+increase of the log posterior odds log(pi_m / (1 - pi_m)) of the model m that generates the
+response, m drawn from the posterior (the extrinsic Jensen-Shannon divergence of Naghshvar and
+Javidi 2013, "Active sequential hypothesis testing"):
+
+    U(c) = sum_m pi_m KL(p_mc || sum_{j != m} pi_j p_jc / (1 - pi_m)),
+
+KL between Bernoulli laws in nats. The session stops when a model's posterior probability, i.e.
+its log-odds, reaches a level, so "odds" aims at what the stopping rule measures; it decides in
+fewer trials where a few trials decide (docs/adaptive_design.md, table 1). ``"parameters"`` is
+I(Y; theta | m) = sum_m pi_m [H(p_mc) - sum_g w_g|m H(P_cmg)] and ``"both"`` their sum
+I(Y; m, theta) (chain rule). Every utility is exact over the binary response.
 
 The state is a joint posterior on a GRID (not particles): the likelihood of a trial is one
 row of a precomputed table P[c, m, g], so the update is an exact Bayes step (an addition of
@@ -56,7 +59,7 @@ from .tasks import PlannedStimulus
 __all__ = ["ModelDiscrimination", "ModelDiscriminationConfig", "UTILITIES", "information_gain", "metameric_groups",
            "from_config"]
 
-UTILITIES = ("odds", "model", "parameters", "both")
+UTILITIES = ("model", "odds", "parameters", "both")
 _LAPSES = (0.0, 0.01, 0.03, 0.08)
 _RELATIVE_THRESHOLDS = (1e-2, 3.0)  # threshold grid range / the models' largest candidate statistics
 _EXPONENTS = (0.4, 3.0)
@@ -82,9 +85,10 @@ class ModelDiscrimination(Procedure):
         ``model`` (one probability per model, default uniform), ``exponent``, ``lapse`` (objects
         with ``logpdf``, e.g. scipy.stats frozen; defaults lognormal with median 1 and log-sd 0.5,
         and Beta(1, 10) on [0, 0.5]). The threshold prior is log-uniform over the grid.
-    utility : {"odds", "model", "parameters", "both"}
-        ``"odds"`` (default): the expected increase of the true model's log posterior odds;
-        ``"model"``: I(Y; m); ``"parameters"``: I(Y; theta | m); ``"both"``: I(Y; m, theta)
+    utility : {"model", "odds", "parameters", "both"}
+        ``"model"`` (default): I(Y; m); ``"odds"``: the expected increase of the true model's
+        log posterior odds (fewer trials to a decision where a few trials decide);
+        ``"parameters"``: I(Y; theta | m); ``"both"``: I(Y; m, theta)
         (docs/adaptive_design.md, "The utility").
     n_grid : int or (int, int)
         Threshold grid points (and exponent grid points; default 25 and 9), log-spaced.
@@ -109,7 +113,7 @@ class ModelDiscrimination(Procedure):
 
     _STATE_KEYS = ("log_posterior",)
 
-    def __init__(self, models, candidates, *, priors: Mapping | None = None, utility: str = "odds",
+    def __init__(self, models, candidates, *, priors: Mapping | None = None, utility: str = "model",
                  n_grid: int | tuple[int, int] = (25, 9), stop_probability: float = 0.99, max_trials: int = 500,
                  rng=None, task: str = "2ifc", config=None, parameter: str = "amplitude_m") -> None:
         super().__init__(config)
