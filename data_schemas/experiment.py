@@ -228,14 +228,6 @@ class Protocol(_Model):
                 f"procedure: plans {n_planned} trials, above the cap of {MAX_PLANNED_TRIALS}; "
                 "split the experiment into sessions"
             )
-        for level in self.candidate_levels():
-            try:  # every level the procedure can choose must give a valid stimulus
-                self.stimulus.with_level(proc.parameter, level)
-            except ValueError as exc:
-                raise ValueError(
-                    f"procedure: level {level!r} of {proc.parameter} gives an invalid stimulus "
-                    f"({_first_error(exc)}); narrow the levels"
-                ) from None
         for label, override in (self.task.alternatives or {}).items():
             if proc.parameter in override:
                 raise ValueError(
@@ -246,7 +238,38 @@ class Protocol(_Model):
                 Stimulus.model_validate({**self.stimulus.model_dump(), **override})
             except ValueError as exc:
                 raise ValueError(f"task.alternatives.{label}: {_first_error(exc)}") from None
+        self._check_planned()
         return self
+
+    def _check_planned(self) -> None:
+        """Every stimulus a trial can show must be valid: each of the procedure's planned field
+        sets (a level; a model-discrimination candidate) merged with ``[stimulus]``, and with each
+        2afc alternative, as ``tactilab.experiments.tasks.plan_trial`` merges them. The rules
+        are :class:`Stimulus`'s own (one rule per quantity); the error names the first planned
+        stimulus that breaks one, the rule and the value, and counts the others."""
+        proc, base = self.procedure, self.stimulus.model_dump()
+        variants = [("", {})] + [(f" under task.alternatives.{label}", override)
+                                 for label, override in (self.task.alternatives or {}).items()]
+        planned = proc.planned_fields()
+        first: str | None = None
+        broken: dict[str, int] = {}  # quantity -> how many planned stimuli break its rule
+        for where, fields in planned:
+            for under, override in variants:
+                try:
+                    Stimulus.model_validate({**base, **fields, **override})
+                except ValueError as exc:
+                    rule = _first_error(exc)
+                    quantity = rule.split(":", 1)[0]
+                    broken[quantity] = broken.get(quantity, 0) + 1
+                    if first is None:
+                        first, first_quantity = f"{where}{under} gives an invalid stimulus ({rule})", quantity
+                    break
+        if first is None:
+            return
+        count = f"{broken[first_quantity]} of {len(planned)} planned stimuli break the {first_quantity} rule"
+        others = [f"{q} ({n})" for q, n in broken.items() if q != first_quantity]
+        raise ValueError(f"{first}; {count}{'; others break ' + ', '.join(others) if others else ''}; "
+                         f"{proc.planned_fix}")
 
     def candidate_levels(self) -> list[float]:
         """The levels (or the bounds of the range) the procedure may command, SI."""
