@@ -50,6 +50,7 @@ _EXPORTS = {
     "task_rng": "batch",
     "result_path": "batch",
     "read_result": "batch",
+    "write_netcdf_atomic": "batch",
     "BatchReport": "batch",
     "batch_client": "batch",
     "run_batch": "batch",

@@ -24,7 +24,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from tactilab.data_schemas.batch import batch_client, read_result, result_path, run_batch
+from tactilab.data_schemas.batch import batch_client, read_result, result_path, run_batch, write_netcdf_atomic
 
 from .model_power import power_analysis
 
@@ -343,8 +343,5 @@ def _gather_comparison(subs, names, parts, attrs, out_dir):
                     coords={"subject": subs, "model": names, "parameter": params},
                     attrs={**attrs, "warnings": " | ".join(sorted(notes)),
                            "units": "elpd, elpd_diff, se, dse, mcse, mcse_diff in nats (PSIS-LOO); threshold_strain in strain"})
-    path = pathlib.Path(out_dir) / "compare_many.nc"
-    tmp = path.with_name(f".{path.name}.tmp")
-    ds.to_netcdf(tmp, engine="h5netcdf")
-    tmp.replace(path)
+    write_netcdf_atomic(ds, pathlib.Path(out_dir) / "compare_many.nc")
     return ds

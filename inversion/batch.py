@@ -22,7 +22,7 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
-from tactilab.data_schemas.batch import batch_client, result_path, run_batch
+from tactilab.data_schemas.batch import batch_client, result_path, run_batch, write_netcdf_atomic
 from tactilab.data_schemas.recording import Recording
 
 from .scene_inversion import defect_profile, invert_defect_position
@@ -197,10 +197,7 @@ def invert_many(recordings, scene, *, client=None, seed: int, out_dir, workers: 
                  failed=";".join(report.errors), out_dir=str(out_dir), wall_s=float(report.wall_s),
                  gather_s=float(gather_s))
     tree = _gather(parts, report.done, attrs) if parts else xr.DataTree(xr.Dataset(attrs=attrs))
-    path = pathlib.Path(out_dir) / "invert_many.nc"
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tree.to_netcdf(tmp, engine="h5netcdf")
-    os.replace(tmp, path)
+    write_netcdf_atomic(tree, pathlib.Path(out_dir) / "invert_many.nc")
     return tree
 
 

@@ -13,13 +13,12 @@ answer is the same bit for bit on any number of workers.
 
 from __future__ import annotations
 
-import os
 import pathlib
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from tactilab.data_schemas.batch import read_result, run_batch
+from tactilab.data_schemas.batch import read_result, run_batch, write_netcdf_atomic
 from tactilab.forward import ReceptorHypothesis
 
 from .metamer_families import SinusoidFamily, TractorFamily
@@ -152,8 +151,5 @@ def metamer_scan(pitches: Sequence[float], phases: Sequence[float], displays, hy
                     attrs=dict(hypothesis=str(h), amplitude_m=float(amplitude), young_modulus_pa=float(young_modulus),
                                criterion=float(criterion), seed=int(seed), n_run=rep.n_run, n_skipped=rep.n_skipped,
                                n_failed=rep.n_failed, failed=";".join(rep.errors)))
-    path = pathlib.Path(out_dir) / "metamer_scan.nc"
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    ds.to_netcdf(tmp, engine="h5netcdf")
-    os.replace(tmp, path)
+    write_netcdf_atomic(ds, pathlib.Path(out_dir) / "metamer_scan.nc")
     return ds

@@ -32,6 +32,7 @@ import xarray as xr
 from tactilab.cli.batch_options import add_batch_options, run_invert_batch
 from tactilab.data_schemas import Scan, SensorArray, load_example, read_recording
 from tactilab.data_schemas import batch as B
+from tactilab.data_schemas import batch_cluster as BC
 from tactilab.data_schemas.batch import read_result, result_path, run_batch, stable_hash, task_rng
 from tactilab.forward import simulate_scene
 from tactilab.inversion.batch import invert_many, recording_keys
@@ -185,7 +186,7 @@ def test_missing_extra_names_the_install(tmp_path, monkeypatch):
 
 
 def test_unreachable_scheduler_is_one_clear_error(tmp_path, monkeypatch):
-    monkeypatch.setattr(B, "CONNECT_TIMEOUT_S", 1.0)
+    monkeypatch.setattr(BC, "CONNECT_TIMEOUT_S", 1.0)
     with pytest.raises(OSError, match=r"scheduler: cannot reach the Dask scheduler at 'tcp://127.0.0.1:9' within 1 s"):
         run_batch(draw, {"a": "a"}, seed=0, out_dir=tmp_path, scheduler="tcp://127.0.0.1:9", progress=False)
 
