@@ -221,3 +221,27 @@ def test_a_candidate_invalid_on_its_own_is_named_with_its_index():
                                          r"stimulus on its own \(.*ramp_s.*unlisted fields at their defaults: "
                                          r"duration_s 0\.5, ramp_s 0\.02, frame_rate_hz 1000\.0\)"):
         ModelDiscriminationConfig.model_validate(raw)
+
+
+def test_a_candidate_frame_rate_the_display_cannot_play_is_refused_before_the_session(tmp_path, capsys):
+    """The display is known when a session starts: every planned stimulus's frame rate is checked
+    against its refresh rate (1 kHz for the Braille row) before a session file exists."""
+    raw = tomllib.loads(PROTOCOL)
+    raw["procedure"]["candidates"]["frame_rate_hz"] = ["500Hz", "5kHz"]
+    protocol = Protocol.model_validate(raw)
+    assert len(protocol.planned_stimuli()) == 24 and {s.frame_rate_hz for s in protocol.planned_stimuli()} == {500.0,
+                                                                                                             5000.0}
+    display = SimulatedDisplay(DisplayDescription.braille_row(), realtime=False)
+    path = tmp_path / "s.sqlite"
+    with pytest.raises(ValueError, match=r"protocol: a planned stimulus's frame_rate_hz: 5000.0 Hz exceeds the "
+                                         r"refresh rate of display 'VirtualBrailleRow', 1000.0 Hz .*render the stimulus "
+                                         r"at that rate or lower \(frame rates planned: \[500.0, 5000.0\] Hz\)"):
+        new_session(protocol, path, display, _observer(protocol), subject="S01", realtime=False)
+    assert not path.exists()
+    toml = tmp_path / "design.toml"
+    toml.write_text(PROTOCOL.replace('speed_m_per_s = ["20mm/s"]', 'speed_m_per_s = ["20mm/s"]\nframe_rate_hz = ["5kHz"]'))
+    out = tmp_path / "out"
+    assert main(["experiment", "run", str(toml), "--subject", "S01", "--responses", "simulated", "--no-wait",
+                 "--quiet", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "exceeds the refresh rate" in err[0] and not list(out.glob("*.sqlite"))
