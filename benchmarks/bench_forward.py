@@ -606,16 +606,21 @@ def bench_tamaas(n: int, rng, repeats: int) -> dict | str:
 def interleaved_cpu(funcs: dict, repeats: int) -> dict[str, dict[str, float]]:
     """Like :func:`interleaved`, recording wall and thread-CPU time: {name: {wall_min, wall_med, cpu_min}}.
 
-    Thread CPU time leaves out the time the (shared) machine spent on other processes.
+    Thread CPU time leaves out the time the (shared) machine spent on other processes. The order
+    of the functions is shuffled in every repeat (seeded), so each runs about equally often after
+    each other one: what ran before changes what is left in the caches (a fixed order would always
+    run the same function after the floor's small working set and the same one after a warm call).
     """
     for f in funcs.values():
         f()
     wall = {name: [] for name in funcs}
     cpu = {name: [] for name in funcs}
+    names = list(funcs)
+    order = np.random.default_rng(0)
     for _ in range(repeats):
-        for name, f in funcs.items():
+        for name in order.permutation(names):
             t0, c0 = time.perf_counter(), time.thread_time()
-            f()
+            funcs[name]()
             wall[name].append(time.perf_counter() - t0)
             cpu[name].append(time.thread_time() - c0)
     return {name: dict(wall_min=min(wall[name]), wall_med=float(np.median(wall[name])), cpu_min=min(cpu[name]))
@@ -635,6 +640,7 @@ def bench_floor_table(sizes, repeats: int, rng, peer: bool = True) -> list[dict]
         ref = plane_wave_grid_stress(n, modes, [depth], nu)[0]
         got = hs.stress(load, depth, method="spectral", tol=1e-9).data["stress"].values[0]
         t = interleaved_cpu({"facade": lambda: hs.stress(load, depth, method="spectral", tol=1e-9),
+                             "labelled": lambda: hs.stress(load, depth, method="spectral", tol=1e-9).data,
                              "floor": spectral_floor(load, 1)}, repeats)
         row = dict(n=n, err=rel_err(got, ref), **{f"{k}_{m}": v for k, d in t.items() for m, v in d.items()})
         result = _run_tamaas(load, depth, nu, max(5, repeats // 2)) if peer else "Tamaas skipped (--no-peer)"
@@ -653,13 +659,14 @@ def print_floor_table(rows: list[dict]) -> None:
     print("\nTable 0. The facade at the FFT floor: HalfSpace(E, nu=0.49).stress(load, 1 mm, method='spectral'),\n"
           "periodic p + qx + qy, six stress components, one depth, float64, 1 FFT thread; min over interleaved repeats")
     head = (f"{'size':>6}{'facade ms':>11}{'floor ms':>10}{'ratio':>7}{'ratio med':>10}{'ratio cpu':>10}"
-            f"{'Tamaas ms':>11}{'speedup':>9}{'spd cpu':>9}{'spd 1-layer':>12}{'error':>9}")
+            f"{'+data':>7}{'Tamaas ms':>11}{'speedup':>9}{'spd cpu':>9}{'spd 1-layer':>12}{'error':>9}")
     print(head)
     print("-" * len(head))
     for r in rows:
         fac, flo = r["facade_wall_min"], r["floor_wall_min"]
         line = (f"{r['n']:>4}^2{1e3 * fac:11.2f}{1e3 * flo:10.2f}{fac / flo:7.2f}"
-                f"{r['facade_wall_med'] / r['floor_wall_med']:10.2f}{r['facade_cpu_min'] / r['floor_cpu_min']:10.2f}")
+                f"{r['facade_wall_med'] / r['floor_wall_med']:10.2f}{r['facade_cpu_min'] / r['floor_cpu_min']:10.2f}"
+                f"{r['labelled_wall_min'] / flo:7.2f}")
         if "peer_wall" in r:
             line += (f"{1e3 * r['peer_wall']:11.2f}{r['peer_wall'] / fac:9.2f}"
                      f"{r['peer_cpu'] / r['facade_cpu_min']:9.2f}{r['peer_one_layer'] / r['facade_wall_med']:12.2f}")
@@ -670,7 +677,8 @@ def print_floor_table(rows: list[dict]) -> None:
     agree = [f"{r['n']}^2: {r['peer_agree']:.1e}" for r in rows if "peer_agree" in r]
     version = next((r["peer_version"] for r in rows if "peer_version" in r), None)
     print("ratio = facade / floor (min wall times; 'ratio med': medians; 'ratio cpu': thread CPU time, which leaves\n"
-          "out time lost to other processes). Tamaas ms: its min wall time for the same load "
+          "out time lost to other processes; '+data': the facade call plus its first access of result.data, which\n"
+          "builds the labelled xarray Dataset, min wall). Tamaas ms: its min wall time for the same load "
           f"(Tamaas {version}, OMP_NUM_THREADS=1, two layers:\nit always evaluates the surface too); speedup = "
           "Tamaas / facade (wall, cpu); 'spd 1-layer': Tamaas charged for one layer,\nT(2) - [T(3) - T(2)], "
           "medians. error: facade vs the exact plane-wave closed form. Tamaas vs facade, max difference / peak: "
@@ -701,6 +709,58 @@ def print_tamaas(res) -> None:
           "(facade).\nShear stored in Mandel form (x sqrt 2), divided back. Target: tactilab >= 3x faster.")
 
 
+def bench_phases(n: int, repeats: int) -> dict[str, float]:
+    """Minimum wall time (s) of each phase of the facade call of Table 0 and of the floor's parts,
+    interleaved, order shuffled in each repeat: {phase: min}. Uses the solver's internals (forward/halfspace/_hotpath.py)."""
+    from tactilab.forward.halfspace import _hotpath
+    from tactilab.forward.halfspace.spectral import _cached_geometry, _real_coefficients
+
+    nu, depth = 0.49, 1e-3
+    load = plane_wave_load(n, plane_wave_modes(n, np.random.default_rng(1)))
+    hs = HalfSpace(E=E_PA, nu=nu)
+    names = tuple(sorted(load.components))
+    key = (tuple(load.shape), tuple(load.spacing), "float64")
+    g = _cached_geometry(*key)
+    hs.stress(load, depth, method="spectral", tol=1e-9)  # fills the table cache
+    bufs = _hotpath.work_buffers(g.rho.shape, np.complex128, len(names) + 2)
+    spectra = dict(zip(names, bufs))
+    tables = _hotpath.depth_tables(g, key, nu, names, IDENTITY, depth, np.dtype(float), np.dtype(complex),
+                                   _real_coefficients)
+    out = np.empty((6,) + load.shape)
+    spectrum = sfft.rfft2(load.p)
+
+    def forward():
+        for name in names:
+            _hotpath.rfftn_into(load.components[name], spectra[name], 1)
+
+    def passes():
+        for terms in tables:
+            _hotpath.apply(terms, spectra, bufs[-2], bufs[-1])
+
+    def inverse():
+        for o in range(6):
+            _hotpath.inverse_into(bufs[-2], out[o], 1)  # overwrites its input: the timing does not care
+
+    funcs = {"facade": lambda: hs.stress(load, depth, method="spectral", tol=1e-9),
+             "facade + .data": lambda: hs.stress(load, depth, method="spectral", tol=1e-9).data,
+             "periodic_stress": lambda: periodic_stress(load, [depth], nu, IDENTITY),
+             "3 forward transforms": forward, "30 multiply-add passes": passes, "6 inverse transforms": inverse,
+             "floor": spectral_floor(load, 1),
+             "floor: 3 rfft2": lambda: [sfft.rfft2(a) is None for a in load.components.values()],
+             "floor: 6 irfft2": lambda: [sfft.irfft2(spectrum, s=load.shape) is None for _ in range(6)]}
+    return {name: t["wall_min"] for name, t in interleaved_cpu(funcs, repeats).items()}
+
+
+def print_phases(sizes, repeats: int) -> None:
+    print(f"\nTable 0b. Where the facade call of Table 0 goes: minimum wall time over {repeats} interleaved repeats "
+          "(order shuffled in each), ms and / floor")
+    rows = {n: bench_phases(n, repeats) for n in sizes}
+    print(f"{'phase':<26}" + "".join(f"{f'{n}^2 ms':>11}{'/ floor':>9}" for n in sizes))
+    for phase in rows[sizes[0]]:
+        print(f"{phase:<26}" + "".join(f"{1e3 * rows[n][phase]:11.3f}{rows[n][phase] / rows[n]['floor']:9.2f}"
+                                        for n in sizes))
+
+
 # -- driver -------------------------------------------------------------------------------------
 def run_methods(sizes, quick: bool, rng) -> list[dict]:
     rows = []
@@ -720,6 +780,11 @@ def main(argv=None) -> int:
     parser.add_argument("--no-peer", action="store_true", help="skip the Tamaas comparison")
     parser.add_argument("--floor-only", action="store_true",
                         help="only Table 0 (facade vs FFT floor vs Tamaas at 256^2 and 512^2), about a minute")
+    parser.add_argument("--repeats", type=int, default=None,
+                        help="interleaved repeats of Table 0 (default 101; 5 with --quick)")
+    parser.add_argument("--phases", action="store_true",
+                        help="only Table 0b: the facade call of Table 0 phase by phase (forward transforms, "
+                             "multiply-add passes, inverse transforms) against the floor's parts")
     parser.add_argument("--memory-child", help=argparse.SUPPRESS)
     parser.add_argument("--memory-n", type=int, default=1024, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -733,7 +798,11 @@ def main(argv=None) -> int:
     print(f"tactilab forward benchmark ({'quick' if args.quick else 'full'}): spacing {SPACING * 1e3} mm, "
           f"E = {E_PA:.0e} Pa, nu = 0.5 unless stated, float64, scipy {sfft.__name__} 1 thread, "
           f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}")
-    print_floor_table(bench_floor_table(args.sizes or [256, 512], 5 if args.quick else 31, rng, not args.no_peer))
+    floor_repeats = args.repeats or (5 if args.quick else 101)
+    if args.phases:
+        print_phases(args.sizes or [256, 512], args.repeats or (5 if args.quick else 101))
+        return 0
+    print_floor_table(bench_floor_table(args.sizes or [256, 512], floor_repeats, rng, not args.no_peer))
     if args.floor_only:
         print(f"\nload average at end {os.getloadavg()[0]:.1f}")
         return 0

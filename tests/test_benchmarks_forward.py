@@ -78,6 +78,17 @@ def test_floor_table_runs_and_prints_its_columns(bench, rng, capsys, monkeypatch
     assert all(row[k] > 0 for k in ("facade_wall_min", "floor_wall_min", "facade_cpu_min", "floor_cpu_min"))
     bench.print_floor_table(rows)
     out = capsys.readouterr().out
-    for column in ("size", "facade ms", "floor ms", "ratio", "Tamaas ms", "speedup"):
+    for column in ("size", "facade ms", "floor ms", "ratio", "+data", "Tamaas ms", "speedup"):
         assert column in out
     assert "  32^2" in out and "Tamaas skipped" in out
+    assert row["labelled_wall_min"] > 0
+
+
+def test_phase_table_runs_and_names_every_phase(bench, capsys):
+    phases = bench.bench_phases(16, 2)
+    assert all(t > 0 for t in phases.values())
+    bench.print_phases([16], 2)
+    out = capsys.readouterr().out
+    for phase in ("facade", "periodic_stress", "3 forward transforms", "30 multiply-add passes",
+                  "6 inverse transforms", "floor: 3 rfft2", "floor: 6 irfft2"):
+        assert phase in out

@@ -376,3 +376,29 @@ def test_labelled_results_are_independent_and_their_shared_coordinates_read_only
     assert "note" not in four.data["stress"].attrs
     with pytest.raises(ValueError, match="read-only"):
         four.data.x.values[0] = 1.0
+
+
+def test_results_are_labelled_on_first_access_with_the_arguments_of_the_call(rng):
+    """The Dataset is built lazily; depths and points the caller changes afterwards do not leak in."""
+    load = _random_periodic_load(rng)
+    hs = HalfSpace(1e6, 0.5)
+    depths, pts = np.array([5e-4, 1e-3]), np.array([[1e-4, 2e-4], [3e-4, -4e-4]])
+    res = hs.stress(load, depths, points=pts, method="spectral")
+    grid = hs.stress(load, depths, method="spectral")
+    depths[0], pts[0, 0] = 7.0, 9.0
+    assert "data" not in vars(res)  # not labelled yet
+    assert res.data.depth.values.tolist() == [5e-4, 1e-3] and res.data.x.values[0] == 1e-4
+    assert res.data is res.data  # built once, then kept
+    direct = periodic_stress(load, [5e-4, 1e-3], 0.5, I6)
+    assert np.array_equal(grid.data["stress"].values, direct)
+    assert grid.data.attrs["method"] == "spectral" and grid.data.attrs["error_estimate"] == grid.error_estimate
+
+
+def test_varies_in_y_reads_past_equal_leading_rows():
+    rows = np.ones((6, 8))
+    assert not SurfaceLoad(p=rows, spacing=1e-4).varies_in_y()
+    rows[4, 3] = 2.0  # rows 0 and 1 agree; a later row differs
+    assert SurfaceLoad(p=rows, spacing=1e-4).varies_in_y()
+    assert SurfaceLoad(p=np.ones((6, 8)), qy=rows, spacing=1e-4).varies_in_y()
+    assert SurfaceLoad(p=np.arange(48.0).reshape(6, 8), spacing=1e-4).varies_in_y()
+    assert not SurfaceLoad(p=np.ones((1, 8)), spacing=1e-4).varies_in_y()

@@ -10,13 +10,31 @@ the system and asks again) as on its FFTs. So
   budget :data:`TRANSFER_CACHE_BYTES` (least recently used out first; thread-safe). A repeated
   call (time series, scans over frames) then costs five elementwise passes per output
   (:func:`apply`) between its FFTs. :func:`clear_transfer_cache` frees it.
-- :func:`rfftn_into` / :func:`irfftn_into` write a transform straight into a given array
-  (the inverse straight into the caller's output slice). They call the transform binding that
-  ``scipy.fft`` itself calls, checked once at import to give bitwise the same result as
-  ``scipy.fft.rfftn`` / ``irfftn``; where that binding is missing or differs (another scipy),
-  they fall back to the public functions and a copy.
+- :func:`rfftn_into` / :func:`inverse_into` write a transform straight into a given array
+  (the inverse straight into the caller's output slice, its column transforms in place in the
+  work spectrum, so no temporary copy of the spectrum is made). They call the transform binding
+  that ``scipy.fft`` itself calls, checked once at import to give bitwise the same result as
+  ``scipy.fft.rfftn`` / ``ifft`` / ``irfft``; where that binding is missing or differs (another
+  scipy), they fall back to the public functions and a copy.
 - :func:`work_buffers` keeps one set of spectrum-sized work arrays per thread (for grids whose
   buffers stay below :data:`BUFFER_BYTES`), so repeated calls reuse warm memory.
+
+Where a facade call goes now (``benchmarks/bench_forward.py --phases``, Table 0b of
+docs/forward_benchmark.md: ``HalfSpace.stress(load, 1 mm, method="spectral")``, p + qx + qy, six
+components, one depth, float64, one thread; minima over 101 interleaved repeats at a load average
+of 3.7 to 4.0 on 2 shared cores, in units of the FFT floor of 3 ``rfft2`` + 6 ``irfft2``, at
+256^2 / 512^2): the three forward transforms 0.29 / 0.35 (the floor's own: 0.32 / 0.33), the 30
+multiply-add passes of :func:`apply` 0.38 / 0.36, the six inverse transforms 0.73 / 0.67 (the
+floor's: 0.65 / 0.64); ``periodic_stress`` 1.46 / 1.42 in all, the facade 1.45 to 1.65 between
+runs (Table 0). Measured and not kept:
+tables stored for eta >= 0 only and mirrored (half the table memory, no faster: the extra
+half-size calls and reversed rows cost what the smaller tables save), real tables applied through
+float views or with a cast (slower than complex x complex: numpy's complex multiply is
+vectorised, its broadcast over a pair axis is not), batched forward or inverse transforms over
+the loads or outputs (no faster), ``np.einsum`` / ``np.vecdot`` / ``np.matmul`` over the loads
+(slower), blocking the passes for cache (no faster). Each pass is memory-bound (about 17 us per
+pass over a 256^2 half spectrum hot in L2), so what is left is the number of passes, which numpy
+cannot fuse.
 
 ``workers``: None means scipy's default (1 thread unless inside ``scipy.fft.set_workers``);
 results are bitwise the same for any number of workers (tests/test_forward_spectral.py).
@@ -56,6 +74,13 @@ def _binding():
                 if not (np.array_equal(spec, sfft.rfftn(a, axes=axes))
                         and np.array_equal(back, sfft.irfftn(spec, s=shape, axes=axes))):
                     return None
+                if len(shape) == 2:  # inverse_into: columns in place, then rows
+                    cols = sfft.ifft(spec, axis=0, norm="forward")
+                    mod.c2c(spec, (0,), False, 0, spec, 1)
+                    rows = np.empty(shape)
+                    mod.c2r(spec, (1,), shape[-1], False, 2, rows, 1)
+                    if not (np.array_equal(spec, cols) and np.array_equal(rows, sfft.irfft(cols, n=shape[-1], axis=1))):
+                        return None
         except (TypeError, ValueError, AttributeError):
             return None
         return mod
@@ -87,12 +112,26 @@ def rfftn_into(values: np.ndarray, out: np.ndarray, workers: int | None = None) 
     return out
 
 
-def irfftn_into(spectrum: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
-    """``out[...] = scipy.fft.irfftn(spectrum, s=out.shape)`` over all axes (the input is kept)."""
-    axes = tuple(range(out.ndim))
+def inverse_into(spectrum: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
+    """``out[...] = scipy.fft.irfftn(spectrum, s=out.shape) * ny`` (2-D), ``irfftn`` (1-D); overwrites ``spectrum``.
+
+    In 2-D the column transforms run in place in ``spectrum`` (a complex inverse FFT along y,
+    unnormalised) and the row transforms write straight into ``out`` (the real inverse along x,
+    divided by nx), which spares the temporary copy of the spectrum that a 2-D ``irfftn`` makes.
+    The 1/ny of the inverse along y is left to the caller: :func:`depth_tables` folds it into the
+    tables (exact for ny a power of two, so the result is then bitwise that of ``irfftn``).
+    """
+    if out.ndim == 1:
+        if _RAW is not None:
+            return _RAW.c2r(spectrum, (0,), out.shape[0], False, 2, out, threads(workers))
+        out[...] = sfft.irfft(spectrum, n=out.shape[0], workers=workers)
+        return out
     if _RAW is not None:
-        return _RAW.c2r(spectrum, axes, out.shape[-1], False, 2, out, threads(workers))
-    out[...] = sfft.irfftn(spectrum, s=out.shape, axes=axes, workers=workers)
+        count = threads(workers)
+        _RAW.c2c(spectrum, (0,), False, 0, spectrum, count)
+        return _RAW.c2r(spectrum, (1,), out.shape[1], False, 2, out, count)
+    spectrum[...] = sfft.ifft(spectrum, axis=0, norm="forward", workers=workers)
+    out[...] = sfft.irfft(spectrum, n=out.shape[1], axis=1, workers=workers)
     return out
 
 
@@ -162,6 +201,8 @@ def depth_tables(g, grid_key: tuple, nu: float, names: tuple, weights: np.ndarra
                  dtype, cdtype, coefficients):
     """Per output row, the list of (load, complex multiplier) at depth ``z`` (an iterable over rows).
 
+    On a 2-D grid the multipliers carry the factor 1/ny that :func:`inverse_into` leaves out.
+
     ``g`` is the grid's ``spectral._Geometry``, ``coefficients`` ``spectral._real_coefficients``.
     Cached per (grid, spacing, dtype, nu, depth, loads, weights) within :data:`TRANSFER_CACHE_BYTES`
     (least recently used first out). The tables of a grid too large for the budget are built one
@@ -178,6 +219,9 @@ def depth_tables(g, grid_key: tuple, nu: float, names: tuple, weights: np.ndarra
     rz = g.rho * dtype.type(z)
     e = np.exp(-rz)  # underflows to 0 for rho z > ~745: harmless
     rze = rz * e
+    if g.rho.ndim == 2:  # the 1/ny of the inverse FFT along y (see inverse_into), exact for ny = 2^k
+        e *= dtype.type(1.0 / g.rho.shape[0])
+        rze *= dtype.type(1.0 / g.rho.shape[0])
     if not cache:  # lazily, one output at a time (memory: see docs/forward_benchmark.md, Table 4)
         return (_output_tables(coefficients, g, nu, names, row, e, rze, cdtype) for row in weights)
     tables = [_output_tables(coefficients, g, nu, names, row, e, rze, cdtype) for row in weights]

@@ -13,7 +13,9 @@ periodic 2-D load does not vary in y; float32 when ``tol >= 1e-4``.
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -39,7 +41,8 @@ class FieldResult:
     data : xarray.Dataset
         ``stress`` (Pa) and/or ``strain`` (tensor shear) with dims (depth, component, y, x),
         (depth, component, x) in 1-D, or (depth, component, point) at sensor points; plus
-        invariants when asked.
+        invariants when asked. Labelled on first access (the solve itself never waits for
+        xarray), then kept.
     method : str
         The method that ran.
     error_estimate : float
@@ -52,11 +55,16 @@ class FieldResult:
         Per method: (error_estimate, cost) or the reason it could not run.
     """
 
-    data: xr.Dataset
+    source: xr.Dataset | Callable[[], xr.Dataset] = field(repr=False)
     method: str
     error_estimate: float
     reason: str
     candidates: dict = field(default_factory=dict)
+
+    @functools.cached_property
+    def data(self) -> xr.Dataset:
+        """The labelled fields (see the class docstring); built from ``source`` once, on first access."""
+        return self.source if isinstance(self.source, xr.Dataset) else self.source()
 
     def __repr__(self) -> str:
         """Method, error estimate and the fields' shapes and units; never the arrays."""
@@ -213,18 +221,27 @@ class HalfSpace:
 
     def _package(self, load, sol: Solution, depths, comps, pts, want_invariants, error_covers: str,
                  sampling_estimate: float | None = None, extra: dict | None = None) -> FieldResult:
+        """The result; its xarray Dataset is built on the first access of ``FieldResult.data``."""
         err = sol.err if sampling_estimate is None else sol.err + sampling_estimate
-        da = label(sol.values, sol.quantity, comps, depths, load.x, load.y, pts)
-        ds = da.to_dataset()  # the DataArray is named sol.quantity (fields.label); 5x cheaper than Dataset({...})
-        if want_invariants:
-            strain_vals = np.einsum("ij,dj...->di...", compliance_matrix(self.E, self.nu), sol.values)
-            strain = label(strain_vals, "strain", comps, depths, load.x, load.y, pts)
-            ds["strain"] = strain
-            ds = ds.merge(invariants(strain, da))
-        ds.attrs.update(method=sol.chosen.name, error_estimate=err, error_covers=error_covers,
-                        method_error_estimate=sol.err, reason=sol.reason, E_pa=self.E, nu=self.nu,
-                        reduced_to_1d=int(sol.reduced), dtype=sol.dtype, shear_convention=SHEAR_CONVENTION)
+        attrs = dict(method=sol.chosen.name, error_estimate=err, error_covers=error_covers,
+                     method_error_estimate=sol.err, reason=sol.reason, E_pa=self.E, nu=self.nu,
+                     reduced_to_1d=int(sol.reduced), dtype=sol.dtype, shear_convention=SHEAR_CONVENTION)
         if sampling_estimate is not None:
-            ds.attrs["sampling_error_estimate"] = sampling_estimate
-        ds.attrs.update(extra or {})
-        return FieldResult(ds, sol.chosen.name, err, sol.reason, sol.candidates)
+            attrs["sampling_error_estimate"] = sampling_estimate
+        attrs.update(extra or {})
+        x, y, E, nu = load.x, load.y, self.E, self.nu
+        depths = np.array(depths, dtype=float)  # private copies: the caller may reuse its arrays before
+        pts = None if pts is None else np.array(pts, dtype=float)  # the first access labels them
+
+        def build() -> xr.Dataset:
+            da = label(sol.values, sol.quantity, comps, depths, x, y, pts)
+            ds = da.to_dataset()  # the DataArray is named sol.quantity (fields.label); 5x cheaper than Dataset({...})
+            if want_invariants:
+                strain_vals = np.einsum("ij,dj...->di...", compliance_matrix(E, nu), sol.values)
+                strain = label(strain_vals, "strain", comps, depths, x, y, pts)
+                ds["strain"] = strain
+                ds = ds.merge(invariants(strain, da))
+            ds.attrs.update(attrs)
+            return ds
+
+        return FieldResult(build, sol.chosen.name, err, sol.reason, sol.candidates)

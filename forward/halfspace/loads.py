@@ -138,6 +138,8 @@ class SurfaceLoad:
         """True for a 2-D load whose rows differ (a 1-D model would not be exact)."""
         if self.ndim == 1:
             return False
+        if self.shape[0] > 1 and any(not np.array_equal(a[1], a[0]) for a in self._arrays.values()):
+            return True  # rows 0 and 1 differ: the common case, decided without reading the grid
         return any(not np.array_equal(a, np.broadcast_to(a[:1], a.shape)) for a in self._arrays.values())
 
     def row(self) -> "SurfaceLoad":

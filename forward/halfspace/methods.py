@@ -14,6 +14,7 @@ dispatch; subclasses implement only ``_compute``, ``_error`` and ``_cost`` and d
 from __future__ import annotations
 
 import functools
+import math
 import warnings
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
@@ -45,6 +46,11 @@ class Problem:
     def load_width(self) -> float:
         """Length in m over which the load varies: :func:`load_width` of the load (cached)."""
         return load_width(self.load)
+
+    @functools.cached_property
+    def estimates(self) -> dict:
+        """Memo of :meth:`Method.error_estimate` per method instance (the problem is immutable)."""
+        return {}
 
     @property
     def stress_rows(self) -> list[int]:
@@ -114,11 +120,14 @@ class Method(ABC):
         return None
 
     def error_estimate(self, problem: Problem) -> float:
-        """Estimated max error relative to the field's peak magnitude."""
-        err = self._error(problem)
-        if problem.dtype == np.float32:
-            err += 5e-7 * np.log2(max(problem.n_eval, 2))
-        return float(err)
+        """Estimated max error relative to the field's peak magnitude (computed once per problem)."""
+        memo = problem.estimates
+        if self not in memo:
+            err = self._error(problem)
+            if problem.dtype == np.float32:
+                err += 5e-7 * np.log2(max(problem.n_eval, 2))
+            memo[self] = float(err)
+        return memo[self]
 
     def cost(self, problem: Problem) -> float:
         """A flop-count model used only to rank methods."""
@@ -174,6 +183,9 @@ class Method(ABC):
         """Flop model."""
 
 
+_EPS64 = float(np.finfo(np.float64).eps)
+
+
 class Spectral(Method):
     """Periodic FFT solution (docs/theory.md s2): exact for periodic loads; for an isolated load
     its periodic images add an error ~ (Z/L)^2 in 2-D and ~ Z/L in 1-D."""
@@ -183,8 +195,8 @@ class Spectral(Method):
 
     def _error(self, problem: Problem) -> float:
         # the FFTs' rounding grows like log2(N) (measured 1.8e-14 on 128 nodes): 30 eps log2(N)
-        n = int(np.prod(problem.load.shape))
-        rounding = 30.0 * np.finfo(np.float64).eps * np.log2(max(n, 2)) if problem.dtype == np.float64 else 0.0
+        n = math.prod(problem.load.shape)
+        rounding = 30.0 * _EPS64 * math.log2(max(n, 2)) if problem.dtype == np.float64 else 0.0
         if problem.load.periodic:
             return rounding
         return rounding + image_error(problem.load, problem.depths)

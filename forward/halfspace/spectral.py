@@ -289,9 +289,9 @@ def periodic_stress(load: SurfaceLoad, depths: Sequence[float], nu: float,
         for o, terms in enumerate(tables):  # per output: its (load, multiplier) pairs, cached
             spectrum = _hotpath.apply(terms, spectra, acc, term)
             if phases is None:
-                _hotpath.irfftn_into(spectrum, out[d, o], workers)
+                _hotpath.inverse_into(spectrum, out[d, o], workers)  # the tables carry its 1/ny
             else:
-                out[d, o] = _eval_points(spectrum, phases, int(np.prod(shape)))
+                out[d, o] = _eval_points(spectrum, phases, shape[-1])  # likewise: divide by nx only
     return out
 
 
