@@ -19,14 +19,16 @@ amplitude and ``surface = ["sinusoid", "square"]``, say). Each trial shows the c
 the protocol's ``[stimulus]`` with EVERY listed field set to the candidate's value (the runner's
 ``PlannedStimulus``; surface, amplitude and pitch always come from the candidate), so the
 fields the procedure predicts with are the fields commanded. The
-trial's recorded ``level`` is the candidate's value of ``parameter``. The procedure is
+trial's recorded ``level`` is the candidate's value of ``parameter``. Each candidate is
+validated on its own here, and merged with ``[stimulus]`` by the protocol at load
+(:meth:`ModelDiscriminationConfig.planned_fields`). The procedure is
 registered by :mod:`tactilab.experiments.design` (import it before loading such a protocol).
 """
 
 from __future__ import annotations
 
 import itertools
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from pydantic import Field, model_validator
 
@@ -37,6 +39,7 @@ from .hypothesis import parse_hypothesis
 #: stimulus fields a candidate list may name, with their dimension ("text" for the waveform)
 MAX_CANDIDATES = 1000  # the design's table is candidates x models x grid points
 CANDIDATE_FIELDS = {**PARAMETERS, "surface": "text", "ramp_s": "time", "frame_rate_hz": "frequency"}
+_DEFAULTS = ", ".join(f"{k} {Stimulus.model_fields[k].default!r}" for k in ("duration_s", "ramp_s", "frame_rate_hz"))
 
 
 class ModelDiscriminationConfig(ProcedureConfigBase):
@@ -95,16 +98,34 @@ class ModelDiscriminationConfig(ProcedureConfigBase):
         if n > MAX_CANDIDATES:
             raise ValueError(f"candidates: the lists give {n} candidates (their product), above the cap of "
                              f"{MAX_CANDIDATES}; use fewer values per field")
-        for combo in itertools.product(*self.candidates.values()):
-            try:
+        for i, combo in enumerate(itertools.product(*self.candidates.values())):
+            try:  # on its own: the design predicts with it before any [stimulus] is known
                 Stimulus.model_validate(dict(zip(self.candidates, combo)))
             except ValueError as exc:
-                raise ValueError(f"candidates: {dict(zip(self.candidates, combo))} is not a valid stimulus "
-                                 f"({exc.errors()[0]['msg'] if hasattr(exc, 'errors') else exc}); change the lists")
+                raise ValueError(
+                    f"candidates: candidate {i} {dict(zip(self.candidates, combo))} is not a valid stimulus on its "
+                    f"own ({exc.errors()[0]['msg'] if hasattr(exc, 'errors') else exc}; unlisted fields at their "
+                    f"defaults: {_DEFAULTS}); change the lists, or list the timing fields together") from None
         return self
 
+    #: the fix an error about an invalid merged candidate suggests (data_schemas.experiment.Protocol)
+    planned_fix: ClassVar[str] = "change the candidate lists or [stimulus]"
+
+    def planned_fields(self) -> list[tuple[str, dict[str, Any]]]:
+        """Each candidate as the fields a trial sets on ``[stimulus]`` (SI), in the product order
+        of the lists (candidate 0 first): every listed field, and surface, amplitude and pitch
+        always (the candidate's own, its default waveform when unlisted), as the runner's
+        ``PlannedStimulus`` carries them."""
+        keys = tuple(dict.fromkeys(("surface", "amplitude_m", "pitch_m", *self.candidates)))
+        out = []
+        for i, s in enumerate(self.stimuli()):
+            fields = {k: getattr(s, k) for k in keys}
+            shown = ", ".join(f"{k}={v!r}" for k, v in fields.items())
+            out.append((f"procedure.candidates[{i}] ({shown}) merged with [stimulus]", fields))
+        return out
+
     def stimuli(self) -> list[Stimulus]:
-        """The candidate stimuli (the product of the lists), validated, SI."""
+        """The candidate stimuli (the product of the lists, in the file's order), validated, SI."""
         keys = list(self.candidates)
         return [Stimulus.model_validate(dict(zip(keys, combo)))
                 for combo in itertools.product(*(self.candidates[k] for k in keys))]

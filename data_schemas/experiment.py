@@ -228,14 +228,6 @@ class Protocol(_Model):
                 f"procedure: plans {n_planned} trials, above the cap of {MAX_PLANNED_TRIALS}; "
                 "split the experiment into sessions"
             )
-        for level in self.candidate_levels():
-            try:  # every level the procedure can choose must give a valid stimulus
-                self.stimulus.with_level(proc.parameter, level)
-            except ValueError as exc:
-                raise ValueError(
-                    f"procedure: level {level!r} of {proc.parameter} gives an invalid stimulus "
-                    f"({_first_error(exc)}); narrow the levels"
-                ) from None
         for label, override in (self.task.alternatives or {}).items():
             if proc.parameter in override:
                 raise ValueError(
@@ -246,7 +238,53 @@ class Protocol(_Model):
                 Stimulus.model_validate({**self.stimulus.model_dump(), **override})
             except ValueError as exc:
                 raise ValueError(f"task.alternatives.{label}: {_first_error(exc)}") from None
+        self._check_planned()
         return self
+
+    def _check_planned(self) -> None:
+        """Every stimulus a trial can show must be valid: each of the procedure's planned field
+        sets (a level; a model-discrimination candidate) merged with ``[stimulus]``, and with each
+        2afc alternative, as ``tactilab.experiments.tasks.plan_trial`` merges them. The rules
+        are :class:`Stimulus`'s own (one rule per quantity); the error names the first planned
+        stimulus that breaks one, the rule and the value, and counts the others."""
+        proc = self.procedure
+        first: str | None = None
+        broken: dict[str, int] = {}  # quantity -> how many planned stimuli break its rule
+        seen: set[str] = set()
+        for where, under, merged in self._planned():
+            if where in seen:  # one failure per planned stimulus (its first variant)
+                continue
+            try:
+                Stimulus.model_validate(merged)
+            except ValueError as exc:
+                seen.add(where)
+                rule = _first_error(exc)
+                quantity = rule.split(":", 1)[0]
+                broken[quantity] = broken.get(quantity, 0) + 1
+                if first is None:
+                    first, first_quantity = f"{where}{under} gives an invalid stimulus ({rule})", quantity
+        if first is None:
+            return
+        count = f"{broken[first_quantity]} of {len(proc.planned_fields())} planned stimuli break the {first_quantity} rule"
+        others = [f"{q} ({n})" for q, n in broken.items() if q != first_quantity]
+        raise ValueError(f"{first}; {count}{'; others break ' + ', '.join(others) if others else ''}; "
+                         f"{proc.planned_fix}")
+
+    def _planned(self):
+        """``(where, under, fields)`` for every stimulus a trial can show, before validation."""
+        base = self.stimulus.model_dump()
+        variants = [("", {})] + [(f" under task.alternatives.{label}", override)
+                                 for label, override in (self.task.alternatives or {}).items()]
+        for where, fields in self.procedure.planned_fields():
+            for under, override in variants:
+                yield where, under, {**base, **fields, **override}
+
+    def planned_stimuli(self) -> list[Stimulus]:
+        """Every stimulus a trial can show, SI: each planned level or candidate merged with
+        ``[stimulus]`` (under each 2afc alternative), and the ``[reference]``. A runner checks
+        them against its display (frame rate) before a session file exists."""
+        out = [Stimulus.model_validate(merged) for _, _, merged in self._planned()]
+        return out + ([self.reference] if self.reference is not None else [])
 
     def candidate_levels(self) -> list[float]:
         """The levels (or the bounds of the range) the procedure may command, SI."""

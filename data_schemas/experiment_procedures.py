@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationInfo, model_validator
@@ -198,10 +198,27 @@ class ProcedureConfigBase(_Model):
 
     method: str
     parameter: str
+    #: the fix an error about an invalid planned stimulus suggests (see :meth:`planned_fields`)
+    planned_fix: ClassVar[str] = "narrow the levels"
 
     def candidate_levels(self) -> list[float]:
         """The levels (or the bounds of the range) the procedure may command, SI."""
         return [float(v) for v in getattr(self, "levels")]
+
+    def planned_fields(self) -> list[tuple[str, dict[str, Any]]]:
+        """Every stimulus the procedure may command, as the fields it sets on ``[stimulus]`` (SI).
+
+        Returns ``(where, fields)`` pairs: ``where`` names the protocol entry that plans the
+        stimulus (it starts the error if the stimulus is invalid), ``fields`` maps stimulus field
+        names to SI values. The protocol merges each with its ``[stimulus]`` (and each 2afc
+        alternative) exactly as a trial does and validates the result when it is loaded.
+        Default: ``{parameter: level}`` for each of :meth:`candidate_levels`; for a staircase
+        these are the bounds, which suffices because, the other fields fixed, every stimulus rule
+        keeps a field inside an interval, so a range with valid bounds holds only valid levels.
+        Procedures whose trials set more fields (``model_discrimination``) override it.
+        """
+        return [(f"procedure: level {level!r} of {self.parameter}", {self.parameter: level})
+                for level in self.candidate_levels()]
 
     def n_planned(self) -> int:
         """The most trials the procedure will run (capped by :data:`MAX_PLANNED_TRIALS`).

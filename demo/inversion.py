@@ -101,11 +101,17 @@ def _defect_section(out: pathlib.Path, rng, progress: bool) -> Iterator[str]:
     for line in res.message.splitlines():
         yield "  " + line
     post = res.tree["posterior"]
+    surface = base.surface
+    yield (f"  defect modelled as the scene records it: a {surface.size_m * 1e3:g} mm {surface.shape}, the contact "
+           f"pressure averaged over its footprint (a point model biases x0 by about one posterior sd here)")
     for name in ("x0", "y0"):
         v = post[name].values.ravel() * 1e3
         lo, hi = np.quantile(v, [0.025, 0.975])
-        yield (f"  {name} = {v.mean():+.4f} mm (95% interval {lo:+.4f} .. {hi:+.4f} mm; true "
-               f"{truth[name] * 1e3:+.4f} mm; point-defect model vs a 0.5 mm bump: small bias expected)")
+        true = truth[name] * 1e3
+        yield (f"  {name} = {v.mean():+.4f} ± {v.std():.4f} mm (95% interval {lo:+.4f} .. {hi:+.4f} mm; true "
+               f"{true:+.4f} mm, {'inside' if lo <= true <= hi else 'OUTSIDE'}, {(true - v.mean()) / v.std():+.1f} sd)")
+    yield ("  (a 95% interval misses the truth in about 1 of 20 noise draws; its coverage over many draws of this "
+           "scan: docs/inversion.md)")
     yield "  files defect_posterior.nc (arviz DataTree), defect_corner.png"
 
 
@@ -121,7 +127,7 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
     """
     out = pathlib.Path(report_dir) / "inversion"
     out.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(20261122)
-    yield from _profile_section(out, rng)
-    yield from _defect_section(out, rng, progress)
+    # one generator per section: each section's noise does not depend on what the other draws
+    yield from _profile_section(out, np.random.default_rng([20261122, 1]))
+    yield from _defect_section(out, np.random.default_rng([20261122, 2]), progress)
     yield f"  files in {out}"

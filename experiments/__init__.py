@@ -54,6 +54,7 @@ _EXPORTS = {
     "TransductionFit": "models",
     "fit_transduction": "models",
     "compare_models": "models",
+    "elpd_mcse": "models",
     "power_analysis": "models",
     "PowerResult": "models",
     "power_sweep": "batch",

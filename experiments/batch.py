@@ -164,7 +164,7 @@ def design_sweep(depths, widths, pairs_list, *, out_dir, seed: int = 0, client=N
 
 # ----------------------------------------------------------------------------- model fits per subject
 #: variables of the gathered comparison table (arviz_stats.compare's columns and compare_models' additions)
-COMPARE_COLUMNS = ("rank", "elpd", "p", "elpd_diff", "weight", "se", "dse", "z", "pareto_k_max")
+COMPARE_COLUMNS = ("rank", "elpd", "p", "elpd_diff", "weight", "se", "dse", "mcse", "mcse_diff", "z", "pareto_k_max")
 
 
 def sessions_by_subject(paths) -> dict[str, list[str]]:
@@ -265,7 +265,7 @@ def compare_many(subjects: Mapping, models: Sequence, *, seed: int, out_dir, sta
     -------
     xarray.Dataset
         Over (subject, model): ``rank`` (0 = best; -1 where not compared), ``elpd``, ``p``,
-        ``elpd_diff``, ``weight``, ``se``, ``dse``, ``z``, ``pareto_k_max`` (nats, NaN where not
+        ``elpd_diff``, ``weight``, ``se``, ``dse``, ``mcse``, ``mcse_diff``, ``z``, ``pareto_k_max`` (nats, NaN where not
         compared), ``verdict`` (``best``, ``worse``, ``weakly worse``, ``indistinguishable``;
         ``failed`` for a fit that failed, ``not compared`` when fewer than two fits of a subject
         finished), ``converged``; over (subject, model, parameter): ``map``, ``mean``, ``median``,
@@ -342,6 +342,6 @@ def _gather_comparison(subs, names, parts, attrs, out_dir):
                      **{k: (dims + ("parameter",), v) for k, v in stats.items()}},
                     coords={"subject": subs, "model": names, "parameter": params},
                     attrs={**attrs, "warnings": " | ".join(sorted(notes)),
-                           "units": "elpd, elpd_diff, se, dse in nats (PSIS-LOO); threshold_strain in strain"})
+                           "units": "elpd, elpd_diff, se, dse, mcse, mcse_diff in nats (PSIS-LOO); threshold_strain in strain"})
     write_netcdf_atomic(ds, pathlib.Path(out_dir) / "compare_many.nc")
     return ds

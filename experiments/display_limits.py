@@ -57,15 +57,13 @@ def limits(description, command: str | None = None) -> dict:
     }
 
 
-def check_frames(frames, frame_rate_hz, description, *, name: str = "frames") -> tuple[np.ndarray, float]:
-    """Validate a frame block against a description's shape; return (float64 copy, rate).
+def check_frame_rate(frame_rate_hz, description) -> float:
+    """Return ``frame_rate_hz`` (Hz) as a float if the display can apply frames at that rate.
 
     Raises
     ------
     ValueError
-        If ``frames`` is not a finite 2-D array with one column per tractor and at least one
-        row, or ``frame_rate_hz`` is not a finite positive number no higher than the display's
-        refresh rate ``description.frame_rate_hz``.
+        If it is not a finite number > 0 Hz, or exceeds ``description.frame_rate_hz``.
     """
     rate = float(frame_rate_hz) if not isinstance(frame_rate_hz, bool) else math.nan
     if not (math.isfinite(rate) and rate > 0):
@@ -78,6 +76,20 @@ def check_frames(frames, frame_rate_hz, description, *, name: str = "frames") ->
             f"{description.display_id!r}, {description.frame_rate_hz!r} Hz (it could not apply the "
             "frames); render the stimulus at that rate or lower"
         )
+    return rate
+
+
+def check_frames(frames, frame_rate_hz, description, *, name: str = "frames") -> tuple[np.ndarray, float]:
+    """Validate a frame block against a description's shape; return (float64 copy, rate).
+
+    Raises
+    ------
+    ValueError
+        If ``frames`` is not a finite 2-D array with one column per tractor and at least one
+        row, or ``frame_rate_hz`` is not a finite positive number no higher than the display's
+        refresh rate ``description.frame_rate_hz``.
+    """
+    rate = check_frame_rate(frame_rate_hz, description)
     array = np.array(frames, dtype=float)
     n = int(description.n_tractors)
     if array.ndim != 2 or array.shape[1] != n or array.shape[0] < 1:

@@ -34,7 +34,7 @@ from ._transduction_data import TransductionLikelihood, conditions, default_prio
 from .model_power import PowerResult, power_analysis
 from .psychometric import ParamSummary, fit_psychometric
 
-__all__ = ["TransductionModel", "TransductionFit", "fit_transduction", "compare_models", "power_analysis",
+__all__ = ["TransductionModel", "TransductionFit", "fit_transduction", "compare_models", "elpd_mcse", "power_analysis",
            "PowerResult", "ReceptorHypothesis", "fit_psychometric", "ParamSummary"]
 
 STATISTICS = ("peak", "rms")
@@ -259,14 +259,42 @@ def _rename(raw, lik):
                          dims={"correct": ["trial"]}, attrs={"/": attrs})
 
 
+def elpd_mcse(tree, var_name: str = "correct") -> float:
+    """Monte Carlo standard error of a fit's PSIS-LOO elpd (nats), from its chains.
+
+    First order (delta method) in the importance ratios r_is = 1 / p(y_i | theta_s):
+    elpd_loo = -sum_i log(mean_s r_is), so its Monte Carlo error is that of the posterior mean
+    of the scalar g(theta_s) = sum_i r_is / mean_s(r_is): ``sd(g) / sqrt(ESS(g))``, with the
+    effective sample size of g over the chains (``arviz_stats.ess``, method "mean"). The sum
+    over trials is taken per draw, so errors that every trial shares (a chain's whole
+    posterior slightly off) are counted, unlike in ``dse``. ``tree["log_likelihood"][var_name]``
+    has shape (chain, draw, trial).
+    """
+    import arviz_stats as azs
+
+    ll = np.asarray(tree["log_likelihood"][var_name].values, float)
+    ll = ll.reshape(ll.shape[0], ll.shape[1], -1)
+    log_r = -ll - (-ll).max(axis=(0, 1))  # scaled per trial: r / max r, no overflow
+    r = np.exp(log_r)
+    g = (r / r.mean(axis=(0, 1))).sum(axis=-1)  # (chain, draw)
+    if np.ptp(g) == 0:
+        return 0.0
+    return float(np.std(g, ddof=1) / np.sqrt(azs.ess(g, method="mean")))
+
+
 def compare_models(fits: Mapping, *, var_name: str = "correct", reference: str | None = None):
     """PSIS-LOO comparison (arviz_stats), best first, with z, the largest Pareto k and a verdict.
 
     Returns a pandas DataFrame indexed by model name: arviz's columns (``elpd``, ``elpd_diff``
     (negative for a worse model), ``dse``, ``se``, ``p``, ``weight``, ...) unrounded, plus
-    ``z = |elpd_diff| / dse``, ``pareto_k_max`` and ``verdict``: ``best`` for the first row, then
-    ``worse`` (z > 4), ``weakly worse`` (2 <= z <= 4) or ``indistinguishable`` (z < 2; also when
-    two models predict identical responses: elpd_diff = dse = 0).
+    ``mcse`` (Monte Carlo standard error of the model's elpd, :func:`elpd_mcse`), ``mcse_diff``
+    (of its elpd_diff: the two fits' errors combined as independent; 0 for the reference row),
+    ``z = |elpd_diff| / sqrt(dse**2 + mcse_diff**2)`` (the difference over its standard error,
+    data and Monte Carlo; for distinct models the Monte Carlo part is negligible, for two
+    models that predict identical responses it is all there is), ``pareto_k_max`` and
+    ``verdict``: ``best`` for the first row, then ``worse`` (z > 4), ``weakly worse``
+    (2 <= z <= 4) or ``indistinguishable`` (z < 2; also when elpd_diff = 0, e.g. the same
+    fit twice).
     """
     import arviz_stats as azs
 
@@ -286,9 +314,14 @@ def compare_models(fits: Mapping, *, var_name: str = "correct", reference: str |
         raise ValueError(f"reference: must be one of {sorted(trees)}, got {reference!r}")
     elpds = {name: azs.loo(tree, pointwise=True, var_name=var_name) for name, tree in trees.items()}
     table = azs.compare(elpds, reference=reference, round_to="none")
-    diff, dse = table["elpd_diff"].to_numpy(float), table["dse"].to_numpy(float)
+    mcse = {name: elpd_mcse(tree, var_name) for name, tree in trees.items()}
+    table["mcse"] = [mcse[name] for name in table.index]
+    ref = reference if reference is not None else table.index[0]  # the model elpd_diff is taken against
+    table["mcse_diff"] = [0.0 if name == ref else math.hypot(mcse[ref], mcse[name]) for name in table.index]
+    diff = table["elpd_diff"].to_numpy(float)
+    sigma = np.hypot(table["dse"].to_numpy(float), table["mcse_diff"].to_numpy(float))
     with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(dse > 0, np.abs(diff) / dse, np.where(np.abs(diff) < 1e-9, 0.0, np.inf))
+        z = np.where(sigma > 0, np.abs(diff) / sigma, np.where(np.abs(diff) < 1e-9, 0.0, np.inf))
     table["z"] = z
     table["pareto_k_max"] = [float(np.max(elpds[name].pareto_k)) for name in table.index]
     table["verdict"] = ["best" if i == 0 else "worse" if v > 4 else "weakly worse" if v >= 2 else "indistinguishable"

@@ -46,6 +46,7 @@ from tactilab.data_schemas.experiment import Protocol, check_label, check_subjec
 from tactilab.data_schemas.experiment_records import TrialRecord
 
 from .display import Display, DisplayError, PlaybackReport, description_record, render_drive
+from .display_limits import check_frame_rate
 from .build import make_procedure
 from .procedures import PlannedLevel, Procedure
 from .recording import Recorder, RecordingError, utc_now
@@ -390,6 +391,11 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     # and the first stimulus renders, so no empty or failed session litters the folder
     display.zero()
     render_drive(display.description, **protocol.stimulus.model_dump())
+    rates = sorted({s.frame_rate_hz for s in protocol.planned_stimuli()})
+    try:  # every stimulus the protocol plans can be played (a candidate may set its own frame rate)
+        check_frame_rate(rates[-1], display.description)
+    except ValueError as exc:
+        raise ValueError(f"protocol: a planned stimulus's {exc} (frame rates planned: {rates} Hz)") from None
     description, description_sha256 = description_record(display.description)
     meta = {"session_id": uuid.uuid4().hex, "created_utc": utc_now(),
             "subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),

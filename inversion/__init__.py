@@ -32,6 +32,7 @@ _EXPORTS = {
     "invert_defect_position": "scene_inversion",
     "defect_profile": "scene_inversion",
     "DefectScanModel": "scene_params",
+    "defect_footprint": "scene_params",
     "Uniform": "scene_params",
     "Normal": "scene_params",
     "LogNormal": "scene_params",

@@ -23,13 +23,18 @@ from .criteria import CriteriaResult
 from .gaussian import GaussianPosterior, gaussian_posterior
 from .linear import invert_linear
 from .mcmc import MCMCResult, sample_scene_posterior
-from .scene_params import DefectScanModel, LogNormal, Normal, Uniform
+from .scene_params import DefectScanModel, LogNormal, Normal, Uniform, defect_footprint
 
 __all__ = ["defect_problem", "invert_defect_position", "defect_profile"]
 
 
-def defect_problem(scene, recording: Recording, max_data: int = 1500, max_sensors: int = 6):
+def defect_problem(scene, recording: Recording, max_data: int = 1500, max_sensors: int = 6, *,
+                   footprint: bool = True):
     """Check scene and recording against each other and build the defect model and data.
+
+    ``footprint``: model the defect with the size and shape the scene records (its pressure
+    averaged over :func:`~tactilab.inversion.scene_params.defect_footprint`; an edge step stays a
+    point), or as a point (False).
 
     Returns
     -------
@@ -71,7 +76,8 @@ def defect_problem(scene, recording: Recording, max_data: int = 1500, max_sensor
     c = scene.contact
     model = DefectScanModel(u, scene.sensors.positions_m[keep], recording.components,
                             finger_radius=c.finger_radius_m, poisson_ratio=scene.material.poisson_ratio,
-                            quantity=recording.quantity)
+                            quantity=recording.quantity,
+                            footprint=defect_footprint(scene.surface) if footprint else None)
     from tactilab.forward.contact import HertzContact
 
     hertz = HertzContact(normal_force=c.normal_force_n, finger_radius=c.finger_radius_m,
@@ -96,7 +102,8 @@ EXTRA = ("friction", "depth", "young_modulus", "normal_force")
 
 
 def invert_defect_position(scene, recording: Recording, rng: np.random.Generator, *, sample=(),
-                           max_data: int = 1500, progress: bool = False, **sampler_options) -> tuple[MCMCResult, dict]:
+                           max_data: int = 1500, progress: bool = False, footprint: bool = True,
+                           **sampler_options) -> tuple[MCMCResult, dict]:
     """Posterior of the defect position (x0, y0) and optionally other scene parameters, by emcee.
 
     Priors: x0 uniform over the scanned range (contact centre path widened by the contact
@@ -107,13 +114,18 @@ def invert_defect_position(scene, recording: Recording, rng: np.random.Generator
     out under N(0, s^2) with s ten times the amplitude that explains the largest datum. With the
     area integrated out, young_modulus and normal_force act only through the contact radius, so
     sampling both leaves a ridge (F/E): the result reports it.
+
+    The defect has the size and shape the scene records (``footprint=True``, default; see
+    :func:`defect_problem`): a point model of the example 0.5 mm bump under a 3 mm deep sensor
+    array puts x0 about 4 um off (one posterior sd; its 95 % intervals then cover the truth
+    in 150 of 200 noise draws, docs/inversion.md); the finite model removes that bias.
     """
     sample = tuple(sample)
     unknown = [q for q in sample if q not in EXTRA]
     if unknown:
         raise ValueError(f"sample: unknown parameter(s) {unknown}; choose from {', '.join(EXTRA)} "
                          "(x0 and y0 are always sampled)")
-    model, data, info = defect_problem(scene, recording, max_data=max_data)
+    model, data, info = defect_problem(scene, recording, max_data=max_data, footprint=footprint)
     a = info["contact_radius"]
     u = model.scan_positions
     fixed = _fixed(scene)

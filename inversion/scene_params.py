@@ -13,6 +13,13 @@ with ``g`` the Boussinesq (normal) and Cerruti (tangential) point-load Green's f
 :class:`tactilab.forward.contact.HertzContact`. The tangential traction is ``+mu p`` along +x
 (sign fixed by the sliding direction; negate the signal for the opposite one).
 
+A defect of finite size (``footprint``: its normalised height profile h / iint h dA as a
+quadrature, :func:`defect_footprint`) replaces ``p(x0 - u, y0)`` by the pressure averaged over
+the footprint, ``sum_k w_k p(x0 + xi_k - u, y0 + eta_k)``: the Hertz pressure changes steeply
+near the contact edge, so a defect that straddles it is loaded unevenly (a point model then
+puts the defect where that load is centred, biased by a fraction of its size). The Green's
+functions stay at the centre (their change over the footprint is of order (size / Z)^2).
+
 ``S_d`` enters linearly: :mod:`tactilab.inversion.mcmc` integrates it out exactly under a
 Gaussian prior. The nonlinear parameters are ``x0, y0`` (m), ``friction`` (mu_d), ``depth`` (m),
 ``young_modulus`` (Pa) and ``normal_force`` (N); each is either fixed (a float) or sampled
@@ -29,7 +36,7 @@ from tactilab.forward.halfspace import output_weights, point_green
 
 NONLINEAR = ("x0", "y0", "friction", "depth", "young_modulus", "normal_force")
 
-__all__ = ["Uniform", "Normal", "LogNormal", "DefectScanModel", "NONLINEAR", "check_prior"]
+__all__ = ["Uniform", "Normal", "LogNormal", "DefectScanModel", "NONLINEAR", "check_prior", "defect_footprint"]
 
 
 @dataclass(frozen=True)
@@ -119,6 +126,58 @@ def check_prior(name: str, value):
     raise ValueError(f"{name}: expected a prior (Uniform, Normal, LogNormal) or a finite fixed value, got {value!r}")
 
 
+def _check_footprint(footprint) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        offsets, weights = footprint
+    except (TypeError, ValueError):
+        raise ValueError(f"footprint: expected (offsets of shape (K, 2) in m, weights of shape (K,)), got "
+                         f"{footprint!r}; build it with defect_footprint(surface)") from None
+    offsets, weights = np.asarray(offsets, dtype=float), np.asarray(weights, dtype=float)
+    if offsets.ndim != 2 or offsets.shape[1] != 2 or weights.shape != (offsets.shape[0],) or weights.size < 1 \
+            or not (np.all(np.isfinite(offsets)) and np.all(np.isfinite(weights))):
+        raise ValueError(f"footprint: expected finite offsets of shape (K, 2) in m and weights of shape (K,), got "
+                         f"shapes {offsets.shape} and {weights.shape}; build it with defect_footprint(surface)")
+    if np.any(weights < 0) or abs(weights.sum() - 1.0) > 1e-9:
+        raise ValueError(f"footprint: weights must be >= 0 and sum to 1 (a normalised height profile), got sum "
+                         f"{weights.sum()!r}; divide them by their sum")
+    return offsets, weights
+
+
+def defect_footprint(surface, n_radial: int = 6, n_angles: int = 16):
+    """Quadrature of an isolated round defect's normalised height profile h / iint h dA.
+
+    Parameters
+    ----------
+    surface : tactilab.data_schemas IsolatedDefect
+        ``shape`` "bump" (raised cosine) or "dot" (flat disc), ``size_m`` its base diameter;
+        its ``height_at`` gives the profile.
+    n_radial, n_angles : int
+        Gauss-Legendre nodes in r on [0, size_m / 2] (weights times h(r) r) and equally spaced
+        angles (>= 1 and >= 3).
+
+    Returns
+    -------
+    (offsets, weights) or None
+        Offsets from the centre, shape (n_radial * n_angles, 2), m; weights summing to 1.
+        None for an edge step (no centre: not an isolated defect).
+    """
+    if getattr(surface, "kind", None) != "defect":
+        raise ValueError(f"surface: expected an isolated defect (kind 'defect'), got {getattr(surface, 'kind', None)!r}")
+    if not (isinstance(n_radial, int) and n_radial >= 1 and isinstance(n_angles, int) and n_angles >= 3):
+        raise ValueError(f"n_radial, n_angles: need whole numbers >= 1 and >= 3, got {n_radial!r}, {n_angles!r}")
+    if surface.shape == "edge_step":
+        return None
+    b = surface.size_m / 2
+    t, wt = np.polynomial.legendre.leggauss(n_radial)
+    r = 0.5 * b * (t + 1.0)
+    x0, y0 = surface.position_m
+    w_r = wt * r * np.abs(surface.height_at(x0 + r, np.full_like(r, y0)))
+    angles = (np.arange(n_angles) + 0.5) * 2 * np.pi / n_angles
+    offsets = np.stack([np.outer(r, np.cos(angles)).ravel(), np.outer(r, np.sin(angles)).ravel()], axis=1)
+    weights = np.repeat(w_r / w_r.sum() / n_angles, n_angles)
+    return offsets, weights / weights.sum()
+
+
 class DefectScanModel:
     """Signal of a point defect scanned under a Hertz contact, per unit defect area.
 
@@ -138,6 +197,10 @@ class DefectScanModel:
         What the sensors record: stress (Pa) or TENSOR strain (dimensionless, eps_ij; engineering
         shear is 2 eps_ij). Strain is the stress at the sensor through the compliance rows of
         :func:`tactilab.forward.halfspace.output_weights`, with the walker's ``young_modulus``.
+    footprint : (ndarray shape (K, 2), ndarray shape (K,)), optional
+        A finite defect: quadrature offsets (xi, eta) from its centre, m, and weights summing
+        to 1 (its normalised height profile, :func:`defect_footprint`); the interfacial pressure
+        is averaged over it. None (default): a point defect.
 
     Notes
     -----
@@ -147,7 +210,7 @@ class DefectScanModel:
     """
 
     def __init__(self, scan_positions, sensors, components=("zz",), finger_radius: float = 0.01,
-                 poisson_ratio: float = 0.5, quantity: str = "stress"):
+                 poisson_ratio: float = 0.5, quantity: str = "stress", footprint=None):
         u = np.asarray(scan_positions, dtype=float).ravel()
         if u.size < 1 or not np.all(np.isfinite(u)):
             raise ValueError(f"scan_positions: need at least one finite position in m, got {scan_positions!r}")
@@ -165,6 +228,7 @@ class DefectScanModel:
         if quantity not in ("stress", "strain"):
             raise ValueError(f"quantity: must be 'stress' (Pa) or 'strain' (tensor strain), got {quantity!r}")
         self.quantity = quantity
+        self.footprint = None if footprint is None else _check_footprint(footprint)
         # stress -> output rows with E = 1 Pa (strain rows scale as 1/E, applied per walker)
         self._weights = output_weights(quantity, comps, 1.0, float(poisson_ratio))
         self.scan_positions = u
@@ -203,7 +267,12 @@ class DefectScanModel:
         # defect in the finger frame at each time: (x0 - u, y0); shapes (W, T, 1)
         xd = p["x0"] - self.scan_positions[None, :, None]
         yd = p["y0"]
-        pressure = p0 * np.sqrt(np.clip(1.0 - (xd * xd + yd * yd) / (radius * radius), 0.0, None))
+        if self.footprint is None:
+            pressure = p0 * np.sqrt(np.clip(1.0 - (xd * xd + yd * yd) / (radius * radius), 0.0, None))
+        else:  # the pressure averaged over the footprint: a trailing axis of K quadrature points
+            (xi, eta), wk = self.footprint[0].T, self.footprint[1]
+            rel = ((xd + xi) ** 2 + (yd + eta) ** 2) / (radius * radius)  # (W, T, K)
+            pressure = p0 * (np.sqrt(np.clip(1.0 - rel, 0.0, None)) @ wk)[..., None]
         dx = self.sensors[None, None, :, 0] - xd
         dy = self.sensors[None, None, :, 1] - yd
         z = np.broadcast_to(p["depth"], dx.shape)

@@ -176,3 +176,72 @@ def test_a_design_built_in_python_plans_every_field_its_candidates_vary():
     chosen = design.candidates[planned.track]
     assert isinstance(planned, PlannedStimulus) and planned.level == chosen.pitch_m
     assert dict(planned.fields) == {"surface": chosen.surface, "amplitude_m": chosen.amplitude_m}
+
+
+@pytest.mark.parametrize("candidates, stimulus, match", [
+    # valid alone (the default duration is 0.5 s), invalid with [stimulus]'s 50 ms
+    ({"ramp_s": ["5ms", "30ms"]}, {},
+     r"procedure\.candidates\[1\] \(surface='sinusoid', amplitude_m=3e-06, pitch_m=0\.002, speed_m_per_s=0\.02, ramp_s=0\.03\) merged "
+     r"with \[stimulus\] gives an invalid stimulus \(ramp_s: must lie in \[0, duration_s / 2\] = \[0, 0\.025\] s, "
+     r"got 0\.03; .*\); 12 of 24 planned stimuli break the ramp_s rule; change the candidate lists or \[stimulus\]"),
+    ({"frame_rate_hz": ["30Hz"]}, {},
+     r"procedure\.candidates\[0\] .*frame_rate_hz=30\.0.* \(frame_rate_hz: 30\.0 Hz gives fewer than 2 frames in "
+     r"0\.05 s; .*\); 12 of 12 planned stimuli break the frame_rate_hz rule"),
+    # the [stimulus] side: a listed ramp that the protocol's own duration cannot hold
+    ({"ramp_s": ["20ms"]}, {"duration_s": "30ms"}, r"procedure\.candidates\[0\] .*\(ramp_s: .*got 0\.02; .*\); "
+     r"12 of 12 planned stimuli break the ramp_s rule"),
+])
+def test_candidates_are_validated_merged_with_the_protocol_stimulus(candidates, stimulus, match):
+    raw = tomllib.loads(PROTOCOL)
+    raw["procedure"]["candidates"] = {**raw["procedure"]["candidates"], **candidates}
+    raw["stimulus"] = {**raw["stimulus"], **stimulus}
+    ModelDiscriminationConfig.model_validate(raw["procedure"])  # each candidate is valid on its own
+    with pytest.raises(ValueError, match=match):
+        Protocol.model_validate(raw)
+
+
+def test_a_protocol_whose_merged_candidate_is_invalid_fails_at_load_in_one_line(tmp_path, capsys):
+    path = tmp_path / "design.toml"
+    path.write_text(PROTOCOL.replace('speed_m_per_s = ["20mm/s"]', 'speed_m_per_s = ["20mm/s"]\nramp_s = ["30ms"]'))
+    out = tmp_path / "out"
+    argv = ["experiment", "run", str(path), "--subject", "S01", "--responses", "simulated", "--no-wait", "--quiet",
+            "--out", str(out)]
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in captured.err + captured.out
+    assert "procedure.candidates[0]" in lines[0] and "ramp_s: must lie in" in lines[0]
+    assert not out.exists() or not list(out.glob("*.sqlite"))  # refused before any session file
+
+
+def test_a_candidate_invalid_on_its_own_is_named_with_its_index():
+    raw = tomllib.loads(PROTOCOL)["procedure"]
+    raw["candidates"] = {**raw["candidates"], "duration_s": ["1s", "30ms"]}  # 30 ms < 2 x the default 20 ms ramp
+    with pytest.raises(ValueError, match=r"candidates: candidate 1 \{.*'duration_s': 0\.03.*\} is not a valid "
+                                         r"stimulus on its own \(.*ramp_s.*unlisted fields at their defaults: "
+                                         r"duration_s 0\.5, ramp_s 0\.02, frame_rate_hz 1000\.0\)"):
+        ModelDiscriminationConfig.model_validate(raw)
+
+
+def test_a_candidate_frame_rate_the_display_cannot_play_is_refused_before_the_session(tmp_path, capsys):
+    """The display is known when a session starts: every planned stimulus's frame rate is checked
+    against its refresh rate (1 kHz for the Braille row) before a session file exists."""
+    raw = tomllib.loads(PROTOCOL)
+    raw["procedure"]["candidates"]["frame_rate_hz"] = ["500Hz", "5kHz"]
+    protocol = Protocol.model_validate(raw)
+    assert len(protocol.planned_stimuli()) == 24 and {s.frame_rate_hz for s in protocol.planned_stimuli()} == {500.0,
+                                                                                                             5000.0}
+    display = SimulatedDisplay(DisplayDescription.braille_row(), realtime=False)
+    path = tmp_path / "s.sqlite"
+    with pytest.raises(ValueError, match=r"protocol: a planned stimulus's frame_rate_hz: 5000.0 Hz exceeds the "
+                                         r"refresh rate of display 'VirtualBrailleRow', 1000.0 Hz .*render the stimulus "
+                                         r"at that rate or lower \(frame rates planned: \[500.0, 5000.0\] Hz\)"):
+        new_session(protocol, path, display, _observer(protocol), subject="S01", realtime=False)
+    assert not path.exists()
+    toml = tmp_path / "design.toml"
+    toml.write_text(PROTOCOL.replace('speed_m_per_s = ["20mm/s"]', 'speed_m_per_s = ["20mm/s"]\nframe_rate_hz = ["5kHz"]'))
+    out = tmp_path / "out"
+    assert main(["experiment", "run", str(toml), "--subject", "S01", "--responses", "simulated", "--no-wait",
+                 "--quiet", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "exceeds the refresh rate" in err[0] and not list(out.glob("*.sqlite"))

@@ -344,3 +344,21 @@ def test_a_lab_pattern_replaces_the_heuristics():
         check_subject("S01", pattern="P[0-9]{4}")
     with pytest.raises(ValueError, match="is not a valid regular expression"):
         check_subject("S01", pattern="(")
+
+
+def test_levels_are_validated_under_every_2afc_alternative_and_staircase_bound():
+    # each alternative is valid with [stimulus] (300 ms) but not with the 100 ms level
+    data = with_("procedure", {"method": "constant_stimuli", "parameter": "duration_s", "levels": ["100ms", "300ms"]})
+    data["task"] = {"kind": "2afc", "alternatives": {"slow": {"ramp_s": "60ms"}, "fast": {}}}
+    with pytest.raises(ValueError, match=r"procedure: level 0\.1 of duration_s under task\.alternatives\.slow gives "
+                                         r"an invalid stimulus \(ramp_s: must lie in .*got 0\.06; .*\); 1 of 2 "
+                                         r"planned stimuli break the ramp_s rule; narrow the levels"):
+        Protocol.model_validate(data)
+    # a staircase's bounds (every level between valid bounds is valid: each rule is an interval)
+    track = {"start": "100ms", "step_sizes": [0.1], "min_level": "10ms", "max_level": "300ms"}
+    data = with_("procedure", {"method": "staircase", "parameter": "duration_s", "tracks": [track]})
+    with pytest.raises(ValueError, match=r"procedure: level 0\.01 of duration_s gives an invalid stimulus "
+                                         r"\(ramp_s: .*got 0\.02; .*\); 1 of 2 planned stimuli"):
+        Protocol.model_validate(data)
+    track["min_level"] = "40ms"
+    assert Protocol.model_validate(data).procedure.tracks[0].min_level == pytest.approx(0.04)

@@ -12,7 +12,7 @@ from tactilab.data_schemas.sensors import SensorArray
 from tactilab.inversion.scene_inversion import (
     defect_problem, defect_profile, invert_defect_position,
 )
-from tactilab.inversion.scene_params import DefectScanModel
+from tactilab.inversion.scene_params import DefectScanModel, defect_footprint
 
 
 def small_scene():
@@ -26,7 +26,8 @@ def small_scene():
 def synthetic_recording(scene, rng, baseline=-5e3):
     c = scene.contact
     model = DefectScanModel(scene.scan.positions_m, scene.sensors.positions_m, ("zz",),
-                            finger_radius=c.finger_radius_m, poisson_ratio=scene.material.poisson_ratio)
+                            finger_radius=c.finger_radius_m, poisson_ratio=scene.material.poisson_ratio,
+                            footprint=defect_footprint(scene.surface))  # the scene's 0.5 mm bump
     truth = dict(x0=0.0, y0=0.0, friction=c.friction_coefficient, depth=scene.sensors.depth_m,
                  young_modulus=scene.material.young_modulus_pa, normal_force=c.normal_force_n)
     clean = model.simulate(truth, 5e-8)
