@@ -21,11 +21,11 @@ the system and asks again) as on its FFTs. So
 
 Where a facade call goes now (``benchmarks/bench_forward.py --phases``, Table 0b of
 docs/forward_benchmark.md: ``HalfSpace.stress(load, 1 mm, method="spectral")``, p + qx + qy, six
-components, one depth, float64, one thread; minima over 101 interleaved repeats at a load average
-of 3.7 to 4.0 on 2 shared cores, in units of the FFT floor of 3 ``rfft2`` + 6 ``irfft2``, at
-256^2 / 512^2): the three forward transforms 0.29 / 0.35 (the floor's own: 0.32 / 0.33), the 30
-multiply-add passes of :func:`apply` 0.38 / 0.36, the six inverse transforms 0.73 / 0.67 (the
-floor's: 0.65 / 0.64); ``periodic_stress`` 1.46 / 1.42 in all, the facade 1.45 to 1.65 between
+components, one depth, float64, one thread; minima over 101 interleaved repeats on an idle
+2-core machine, in units of the FFT floor of 3 ``rfft2`` + 6 ``irfft2``, at 256^2 / 512^2): the
+three forward transforms 0.30 / 0.33 (the floor's own: 0.32 / 0.35), the 30 multiply-add passes
+of :func:`apply` 0.33 / 0.38, the six inverse transforms 0.70 / 0.70 (the floor's: 0.66 / 0.65);
+``periodic_stress`` 1.40 / 1.44 in all, the facade 1.38 to 1.55 / 1.47 to 1.52 between
 runs (Table 0). Measured and not kept:
 tables stored for eta >= 0 only and mirrored (half the table memory, no faster: the extra
 half-size calls and reversed rows cost what the smaller tables save), real tables applied through
