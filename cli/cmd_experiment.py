@@ -245,14 +245,16 @@ def _run(args: argparse.Namespace) -> int:
             raise
         from tactilab.experiments.runner import new_session
 
-        print(f"session file: {path}", flush=True, file=sys.stderr if args.json else sys.stdout)
+        def created(file) -> None:  # printed once the file exists: a refused start leaves none behind
+            print(f"session file: {file}", flush=True, file=sys.stderr if args.json else sys.stdout)
+
         args.session_path = path
         ended, report = False, RunReport("experiment run")
         try:
             with report.collecting_warnings():
                 result = new_session(protocol, path, display, responses, subject=args.subject, session=label,
-                                     subject_pattern=args.subject_pattern,
-                                     realtime=not args.no_wait, progress=not args.quiet)
+                                     subject_pattern=args.subject_pattern, realtime=not args.no_wait,
+                                     progress=not args.quiet, on_created=created)
             ended = True
         finally:
             _zero_and_close(display, responses, ended)

@@ -344,7 +344,8 @@ DISPLAY_UNITS = {"amplitude_m": ("amplitude", 1e6, "um"), "pitch_m": ("pitch", 1
 
 
 def new_session(protocol: Protocol, path: str | Path, display: Display, responses: ResponseSource, *,
-                subject: str, session: str = "01", subject_pattern: str | None = None, realtime: bool = True, progress: bool = False) -> RunResult:
+                subject: str, session: str = "01", subject_pattern: str | None = None, realtime: bool = True,
+                progress: bool = False, on_created: Callable[[Path], None] | None = None) -> RunResult:
     """Create a session file at ``path`` and run the protocol to the end (or to an interruption).
 
     Parameters
@@ -368,6 +369,9 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
         Wait in real time between trials and during playback (False: dry runs only).
     progress : bool
         Show a tqdm bar over trials.
+    on_created : callable, optional
+        Called with the session file's path once the file exists (after the start checks), e.g.
+        to tell the user where it is.
 
     Returns
     -------
@@ -409,6 +413,8 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     recorder = Recorder.create(path, meta)
     try:
         recorder.log("session_started", payload={"pid": os.getpid()})
+        if on_created is not None:
+            on_created(Path(path))
         runner = Runner(protocol, recorder, display, responses, subject=subject, session=session,
                         procedure=procedure, realtime=realtime, progress=progress)
         return runner.run()

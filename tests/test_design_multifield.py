@@ -243,5 +243,7 @@ def test_a_candidate_frame_rate_the_display_cannot_play_is_refused_before_the_se
     out = tmp_path / "out"
     assert main(["experiment", "run", str(toml), "--subject", "S01", "--responses", "simulated", "--no-wait",
                  "--quiet", "--out", str(out)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
     assert len(err) == 1 and "exceeds the refresh rate" in err[0] and not list(out.glob("*.sqlite"))
+    assert "session file:" not in captured.out  # no file, so no "session file: PATH" line either
