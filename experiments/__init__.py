@@ -13,7 +13,7 @@ from tactilab.data_schemas._lazy import attach, package_version
 _EXPORTS = {
     "new_session": "runner",
     "RunResult": "runner",
-    "DisplayFault": "runner",
+    "DisplayFault": "display_faults",
     "Runner": "runner",
     "resume_session": "resume",
     "session_status": "resume",

@@ -45,14 +45,15 @@ import numpy as np
 from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
 from tactilab.data_schemas.experiment_records import TrialRecord
 
-from .display import Display, DisplayError, PlaybackReport, description_record, render_drive
+from .display import Display, DisplayError, description_record, render_drive
+from .display_faults import MAX_UNACKED_FRACTION, DisplayFault, display_fault  # noqa: F401 - re-exported
 from .display_limits import check_frame_rate
 from .build import make_procedure
 from .procedures import PlannedLevel, Procedure
 from .recording import Recorder, RecordingError, utc_now
 from .responses import ResponseSource
 from .safety import STOP_SIGNALS, SafeDisplay
-from .tasks import TrialPlan, plan_trial, score
+from .tasks import plan_trial, score
 
 
 @functools.cache
@@ -68,45 +69,6 @@ def trial_generators(seed: int, trial_index: int) -> tuple[np.random.Generator, 
     """(procedure, task) generators of one trial, spawned from ``default_rng([seed, trial_index])``."""
     procedure_rng, task_rng = np.random.default_rng([seed, trial_index]).spawn(2)
     return procedure_rng, task_rng
-
-
-#: Fraction of a stimulus's frames that may go unacknowledged (a lost datagram on a busy link)
-#: before the trial is a display fault; any non-``applied`` acknowledgement is a fault at once.
-MAX_UNACKED_FRACTION = 0.01
-
-
-class DisplayFault(DisplayError):
-    """A stimulus did not reach the display as commanded; the trial was not scored."""
-
-
-def display_fault(report: PlaybackReport) -> dict[str, Any] | None:
-    """Why one interval's playback cannot be scored, or None when it reached the display.
-
-    Returns
-    -------
-    dict or None
-        ``reason`` (text), ``alarm`` (True for ``stale`` acknowledgements), and the counts
-        ``frames_sent``, ``stale``, ``rejected`` (non-``applied`` acknowledgements) and
-        ``unacknowledged``.
-    """
-    counts = {"frames_sent": report.frames_sent, "stale": report.stale, "rejected": report.rejected,
-              "unacknowledged": report.unacknowledged, "skipped": report.skipped, "stopped": report.stopped}
-    allowed = int(MAX_UNACKED_FRACTION * report.frames_sent)
-    if report.stale:
-        reason = (f"ALARM: {report.stale} of {report.frames_sent} frames were acknowledged 'stale': the "
-                  "device had applied newer sequence numbers, so another sender is driving it")
-    elif report.rejected:
-        reason = f"{report.rejected} of {report.frames_sent} frames were refused by the device"
-    elif report.unacknowledged > allowed:
-        reason = (f"{report.unacknowledged} of {report.frames_sent} frames were never acknowledged (at most "
-                  f"{allowed} = {MAX_UNACKED_FRACTION:.0%} may be)")
-    elif report.stopped:
-        reason = (f"playback stopped after {report.frames_sent} frames, before the end of the stimulus"
-                  + (f" ({report.skipped} frames were due more than half a period ago and skipped: the host "
-                     "could not keep the frame rate)" if report.skipped else ""))
-    else:
-        return None
-    return {"reason": reason, "alarm": bool(report.stale), **counts}
 
 
 @dataclass(frozen=True)
