@@ -35,6 +35,7 @@ import contextlib
 import hashlib
 import os
 import pathlib
+import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator, Mapping
@@ -87,6 +88,9 @@ def read_result(out_dir, key: str):
         return tree.load()
 
 
+_WRITE_LOCK = threading.Lock()
+
+
 @contextlib.contextmanager
 def _local_write_lock() -> Iterator[None]:
     """Let xarray guard an HDF5 write with a lock of this process, not of the Dask cluster.
@@ -102,7 +106,10 @@ def _local_write_lock() -> Iterator[None]:
     except ImportError:  # no Dask: xarray takes a threading lock anyway
         yield
         return
-    with dask.config.set(scheduler="synchronous"):
+    # dask.config is process-wide: one writer at a time, so that concurrent writers (a worker with
+    # several threads) set and restore it in order. xarray holds one process-wide HDF5 lock for
+    # every write anyway, so this costs no parallelism.
+    with _WRITE_LOCK, dask.config.set(scheduler="synchronous"):
         yield
 
 

@@ -118,3 +118,20 @@ def test_a_failed_write_leaves_no_file(tmp_path):
     with pytest.raises(OSError, match="disk full"):
         write_netcdf_atomic(Broken(), tmp_path / "result.nc")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_concurrent_writers_leave_the_dask_configuration_as_it_was(tmp_path):
+    """Threads writing at once (a worker with several threads) each set and restore the scheduler
+    setting in turn; afterwards it is what it was, and every file holds its own data."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    before = dask.config.get("scheduler", None)
+
+    def write(i: int):
+        return write_netcdf_atomic(xr.Dataset({"v": ("x", np.full(50, float(i)))}), tmp_path / f"f{i}.nc")
+
+    with ThreadPoolExecutor(8) as pool:
+        paths = list(pool.map(write, range(40)))
+    assert dask.config.get("scheduler", None) == before
+    for i, path in enumerate(paths):
+        assert float(xr.load_dataset(path, engine="h5netcdf")["v"].mean()) == i
