@@ -31,22 +31,13 @@ import numpy as np
 
 from tactilab.data_schemas.files import load_example
 from tactilab.data_schemas.recording_io import read_recording
-from tactilab.data_schemas.scene import Scan
-from tactilab.data_schemas.sensors import SensorArray
 from tactilab.forward.scene_simulation import simulate_scene
 from tactilab.inversion.mcmc import DefectPosterior
+from tactilab.demo.inversion import defect_demo_scene
 from tactilab.inversion.scene_inversion import _fixed, defect_problem
 from tactilab.inversion.scene_params import Normal
 
 NOISE = 10.0
-
-
-def demo_scene():
-    base = load_example("fingertip_defect")
-    sensors = SensorArray(positions_m=np.array([[x, y] for y in (-1e-3, 0.0, 1e-3) for x in (-1e-3, 0.0, 1e-3)]),
-                          depth_m=base.sensors.depth_m, components=("zz", "zx"), noise_std=base.sensors.noise_std)
-    scan = Scan(speed_m_per_s=0.02, duration_s=0.6, sampling_rate_hz=250.0, start_position_m=-6e-3)
-    return base.model_copy(update={"sensors": sensors, "scan": scan})
 
 
 def best_x0(model, data, fixed):
@@ -83,7 +74,7 @@ def main(argv=None) -> None:
     parser.add_argument("--scene", choices=("demo", "example"), default="demo",
                         help="the demo's scan (max_data 400) or the example file's own (max_data 500, as in docs)")
     args = parser.parse_args(argv)
-    scene = demo_scene() if args.scene == "demo" else example_scene()
+    scene = defect_demo_scene() if args.scene == "demo" else example_scene()
     fixed, max_data = _fixed(scene), 400 if args.scene == "demo" else 500
     recs = {}
     with tempfile.TemporaryDirectory() as tmp:

@@ -69,27 +69,35 @@ def _profile_section(out: pathlib.Path, rng) -> Iterator[str]:
     yield f"  resolution kernel at x = 0: FWHM {fwhm * 1e3:.2f} mm; files profile.png, profile_criteria.png"
 
 
-def _defect_section(out: pathlib.Path, rng, progress: bool) -> Iterator[str]:
+def defect_demo_scene():
+    """The defect section's scene: the example 'fingertip_defect' (a 0.5 mm bump) scanned at
+    20 mm/s for 0.6 s (250 Hz) under 3 x 3 sensors 1 mm apart reading zz and zx (SI units).
+    Also used by tests/test_inversion_defect_footprint.py and benchmarks/bench_defect_coverage.py."""
     from tactilab.data_schemas.files import load_example
     from tactilab.data_schemas.scene import Scan
     from tactilab.data_schemas.sensors import SensorArray
+
+    base = load_example("fingertip_defect")
+    sensors = SensorArray(positions_m=np.array([[x, y] for y in (-1e-3, 0.0, 1e-3) for x in (-1e-3, 0.0, 1e-3)]),
+                          depth_m=base.sensors.depth_m, components=("zz", "zx"), noise_std=base.sensors.noise_std)
+    scan = Scan(speed_m_per_s=0.02, duration_s=0.6, sampling_rate_hz=250.0, start_position_m=-6e-3)
+    return base.model_copy(update={"sensors": sensors, "scan": scan})
+
+
+def _defect_section(out: pathlib.Path, rng, progress: bool) -> Iterator[str]:
     from tactilab.data_schemas.recording_io import read_recording
     from tactilab.forward.scene_simulation import simulate_scene
 
     from tactilab.inversion.plots import plot_corner
     from tactilab.inversion.scene_inversion import invert_defect_position
 
-    base = load_example("fingertip_defect")
-    sensors = SensorArray(positions_m=np.array([[x, y] for y in (-1e-3, 0.0, 1e-3) for x in (-1e-3, 0.0, 1e-3)]),
-                          depth_m=base.sensors.depth_m, components=("zz", "zx"), noise_std=base.sensors.noise_std)
-    scan = Scan(speed_m_per_s=0.02, duration_s=0.6, sampling_rate_hz=250.0, start_position_m=-6e-3)
-    scene = base.model_copy(update={"sensors": sensors, "scan": scan})
+    scene = defect_demo_scene()
     t = time.perf_counter()
     sim_dir = out / "defect_scan"
     list(simulate_scene(scene, sim_dir, rng=rng, plots=False))
     rec = read_recording(sim_dir / "recording.nc")
-    yield (f"[inversion] defect: forward-simulated scan (tactilab.forward) of the example '{base.name}' with 3 x 3 "
-           f"sensors, {rec.n_times} samples, zz and zx, noise {sensors.noise_std:g} Pa ({time.perf_counter() - t:.1f} s)")
+    yield (f"[inversion] defect: forward-simulated scan (tactilab.forward) of the example '{scene.name}' with 3 x 3 "
+           f"sensors, {rec.n_times} samples, zz and zx, noise {scene.sensors.noise_std:g} Pa ({time.perf_counter() - t:.1f} s)")
     t = time.perf_counter()
     res, info = invert_defect_position(scene, rec, rng, max_data=400, progress=progress, max_steps=6000,
                                        check_every=250)
@@ -101,7 +109,7 @@ def _defect_section(out: pathlib.Path, rng, progress: bool) -> Iterator[str]:
     for line in res.message.splitlines():
         yield "  " + line
     post = res.tree["posterior"]
-    surface = base.surface
+    surface = scene.surface
     yield (f"  defect modelled as the scene records it: a {surface.size_m * 1e3:g} mm {surface.shape}, the contact "
            f"pressure averaged over its footprint (a point model biases x0 by about one posterior sd here)")
     for name in ("x0", "y0"):

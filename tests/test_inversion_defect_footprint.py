@@ -15,9 +15,8 @@ from scipy.integrate import quad
 
 from tactilab.data_schemas.files import load_example
 from tactilab.data_schemas.recording_io import read_recording
-from tactilab.data_schemas.scene import Scan
-from tactilab.data_schemas.sensors import SensorArray
 from tactilab.forward.scene_simulation import simulate_scene
+from tactilab.demo.inversion import defect_demo_scene
 from tactilab.inversion.mcmc import DefectPosterior
 from tactilab.inversion.scene_inversion import _fixed, defect_problem, invert_defect_position
 from tactilab.inversion.scene_params import DefectScanModel, Normal, defect_footprint
@@ -25,18 +24,9 @@ from tactilab.inversion.scene_params import DefectScanModel, Normal, defect_foot
 NOISE = 10.0  # Pa, the example's sensors
 
 
-def demo_scene():
-    """The scene of demo/inversion.py's defect section."""
-    base = load_example("fingertip_defect")
-    sensors = SensorArray(positions_m=np.array([[x, y] for y in (-1e-3, 0.0, 1e-3) for x in (-1e-3, 0.0, 1e-3)]),
-                          depth_m=base.sensors.depth_m, components=("zz", "zx"), noise_std=base.sensors.noise_std)
-    scan = Scan(speed_m_per_s=0.02, duration_s=0.6, sampling_rate_hz=250.0, start_position_m=-6e-3)
-    return base.model_copy(update={"sensors": sensors, "scan": scan})
-
-
 @pytest.fixture(scope="module")
 def scene():
-    return demo_scene()
+    return defect_demo_scene()
 
 
 @pytest.fixture(scope="module")
