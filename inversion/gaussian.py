@@ -27,6 +27,7 @@ from scipy.sparse.linalg import LinearOperator, aslinearoperator, cg
 from .gaussian_dense import _dense_posterior
 from .linear_common import DENSE_MAX, check_data
 from .operators import FourierDiagonal, angular_wavenumbers
+from .paths import choose_path
 from .penalties import penalty_symbol
 
 KINDS = ("matern32", "matern52", "squared_exponential", "white")
@@ -364,6 +365,8 @@ def gaussian_posterior(
     noise_std : float
         Noise standard deviation, data units, > 0.
     method : {"auto", "fft", "dense", "iterative"}
+        Path, chosen as for :func:`~tactilab.inversion.invert_linear` by
+        :func:`~tactilab.inversion.paths.choose_path` (a circulant forward operator takes the fft path).
     spacing : float or tuple, optional
         Grid spacing in m (default: the operator's, else 1).
     rng : numpy.random.Generator, optional
@@ -377,20 +380,14 @@ def gaussian_posterior(
     """
     if not (np.isfinite(noise_std) and noise_std > 0):
         raise ValueError(f"noise_std: must be finite and > 0 (data units), got {noise_std!r}")
-    if method not in ("auto", "fft", "dense", "iterative"):
-        raise ValueError(f"method: unknown path {method!r}; use auto, fft, dense or iterative")
+    operator, method = choose_path(operator, method)  # the same path as invert_linear for this operator
     is_matrix = isinstance(operator, np.ndarray)
     dims = (operator.shape[1],) if is_matrix else tuple(getattr(operator, "dims", (operator.shape[1],)))
     spacing = spacing if spacing is not None else getattr(operator, "spacing", 1.0)
     d = check_data(data, operator.shape[0], shape=getattr(operator, "dimsd", None))
     lam_full = _prior_spectrum(prior, dims, spacing)
     m0 = prior.mean if isinstance(prior, StationaryPrior) else 0.0
-    if method == "auto":
-        method = "fft" if isinstance(operator, FourierDiagonal) else (
-            "dense" if is_matrix or operator.shape[1] <= DENSE_MAX else "iterative")
     if method == "fft":
-        if not isinstance(operator, FourierDiagonal):
-            raise ValueError("method: 'fft' needs a FourierDiagonal operator; use 'dense' or 'iterative'")
         out = _fft_posterior(operator, d, lam_full, m0, noise_std)
     elif method == "dense":
         a = operator if is_matrix else aslinearoperator(operator).matmat(np.eye(operator.shape[1]))

@@ -26,11 +26,10 @@ from scipy.sparse.linalg import aslinearoperator
 from .criteria import CRITERIA, CriteriaResult, SpectralForm, choose_lambda
 from .iterative_criteria import IterativeCriteria, NormalSolver, choose_lambda_iterative
 from .linear_common import DENSE_MAX, LinearInversionResult, check_data
-from .operators import FourierDiagonal, as_fourier_diagonal, model_layout
+from .operators import FourierDiagonal, model_layout
+from .paths import choose_path
 from .penalties import PENALTIES, check_penalty, penalty_matrix, penalty_symbol
 from .tv import invert_tv
-
-PATHS = ("fft", "dense", "iterative")
 
 __all__ = ["invert_linear", "LinearInversionResult", "METHODS", "fft_form", "dense_form", "check_data"]
 
@@ -112,23 +111,6 @@ def _solve_iterative(op, data, penalty, lam, aux):
 METHODS: dict[str, Callable] = {"fft": _solve_fft, "dense": _solve_dense, "iterative": _solve_iterative}
 
 
-def _pick_path(op, method: str) -> str:
-    if method != "auto":
-        if method not in PATHS:
-            raise ValueError(f"method: unknown path {method!r}; use 'auto' or one of {', '.join(PATHS)}")
-        if method == "fft" and not isinstance(op, FourierDiagonal):
-            raise ValueError(
-                "method: 'fft' needs a FourierDiagonal operator (one sensor per node of a periodic grid); "
-                "use method='iterative' or 'dense' for this operator"
-            )
-        return method
-    if isinstance(op, FourierDiagonal):
-        return "fft"
-    if isinstance(op, np.ndarray) or op.shape[1] <= DENSE_MAX:
-        return "dense"
-    return "iterative"
-
-
 def invert_linear(
     operator,
     data,
@@ -185,7 +167,6 @@ def invert_linear(
     -------
     LinearInversionResult
     """
-    operator = as_fourier_diagonal(operator)  # a circulant forward operator takes the fft path
     if penalty == "tv":
         if model_layout(operator)[1] > 1:
             raise ValueError(f"penalty: 'tv' acts on one load component, the operator has {len(operator.loads)} "
@@ -200,7 +181,7 @@ def invert_linear(
         raise ValueError(f"criterion: unknown {criterion!r}; use one of {', '.join(CRITERIA)}")
     if lam is not None and not (np.isfinite(lam) and lam > 0):
         raise ValueError(f"lam: regularisation strength must be finite and > 0, got {lam!r}; or None to choose it")
-    path = _pick_path(operator, method)
+    operator, path = choose_path(operator, method)
     keep = isinstance(operator, FourierDiagonal) or (isinstance(operator, np.ndarray) and path == "dense")
     op = operator if keep else aslinearoperator(operator)
     d = check_data(data, operator.shape[0], shape=getattr(operator, "dimsd", None))
