@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tactilab.forward.halfspace import output_weights, point_green
+from tactilab.forward.halfspace import validation as rules
 
 NONLINEAR = ("x0", "y0", "friction", "depth", "young_modulus", "normal_force")
 
@@ -192,7 +193,7 @@ class DefectScanModel:
     finger_radius : float
         Fingertip radius of curvature, m.
     poisson_ratio : float
-        Skin nu in [0, 0.5].
+        Skin nu in (-1, 0.5].
     quantity : {"stress", "strain"}
         What the sensors record: stress (Pa) or TENSOR strain (dimensionless, eps_ij; engineering
         shear is 2 eps_ij). Strain is the stress at the sensor through the compliance rows of
@@ -221,10 +222,8 @@ class DefectScanModel:
         valid = ("xx", "yy", "zz", "yz", "zx", "xy")
         if not comps or any(c not in valid for c in comps):
             raise ValueError(f"components: expected Voigt names from {valid}, got {components!r}")
-        if not (np.isfinite(finger_radius) and finger_radius > 0):
-            raise ValueError(f"finger_radius: must be > 0 m, got {finger_radius!r}")
-        if not (0.0 <= poisson_ratio <= 0.5):
-            raise ValueError(f"poisson_ratio: must lie in [0, 0.5], got {poisson_ratio!r}")
+        finger_radius = rules.positive(finger_radius, "finger_radius", "m", "give the fingertip radius in m")
+        poisson_ratio = rules.poisson_ratio(poisson_ratio, "poisson_ratio")
         if quantity not in ("stress", "strain"):
             raise ValueError(f"quantity: must be 'stress' (Pa) or 'strain' (tensor strain), got {quantity!r}")
         self.quantity = quantity
