@@ -1,4 +1,4 @@
-"""Priors for scene parameters and the defect-localisation model (docs/theory.md section 4b).
+"""The defect-localisation model and the check of its scene-parameter priors (docs/theory.md section 4b).
 
 A small isolated defect at world ``(x0, y0)`` under a Hertz fingertip contact that scans along
 +x adds a concentrated load ``S_d (q_x, 0, p)`` (``S_d`` in m^2, the defect's effective area, times
@@ -28,94 +28,16 @@ Gaussian prior. The nonlinear parameters are ``x0, y0`` (m), ``friction`` (mu_d)
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from tactilab.forward.halfspace import output_weights, point_green
 from tactilab.forward.halfspace import validation as rules
 
+from .priors import PRIORS, LogNormal, Normal, Uniform
+
 NONLINEAR = ("x0", "y0", "friction", "depth", "young_modulus", "normal_force")
 
 __all__ = ["Uniform", "Normal", "LogNormal", "DefectScanModel", "NONLINEAR", "check_prior", "defect_footprint"]
-
-
-@dataclass(frozen=True)
-class Uniform:
-    """Uniform prior on ``[low, high]`` (parameter units)."""
-
-    low: float
-    high: float
-
-    def __post_init__(self):
-        if not (np.isfinite(self.low) and np.isfinite(self.high) and self.high > self.low):
-            raise ValueError(f"Uniform: need finite low < high, got low={self.low!r}, high={self.high!r}")
-
-    def logpdf(self, x):
-        x = np.asarray(x, dtype=float)
-        inside = (x >= self.low) & (x <= self.high)
-        return np.where(inside, -np.log(self.high - self.low), -np.inf)
-
-    def sample(self, rng, size):
-        return rng.uniform(self.low, self.high, size)
-
-    @property
-    def std(self) -> float:
-        return (self.high - self.low) / np.sqrt(12.0)
-
-
-@dataclass(frozen=True)
-class Normal:
-    """Normal prior ``N(mean, sd^2)`` (parameter units)."""
-
-    mean: float
-    sd: float
-
-    def __post_init__(self):
-        if not (np.isfinite(self.mean) and np.isfinite(self.sd) and self.sd > 0):
-            raise ValueError(f"Normal: need a finite mean and sd > 0, got mean={self.mean!r}, sd={self.sd!r}")
-
-    def logpdf(self, x):
-        z = (np.asarray(x, dtype=float) - self.mean) / self.sd
-        return -0.5 * z * z - np.log(self.sd * np.sqrt(2 * np.pi))
-
-    def sample(self, rng, size):
-        return rng.normal(self.mean, self.sd, size)
-
-    @property
-    def std(self) -> float:
-        return self.sd
-
-
-@dataclass(frozen=True)
-class LogNormal:
-    """Log-normal prior: ``log(x) ~ N(log(median), sigma_log^2)``, for positive parameters."""
-
-    median: float
-    sigma_log: float
-
-    def __post_init__(self):
-        if not (np.isfinite(self.median) and self.median > 0 and np.isfinite(self.sigma_log) and self.sigma_log > 0):
-            raise ValueError(f"LogNormal: need median > 0 and sigma_log > 0, got {self.median!r}, {self.sigma_log!r}")
-
-    def logpdf(self, x):
-        x = np.asarray(x, dtype=float)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            lx = np.log(np.where(x > 0, x, 1.0))
-            z = (lx - np.log(self.median)) / self.sigma_log
-            val = -0.5 * z * z - lx - np.log(self.sigma_log * np.sqrt(2 * np.pi))
-        return np.where(x > 0, val, -np.inf)
-
-    def sample(self, rng, size):
-        return self.median * np.exp(self.sigma_log * rng.standard_normal(size))
-
-    @property
-    def std(self) -> float:
-        s2 = self.sigma_log**2
-        return float(self.median * np.sqrt((np.exp(s2) - 1) * np.exp(s2)))
-
-
-PRIORS = (Uniform, Normal, LogNormal)
 
 
 def check_prior(name: str, value):
@@ -124,7 +46,8 @@ def check_prior(name: str, value):
         return value
     if isinstance(value, (int, float, np.floating)) and np.isfinite(value):
         return float(value)
-    raise ValueError(f"{name}: expected a prior (Uniform, Normal, LogNormal) or a finite fixed value, got {value!r}")
+    raise ValueError(f"{name}: expected a prior ({', '.join(p.__name__ for p in PRIORS)}) or a finite fixed value, "
+                     f"got {value!r}")
 
 
 def _check_footprint(footprint) -> tuple[np.ndarray, np.ndarray]:
