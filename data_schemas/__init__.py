@@ -6,7 +6,7 @@ and are converted once. Import records from here::
     from tactilab.data_schemas import Scene, SensorArray, Protocol, load_example
 """
 
-from ._lazy import attach, package_version
+from tactilab.core import attach, package_version
 
 #: public name -> module that defines it
 _EXPORTS = {
