@@ -1,7 +1,8 @@
 """tactilab.core: the ground floor that every other part builds on, naming no touch concept.
 
 It holds the input rules (one function per quantity), the unit parser, the face loader of every
-part and the package version. It imports no other part of tactilab (``tests/test_import_direction.py``
+part, the package version and the batch engine (independent tasks, serial or on Dask, resumable,
+seeded by key). It imports no other part of tactilab (``tests/test_import_direction.py``
 checks it). Use it through this face::
 
     from tactilab.core import rules, to_si
@@ -23,6 +24,14 @@ _EXPORTS = {
     "check_origin": "faces",
     "ShadowedInstallWarning": "faces",
     "package_version": "version",
+    "BatchReport": "batch",
+    "batch_client": "batch",
+    "read_result": "batch",
+    "result_path": "batch",
+    "run_batch": "batch",
+    "stable_hash": "batch",
+    "task_rng": "batch",
+    "write_netcdf_atomic": "batch",
 }
 
 __version__ = package_version()

@@ -71,7 +71,19 @@ def check_origin(package: str, file: str | None) -> bool:
     return False
 
 
-def attach(package: str, exports: Mapping[str, str]) -> tuple[Callable[[str], object], Callable[[], list[str]]]:
+def moved_name(package: str, name: str, new_home: str, removed_in: str) -> object:
+    """Return ``name`` from the module ``new_home``, warning that ``package.name`` moved there.
+
+    The :class:`DeprecationWarning` points at the caller's line and says where to import the
+    name from now and in which release the old spelling goes.
+    """
+    warnings.warn(f"{package}.{name} moved to {new_home}; import it from there ('from {new_home} import {name}'): "
+                  f"the old name goes in tactilab {removed_in}", DeprecationWarning, stacklevel=3)
+    return getattr(importlib.import_module(new_home), name)
+
+
+def attach(package: str, exports: Mapping[str, str], moved: Mapping[str, str] | None = None,
+           removed_in: str = "0.2.0") -> tuple[Callable[[str], object], Callable[[], list[str]]]:
     """Return ``(__getattr__, __dir__)`` for the face of ``package``.
 
     Parameters
@@ -80,11 +92,21 @@ def attach(package: str, exports: Mapping[str, str]) -> tuple[Callable[[str], ob
         The face's ``__name__``, e.g. ``"tactilab.forward"``.
     exports : mapping of str to str
         Public name -> submodule (relative to ``package``) that defines it.
+    moved : mapping of str to str, optional
+        Names that used to live here -> the module to import them from now (a face, e.g.
+        ``"tactilab.core"``, or a module for a moved module's names). They still
+        resolve, with a :class:`DeprecationWarning` (see :func:`moved_name`), and are left out of
+        ``dir()``.
+    removed_in : str
+        The release that drops the ``moved`` names, for the warning.
     """
 
     check_origin(package, getattr(sys.modules.get(package), "__file__", None))
+    moved = dict(moved or {})
 
     def __getattr__(name: str) -> object:
+        if name in moved:  # not cached, so every use warns
+            return moved_name(package, name, moved[name], removed_in)
         try:
             submodule = exports[name]
         except KeyError:
