@@ -26,9 +26,9 @@ import numpy as np
 from scipy.sparse.linalg import LinearOperator, aslinearoperator
 
 from tactilab.forward import ReceptorHypothesis, sliding_sinusoid_strain, tractor_row_strain
-from tactilab.forward.halfspace import validation as rules
+from tactilab.core import rules
 
-VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
+VOIGT = rules.COMPONENTS  # the one Voigt order
 
 
 def _check_hypothesis(hypothesis) -> ReceptorHypothesis:

@@ -18,7 +18,7 @@ from scipy.sparse.linalg import LinearOperator
 
 from tactilab.forward import ReceptorHypothesis
 from tactilab.forward.halfspace import HalfSpace, LoadToSensor, SurfaceLoad
-from tactilab.forward.halfspace import validation as rules
+from tactilab.core import rules
 
 from .metamer_families import VOIGT, FamilyStimulus, _check_hypothesis, require_linear
 

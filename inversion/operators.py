@@ -19,7 +19,7 @@ import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
 from tactilab.forward.halfspace import angular_wavenumbers, transfer
-from tactilab.forward.halfspace import validation as rules
+from tactilab.core import rules
 from tactilab.forward.halfspace import dottest as _solver_dottest
 
 __all__ = [

@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from tactilab.forward.halfspace import output_weights, point_green
-from tactilab.forward.halfspace import validation as rules
+from tactilab.core import rules
 
 from .priors import PRIORS, LogNormal, Normal, Uniform
 
@@ -112,7 +112,8 @@ class DefectScanModel:
     sensors : array_like, shape (n_sensors, 2)
         Finger-frame sensor positions (x, y), m.
     components : sequence of str
-        Components observed (Voigt names, e.g. ``("zz",)`` or ``("zx", "zz")``).
+        Components observed (Voigt names, e.g. ``("zz",)`` or ``("zx", "zz")``; the aliases ``xz``,
+        ``zy``, ``yx`` are accepted, None means all six: the project's component rule).
     finger_radius : float
         Fingertip radius of curvature, m.
     poisson_ratio : float
@@ -141,10 +142,7 @@ class DefectScanModel:
         s = np.asarray(sensors, dtype=float)
         if s.ndim != 2 or s.shape[1] != 2 or s.shape[0] < 1 or not np.all(np.isfinite(s)):
             raise ValueError(f"sensors: expected finite (x, y) positions in m with shape (n_sensors, 2), got shape {s.shape}")
-        comps = tuple(components)
-        valid = ("xx", "yy", "zz", "yz", "zx", "xy")
-        if not comps or any(c not in valid for c in comps):
-            raise ValueError(f"components: expected Voigt names from {valid}, got {components!r}")
+        comps = rules.components(components)
         finger_radius = rules.positive(finger_radius, "finger_radius", "m", "give the fingertip radius in m")
         poisson_ratio = rules.poisson_ratio(poisson_ratio, "poisson_ratio")
         if quantity not in ("stress", "strain"):
@@ -198,12 +196,11 @@ class DefectScanModel:
         dx = self.sensors[None, None, :, 0] - xd
         dy = self.sensors[None, None, :, 1] - yd
         z = np.broadcast_to(p["depth"], dx.shape)
-        voigt = ("xx", "yy", "zz", "yz", "zx", "xy")
         needed = [j for j in range(6) if np.any(self._weights[:, j] != 0.0)]
         stress = {}
         for j in needed:
-            gz = point_green(voigt[j], "z", dx, dy, z, nu)
-            gx = point_green(voigt[j], "x", dx, dy, z, nu)
+            gz = point_green(rules.COMPONENTS[j], "z", dx, dy, z, nu)
+            gx = point_green(rules.COMPONENTS[j], "x", dx, dy, z, nu)
             stress[j] = pressure * (gz + p["friction"] * gx)
         out = [sum(self._weights[c, j] * stress[j] for j in needed if self._weights[c, j] != 0.0)
                for c in range(len(self.components))]

@@ -17,11 +17,11 @@ from __future__ import annotations
 import numpy as np
 
 from tactilab.forward.halfspace import compliance_matrix
-from tactilab.forward.halfspace import validation as rules
+from tactilab.core import rules
 
 from .operators import FourierDiagonal, angular_wavenumbers, halfspace_fourier_operator
 
-VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
+VOIGT = rules.COMPONENTS  # the one Voigt order
 
 __all__ = ["halfspace_strain_operator", "rigid_surface_height_strain_operator"]
 
