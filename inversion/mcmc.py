@@ -26,7 +26,7 @@ import numpy as np
 from scipy.stats import ks_2samp
 
 from .sampler import sample_posterior
-from .scene_params import NONLINEAR, Normal, check_prior
+from .scene_params import NONLINEAR, POSITIVE, Normal, check_prior
 
 __all__ = ["sample_scene_posterior", "MCMCResult", "DefectPosterior"]
 
@@ -164,7 +164,9 @@ class DefectPosterior:
 
     def _design(self, theta):
         params = self.params(theta)
-        return np.concatenate([self.model.design({q: v[i:i + 256] for q, v in params.items()})
+        # the model's unchecked design where it has one: theta lies in the priors' support, checked once
+        design = getattr(self.model, "_design", self.model.design)
+        return np.concatenate([design({q: v[i:i + 256] for q, v in params.items()})
                                for i in range(0, theta.shape[0], 256)])
 
     def log_prior(self, theta):
@@ -274,6 +276,12 @@ def sample_scene_posterior(
     if missing or extra:
         raise ValueError(f"priors: need exactly the keys {NONLINEAR}; missing {missing}, unknown {extra}")
     priors = {k: check_prior(k, v) for k, v in priors.items()}
+    for q in POSITIVE:  # checked once here: the likelihood's inner loop runs the unchecked kernels
+        p = priors[q]
+        positive = p > 0 if isinstance(p, float) else (p.support[0] >= 0 and p.logpdf(0.0) == -np.inf)
+        if not positive:
+            raise ValueError(f"priors: {q} must be > 0 (SI units), but {p!r} allows values <= 0; give a positive "
+                             "value, or a LogNormal, a LogUniform or a Uniform with low > 0")
     if not isinstance(amplitude_prior, Normal):
         raise ValueError(f"amplitude_prior: must be a Normal prior (integrated out exactly), got {amplitude_prior!r}")
     defect = DefectPosterior(model, d, float(noise_std), priors, amplitude_prior)

@@ -9,7 +9,8 @@ frozen dataclass, checked on creation, with
 - ``sample(rng, size)``: draws from a ``numpy.random.Generator``;
 - ``rvs(size, random_state)``: the same draws with ``scipy.stats``' signature, so that a frozen
   ``scipy.stats`` distribution and these priors are interchangeable where a model accepts either;
-- ``std``: the prior standard deviation (the sampler's scale for its MAP search and start ball).
+- ``std``: the prior standard deviation (the sampler's scale for its MAP search and start ball);
+- ``support``: the interval ``(low, high)`` outside which the density is 0.
 
 Values are in the parameter's own units (SI: m, Pa, N; dimensionless for rates).
 """
@@ -52,6 +53,10 @@ class Uniform(_Draws):
         return rng.uniform(self.low, self.high, size)
 
     @property
+    def support(self) -> tuple[float, float]:
+        return (self.low, self.high)
+
+    @property
     def std(self) -> float:
         return (self.high - self.low) / np.sqrt(12.0)
 
@@ -73,6 +78,10 @@ class Normal(_Draws):
 
     def sample(self, rng, size):
         return rng.normal(self.mean, self.sd, size)
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return (-math.inf, math.inf)
 
     @property
     def std(self) -> float:
@@ -102,6 +111,10 @@ class LogNormal(_Draws):
         return self.median * np.exp(self.sigma_log * rng.standard_normal(size))
 
     @property
+    def support(self) -> tuple[float, float]:
+        return (0.0, math.inf)  # open at 0
+
+    @property
     def std(self) -> float:
         s2 = self.sigma_log**2
         return float(self.median * np.sqrt((np.exp(s2) - 1) * np.exp(s2)))
@@ -125,6 +138,10 @@ class LogUniform(_Draws):
 
     def sample(self, rng, size):
         return np.exp(rng.uniform(math.log(self.low), math.log(self.high), size))
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return (self.low, self.high)
 
     @property
     def std(self) -> float:
@@ -154,6 +171,10 @@ class Beta1(_Draws):
 
     def sample(self, rng, size):
         return self.scale * (1 - rng.random(size) ** (1 / self.b))
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return (0.0, self.scale)
 
     @property
     def std(self) -> float:

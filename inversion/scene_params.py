@@ -30,12 +30,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from tactilab.forward.halfspace import output_weights, point_green
+from tactilab.forward.halfspace import output_weights, point_geometry, point_unit
 from tactilab.core import rules
 
 from .priors import PRIORS, LogNormal, Normal, Uniform
 
 NONLINEAR = ("x0", "y0", "friction", "depth", "young_modulus", "normal_force")
+#: the nonlinear parameters that must be > 0 (m, Pa, N); x0, y0 and friction may take any sign
+POSITIVE = ("depth", "young_modulus", "normal_force")
 
 __all__ = ["Uniform", "Normal", "LogNormal", "DefectScanModel", "NONLINEAR", "check_prior", "defect_footprint"]
 
@@ -166,17 +168,38 @@ class DefectScanModel:
         return (self.scan_positions.size, self.sensors.shape[0], len(self.components))
 
     def design(self, params: dict) -> np.ndarray:
-        """Signal per unit defect area, vectorised over walkers.
+        """Signal per unit defect area, vectorised over walkers (checked: use it from outside).
 
         Parameters
         ----------
         params : dict
-            Every name of ``NONLINEAR`` -> ndarray shape (n_walkers,) (or scalar).
+            Every name of ``NONLINEAR`` -> ndarray shape (n_walkers,) (or scalar), SI units;
+            finite, with depth (m), young_modulus (Pa) and normal_force (N) > 0.
 
         Returns
         -------
         ndarray, shape (n_walkers, n_data), Pa per m^2
         """
+        missing = [k for k in NONLINEAR if k not in params]
+        if missing:
+            raise ValueError(f"params: missing {missing}; give every name of {NONLINEAR} (SI units)")
+        for k in NONLINEAR:
+            v = np.asarray(params[k], dtype=float)
+            if v.ndim > 1 or not np.all(np.isfinite(v)) or (k in POSITIVE and np.any(v <= 0)):
+                rule = "finite and > 0" if k in POSITIVE else "finite"
+                raise ValueError(f"params[{k!r}]: must be a scalar or a 1-D array (one value per walker), {rule}, "
+                                 f"got {params[k]!r}")
+        try:
+            np.broadcast_shapes(*(np.shape(np.atleast_1d(params[k])) for k in NONLINEAR))
+        except ValueError:
+            raise ValueError(f"params: the arrays must have one length (walkers) or be scalars, got lengths "
+                             f"{ {k: np.size(params[k]) for k in NONLINEAR} }") from None
+        return self._design(params)
+
+    def _design(self, params: dict) -> np.ndarray:
+        """:meth:`design` without its checks: the likelihood's inner loop, whose parameters lie in
+        the priors' support (checked once, by :func:`~tactilab.inversion.mcmc.sample_scene_posterior`).
+        The Green's functions share one geometry per call (the unchecked solver formulas)."""
         p = {k: np.atleast_1d(np.asarray(params[k], dtype=float)) for k in NONLINEAR}
         w = np.broadcast_shapes(*(v.shape for v in p.values()))[0]
         p = {k: np.broadcast_to(v, (w,))[:, None, None] for k, v in p.items()}
@@ -196,11 +219,12 @@ class DefectScanModel:
         dx = self.sensors[None, None, :, 0] - xd
         dy = self.sensors[None, None, :, 1] - yd
         z = np.broadcast_to(p["depth"], dx.shape)
+        geometry = point_geometry(dx, dy, z)  # depth > 0, so R > 0
         needed = [j for j in range(6) if np.any(self._weights[:, j] != 0.0)]
         stress = {}
         for j in needed:
-            gz = point_green(rules.COMPONENTS[j], "z", dx, dy, z, nu)
-            gx = point_green(rules.COMPONENTS[j], "x", dx, dy, z, nu)
+            gz = point_unit(rules.COMPONENTS[j], "z", *geometry, nu)
+            gx = point_unit(rules.COMPONENTS[j], "x", *geometry, nu)
             stress[j] = pressure * (gz + p["friction"] * gx)
         out = [sum(self._weights[c, j] * stress[j] for j in needed if self._weights[c, j] != 0.0)
                for c in range(len(self.components))]
