@@ -17,6 +17,7 @@ in a registry, :data:`METHODS`, and says which it used in the result:
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -31,7 +32,8 @@ from .paths import choose_path
 from .penalties import PENALTIES, check_penalty, penalty_matrix, penalty_symbol
 from .tv import invert_tv
 
-__all__ = ["invert_linear", "LinearInversionResult", "METHODS", "fft_form", "dense_form", "check_data"]
+__all__ = ["invert_linear", "LinearInversionResult", "Factorisation", "METHODS", "fft_form", "dense_form",
+           "check_data"]
 
 
 def _data_scale(data: np.ndarray) -> float:
@@ -111,6 +113,45 @@ def _solve_iterative(op, data, penalty, lam, aux):
 METHODS: dict[str, Callable] = {"fft": _solve_fft, "dense": _solve_dense, "iterative": _solve_iterative}
 
 
+@dataclass(frozen=True)
+class Factorisation:
+    """What :func:`invert_linear` factorised, returned for reuse: :meth:`solve` gives the model at
+    another ``lam`` for the cost of a back-substitution (fft: one inverse FFT; dense: products with
+    the kept SVD factors; iterative: one CG solve with the kept preconditioner).
+
+    Attributes
+    ----------
+    path : str
+        ``"fft"``, ``"dense"`` or ``"iterative"``.
+    penalty : str
+        The Tikhonov penalty.
+    model_shape : tuple of int
+        Shape of the models :meth:`solve` returns.
+    parts : tuple
+        fft: ``(D, H, |L|^2)`` on the rfft half grid; dense: ``(R, s, V^T, U^T d)`` with
+        ``R^T R = L^T L + eps I`` and ``A R^-1 = U diag(s) V^T``; iterative: the normal-equations
+        solver (preconditioner and probes) and the data scale.
+    """
+
+    path: str
+    penalty: str
+    model_shape: tuple
+    parts: tuple = field(repr=False)
+    operator: object = field(repr=False)
+    data: np.ndarray = field(repr=False)
+
+    def solve(self, lam: float) -> np.ndarray:
+        """The Tikhonov model at ``lam`` (finite, > 0), in the operator's model units, shape ``model_shape``."""
+        if not (np.isfinite(lam) and lam > 0):
+            raise ValueError(f"lam: regularisation strength must be finite and > 0, got {lam!r}")
+        if self.path == "iterative":
+            solver, scale = self.parts
+            x, _, _ = _solve_iterative(self.operator, self.data, self.penalty, float(lam), (solver, None))
+            return (x * scale).reshape(self.model_shape)
+        model, _, _ = METHODS[self.path](self.operator, self.data, self.penalty, float(lam), self.parts)
+        return np.asarray(model).reshape(self.model_shape)
+
+
 def invert_linear(
     operator,
     data,
@@ -166,6 +207,7 @@ def invert_linear(
     Returns
     -------
     LinearInversionResult
+        With its :class:`Factorisation` (Tikhonov penalties) for re-solving at another lam.
     """
     if penalty == "tv":
         if model_layout(operator)[1] > 1:
@@ -214,6 +256,7 @@ def invert_linear(
         model, iters, ok = METHODS[path](op, d, penalty, lam_used, aux)
         model = np.asarray(model).reshape(model_shape)
         resid = form.residual_norm(lam_used)
+        kept = Factorisation(path, penalty, model_shape, tuple(aux), op, d)
     else:
         rng = rng if rng is not None else np.random.default_rng(0)
         tol = 1e-8 if tol is None else tol
@@ -240,8 +283,10 @@ def invert_linear(
         x, iters, ok = _solve_iterative(op, d_s, penalty, lam_used, (solver, x0))
         resid = scale * float(np.linalg.norm(op.matvec(x) - d_s))
         model = (x * scale).reshape(model_shape)
+        kept = Factorisation(path, penalty, model_shape, (solver, scale), op, d_s)
     msg = (f"path={path}, penalty={penalty}, lam={lam_used:.4g} ({source}), residual={resid:.4g}"
            + (f", {iters} CG iterations{'' if ok else ' (NOT converged)'}" if path == "iterative" else "")
            + (f"; criteria: {crit.estimator}" if crit is not None and crit.errors else ""))
     return LinearInversionResult(model=model, method=path, penalty=penalty, lam=lam_used, lam_source=source,
-                                 criteria=crit, residual_norm=resid, iterations=iters, converged=ok, message=msg)
+                                 criteria=crit, residual_norm=resid, iterations=iters, converged=ok, message=msg,
+                                 factorisation=kept)

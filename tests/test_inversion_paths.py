@@ -76,3 +76,26 @@ def test_forced_paths_and_their_errors():
         invert_tv(fd.todense(), np.zeros(16), lam=1.0, method="fft")
     with pytest.raises(ValueError, match="method: unknown path"):
         invert_tv(fd, np.zeros(16), lam=1.0, method="qr")
+
+
+@pytest.mark.filterwarnings("ignore:regularisation criteria disagree")
+@pytest.mark.parametrize("method", ["fft", "dense", "iterative"])
+def test_invert_linear_returns_its_factorisation_for_reuse(rng, method):
+    """factorisation.solve(lam) re-solves without refactorising: at the chosen lam it is the
+    result's model, at another lam it is what invert_linear(lam=...) computes from scratch."""
+    fd = halfspace_fourier_operator((N,), DX, 2e-4)
+    operator = fd if method == "fft" else fd.todense() if method == "dense" else _plain(fd)
+    truth = np.exp(-((np.arange(N) - N / 2) / 5.0) ** 2) * 1e3
+    d = fd @ truth + rng.normal(0, 5.0, N)
+    res = invert_linear(operator, d, penalty="gradient", method=method, tol=1e-12)
+    kept = res.factorisation
+    assert kept.path == res.method == method and kept.model_shape == (N,)
+    rtol = 0 if method != "iterative" else 1e-7
+    np.testing.assert_allclose(kept.solve(res.lam), res.model, rtol=rtol, atol=rtol * np.abs(res.model).max())
+    other = 3.7 * res.lam
+    fresh = invert_linear(operator, d, penalty="gradient", lam=other, method=method, tol=1e-12)
+    np.testing.assert_allclose(kept.solve(other), fresh.model, rtol=1e-7, atol=1e-7 * np.abs(fresh.model).max())
+    assert "parts" not in repr(kept)  # the arrays stay out of the repr
+    with pytest.raises(ValueError, match="lam: regularisation strength must be finite and > 0, got -1.0"):
+        kept.solve(-1.0)
+    assert invert_linear(fd, d, penalty="tv", lam=1.0, max_iter=20).factorisation is None
