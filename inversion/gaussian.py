@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, aslinearoperator, cg
 
+from tactilab.core import rules
+
 from .gaussian_dense import _dense_posterior
 from .linear_common import DENSE_MAX, check_data
 from .operators import FourierDiagonal, angular_wavenumbers
@@ -215,6 +217,7 @@ class GaussianPosterior:
         out = {"k_max": k_max, "wavelength_min": 2 * np.pi / k_max if k_max > 0 else np.inf,
                "fraction": float(resolved.mean()), "k_c_estimate": None}
         if depth is not None:
+            depth = rules.depth(depth)
             snr = np.sqrt(self._prior_pointwise_var()) * self._gain() / self.noise_std
             out["k_c_estimate"] = float(np.log(snr) / depth) if snr > 1 else 0.0
         return out

@@ -55,7 +55,7 @@ def normal_pressure_to_szz_multiplier(n: int, dx: float, depth: float) -> np.nda
         Real multiplier in ``fftfreq`` order (dimensionless: Pa of stress per Pa of pressure).
     """
     depth = rules.depth(depth)
-    dx = rules.positive(dx, "dx", "m", "give the grid spacing in m")
+    dx = rules.spacing(dx, 1, "dx")[0]
     (k,) = angular_wavenumbers((int(n),), dx)
     s = np.abs(k) * depth
     return -(1.0 + s) * np.exp(-s)
@@ -114,7 +114,7 @@ def rigid_surface_height_operator(n: int, spacing: float, depth: float, young_mo
     nothing, so heights are relative. This is the operator of the inversion demo's height profile;
     it does not describe a finite (Hertz) finger contact.
     """
-    spacing = rules.positive(spacing, "spacing", "m", "give the grid spacing in m")
+    spacing = rules.spacing(spacing, 1)[0]
     depth = rules.depth(depth)
     young_modulus = rules.young_modulus(young_modulus)
     poisson_ratio = rules.poisson_ratio(poisson_ratio, "poisson_ratio")

@@ -104,7 +104,7 @@ def rigid_surface_height_strain_operator(n: int, spacing: float, depth: float, y
     FourierDiagonal
         Strain (dimensionless) per m of height.
     """
-    spacing = rules.positive(spacing, "spacing", "m", "give the grid spacing in m")
+    spacing = rules.spacing(spacing, 1)[0]
     depth = rules.depth(depth)
     young_modulus = rules.young_modulus(young_modulus)
     poisson_ratio = rules.poisson_ratio(poisson_ratio, "poisson_ratio")

@@ -1,5 +1,5 @@
-"""Poisson's ratio follows one rule at every inversion entry point: nu in (-1, 0.5] (the solver's
-and the material record's), no longer [0, 0.5]. A negative nu (an auxetic material) gives the
+"""The inversion's entry points take their input rules from tactilab.core.rules. Poisson's ratio:
+nu in (-1, 0.5] everywhere (the solver's and the material record's rule), no longer [0, 0.5]. A negative nu (an auxetic material) gives the
 same operators as the solver, and nu outside the range is refused with the rule's message."""
 
 from __future__ import annotations
@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from tactilab.forward import HalfSpace
+from tactilab.inversion.operators import normal_pressure_to_szz_multiplier
 from tactilab.inversion import (
-    DefectScanModel, GridLoadFamily, IndentationFamily, SinusoidFamily, TractorFamily, halfspace_fourier_operator, halfspace_strain_operator,
+    DefectScanModel, FourierDiagonal, gaussian_posterior, GridLoadFamily, IndentationFamily, SinusoidFamily, TractorFamily, halfspace_fourier_operator, halfspace_strain_operator,
     rigid_surface_height_operator, rigid_surface_height_strain_operator,
 )
 
@@ -56,3 +57,17 @@ def test_negative_nu_operator_is_the_solvers():
     # plane strain: sigma_yy = nu (sigma_xx + sigma_zz) depends on nu: the negative value is used, not clipped to 0
     zero = halfspace_fourier_operator((32,), DX, DEPTH, 0.0, "p", "yy")
     assert np.abs(op @ x - zero @ x).max() > 1e-3 * np.abs(want).max()
+
+
+def test_depth_and_spacing_follow_the_one_rule():
+    """Depths and grid spacings of the inversion's operators are checked by tactilab.core.rules."""
+    with pytest.raises(ValueError, match="depth: every depth must be finite and > 0 m"):
+        rigid_surface_height_operator(16, DX, 0.0, E)
+    with pytest.raises(ValueError, match="spacing: grid spacing must be finite and > 0 m"):
+        rigid_surface_height_strain_operator(16, -DX, DEPTH, E)
+    with pytest.raises(ValueError, match="dx: grid spacing must be finite and > 0 m"):
+        normal_pressure_to_szz_multiplier(16, 0.0, DEPTH)
+    op = FourierDiagonal(normal_pressure_to_szz_multiplier(16, DX, DEPTH), DX)
+    post = gaussian_posterior(op, np.zeros(16), np.ones(16), 1.0)
+    with pytest.raises(ValueError, match="depth: every depth must be finite and > 0 m"):
+        post.resolvable_band(depth=-1e-3)
