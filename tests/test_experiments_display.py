@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.display import Display, DisplayError, render_drive, virtual_height
-from tactilab.experiments.display_limits import check_frames, limit_violations, limits, resolve_command
-from tactilab.experiments.display_strain import (
+from tactilab.experiments.devices.display import Display, DisplayError, render_drive, virtual_height
+from tactilab.experiments.devices.display_limits import check_frames, limit_violations, limits, resolve_command
+from tactilab.experiments.devices.display_strain import (
     row_strain,
     sliding_surface_strain_amplitude,
     strain_gain_line_load,
 )
-from tactilab.experiments.simulated_display import SimulatedDisplay
+from tactilab.experiments.devices.simulated_display import SimulatedDisplay
 
 STIM = dict(amplitude_m=10e-6, pitch_m=2.0e-3, speed_m_per_s=0.04, duration_s=0.2, frame_rate_hz=1000.0)
 
@@ -190,7 +190,7 @@ class _Recorder(Display):
         self.zeroed = 0
 
     def _play(self, frames, rate):
-        from tactilab.experiments.display import PlaybackReport
+        from tactilab.experiments.devices.display import PlaybackReport
         return PlaybackReport(frames_sent=len(frames), late=0, missing=0, acked=len(frames))
 
     def _zero(self):

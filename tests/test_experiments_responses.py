@@ -15,10 +15,10 @@ from scipy.special import ndtr
 from tactilab.data_schemas.experiment import Protocol, Stimulus
 from tactilab.experiments.procedures import PlannedLevel
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.responses import (
+from tactilab.experiments.session.responses import (
     SimulatedObserver, TerminalResponses, receptor_strain, rendered_strain)
-from tactilab.experiments.simulated_display import SimulatedDisplay
-from tactilab.experiments.tasks import plan_trial
+from tactilab.experiments.devices.simulated_display import SimulatedDisplay
+from tactilab.experiments.procedures.tasks import plan_trial
 
 
 def protocol(task, **extra) -> Protocol:

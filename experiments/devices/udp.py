@@ -1,7 +1,7 @@
 """Network driver for real displays: frames over UDP at a fixed rate, each one acknowledged.
 
 The wire format, version 2, is specified in ``docs/udp-frame-format.md`` (firmware implements it
-from there) and implemented in :mod:`tactilab.experiments.link` (:func:`encode` /
+from there) and implemented in :mod:`tactilab.experiments.devices.link` (:func:`encode` /
 :func:`decode`, re-exported here): a 20-byte header, a payload and a 16-byte HMAC-SHA256 tag.
 
 :class:`UdpDisplay` opens one authenticated link session per stimulus: ARM with a fresh random

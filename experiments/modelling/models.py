@@ -14,7 +14,7 @@ strain. The statistic of one interval (a data_schemas ``Stimulus``):
 Sources: ``surface`` (the ideal virtual surface: nu = 1/2 sliding-sinusoid strain, a square
 surface as its odd harmonics 4 A / (n pi) up to n = 29) or ``display`` (the strain a simulated
 display really renders after the safety limits, at its points and frames, for every depth).
-The link is signal detection (see :mod:`tactilab.experiments._transduction_data`).
+The link is signal detection (see :mod:`tactilab.experiments.modelling._transduction_data`).
 """
 
 from __future__ import annotations
@@ -108,9 +108,7 @@ class TransductionModel:
         return best
 
     def _display_statistic(self, stimulus: Stimulus) -> float:
-        from .display import render_drive
-        from .display_strain import row_strain
-        from .safety import limit_drive
+        from ..devices import limit_drive, render_drive, row_strain
 
         d = self.display
         frames = render_drive(d.description, **stimulus.model_dump(), depth_m=d.depth_m,

@@ -7,22 +7,26 @@ protocol's ``likelihood`` names a built-in psychometric family or a likelihood r
 turned into an import: names are looked up here, and an unknown name is refused with a message
 that says how to register it.
 
-The built-in procedures (``constant_stimuli``, ``staircase`` in
-:mod:`tactilab.experiments.procedures`, ``psi`` in :mod:`tactilab.experiments.psi`) register
-themselves when those modules are imported; :func:`make_procedure` imports them, so the
-registry sits below both modules and no import cycle is needed.
+The built-in procedures are named in :data:`BUILTIN_PROCEDURES` with the module that defines
+each (``constant_stimuli`` and ``staircase`` in :mod:`.staircase`, ``psi`` in :mod:`.psi`,
+``model_discrimination`` in :mod:`tactilab.experiments.modelling.design`, which is built on the
+transduction models). A module is imported the first time a protocol names one of its methods,
+and registers its procedures then: a staircase session never loads the modelling room, and the
+registry sits below every procedure, so no import cycle is needed.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+import importlib
 from importlib import metadata
 from typing import Any
 
 from tactilab.data_schemas.experiment import check_name, register_procedure_config
 
 __all__ = ["register_likelihood", "register_procedure", "get_likelihood", "registered_likelihoods",
-           "registered_procedures", "procedure_factory", "ENTRY_POINT_GROUP", "UnregisteredError"]
+           "registered_procedures", "procedure_factory", "ENTRY_POINT_GROUP", "BUILTIN_PROCEDURES",
+           "UnregisteredError"]
 
 #: Installed plug-ins declare custom likelihoods in this entry-point group (name -> callable).
 ENTRY_POINT_GROUP = "tactilab.likelihoods"
@@ -31,6 +35,14 @@ Likelihood = Callable[..., Any]
 _LIKELIHOODS: dict[str, Likelihood] = {}
 _PROCEDURES: dict[str, tuple[type, Callable[..., Any]]] = {}
 _RESERVED = ("weibull", "logistic", "normal_cdf", "gumbel")
+
+#: built-in method -> the module that registers it on import (a constant of this file, never data)
+BUILTIN_PROCEDURES = {
+    "constant_stimuli": "tactilab.experiments.procedures.staircase",
+    "staircase": "tactilab.experiments.procedures.staircase",
+    "psi": "tactilab.experiments.procedures.psi",
+    "model_discrimination": "tactilab.experiments.modelling.design",
+}
 
 
 class UnregisteredError(ValueError):
@@ -123,6 +135,7 @@ def register_procedure(name: str, config_cls: type, factory: Callable[..., Any],
         ``factory`` is not callable.
     """
     check_name(name, "name", "procedure")
+    _load_builtin(name)
     if not callable(factory):
         raise ValueError(f"factory: must be callable factory(config, guess_rate=...) -> Procedure, got {factory!r}")
     if not replace and name in _PROCEDURES and _PROCEDURES[name] != (config_cls, factory):
@@ -131,9 +144,16 @@ def register_procedure(name: str, config_cls: type, factory: Callable[..., Any],
     _PROCEDURES[name] = (config_cls, factory)
 
 
+def _load_builtin(name: str) -> None:
+    """Import the module of built-in procedure ``name`` once (it registers itself)."""
+    module = BUILTIN_PROCEDURES.get(name)
+    if module is not None and name not in _PROCEDURES:
+        importlib.import_module(module)
+
+
 def registered_procedures() -> list[str]:
-    """The registered procedure names."""
-    return sorted(_PROCEDURES)
+    """The registered procedure names (the built-ins whether or not loaded yet)."""
+    return sorted(set(_PROCEDURES) | set(BUILTIN_PROCEDURES))
 
 
 def procedure_factory(config: Any) -> Callable[..., Any]:
@@ -145,6 +165,8 @@ def procedure_factory(config: Any) -> Callable[..., Any]:
         If no procedure of that name is registered, or ``config`` is not its configuration.
     """
     method = getattr(config, "method", None)
+    if isinstance(method, str):
+        _load_builtin(method)
     if method not in _PROCEDURES:
         raise UnregisteredError(
             f"config: procedure {method!r} is not registered (known: {registered_procedures()}); "

@@ -1,6 +1,6 @@
 """A safety layer that no stimulus can bypass: :class:`SafeDisplay`.
 
-``SafeDisplay(display, on_event)`` wraps any :class:`~tactilab.experiments.display.Display`.
+``SafeDisplay(display, on_event)`` wraps any :class:`~tactilab.experiments.devices.display.Display`.
 Every block of frames it is given is *limited* before the wrapped display ever sees it:
 
 1. **amplitude**: ``|command| <= full scale`` (``max_traction_pa`` or ``max_deflection_m``);

@@ -4,7 +4,7 @@ The limits come from :class:`tactilab.data_schemas.display.DisplayDescription`: 
 (``max_traction_pa`` or ``max_deflection_m``), the slew rate (``max_slew_rate_per_s``, in full
 scales per second) and the duty cycle (``max_duty_cycle``, the largest fraction of a block's
 frames in which a tractor is non-zero). :func:`limit_violations` lists where a block breaks them
-(the drivers refuse such blocks; :mod:`tactilab.experiments.safety` limits them instead).
+(the drivers refuse such blocks; :mod:`tactilab.experiments.devices.safety` limits them instead).
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ import numpy as np
 
 from tactilab.data_schemas.experiment import Protocol, Stimulus
 
-from .procedures import PlannedLevel
+from .base import PlannedLevel
 
 
 @dataclass(frozen=True)

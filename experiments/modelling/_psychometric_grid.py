@@ -16,10 +16,22 @@ import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from scipy import optimize
 from scipy.special import gammaln, ndtri, xlogy
+
+
+class ParamSummary(NamedTuple):
+    """Posterior summary of one parameter: MAP, mean, median and central 95 % / 68 % intervals."""
+
+    map: float
+    mean: float
+    median: float
+    ci95: tuple[float, float]
+    ci68: tuple[float, float]
+
 
 AXES = ("guess", "lapse", "eta", "threshold", "width")
 _COARSE = {"nafc": dict(threshold=30, width=40, lapse=10, guess=1, eta=20),
@@ -254,8 +266,6 @@ class GridPosterior:
 
     def summaries(self, draws, method):
         """ParamSummary per parameter (grid: mean on the grid, quantiles of the marginal)."""
-        from .psychometric import ParamSummary
-
         out = {}
         for ax in AXES:
             if ax == "eta" and "eta" in self.fixed and self.fixed["eta"] == 0.0:

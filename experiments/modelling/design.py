@@ -49,12 +49,10 @@ import numpy as np
 from tactilab.data_schemas.design_config import ModelDiscriminationConfig
 from tactilab.data_schemas.experiment import Stimulus
 
+from ..procedures import PlannedStimulus, Procedure, register_procedure
 from ._design_math import _entropy, information_gain, metameric_groups
 from ._transduction_data import Beta1, LogNormal, p_correct_table
 from .models import TransductionModel
-from .procedures import Procedure
-from .registry import register_procedure
-from .tasks import PlannedStimulus
 
 __all__ = ["ModelDiscrimination", "ModelDiscriminationConfig", "UTILITIES", "information_gain", "metameric_groups",
            "from_config"]

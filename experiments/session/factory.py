@@ -1,56 +1,22 @@
-"""Build displays, response sources and session paths from short text specs.
+"""Build response sources and session paths from short text specs.
 
 Errors name this module's parameters (``spec``, ``threshold``, ``strain``, ``folder``); the
-command line maps them to its own flags (``cli/cmd_experiment.py``).
+command line maps them to its own flags (``cli/cmd_experiment.py``). Displays and device
+descriptions come from the device registry (:func:`tactilab.experiments.devices.open_display`,
+:func:`~tactilab.experiments.devices.description_from_spec`).
 
-- display: ``"simulated"`` or ``"udp://HOST:PORT"``;
-- device description: a preset name (``"braille-row"``, ``"stress2"``) or a JSON file of a
-  :class:`~tactilab.data_schemas.display.DisplayDescription`;
-- responses: ``"terminal"`` or ``"simulated"``.
+- responses: ``"terminal"`` or ``"simulated"``;
+- session path: the first free ``sub-<subject>_ses-<NN>_task-<task>.sqlite`` in a folder.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
 
-from .display import Display
+from ..devices import Display
 from .responses import ResponseSource, SimulatedObserver, TerminalResponses
-
-DEVICE_PRESETS = {"braille-row": DisplayDescription.braille_row, "stress2": DisplayDescription.stress2}
-
-
-def description_from_spec(spec: str) -> DisplayDescription:
-    """A preset name or a JSON description file."""
-    if spec in DEVICE_PRESETS:
-        return DEVICE_PRESETS[spec]()
-    path = Path(spec)
-    if path.suffix.lower() == ".json" and path.is_file():
-        return DisplayDescription.load(path)
-    raise ValueError(
-        f"spec: must be one of {sorted(DEVICE_PRESETS)} or an existing .json display "
-        f"description, got {spec!r}"
-    )
-
-
-def display_from_spec(spec: str, description: DisplayDescription, *, realtime: bool = True,
-                      max_skipped_fraction: float = 0.01) -> Display:
-    """``"simulated"`` or ``"udp://HOST:PORT"`` -> a bare display (the runner adds the safety layer).
-
-    ``max_skipped_fraction``: for UDP, the fraction of a stimulus's frames that may be skipped
-    as late before playback aborts (see :class:`~tactilab.experiments.udp.UdpDisplay`).
-    """
-    if spec == "simulated":
-        from .simulated_display import SimulatedDisplay
-
-        return SimulatedDisplay(description, realtime=realtime)
-    if not spec.startswith("udp://"):
-        raise ValueError(f"spec: must be 'simulated' or 'udp://HOST:PORT', got {spec!r}")
-    from .udp import UdpDisplay
-
-    return UdpDisplay.from_url(spec, description, max_skipped_fraction=max_skipped_fraction)
 
 
 def responses_from_spec(spec: str, protocol: Protocol, **observer) -> ResponseSource:
@@ -72,7 +38,7 @@ def make_responses(kind: str, protocol: Protocol, display: Display, *, threshold
     protocol : Protocol
     display : Display
         The (bare) display of the session; a simulated observer feeling the display's strain
-        needs a :class:`~tactilab.experiments.simulated_display.SimulatedDisplay`.
+        needs a :class:`~tactilab.experiments.devices.SimulatedDisplay`.
     threshold : str or float, optional
         Strain felt at d' = 1 (dimensionless, > 0).
     strain : {"surface", "display"}, optional

@@ -175,7 +175,7 @@ def sessions_by_subject(paths) -> dict[str, list[str]]:
     paths : sequence of path
         Session ``.sqlite`` files (any subjects, any order).
     """
-    from .resume import session_header
+    from ..session import session_header
 
     out: dict[str, list[str]] = {}
     for path in paths:

@@ -50,7 +50,7 @@ def _records(trials, task):
             stim = json.loads(stim) if isinstance(stim, str) else stim
             rows.append((tuple(_stimulus(s) for s in stim), target, None if pd.isna(correct) else bool(correct)))
     elif isinstance(trials, (list, tuple)) and trials and all(isinstance(t, (str, Path)) for t in trials):
-        from .recording import SessionLog
+        from ..session import SessionLog
 
         for path in trials:
             if not Path(path).is_file():

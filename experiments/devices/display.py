@@ -14,7 +14,7 @@ commanded value per tractor per frame, and plays them at a fixed frame rate:
 
 Subclasses implement ``_play`` and ``_zero`` only; validation lives here (template method).
 The base class refuses frames that break the description's amplitude or slew-rate limits, so a
-bare driver never streams them; :class:`tactilab.experiments.safety.SafeDisplay` instead
+bare driver never streams them; :class:`tactilab.experiments.devices.safety.SafeDisplay` instead
 *limits* any drive (and enforces the duty limit too) and reports each intervention.
 
 :func:`render_drive` turns a virtual surface into frames (docs/theory.md 4a): each tractor at
@@ -173,7 +173,7 @@ class Display(abc.ABC):
                 f"frames: {len(bad)} (kind, tractor) pairs break the limits of display "
                 f"{self.description.display_id!r}; e.g. {first['kind']} {first['value']:.6g} > "
                 f"{first['limit']:.6g} at tractor {first['tractor']}, frame {first['frame']}; "
-                "wrap the display in tactilab.experiments.safety.SafeDisplay to limit the drive"
+                "wrap the display in tactilab.experiments.devices.safety.SafeDisplay to limit the drive"
             )
         array.flags.writeable = False
         self._frames, self._frame_rate_hz = array, rate

@@ -18,13 +18,11 @@ from typing import Any
 from tactilab.data_schemas.experiment import Protocol
 from tactilab.data_schemas.experiment_records import TrialRecord
 
-from .display import Display, description_differences, description_record
-from .build import make_procedure
-from .procedures import Procedure, replay
+from ..devices import Display, description_differences, description_record
+from ..procedures import Procedure, make_procedure, outcome_of, replay
 from .recording import Recorder, SessionLog
 from .responses import ResponseSource
 from .runner import Runner, RunResult, trial_generators
-from .tasks import outcome_of
 
 
 @dataclass
@@ -154,7 +152,7 @@ def resume_session(path: str | Path, display: Display, responses: ResponseSource
     responses : ResponseSource
         The same kind and configuration the session was recorded with.
     realtime, progress : bool
-        As in :func:`tactilab.experiments.runner.new_session`.
+        As in :func:`tactilab.experiments.session.runner.new_session`.
 
     Returns
     -------

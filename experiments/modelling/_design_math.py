@@ -1,4 +1,4 @@
-"""The mathematics of :mod:`tactilab.experiments.design`: the exact expected information of one
+"""The mathematics of :mod:`tactilab.experiments.modelling.design`: the exact expected information of one
 binary response (:func:`information_gain`; with ``utility="odds"`` the expected increase of the
 true model's log posterior odds) and the up-front metamerism check (:func:`metameric_groups`).
 """

@@ -204,7 +204,7 @@ def decode(data: bytes, *, key: bytes | None = None, nonce: bytes = NO_NONCE) ->
 
 class RawLink:
     """A bare blocking host of one link session, message by message: for tests and firmware bring-up
-    (a real host uses :class:`tactilab.experiments.udp.UdpDisplay`).
+    (a real host uses :class:`tactilab.experiments.devices.udp.UdpDisplay`).
 
     Parameters
     ----------

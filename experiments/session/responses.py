@@ -23,7 +23,7 @@ from scipy.special import ndtri
 from tactilab.data_schemas.experiment import Protocol, Stimulus
 from tactilab.forward.tractors import sliding_sinusoid_strain
 
-from .tasks import TrialPlan
+from ..procedures import TrialPlan
 
 _QUIT_KEYS = ("q", "\x03", "\x1b")  # q, Ctrl-C (raw), Esc
 
@@ -203,8 +203,7 @@ def rendered_strain(stimulus: Stimulus, display) -> float:
     display : SimulatedDisplay
         Supplies the description, depth, modulus and strain model.
     """
-    from .display import render_drive
-    from .safety import limit_drive
+    from ..devices import limit_drive, render_drive
 
     frames = render_drive(display.description, **stimulus.model_dump(), depth_m=display.depth_m,
                           young_modulus_pa=display.young_modulus_pa)
@@ -325,7 +324,7 @@ class SimulatedObserver(ResponseSource):
     @classmethod
     def from_model(cls, protocol: Protocol, model, threshold_strain: float, exponent: float = 1.0,
                    lapse: float = 0.0, seed: int | None = None) -> SimulatedObserver:
-        """An observer that reads a transduction model (``tactilab.experiments.models.TransductionModel``).
+        """An observer that reads a transduction model (``tactilab.experiments.modelling.models.TransductionModel``).
 
         Its drive is ``d = (model.statistic_of(s) / threshold_strain) ** exponent``; it lapses
         (guesses) on a share ``2 lapse`` of 2IFC, 2AFC and yes/no trials, so that 2IFC P(correct)

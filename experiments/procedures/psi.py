@@ -16,7 +16,7 @@ from scipy.special import ndtr
 
 from tactilab.data_schemas.experiment import PsiConfig
 
-from .procedures import Likelihood, PlannedLevel, Procedure
+from .base import Likelihood, PlannedLevel, Procedure
 from .registry import get_likelihood, register_procedure
 
 def _weibull(x, threshold, slope):

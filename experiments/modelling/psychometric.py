@@ -18,7 +18,7 @@ from typing import Callable, Mapping, NamedTuple
 import numpy as np
 from scipy.special import expit, logit, ndtr, ndtri
 
-from ._psychometric_grid import GridPosterior, grid_posterior, sample_emcee
+from ._psychometric_grid import GridPosterior, ParamSummary, grid_posterior, sample_emcee
 
 
 class Sigmoid(NamedTuple):
@@ -57,16 +57,6 @@ def sigmoid_core(name: str) -> Sigmoid:
         raise ValueError(f"sigmoid: must be one of {sorted(SIGMOIDS)} (aliases {sorted(SIGMOID_ALIASES)}), "
                          f"got {name!r}")
     return SIGMOIDS[key]
-
-
-class ParamSummary(NamedTuple):
-    """Posterior summary of one parameter: MAP, mean, median and central 95 % / 68 % intervals."""
-
-    map: float
-    mean: float
-    median: float
-    ci95: tuple[float, float]
-    ci68: tuple[float, float]
 
 
 _EXPERIMENTS = ("2afc", "2ifc", "yes_no", "equal_asymptote")

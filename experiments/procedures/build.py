@@ -1,17 +1,14 @@
-"""Build the procedure a protocol names, from the registry (built-ins registered on import).
+"""Build the procedure a protocol names, from the registry (:mod:`.registry`).
 
-Importing :mod:`tactilab.experiments.procedures`, :mod:`~tactilab.experiments.psi` and
-:mod:`~tactilab.experiments.design` (model discrimination) here
-registers the built-in procedures; the registry itself (:mod:`tactilab.experiments.registry`)
-imports neither, so no module of the part imports another inside a function.
+The registry imports a built-in procedure's module the first time a protocol names it, so
+building a staircase loads neither psi nor the modelling room.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from . import design, procedures, psi  # noqa: F401 - importing them registers the built-in procedures
-from .procedures import Procedure
+from .base import Procedure
 from .registry import procedure_factory
 
 __all__ = ["make_procedure"]

@@ -19,8 +19,8 @@ import numpy as np
 
 from tactilab.data_schemas.experiment import Stimulus
 
+from ..session import DISPLAY_UNITS
 from .psychometric import PsychometricFit, fit_psychometric
-from .runner import DISPLAY_UNITS
 
 _LABEL_FIELDS = {"pitch_m": ("pitch", 1e3, "mm"), "speed_m_per_s": ("speed", 1e3, "mm/s"),
                  "amplitude_m": ("amplitude", 1e6, "um"), "duration_s": ("duration", 1e3, "ms")}
@@ -40,7 +40,7 @@ class ConditionFit:
 
 
 def _session_rows(paths):
-    from .recording import SessionLog
+    from ..session import SessionLog
 
     kinds, rows = set(), []
     for path in ([paths] if isinstance(paths, (str, Path)) else paths):

@@ -1,6 +1,6 @@
 """The emulator's device logic: the device side of docs/udp-frame-format.md (version 2).
 
-:class:`Device` owns the socket loop of :func:`tactilab.experiments.emulator.emulate`: link
+:class:`Device` owns the socket loop of :func:`tactilab.experiments.devices.emulator.emulate`: link
 sessions (ARM, the pinned address, MAC and seq checks), the FIFO of accepted frames applied one
 per tick with the per-tick clamps, the watchdog, and the JSON-lines record.
 """

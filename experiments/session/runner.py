@@ -5,7 +5,7 @@ Per trial, in this order:
 1. the procedure picks the level, the task builds the stimuli (after the inter-trial interval);
 2. ``trial_planned`` and ``stimulus_presented`` are committed (fsynced) together, BEFORE the
    display is driven, so a crash during the stimulus still shows that it may have been felt;
-3. the display plays each interval through :class:`~tactilab.experiments.safety.SafeDisplay`
+3. the display plays each interval through :class:`~tactilab.experiments.devices.safety.SafeDisplay`
    (which no stimulus bypasses; its interventions are logged as ``safety_intervention``);
 4. ``response`` and ``trial_complete`` with the full :class:`TrialRecord` are committed together.
 
@@ -19,8 +19,8 @@ If a write fails (disk full, read-only file), the display is zeroed and the run 
 :class:`RecordingError` before the next stimulus; what was committed stays intact.
 
 A failed trial is never scored: when an interval's playback was stopped early, any frame was
-acknowledged with a status other than ``applied``, or more than :data:`MAX_UNACKED_FRACTION` of
-its frames got no acknowledgement, the display is zeroed, a ``display_fault`` event is logged
+acknowledged with a status other than ``applied``, or more than
+:data:`~tactilab.experiments.devices.MAX_UNACKED_FRACTION` of its frames got no acknowledgement, the display is zeroed, a ``display_fault`` event is logged
 (``alarm`` is true for ``stale`` acknowledgements: another sender is ahead in sequence on the
 link), the run stops with :class:`DisplayFault`, and the trial is repeated on resume.
 """
@@ -45,15 +45,11 @@ import numpy as np
 from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
 from tactilab.data_schemas.experiment_records import TrialRecord
 
-from .display import Display, DisplayError, description_record, render_drive
-from .display_faults import MAX_UNACKED_FRACTION, DisplayFault, display_fault  # noqa: F401 - re-exported
-from .display_limits import check_frame_rate
-from .build import make_procedure
-from .procedures import PlannedLevel, Procedure
+from ..devices import (STOP_SIGNALS, Display, DisplayError, DisplayFault, SafeDisplay, check_frame_rate,
+                       description_record, display_fault, render_drive)
+from ..procedures import PlannedLevel, Procedure, make_procedure, plan_trial, score
 from .recording import Recorder, RecordingError, utc_now
 from .responses import ResponseSource
-from .safety import STOP_SIGNALS, SafeDisplay
-from .tasks import plan_trial, score
 
 
 @functools.cache

@@ -2,7 +2,7 @@
 everything it receives, and zeroes its outputs when frames stop (watchdog).
 
 It is the reference device of ``docs/udp-frame-format.md`` (version 2; the logic is in
-:mod:`tactilab.experiments.emulator_device`):
+:mod:`tactilab.experiments.devices.emulator_device`):
 
 - link sessions: ARM (from any address, only while no session is live) carries the host's
   fresh key; the device answers ARMED with a fresh random nonce, zeroes its outputs and pins

@@ -16,7 +16,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from .recording import SessionLog
+from ..session import SessionLog
 
 #: a frame rate above this fraction (late, skipped or missing) is reported as a warning
 FRAME_WARN_FRACTION = 0.01
@@ -94,7 +94,7 @@ def session_summary(path: str | Path, *, rng: int = 0) -> dict[str, Any]:
         For a missing, foreign or damaged session file (one line naming it).
     """
     from .analysis import condition_table
-    from .resume import session_status
+    from ..session import session_status
 
     info = session_status(path)
     log = SessionLog(path)
@@ -193,7 +193,7 @@ def summary_lines(s: dict[str, Any]) -> list[str]:
                                       f"to {s['rt_max_s'] * 1e3:.0f} ms)"))
     rows.append(("elapsed", f"{s['elapsed_s'] * 1e3:.0f} ms from the first to the last event (created "
                             f"{s['created_utc']})"))
-    from .runner import format_estimate
+    from ..session import format_estimate
 
     try:
         running = format_estimate(s["procedure_estimate_si"], s["parameter"]).replace(" um", " µm")
