@@ -312,3 +312,36 @@ def test_virtual_height_rejects_non_finite_values(change, match):
 def test_sliding_surface_strain_amplitude_rejects_bad_values(args, match):
     with pytest.raises(ValueError, match=match):
         sliding_surface_strain_amplitude(*args)
+
+
+def test_steady_drive_is_the_limited_drive_between_the_ramps_and_models_read_its_strain():
+    """``steady_drive`` renders and limits as the safety layer does and drops the ramps; the
+    strain at another depth equals the Flamant rows at that depth; a transduction model of the
+    display's strain reads exactly those rows (the one route shared with the simulated observer)."""
+    from tactilab.data_schemas.experiment import Stimulus
+    from tactilab.experiments import TransductionModel
+    from tactilab.experiments.devices import limit_drive
+
+    display = SimulatedDisplay(DisplayDescription.braille_row())
+    stimulus = Stimulus(amplitude_m=40e-6, pitch_m=2e-3, speed_m_per_s=0.04, duration_s=0.2, ramp_s=0.02)
+    frames = render_drive(display.description, **stimulus.model_dump(), depth_m=display.depth_m,
+                          young_modulus_pa=display.young_modulus_pa)
+    applied, events = limit_drive(frames, stimulus.frame_rate_hz, display.description, display.command)
+    assert events  # 40 um asks for more traction than the display gives: the limiter acts
+    steady = display.steady_drive(stimulus)
+    assert steady.shape == (len(frames) - 40, display.description.n_tractors)  # 20 ramp frames at each end
+    np.testing.assert_array_equal(steady, applied[20:-20])
+    assert not limit_violations(steady, stimulus.frame_rate_hz, display.description)
+    q = display.line_loads(steady)
+    for depth in (0.5e-3, 2e-3):
+        exx, exz = row_strain(display.x_m, display.description.tractor_x_m, q, depth, display.young_modulus_pa,
+                              display.description.tractor_width_m)
+        got = display.strain(steady, depth_m=depth)
+        np.testing.assert_array_equal(got[0], exx)
+        np.testing.assert_array_equal(got[1], exz)
+    np.testing.assert_array_equal(display.strain(steady)[0], display.strain(steady, depth_m=display.depth_m)[0])
+    exx, exz = display.strain(steady, depth_m=2e-3)
+    model = TransductionModel("xx@2mm", statistic="rms", source="display", display=display)
+    assert model.statistic_of(stimulus) == pytest.approx(float(np.sqrt(np.mean(exx * exx))), rel=1e-12)
+    with pytest.raises(ValueError, match="depth_m: must be a finite number > 0 m, got -0.001"):
+        display.strain(steady, depth_m=-1e-3)

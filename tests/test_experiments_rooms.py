@@ -3,7 +3,8 @@
 Rooms: ``devices``, ``procedures``, ``session``, ``modelling`` (subpackages of ``experiments/``).
 Door rule: library code outside a room imports it only through its ``__init__``. Direction:
 ``devices`` and ``procedures`` import no other room, ``session`` imports those two, ``modelling``
-imports the three; no room imports the part's face (``tactilab.experiments``), which sits on top.
+imports ``procedures`` and ``session`` but not ``devices`` (a model asks the display object it is
+given for its strain); no room imports the part's face (``tactilab.experiments``), which sits on top.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ PARTS = ("core", "data_schemas", "forward", "inversion", "experiments", "demo", 
 FACE = "tactilab.experiments"
 #: room -> the rooms it may import (through their doors)
 MAY_IMPORT = {"devices": set(), "procedures": set(), "session": {"devices", "procedures"},
-              "modelling": {"devices", "procedures", "session"}}
+              "modelling": {"procedures", "session"}}
 ROOM_MODULES = {room: {p.stem for p in (ROOT / "experiments" / room).glob("*.py") if p.stem != "__init__"}
                 for room in MAY_IMPORT}
 

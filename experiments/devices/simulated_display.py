@@ -20,10 +20,11 @@ import time
 
 import numpy as np
 
-from .display import DEFAULT_DEPTH_M, DEFAULT_YOUNG_MODULUS_PA, Display, PlaybackReport
 from tactilab.forward.tractor_display import display_patch_strain_3d
 
+from .display import DEFAULT_DEPTH_M, DEFAULT_YOUNG_MODULUS_PA, Display, PlaybackReport, render_drive
 from .display_strain import row_strain
+from .safety import limit_drive
 
 __all__ = ["SimulatedDisplay"]
 
@@ -142,8 +143,38 @@ class SimulatedDisplay(Display):
         rows, columns = self.description.rows, self.description.columns
         return traction.reshape(-1, rows, columns) * self.description.tractor_width_m
 
-    def strain(self, frames=None) -> tuple[np.ndarray, np.ndarray]:
-        """Strain at ``depth_m`` under each row, for the frames played last (or ``frames``).
+    def steady_drive(self, stimulus) -> np.ndarray:
+        """The frames this display plays for ``stimulus`` between its onset and offset ramps.
+
+        The drive is rendered (:func:`~.display.render_drive`) and limited exactly as the
+        runner's safety layer limits it (:func:`~.safety.limit_drive`); the frames of the ramps
+        are dropped (all frames are kept when the ramps cover the whole stimulus).
+
+        Parameters
+        ----------
+        stimulus : Stimulus
+            What is commanded (SI): amplitude, pitch, speed, duration, ramp, frame rate.
+
+        Returns
+        -------
+        ndarray, shape (n_steady, n_tractors)
+            Commands in Pa (traction) or m (deflection).
+        """
+        frames = render_drive(self.description, **stimulus.model_dump(), depth_m=self.depth_m,
+                              young_modulus_pa=self.young_modulus_pa)
+        applied, _ = limit_drive(frames, stimulus.frame_rate_hz, self.description, self.command)
+        ramp = int(round(stimulus.ramp_s * stimulus.frame_rate_hz))
+        return applied[ramp:len(applied) - ramp] if len(applied) > 2 * ramp else applied
+
+    def strain(self, frames=None, depth_m: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Strain under each row, for the frames played last (or ``frames``).
+
+        Parameters
+        ----------
+        frames : ndarray, shape (n_frames, n_tractors), optional
+            Default: the frames played last.
+        depth_m : float, optional
+            Depth Z at which strain is computed, m (> 0); default ``self.depth_m``.
 
         Returns
         -------
@@ -151,8 +182,9 @@ class SimulatedDisplay(Display):
             Normal strain along x (``eps_zz = -eps_xx``) and TENSOR shear strain
             (``gamma_zx = 2 eps_xz``) at the points ``self.x_m``, dimensionless.
         """
+        depth = self.depth_m if depth_m is None else _positive(depth_m, "depth_m", "m")
         q = self.line_loads(frames)
-        return row_strain(self.x_m, self.description.tractor_x_m, q, self.depth_m,
+        return row_strain(self.x_m, self.description.tractor_x_m, q, depth,
                           self.young_modulus_pa, self.description.tractor_width_m)
 
     def strain_3d(self, frames=None, points_m=None) -> np.ndarray:

@@ -8,11 +8,12 @@ model comparisons of session files (:mod:`.analysis`), the session summary with 
 (:mod:`.session_report`) and the batch jobs over subjects, seeds and designs (:mod:`.batch`).
 
 Door rule: this package is the room's one door. Code outside the room imports it from here,
-never from the modules inside. This room sits on top: it reads sessions (``session``), builds on
-the procedure template (``procedures``) and computes what a display renders (``devices``), all
-through their doors, and no room imports it. The rooms import one way: ``devices`` and
-``procedures`` <- ``session`` <- ``modelling`` (tests/test_experiments_rooms.py enforces both
-rules).
+never from the modules inside. This room sits on top: it reads sessions (``session``) and builds
+on the procedure template (``procedures``), through their doors, and no room imports it. It
+imports nothing from ``devices``: a transduction model of a display's strain asks the
+:class:`~tactilab.experiments.devices.SimulatedDisplay` it is given (``steady_drive``,
+``strain``). The rooms import one way: ``devices`` and ``procedures`` <- ``session`` <-
+``modelling`` (tests/test_experiments_rooms.py enforces both rules).
 """
 
 from tactilab.data_schemas._lazy import attach

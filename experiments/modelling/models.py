@@ -63,7 +63,7 @@ class TransductionModel:
             raise ValueError(f"statistic: must be one of {STATISTICS}, got {statistic!r}")
         if source not in SOURCES:
             raise ValueError(f"source: must be one of {SOURCES}, got {source!r}")
-        if source == "display" and not callable(getattr(display, "strain", None)):
+        if source == "display" and not callable(getattr(display, "steady_drive", None)):
             raise ValueError("display: source='display' needs a SimulatedDisplay (its rendered strain), got "
                              f"{type(display).__name__}; or use source='surface'")
         self.statistic, self.source, self.display = statistic, source, display
@@ -108,19 +108,11 @@ class TransductionModel:
         return best
 
     def _display_statistic(self, stimulus: Stimulus) -> float:
-        from ..devices import limit_drive, render_drive, row_strain
-
         d = self.display
-        frames = render_drive(d.description, **stimulus.model_dump(), depth_m=d.depth_m,
-                              young_modulus_pa=d.young_modulus_pa)
-        applied, _ = limit_drive(frames, stimulus.frame_rate_hz, d.description, d.command)
-        ramp = int(round(stimulus.ramp_s * stimulus.frame_rate_hz))
-        steady = applied[ramp:len(applied) - ramp] if len(applied) > 2 * ramp else applied
-        q = d.line_loads(steady)
+        steady = d.steady_drive(stimulus)
         strain = []
         for z in self.hypothesis.depths:
-            exx, exz = row_strain(d.x_m, d.description.tractor_x_m, q, z, d.young_modulus_pa,
-                                  d.description.tractor_width_m)
+            exx, exz = d.strain(steady, depth_m=z)
             zero = np.zeros_like(exx)
             strain.append(np.stack([exx, zero, -exx, zero, exz, zero], axis=-1).reshape(exx.shape[0], -1, 6))
         r = self.hypothesis.readout(np.stack(strain))

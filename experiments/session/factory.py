@@ -59,7 +59,7 @@ def make_responses(kind: str, protocol: Protocol, display: Display, *, threshold
             raise ValueError(f"threshold: must be a strain > 0, got {threshold!r}; e.g. 2e-3")
         config["threshold_strain"] = value
     if source == "display":
-        if not callable(getattr(display, "strain", None)):
+        if not callable(getattr(display, "steady_drive", None)):
             raise ValueError("strain: 'display' needs a SimulatedDisplay (a display whose strain is computed); "
                              "use strain='surface' with a real display")
         config["display"] = display

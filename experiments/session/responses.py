@@ -188,8 +188,8 @@ def receptor_strain(stimulus: Stimulus, depth_m: float, n_harmonics: int = 15) -
 def rendered_strain(stimulus: Stimulus, display) -> float:
     """RMS deviatoric strain that a simulated display ACTUALLY produces for a stimulus, at its depth.
 
-    The drive is rendered (``render_drive``) and limited exactly as the runner's safety layer
-    limits it (``limit_drive``), then the display's tractor model gives the strain at
+    The drive is rendered and limited exactly as the runner's safety layer limits it
+    (``display.steady_drive``), then the display's tractor model gives the strain at
     ``display.depth_m`` (Flamant line loads, nu = 1/2, tensor shear; ``eps_zz = -eps_xx``, so
     the deviatoric Frobenius norm squared is ``2 eps_xx^2 + 2 eps_xz^2``). The RMS is taken over
     the display's points and the frames between the onset and offset ramps. For a stimulus
@@ -203,13 +203,7 @@ def rendered_strain(stimulus: Stimulus, display) -> float:
     display : SimulatedDisplay
         Supplies the description, depth, modulus and strain model.
     """
-    from ..devices import limit_drive, render_drive
-
-    frames = render_drive(display.description, **stimulus.model_dump(), depth_m=display.depth_m,
-                          young_modulus_pa=display.young_modulus_pa)
-    applied, _ = limit_drive(frames, stimulus.frame_rate_hz, display.description, display.command)
-    ramp = int(round(stimulus.ramp_s * stimulus.frame_rate_hz))
-    steady = applied[ramp:len(applied) - ramp] if len(applied) > 2 * ramp else applied
+    steady = display.steady_drive(stimulus)
     eps_xx, eps_xz = display.strain(steady)
     return float(np.sqrt(np.mean(2 * eps_xx ** 2 + 2 * eps_xz ** 2)))
 
@@ -257,7 +251,7 @@ class SimulatedObserver(ResponseSource):
         if strain_fn is not None:
             self.strain_source = "custom"
         elif display is not None:
-            if not callable(getattr(display, "strain", None)):
+            if not callable(getattr(display, "steady_drive", None)):
                 raise ValueError(
                     f"display: the observer feels a display's strain only for a simulated display, got "
                     f"{type(display).__name__}; use the surface strain (display=None)"
