@@ -15,7 +15,7 @@ way, ``devices`` and ``procedures`` <- ``session`` <- ``modelling``, through the
 below comes from a room's door. docs/experiments.md ("Experiments rooms") says where new code goes.
 """
 
-from tactilab.data_schemas._lazy import attach, package_version
+from tactilab.core import attach, package_version
 
 #: public name -> the room (subpackage) whose door exports it
 _EXPORTS = {

@@ -7,7 +7,7 @@ biomimetic finger), tractor displays and tactile synthesis are built on it. Impo
     from tactilab.forward import HalfSpace, SurfaceLoad, HertzContact
 """
 
-from tactilab.data_schemas._lazy import attach, package_version
+from tactilab.core import attach, package_version
 
 #: public name -> module that defines it
 _EXPORTS = {

@@ -14,7 +14,7 @@ import one way: ``devices`` and ``procedures`` <- ``session`` <- ``modelling``
 (tests/test_experiments_rooms.py enforces both rules).
 """
 
-from tactilab.data_schemas._lazy import attach
+from tactilab.core import attach
 
 #: public name -> module of this room that defines it (loaded on first use)
 _EXPORTS = {

@@ -16,7 +16,7 @@ imports nothing from ``devices``: a transduction model of a display's strain ask
 ``modelling`` (tests/test_experiments_rooms.py enforces both rules).
 """
 
-from tactilab.data_schemas._lazy import attach
+from tactilab.core import attach
 
 #: public name -> module of this room that defines it (loaded on first use)
 _EXPORTS = {

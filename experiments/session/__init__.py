@@ -13,7 +13,7 @@ never from the modules inside. This room imports the ``devices`` and ``procedure
 rules).
 """
 
-from tactilab.data_schemas._lazy import attach
+from tactilab.core import attach
 
 #: public name -> module of this room that defines it (loaded on first use)
 _EXPORTS = {
@@ -22,7 +22,6 @@ _EXPORTS = {
     "Runner": "runner",
     "format_estimate": "runner",
     "new_session": "runner",
-    "package_version": "runner",
     "trial_generators": "runner",
     "EVENT_KINDS": "recording",
     "Recorder": "recording",
