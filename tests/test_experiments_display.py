@@ -136,14 +136,14 @@ def test_deflection_command_gain_is_one_to_one():
 
 @pytest.mark.parametrize("change,match", [
     ({"amplitude_m": -1e-6}, "amplitude_m: must be a finite number >= 0"),
-    ({"pitch_m": 0.0}, "pitch_m: must be a finite number > 0"),
+    ({"pitch_m": 0.0}, "pitch_m: must be finite and > 0 m, got 0.0"),
     ({"speed_m_per_s": math.inf}, "speed_m_per_s: must be finite"),
-    ({"duration_s": math.nan}, "duration_s: must be a finite number > 0"),
-    ({"frame_rate_hz": -5.0}, "frame_rate_hz: must be a finite number > 0"),
+    ({"duration_s": math.nan}, "duration_s: must be finite and > 0 s, got nan"),
+    ({"frame_rate_hz": -5.0}, "frame_rate_hz: must be finite and > 0 Hz, got -5.0"),
     ({"ramp_s": 0.15}, r"ramp_s: must lie in \[0, duration_s / 2\]"),
     ({"phase_rad": math.nan}, "phase_rad: must be finite"),
-    ({"depth_m": 0.0}, "depth_m: must be a finite number > 0"),
-    ({"young_modulus_pa": True}, "young_modulus_pa: must be a finite number > 0"),
+    ({"depth_m": 0.0}, "depth_m: every depth must be finite and > 0 m"),
+    ({"young_modulus_pa": True}, "young_modulus_pa: Young's modulus must be finite and > 0 Pa, got True"),
     ({"gain": math.nan}, "gain: must be finite"),
     ({"surface": "triangle"}, "surface: must be 'sinusoid' or 'square'"),
     ({"command": "force"}, "command: must be 'traction' or 'deflection'"),
@@ -162,8 +162,8 @@ def test_command_without_a_limit_is_rejected():
     (np.zeros((5, 3)), 1000.0, r"frames: must have shape \(n_frames >= 1, n_tractors = 10\)"),
     (np.zeros((0, 10)), 1000.0, r"got shape \(0, 10\)"),
     (np.full((4, 10), np.nan), 1000.0, "frames: must be finite, got nan at frame 0, tractor 0"),
-    (np.zeros((4, 10)), 0.0, "frame_rate_hz: must be a finite number > 0"),
-    (np.zeros((4, 10)), True, "frame_rate_hz: must be a finite number > 0"),
+    (np.zeros((4, 10)), 0.0, "frame_rate_hz: must be finite and > 0 Hz, got 0.0; give e.g. 1000.0"),
+    (np.zeros((4, 10)), True, "frame_rate_hz: must be finite and > 0 Hz, got True"),
     (np.zeros((4, 10)), 2000.0, "frame_rate_hz: 2000.0 Hz exceeds the refresh rate of display "
                                 "'VirtualBrailleRow', 1000.0 Hz"),
 ])
@@ -251,9 +251,9 @@ def test_simulated_display_deflection_needs_stiffness():
 
 
 @pytest.mark.parametrize("kwargs,match", [
-    ({"depth_m": -1.0}, "depth_m: must be a finite number > 0"),
-    ({"young_modulus_pa": math.nan}, "young_modulus_pa: must be a finite number > 0"),
-    ({"tractor_stiffness_pa_per_m": 0.0}, "tractor_stiffness_pa_per_m: must be a finite number > 0"),
+    ({"depth_m": -1.0}, "depth_m: every depth must be finite and > 0 m"),
+    ({"young_modulus_pa": math.nan}, "young_modulus_pa: Young's modulus must be finite and > 0 Pa, got nan"),
+    ({"tractor_stiffness_pa_per_m": 0.0}, "tractor_stiffness_pa_per_m: must be finite and > 0 Pa/m, got 0.0"),
     ({"x_m": [[0.0]]}, "x_m: must be a non-empty 1-D array"),
     ({"x_m": [np.nan]}, "x_m: must be a non-empty 1-D array"),
 ])
@@ -292,7 +292,7 @@ def test_3d_patches_of_long_tractors_approach_the_plane_model():
 @pytest.mark.parametrize("change,match", [
     ({"x_m": np.array([0.0, np.nan])}, "x_m: positions must be finite"),
     ({"amplitude_m": math.nan}, "amplitude_m: must be a finite number in m, got nan"),
-    ({"pitch_m": math.inf}, "pitch_m: must be a finite number > 0 m, got inf"),
+    ({"pitch_m": math.inf}, "pitch_m: must be finite and > 0 m, got inf"),
     ({"phase_rad": math.nan}, "phase_rad: must be a finite number in rad, got nan"),
 ])
 def test_virtual_height_rejects_non_finite_values(change, match):
@@ -306,8 +306,8 @@ def test_virtual_height_rejects_non_finite_values(change, match):
 
 @pytest.mark.parametrize("args,match", [
     ((math.nan, 2e-3, 1e-3), "amplitude_m: must be a finite number in m, got nan"),
-    ((1e-5, 0.0, 1e-3), "pitch_m: must be a finite number > 0 m, got 0.0"),
-    ((1e-5, 2e-3, math.nan), "depth_m: must be a finite number > 0 m, got nan"),
+    ((1e-5, 0.0, 1e-3), "pitch_m: must be finite and > 0 m, got 0.0"),
+    ((1e-5, 2e-3, math.nan), "depth_m: every depth must be finite and > 0 m .*, got nan"),
 ])
 def test_sliding_surface_strain_amplitude_rejects_bad_values(args, match):
     with pytest.raises(ValueError, match=match):
@@ -343,5 +343,5 @@ def test_steady_drive_is_the_limited_drive_between_the_ramps_and_models_read_its
     exx, exz = display.strain(steady, depth_m=2e-3)
     model = TransductionModel("xx@2mm", statistic="rms", source="display", display=display)
     assert model.statistic_of(stimulus) == pytest.approx(float(np.sqrt(np.mean(exx * exx))), rel=1e-12)
-    with pytest.raises(ValueError, match="depth_m: must be a finite number > 0 m, got -0.001"):
+    with pytest.raises(ValueError, match="depth_m: every depth must be finite and > 0 m .*, got -0.001"):
         display.strain(steady, depth_m=-1e-3)

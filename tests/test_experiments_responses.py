@@ -133,9 +133,9 @@ def test_observer_is_reproducible_per_trial_and_times_responses_from_onset():
 
 
 @pytest.mark.parametrize("kwargs,match", [
-    ({"threshold_strain": 0.0}, "threshold_strain: must be finite and > 0"),
-    ({"exponent": math.nan}, "exponent: must be finite and > 0"),
-    ({"depth_m": -1.0}, "depth_m: must be finite and > 0"),
+    ({"threshold_strain": 0.0}, "threshold_strain: must be finite and > 0 1, got 0.0"),
+    ({"exponent": math.nan}, "exponent: must be finite and > 0 1, got nan"),
+    ({"depth_m": -1.0}, "depth_m: every depth must be finite and > 0 m"),
     ({"criterion": math.inf}, "criterion: must be finite"),
 ])
 def test_observer_parameters_are_validated(kwargs, match):

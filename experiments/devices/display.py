@@ -34,6 +34,8 @@ from typing import Literal
 
 import numpy as np
 
+from tactilab.core import rules
+
 from .display_limits import check_frames, limit_violations, resolve_command
 from .display_strain import strain_gain_line_load
 
@@ -262,20 +264,13 @@ def virtual_height(x_m: np.ndarray, *, surface: Literal["sinusoid", "square"], a
     for name, value, unit in (("amplitude_m", amplitude_m, "m"), ("phase_rad", phase_rad, "rad")):
         if isinstance(value, bool) or not math.isfinite(float(value)):
             raise ValueError(f"{name}: must be a finite number in {unit}, got {value!r}")
-    pitch_m = _positive(pitch_m, "pitch_m", "m")
+    pitch_m = rules.positive(pitch_m, "pitch_m", "m")
     argument = 2 * np.pi * x_m / pitch_m + phase_rad
     if surface == "sinusoid":
         return amplitude_m * np.sin(argument)
     if surface == "square":
         return amplitude_m * np.sign(np.sin(argument))
     raise ValueError(f"surface: must be 'sinusoid' or 'square', got {surface!r}; pick one of them")
-
-
-def _positive(value, name: str, unit: str) -> float:
-    number = math.nan if isinstance(value, bool) else float(value)
-    if not (math.isfinite(number) and number > 0):
-        raise ValueError(f"{name}: must be a finite number > 0 {unit}, got {value!r}; give a positive value")
-    return number
 
 
 def render_drive(description, *, amplitude_m: float, pitch_m: float, speed_m_per_s: float,
@@ -352,12 +347,12 @@ def render_drive(description, *, amplitude_m: float, pitch_m: float, speed_m_per
     amplitude = float(amplitude_m)
     if not (math.isfinite(amplitude) and amplitude >= 0):
         raise ValueError(f"amplitude_m: must be a finite number >= 0 m, got {amplitude_m!r}; give e.g. 20e-6")
-    pitch = _positive(pitch_m, "pitch_m", "m")
+    pitch = rules.positive(pitch_m, "pitch_m", "m")
     speed = float(speed_m_per_s)
     if not math.isfinite(speed):
         raise ValueError(f"speed_m_per_s: must be finite (m/s), got {speed_m_per_s!r}; give e.g. 0.04")
-    duration = _positive(duration_s, "duration_s", "s")
-    rate = _positive(frame_rate_hz, "frame_rate_hz", "Hz")
+    duration = rules.positive(duration_s, "duration_s", "s")
+    rate = rules.positive(frame_rate_hz, "frame_rate_hz", "Hz")
     ramp = float(ramp_s)
     if not (math.isfinite(ramp) and 0 <= 2 * ramp <= duration):
         raise ValueError(
@@ -366,8 +361,8 @@ def render_drive(description, *, amplitude_m: float, pitch_m: float, speed_m_per
         )
     if not math.isfinite(float(phase_rad)):
         raise ValueError(f"phase_rad: must be finite (rad), got {phase_rad!r}; give e.g. 0.0")
-    depth = _positive(depth_m, "depth_m", "m")
-    modulus = _positive(young_modulus_pa, "young_modulus_pa", "Pa")
+    depth = rules.depth(depth_m, "depth_m")
+    modulus = rules.young_modulus(young_modulus_pa, "young_modulus_pa")
     if gain is not None and not math.isfinite(float(gain)):
         raise ValueError(f"gain: must be finite, got {gain!r}; give a number or None for the default")
 

@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from tactilab.core import rules
+
 __all__ = ["resolve_command", "limits", "check_frames", "limit_violations"]
 
 
@@ -65,11 +67,7 @@ def check_frame_rate(frame_rate_hz, description) -> float:
     ValueError
         If it is not a finite number > 0 Hz, or exceeds ``description.frame_rate_hz``.
     """
-    rate = float(frame_rate_hz) if not isinstance(frame_rate_hz, bool) else math.nan
-    if not (math.isfinite(rate) and rate > 0):
-        raise ValueError(
-            f"frame_rate_hz: must be a finite number > 0 Hz, got {frame_rate_hz!r}; give e.g. 1000.0"
-        )
+    rate = rules.positive(frame_rate_hz, "frame_rate_hz", "Hz", fix="give e.g. 1000.0")
     if rate > float(description.frame_rate_hz) * (1 + 1e-12):
         raise ValueError(
             f"frame_rate_hz: {rate!r} Hz exceeds the refresh rate of display "

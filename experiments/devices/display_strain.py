@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from tactilab.core import rules
 from tactilab.forward.tractors import tractor_row_strain
 
 __all__ = ["row_strain", "sliding_surface_strain_amplitude", "strain_gain_line_load"]
@@ -57,9 +58,7 @@ def sliding_surface_strain_amplitude(amplitude_m: float, pitch_m: float, depth_m
     """
     if isinstance(amplitude_m, bool) or not math.isfinite(float(amplitude_m)):
         raise ValueError(f"amplitude_m: must be a finite number in m, got {amplitude_m!r}")
-    for name, value in (("pitch_m", pitch_m), ("depth_m", depth_m)):
-        if isinstance(value, bool) or not (math.isfinite(float(value)) and float(value) > 0):
-            raise ValueError(f"{name}: must be a finite number > 0 m, got {value!r}; give a positive value")
+    pitch_m, depth_m = rules.positive(pitch_m, "pitch_m", "m"), rules.depth(depth_m, "depth_m")
     return 4 * math.pi**2 * amplitude_m * depth_m / pitch_m**2 * math.exp(-2 * math.pi * depth_m / pitch_m)
 
 

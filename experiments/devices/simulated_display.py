@@ -20,6 +20,7 @@ import time
 
 import numpy as np
 
+from tactilab.core import rules
 from tactilab.forward.tractor_display import display_patch_strain_3d
 
 from .display import DEFAULT_DEPTH_M, DEFAULT_YOUNG_MODULUS_PA, Display, PlaybackReport, render_drive
@@ -27,13 +28,6 @@ from .display_strain import row_strain
 from .safety import limit_drive
 
 __all__ = ["SimulatedDisplay"]
-
-
-def _positive(value, name: str, unit: str) -> float:
-    number = math.nan if isinstance(value, bool) else float(value)
-    if not (math.isfinite(number) and number > 0):
-        raise ValueError(f"{name}: must be a finite number > 0 {unit}, got {value!r}; give a positive value")
-    return number
 
 
 class SimulatedDisplay(Display):
@@ -73,11 +67,11 @@ class SimulatedDisplay(Display):
                  tractor_stiffness_pa_per_m: float | None = None, x_m=None,
                  realtime: bool = False) -> None:
         super().__init__(description, command)
-        self.depth_m = _positive(depth_m, "depth_m", "m")
-        self.young_modulus_pa = _positive(young_modulus_pa, "young_modulus_pa", "Pa")
+        self.depth_m = rules.depth(depth_m, "depth_m")
+        self.young_modulus_pa = rules.young_modulus(young_modulus_pa, "young_modulus_pa")
         self.tractor_stiffness_pa_per_m = (None if tractor_stiffness_pa_per_m is None else
-                                           _positive(tractor_stiffness_pa_per_m,
-                                                     "tractor_stiffness_pa_per_m", "Pa/m"))
+                                           rules.positive(tractor_stiffness_pa_per_m,
+                                                          "tractor_stiffness_pa_per_m", "Pa/m"))
         if self.command == "deflection" and self.tractor_stiffness_pa_per_m is None:
             raise ValueError(
                 "tractor_stiffness_pa_per_m: required for a display commanded in deflection "
@@ -182,7 +176,7 @@ class SimulatedDisplay(Display):
             Normal strain along x (``eps_zz = -eps_xx``) and TENSOR shear strain
             (``gamma_zx = 2 eps_xz``) at the points ``self.x_m``, dimensionless.
         """
-        depth = self.depth_m if depth_m is None else _positive(depth_m, "depth_m", "m")
+        depth = self.depth_m if depth_m is None else rules.depth(depth_m, "depth_m")
         q = self.line_loads(frames)
         return row_strain(self.x_m, self.description.tractor_x_m, q, depth,
                           self.young_modulus_pa, self.description.tractor_width_m)

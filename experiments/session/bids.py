@@ -24,6 +24,7 @@ from typing import Any
 
 import pandas as pd
 
+from tactilab.core import package_version
 from tactilab.data_schemas.experiment_records import INTERVAL_FIELDS, TrialRecord, trials_to_dataframe
 
 #: the BIDS version the files follow
@@ -129,8 +130,6 @@ def write_dataset(meta: dict[str, Any], trials: list[TrialRecord], out: Path, *,
         When the session's files exist and ``overwrite`` is False, or ``participants.tsv`` exists
         without a ``participant_id`` column.
     """
-    from .runner import package_version
-
     task = meta["protocol"]["name"]
     subject, session = meta["subject"], meta["session"]
     folder = out / f"sub-{subject}" / f"ses-{session}" / "beh"

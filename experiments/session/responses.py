@@ -20,6 +20,7 @@ from typing import Callable, TextIO
 import numpy as np
 from scipy.special import ndtri
 
+from tactilab.core import rules
 from tactilab.data_schemas.experiment import Protocol, Stimulus
 from tactilab.forward.tractors import sliding_sinusoid_strain
 
@@ -233,10 +234,9 @@ class SimulatedObserver(ResponseSource):
                  exponent: float = 1.0, criterion: float = 1.0, frequency_acuity: float = 2.0,
                  magnitude_gain: float = 2.0, depth_m: float = 1e-3, display=None,
                  strain_fn: Callable[[Stimulus], float] | None = None, lapse: float = 0.0) -> None:
-        for name, value in (("threshold_strain", threshold_strain), ("exponent", exponent),
-                            ("depth_m", depth_m)):
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name}: must be finite and > 0, got {value!r}")
+        threshold_strain = rules.positive(threshold_strain, "threshold_strain", "1")
+        exponent = rules.positive(exponent, "exponent", "1")
+        depth_m = rules.depth(depth_m, "depth_m")
         for name, value in (("criterion", criterion), ("frequency_acuity", frequency_acuity),
                             ("magnitude_gain", magnitude_gain)):
             if not math.isfinite(value):

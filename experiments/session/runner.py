@@ -40,7 +40,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from tactilab.core import package_version  # noqa: F401 - defined once in core; used here and by bids.py
+from tactilab.core import package_version  # defined once in core
 from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
 from tactilab.data_schemas.experiment_records import TrialRecord
 
