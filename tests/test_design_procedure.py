@@ -6,7 +6,6 @@ import json
 
 import pytest
 
-import tactilab.experiments.modelling.design  # noqa: F401 - registers method "model_discrimination"
 from tactilab.data_schemas.design_config import ModelDiscriminationConfig
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol

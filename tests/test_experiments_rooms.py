@@ -158,3 +158,46 @@ def test_a_plain_staircase_session_loads_nothing_from_modelling():
     assert "tactilab.experiments.session.runner" in loaded and "tactilab.experiments.procedures.staircase" in loaded
     assert not [m for m in loaded if m.startswith("tactilab.experiments.modelling")], loaded
     assert "tactilab.experiments.procedures.psi" not in loaded
+
+
+BUILD_EACH = """
+import sys
+from tactilab.data_schemas.experiment import Protocol
+from tactilab.experiments.procedures import make_procedure, registered_procedures
+
+def loaded():
+    return {m.rsplit(".", 1)[1] for m in sys.modules if m.startswith("tactilab.experiments.")
+            and m.count(".") == 3}
+
+print(sorted(registered_procedures()))
+for procedure in PROCEDURES:
+    protocol = Protocol.model_validate({"name": "each", "seed": 1, "iti_s": 0, "task": {"kind": "2ifc"},
+                                        "stimulus": STIMULUS, "procedure": procedure})
+    built = make_procedure(protocol.procedure, guess_rate=0.5)
+    print(procedure["method"], type(built).__name__, sorted(loaded() & {"staircase", "psi", "design"}))
+"""
+STIMULUS = {"amplitude_m": "5um", "pitch_m": "3mm", "speed_m_per_s": "20mm/s", "duration_s": "50ms", "ramp_s": "5ms"}
+PROCEDURES = [
+    {"method": "staircase", "parameter": "amplitude_m",
+     "tracks": [{"start": "3um", "step_sizes": [0.2], "min_level": "0.3um", "max_level": "6um", "max_trials": 4}]},
+    {"method": "psi", "parameter": "amplitude_m", "levels": ["1um", "3um", "9um"], "n_trials": 4,
+     "parameters": {"threshold": ["2um", "4um"], "slope": [2.0], "lapse": [0.0]}},
+    {"method": "model_discrimination", "parameter": "pitch_m", "models": ["zx@1mm", "zx@2mm"], "max_trials": 4,
+     "candidates": {"pitch_m": ["1mm", "4mm"], "amplitude_m": ["5um"], "speed_m_per_s": ["20mm/s"],
+                    "duration_s": ["50ms"], "ramp_s": ["5ms"]}},
+]
+
+
+def test_each_built_in_procedure_loads_its_module_when_a_protocol_first_names_it():
+    """In a fresh interpreter the registry lists every built-in before any is loaded, and building
+    each one imports its module then: staircase alone, then psi, then the modelling room's design."""
+    script = f"STIMULUS = {STIMULUS!r}\nPROCEDURES = {PROCEDURES!r}\n" + BUILD_EACH
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT.parent,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines() == [
+        "['constant_stimuli', 'model_discrimination', 'psi', 'staircase']",
+        "staircase Staircase ['staircase']",
+        "psi Psi ['psi', 'staircase']",
+        "model_discrimination ModelDiscrimination ['design', 'psi', 'staircase']",
+    ]
