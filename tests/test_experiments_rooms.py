@@ -201,3 +201,19 @@ def test_each_built_in_procedure_loads_its_module_when_a_protocol_first_names_it
         "psi Psi ['psi', 'staircase']",
         "model_discrimination ModelDiscrimination ['design', 'psi', 'staircase']",
     ]
+
+
+def test_every_built_in_procedure_is_named_by_a_door_and_registers_its_method():
+    import importlib
+
+    from tactilab.data_schemas.experiment import StaircaseConfig
+    from tactilab.experiments.procedures import registry
+
+    for method, (door, cls) in registry.BUILTIN_PROCEDURES.items():
+        assert door in {f"{FACE}.{room}" for room in MAY_IMPORT}, (method, door)
+        assert cls in importlib.import_module(door).__all__
+        registry._load_builtin(method)
+        assert method in registry._PROCEDURES
+    # a built-in's name is taken even before a protocol names it: registering it needs replace=True
+    with pytest.raises(ValueError, match="name: procedure 'staircase' is already registered; pass replace=True"):
+        registry.register_procedure("staircase", StaircaseConfig, lambda config, *, guess_rate=0.0: None)

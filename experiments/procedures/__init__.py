@@ -9,8 +9,8 @@ loads neither psi nor the modelling room.
 
 Door rule: this package is the room's one door. Code outside the room imports it from here,
 never from the modules inside, and this room imports no other room of
-:mod:`tactilab.experiments` (the registry names ``model_discrimination``'s module in the
-modelling room as a string, imported on first use; it never imports it). The rooms import one
+:mod:`tactilab.experiments` (the registry names ``model_discrimination``'s door and class in the
+modelling room as strings, loaded on first use; no import statement names that room). The rooms import one
 way: ``devices`` and ``procedures`` <- ``session`` <- ``modelling``
 (tests/test_experiments_rooms.py enforces both rules).
 """

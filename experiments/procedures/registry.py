@@ -7,12 +7,12 @@ protocol's ``likelihood`` names a built-in psychometric family or a likelihood r
 turned into an import: names are looked up here, and an unknown name is refused with a message
 that says how to register it.
 
-The built-in procedures are named in :data:`BUILTIN_PROCEDURES` with the module that defines
-each (``constant_stimuli`` and ``staircase`` in :mod:`.staircase`, ``psi`` in :mod:`.psi`,
-``model_discrimination`` in :mod:`tactilab.experiments.modelling.design`, which is built on the
-transduction models). A module is imported the first time a protocol names one of its methods,
-and registers its procedures then: a staircase session never loads the modelling room, and the
-registry sits below every procedure, so no import cycle is needed.
+The built-in procedures are named in :data:`BUILTIN_PROCEDURES` with the room door and class
+of each (``constant_stimuli`` and ``staircase`` in :mod:`.staircase`, ``psi`` in :mod:`.psi`,
+``model_discrimination`` in the modelling room, as it is built on the transduction models). The
+class is fetched through its door the first time a protocol names its method; importing its
+module registers it then. A staircase session thus never loads psi or the modelling room, and
+the registry sits below every procedure without importing any.
 """
 
 from __future__ import annotations
@@ -36,12 +36,13 @@ _LIKELIHOODS: dict[str, Likelihood] = {}
 _PROCEDURES: dict[str, tuple[type, Callable[..., Any]]] = {}
 _RESERVED = ("weibull", "logistic", "normal_cdf", "gumbel")
 
-#: built-in method -> the module that registers it on import (a constant of this file, never data)
+#: built-in method -> (room door, class): touching the class through the door imports the module that
+#: defines it, which registers the method (constants of this file, never data)
 BUILTIN_PROCEDURES = {
-    "constant_stimuli": "tactilab.experiments.procedures.staircase",
-    "staircase": "tactilab.experiments.procedures.staircase",
-    "psi": "tactilab.experiments.procedures.psi",
-    "model_discrimination": "tactilab.experiments.modelling.design",
+    "constant_stimuli": ("tactilab.experiments.procedures", "ConstantStimuli"),
+    "staircase": ("tactilab.experiments.procedures", "Staircase"),
+    "psi": ("tactilab.experiments.procedures", "Psi"),
+    "model_discrimination": ("tactilab.experiments.modelling", "ModelDiscrimination"),
 }
 
 
@@ -145,10 +146,10 @@ def register_procedure(name: str, config_cls: type, factory: Callable[..., Any],
 
 
 def _load_builtin(name: str) -> None:
-    """Import the module of built-in procedure ``name`` once (it registers itself)."""
-    module = BUILTIN_PROCEDURES.get(name)
-    if module is not None and name not in _PROCEDURES:
-        importlib.import_module(module)
+    """Load built-in procedure ``name`` once, through its room's door (its module registers it)."""
+    if name in BUILTIN_PROCEDURES and name not in _PROCEDURES:
+        door, cls = BUILTIN_PROCEDURES[name]
+        getattr(importlib.import_module(door), cls)
 
 
 def registered_procedures() -> list[str]:
