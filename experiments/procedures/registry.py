@@ -17,8 +17,8 @@ the registry sits below every procedure without importing any.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 import importlib
+from collections.abc import Callable
 from importlib import metadata
 from typing import Any
 
