@@ -212,7 +212,7 @@ def _run_batch(args: argparse.Namespace, opts: _Options) -> int:
     """The design table over depths x widths x pairs as a batch (``tactilab.experiments.design_sweep``)."""
     import numpy as np
 
-    from tactilab.experiments.batch import design_sweep
+    from tactilab.experiments.modelling import design_sweep
 
     if opts.amplitude is not None or opts.limit is not None:
         raise ValueError("--workers/--scheduler: the batch design table has no matching columns; drop --amplitude "

@@ -18,9 +18,9 @@ from tactilab.core import batch as B
 from tactilab.core import task_rng
 from tactilab.data_schemas import DisplayDescription, Protocol
 from tactilab.experiments import SimulatedDisplay, TransductionModel, new_session, power_analysis
-from tactilab.experiments.analysis import read_design
-from tactilab.experiments.batch import sessions_by_subject
-from tactilab.experiments.responses import SimulatedObserver
+from tactilab.experiments.modelling.analysis import read_design
+from tactilab.experiments.modelling.batch import sessions_by_subject
+from tactilab.experiments.session.responses import SimulatedObserver
 from tactilab.forward import design_table
 
 DESIGN = "".join(f'[[trials]]\namplitude_m = "{a}um"\npitch_m = "{p}mm"\nspeed_m_per_s = "20mm/s"\nn = 50\n'

@@ -11,10 +11,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.display import Display, PlaybackReport, render_drive
-from tactilab.experiments.display_limits import limit_violations, limits
-from tactilab.experiments.safety import PlaybackInterrupted, SafeDisplay, limit_drive
-from tactilab.experiments.simulated_display import SimulatedDisplay
+from tactilab.experiments.devices.display import Display, PlaybackReport, render_drive
+from tactilab.experiments.devices.display_limits import limit_violations, limits
+from tactilab.experiments.devices.safety import PlaybackInterrupted, SafeDisplay, limit_drive
+from tactilab.experiments.devices.simulated_display import SimulatedDisplay
 
 
 def as_grid(frames, desc):
