@@ -313,26 +313,29 @@ class _PosteriorModel:
                                              if ax not in self.varying))
 
     def _params(self, theta):
+        """Parameter values: the free ones per walker (W,), the fixed ones as scalars."""
         theta = np.atleast_2d(theta)
-        q = {ax: np.full(len(theta), self.post.map[ax]) for ax in AXES}
+        q = {ax: self.post.map[ax] for ax in AXES}
         q.update({ax: theta[:, i] for i, ax in enumerate(self.param_names)})
         if self.post.tied:
             q["guess"] = q["lapse"]
-        return q, np.all((theta >= self.lo) & (theta <= self.hi), axis=1)
+        return q, theta
 
     def log_prior(self, theta):
-        q, inside = self._params(theta)
+        q, theta = self._params(theta)
+        inside = np.all((theta >= self.lo) & (theta <= self.hi), axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):
             lp = self.fixed_log_prior + sum(_log(self.post.priors[ax](q[ax])) for ax in self.varying)
         return np.where(inside & ~np.isnan(lp), lp, -np.inf)
 
     def log_likelihood(self, theta):
         """Binomial (or beta-binomial) term of every block, shape (W, n_blocks)."""
-        q, _ = self._params(theta)
-        eta = q["eta"][:, None] ** 2
+        q, theta = self._params(theta)
+        eta = np.asarray(q["eta"], dtype=float)[..., None] ** 2
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             eta_p = np.where(eta > 1e-9, 1 / np.maximum(eta, 1e-300) - 1, np.inf)
-            ll = self.post._ll(self.post.psi(q), self.post.k, self.post.n, eta, eta_p, bool(np.any(eta > 1e-9)))
+            psi = np.broadcast_to(self.post.psi(q), (theta.shape[0], self.post.k.size))
+            ll = self.post._ll(psi, self.post.k, self.post.n, eta, eta_p, bool(np.any(eta > 1e-9)))
         return np.where(np.isnan(ll), -np.inf, ll)
 
 
@@ -349,7 +352,7 @@ def sample_emcee(post: GridPosterior, rng, max_steps: int = 5000, max_draws: int
     start = np.array([post.map[ax] for ax in post.free])
     # tau_factor 20: the kept chain spans 20 autocorrelation times (the fixed run this replaced kept
     # about 21); R-hat and ESS >= 400 are checked as for every posterior
-    tree = sample_posterior(model, rng, start=start, max_steps=max_steps, check_every=250, tau_factor=20.0,
+    tree = sample_posterior(model, rng, start=start, max_steps=max_steps, check_every=500, tau_factor=20.0,
                             max_draws=max_draws, info_tol=None)
     if not tree.attrs["converged"]:
         import warnings
