@@ -60,10 +60,8 @@ class StationaryPrior:
     mean: float = 0.0
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.variance) and self.variance > 0):
-            raise ValueError(f"variance: prior variance must be finite and > 0, got {self.variance!r}")
-        if not (np.isfinite(self.correlation_length) and self.correlation_length > 0):
-            raise ValueError(f"correlation_length: must be finite and > 0 m, got {self.correlation_length!r}")
+        rules.positive(self.variance, "variance", "model units squared", "give the pointwise prior variance")
+        rules.positive(self.correlation_length, "correlation_length", "m")
         if self.kind not in KINDS:
             raise ValueError(f"kind: unknown prior kind {self.kind!r}; use one of {', '.join(KINDS)}")
         if not np.isfinite(self.mean):
@@ -381,8 +379,7 @@ def gaussian_posterior(
     -------
     GaussianPosterior
     """
-    if not (np.isfinite(noise_std) and noise_std > 0):
-        raise ValueError(f"noise_std: must be finite and > 0 (data units), got {noise_std!r}")
+    rules.positive(noise_std, "noise_std", "data units", "give the noise standard deviation of the data")
     operator, method = choose_path(operator, method)  # the same path as invert_linear for this operator
     is_matrix = isinstance(operator, np.ndarray)
     dims = (operator.shape[1],) if is_matrix else tuple(getattr(operator, "dims", (operator.shape[1],)))

@@ -26,7 +26,7 @@ from scipy.sparse.linalg import aslinearoperator
 
 from .criteria import CRITERIA, CriteriaResult, SpectralForm, choose_lambda
 from .iterative_criteria import IterativeCriteria, NormalSolver, choose_lambda_iterative
-from .linear_common import DENSE_MAX, LinearInversionResult, check_data
+from .linear_common import LinearInversionResult, check_data
 from .operators import FourierDiagonal, model_layout
 from .paths import choose_path
 from .penalties import PENALTIES, check_penalty, penalty_matrix, penalty_symbol

@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import ks_2samp
 
+from tactilab.core import rules
+
 from .sampler import sample_posterior
 from .scene_params import NONLINEAR, POSITIVE, Normal, check_prior
 
@@ -269,8 +271,7 @@ def sample_scene_posterior(
     if not np.all(np.isfinite(d)):
         i = int(np.flatnonzero(~np.isfinite(d))[0])
         raise ValueError(f"data: must be finite, found {d[i]} at flat index {i}; drop or interpolate bad samples")
-    if not (np.isfinite(noise_std) and noise_std > 0):
-        raise ValueError(f"noise_std: must be finite and > 0 Pa, got {noise_std!r}")
+    rules.positive(noise_std, "noise_std", "data units (Pa or strain)", "give the sensors' noise standard deviation")
     missing = [k for k in NONLINEAR if k not in priors]
     extra = [k for k in priors if k not in NONLINEAR]
     if missing or extra:
