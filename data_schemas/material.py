@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from typing import Annotated
 
+from tactilab.core.rules import POISSON_RATIO_BOUNDS
+
 from .base import Record, in_range, positive
 
 
@@ -29,7 +31,7 @@ class SkinMaterial(Record):
     young_modulus_pa: Annotated[float, positive(
         "a stiffness", "give Young's modulus E in Pa, e.g. 1e6 for 1 MPa")]
     poisson_ratio: Annotated[float, in_range(
-        -1.0, 0.5, low_open=True, reason="thermodynamic bounds of an isotropic solid",
+        *POISSON_RATIO_BOUNDS, low_open=True, reason="thermodynamic bounds of an isotropic solid",
         fix="give nu in (-1, 0.5]; use 0.5 for incompressible skin")] = 0.5
     name: str = ""
 

@@ -26,6 +26,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
+from tactilab.core.rules import COMPONENTS
 from tactilab.data_schemas.hypothesis import (
     LINEAR_COMPONENTS,
     SHEAR_CONVENTIONS,
@@ -36,7 +37,8 @@ from tactilab.data_schemas.hypothesis import (
     parse_hypothesis,
 )
 
-VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
+#: Voigt order of the strain components (the one order, tactilab.core.rules.COMPONENTS)
+VOIGT = COMPONENTS
 _SHEAR = ("yz", "zx", "xy")
 _PAIRS = {"xx": (0, 0), "yy": (1, 1), "zz": (2, 2), "yz": (1, 2), "zx": (2, 0), "xy": (0, 1)}
 

@@ -62,12 +62,10 @@ def test_voigt_order_indices_and_engineering_factors():
     ("components", "pattern"),
     [
         ("zz", r"components must be a list of component names, got the string 'zz'; write e.g. \['zz'\]"),
-        ([], r"components must not be empty; give at least one of xx, yy"),
-        (["xz"], r"components contains 'xz', which is not a component name; use 'zx'"),
-        (["zy"], r"use 'yz'"),
-        (["yx"], r"use 'xy'"),
-        (["zz", "pressure"], r"components contains unknown component 'pressure'; use names from xx, yy, zz"),
-        (["zz", "zx", "zz"], r"components lists \['zz'\] more than once"),
+        ([], r"components: empty selection; pick names from \('xx', 'yy'"),
+        (["zz", "pressure"], r"components: unknown component 'pressure'; valid names are \('xx', 'yy', 'zz'"),
+        (["zz", "zx", "zz"], r"components: names repeat in \('zz', 'zx', 'zz'\)"),
+        (["zx", "xz"], r"components: names repeat .*aliases count as their Voigt name"),
     ],
 )
 def test_component_rules(components, pattern):
@@ -75,6 +73,19 @@ def test_component_rules(components, pattern):
         check_components(components)
     with pytest.raises(ValueError, match=pattern):
         SensorArray(positions_m=[[0, 0]], depth_m=1e-3, components=components)
+
+
+@pytest.mark.parametrize(("alias", "name"), [("xz", "zx"), ("zy", "yz"), ("yx", "xy")])
+def test_sensor_records_accept_the_shear_aliases_like_the_solver(alias, name):
+    """Relaxation of issue 22: sensor records used to refuse 'xz'; the solver and the hypothesis
+    grammar accepted it. One rule now (tactilab.core.rules.components): the alias names the same
+    tensor entry and comes back as its Voigt name."""
+    from tactilab.forward.halfspace import validation
+
+    assert check_components(["zz", alias]) == ("zz", name) == validation.components(["zz", alias])
+    sensors = SensorArray(positions_m=[[0, 0]], depth_m=1e-3, components=["zz", alias])
+    assert sensors.components == ("zz", name)
+    np.testing.assert_array_equal(sensors.voigt_indices, [2, COMPONENTS.index(name)])
 
 
 # ----- sensor arrays ------------------------------------------------------------------------

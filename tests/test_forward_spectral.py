@@ -218,7 +218,7 @@ def test_transfer_matches_the_solver_and_validates(rng):
         transfer(xi, None, z, 0.5, "px")
     with pytest.raises(ValueError, match="depth"):
         transfer(xi, None, -1.0, 0.5, "p")
-    with pytest.raises(ValueError, match="unknown stress component"):
+    with pytest.raises(ValueError, match="unknown component"):
         transfer(xi, None, z, 0.5, "p", ("zzz",))
 
 

@@ -143,7 +143,7 @@ class HalfSpace:
         points : ndarray, shape (n, 2), optional
             Sensor positions (x, y) in m; (n,) of x for a 1-D load. Default: the load grid.
         components : sequence of str, optional
-            Voigt names from ("xx", "yy", "zz", "yz", "zx", "xy"); default all six.
+            Voigt names from ``COMPONENTS`` (xx, yy, zz, yz, zx, xy; aliases xz, zy, yx); default all six.
         method : {"auto", "closed_form", "spectral", "dcfft"} or Method subclass
         tol : float
             Requested max error relative to the largest magnitude of the requested field.

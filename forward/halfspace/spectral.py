@@ -171,7 +171,7 @@ def _table_uncached(g: _Geometry, nu: float, component: str):
         return [(0, "qx", "re", -1.0), (1, "p", "im", c), (1, "qx", "re", c2), (1, "qy", "re", cs)]
     if component == "yz":
         return [(0, "qy", "re", -1.0), (1, "p", "im", s), (1, "qx", "re", cs), (1, "qy", "re", s2)]
-    raise ValueError(f"components: unknown stress component {component!r}; use one of {VOIGT}")
+    raise ValueError(f"components: unknown component {component!r}; use one of {VOIGT}")
 
 
 def _real_coefficients(g: _Geometry, nu: float, spectra: dict, row: np.ndarray) -> dict:
