@@ -50,7 +50,7 @@ class ReceptorHypothesis:
     Parameters
     ----------
     components : tuple of str
-        Linear: ``"xx", "yy", "zz", "yz", "zx", "xy"`` (aliases ``"xz"``, ``"zy"``, ``"yx"``
+        Linear: the Voigt names ``COMPONENTS`` (xx, yy, zz, yz, zx, xy; aliases ``"xz"``, ``"zy"``, ``"yx"``
         accepted and stored canonically) and ``"volumetric"`` (``tr eps``); nonlinear:
         ``"max_shear"``, ``"von_mises"``, ``"octahedral"``, ``"deviatoric_norm"``.
     depths : tuple of float

@@ -39,7 +39,7 @@ RULES = {
     "spacing": Rule((1e-4, 2.5e-5), (0.0, -1e-4, NAN, INF), r"finite and > 0 m"),
     "young_modulus": Rule((1e6, 2.5e3), (0.0, -1e6, NAN, INF), r"finite and > 0 Pa"),
     "poisson_ratio": Rule((0.5, 0.3, 0.0, -0.5), (0.6, 0.5000001, -1.0, -1.5, NAN), r"\(-1, 0\.5\]"),
-    "components": Rule((("zz",), ("xz", "zz"), ("xx", "yy", "zz", "yz", "zx", "xy")),
+    "components": Rule((("zz",), ("xz", "zz"), rules.COMPONENTS),
                        (("qq",), ("zz", "pressure")), r"unknown component"),
 }
 #: parameter name -> quantity of the table
