@@ -183,6 +183,10 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
         lambda v: fwd.render_virtual_surface(DISPLAY, _height, 0.02, [0.0, 1e-3], X, 1e-3, 1.0, v)),
     ("forward.render_virtual_surface", "nu"): (
         lambda v: fwd.render_virtual_surface(DISPLAY, _height, 0.02, [0.0, 1e-3], X, 1e-3, 1.0, 1e6, nu=v)),
+    ("forward.display_patch_strain_3d", "young_modulus"): (
+        lambda v: fwd.display_patch_strain_3d(DISPLAY, [[0.0, 0.0, 1e-3]], np.zeros(DISPLAY.shape), v)),
+    ("forward.display_patch_strain_3d", "nu"): (
+        lambda v: fwd.display_patch_strain_3d(DISPLAY, [[0.0, 0.0, 1e-3]], np.zeros(DISPLAY.shape), 1e6, nu=v)),
     ("forward.pair_phi_psi", "depth"): lambda v: fwd.pair_phi_psi(X, 1e-3, v),
     ("forward.array_phi_psi", "depth"): lambda v: fwd.array_phi_psi(X, 1e-3, v),
     ("forward.optimal_half_spacing", "depth"): lambda v: fwd.optimal_half_spacing(v, grid_points=20),
