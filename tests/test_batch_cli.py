@@ -148,7 +148,7 @@ def test_metamer_scan_serial_and_on_a_scheduler(tmp_path, capsys, client):
     assert main([*argv[:-1], "--out", str(tmp_path / "w0")]) == 0
     assert "0 point(s) run, 8 skipped" in capsys.readouterr().out
     assert main([*argv, "--scan-pitch=-2mm", "--out", str(tmp_path)]) == 2
-    assert "--scan-pitch: must be > 0" in capsys.readouterr().err
+    assert "--scan-pitch: must be finite and > 0 m" in capsys.readouterr().err
 
 
 def test_experiment_fit_json(sessions, tmp_path, capsys):
