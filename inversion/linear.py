@@ -24,6 +24,8 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.sparse.linalg import aslinearoperator
 
+from tactilab.core import rules
+
 from .criteria import CRITERIA, CriteriaResult, SpectralForm, choose_lambda
 from .iterative_criteria import IterativeCriteria, NormalSolver, choose_lambda_iterative
 from .linear_common import LinearInversionResult, check_data
@@ -229,6 +231,8 @@ def invert_linear(
     d = check_data(data, operator.shape[0], shape=getattr(operator, "dimsd", None))
     dims, n_fields = model_layout(operator)  # grid shape; loads stacked load-major
     model_shape = dims if n_fields == 1 else (n_fields, *dims)
+    if spacing is not None:
+        rules.spacing(spacing, len(dims))
     spacing = spacing if spacing is not None else getattr(operator, "spacing", 1.0)
     crit = None
     penalises_nothing = ValueError(f"penalty: {penalty!r} penalises nothing on a model grid of shape {dims} "

@@ -214,6 +214,7 @@ class FourierDiagonal(LinearOperator):
             )
         if not np.all(np.isfinite(full)):
             raise ValueError("multiplier: transfer function must be finite (no NaN or inf); check the depth and grid")
+        rules.spacing(spacing, full.ndim)
         if not _is_hermitian(full):
             raise ValueError(
                 "multiplier: must be Hermitian, H(-k) = conj(H(k)), so that real loads give real data; "
