@@ -26,6 +26,7 @@ from .fields import SHEAR_CONVENTION, compliance_matrix, invariants, label, outp
 from .loads import SurfaceLoad
 from .methods import AccuracyWarning, Problem, select_method  # noqa: F401  (AccuracyWarning: re-export)
 from .spectral import pressure_from_deflection
+from .surface_compliance import pixel_influence, surface_compliance
 from .continuous import ContinuousLoad
 from .sampled import Solution, continuous_field
 
@@ -170,6 +171,36 @@ class HalfSpace:
         """Pressure (Pa) imposing a normal deflection (m) on a frictionless periodic surface;
         the load is marked periodic (see :func:`pressure_from_deflection`)."""
         return pressure_from_deflection(deflection, spacing, self.E, self.nu)
+
+    def surface_compliance(self, kx, ky=None) -> np.ndarray:
+        """Surface tractions to surface displacements per wavenumber (the contact solver's skin protocol).
+
+        Parameters
+        ----------
+        kx : array_like
+            Angular wavenumbers along x, rad/m.
+        ky : array_like, optional
+            Angular wavenumbers along y, rad/m (broadcast with ``kx``); ``None`` for plane strain.
+
+        Returns
+        -------
+        ndarray, complex, shape ``(..., 3, 3)`` or ``(..., 2, 2)`` in plane strain, m/Pa per unit
+            Fourier amplitude: rows ``(uz, ux, uy)`` (``uz`` positive into the skin), columns
+            ``(p, qx, qy)``; ``2 / (E* |k|)`` on the normal diagonal, cross terms proportional to
+            ``1 - 2 nu``; 0 at ``k = 0`` (a rigid shift). See
+            :mod:`tactilab.forward.halfspace.surface_compliance`.
+        """
+        return surface_compliance(kx, ky, self.E, self.nu)
+
+    def surface_influence(self, x, y, spacing, reference_length: float | None = None) -> np.ndarray:
+        """Surface displacement (m/Pa) at offsets ``(x, y)`` (m) from one pixel of unit uniform traction.
+
+        The exact integral of Boussinesq's and Cerruti's surface displacements over the pixel
+        (Love's closed form for the normal entry); ``y=None`` gives the plane-strain strip, whose
+        displacement is zero at ``reference_length`` (m). Rows and columns as in
+        :meth:`surface_compliance`. Isolated contacts use it (exact aperiodic convolution).
+        """
+        return pixel_influence(x, y, spacing, self.E, self.nu, reference_length)
 
     def operator(self, shape, spacing, sensors=None, depth: float = 1e-3, components=("zz",),
                  loads=("p",), quantity: str = "stress", periodic: bool = False):
