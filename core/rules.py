@@ -19,7 +19,7 @@ Rules
   incompressible and exact).
 - Young's modulus: finite and > 0 Pa.
 - grid spacing: finite and > 0 m, x first.
-- any other positive length, force or rate: :func:`positive`.
+- any other positive length, force or rate: :func:`positive`; a signed one: :func:`finite`.
 - arrays: :func:`finite_array` (no NaN or inf); dtypes: :func:`float_dtype`.
 """
 
@@ -41,6 +41,7 @@ __all__ = [
     "components",
     "depth",
     "depths",
+    "finite",
     "finite_array",
     "float_dtype",
     "poisson_ratio",
@@ -88,6 +89,18 @@ def positive(value, name: str, unit: str = "m", fix: str = "") -> float:
     v = _number(value, name, f"must be finite and > 0 {unit}", fix)
     if not math.isfinite(v) or v <= 0:
         raise ValueError(f"{name}: must be finite and > 0 {unit}, got {show(value)}; {fix}")
+    return v
+
+
+def finite(value, name: str, unit: str = "m", fix: str = "") -> float:
+    """A finite real number of any sign (a signed length, an offset ...), returned as float.
+
+    Raises ``ValueError`` ``"<name>: must be a finite number in <unit>, got <value>; <fix>"``.
+    """
+    fix = fix or f"give a finite value in {unit}"
+    v = _number(value, name, f"must be a finite number in {unit}", fix)
+    if not math.isfinite(v):
+        raise ValueError(f"{name}: must be a finite number in {unit}, got {show(value)}; {fix}")
     return v
 
 

@@ -42,7 +42,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import fft as sfft
 
-from ..halfspace import validation as check
+from tactilab.core import rules as check
 
 #: index of each displacement / traction component in the compliance matrices
 _ROW = {"uz": 0, "ux": 1, "uy": 2}
