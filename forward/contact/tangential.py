@@ -51,6 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .compliance import ContactCompliance
 from .hertz import _check_friction
 
 #: relative margin below the friction bound under which a contact node counts as stuck
@@ -168,13 +169,7 @@ def solve_tangential(compliance, pressure, contact, friction, tangential_force, 
     if stuck and not nodes[0].size and np.any(Q != 0):
         raise ValueError("contact: a stuck contact with a tangential force needs at least one contact node")
 
-    def apply(q_nodes: np.ndarray) -> np.ndarray:  # (n, d) nodal traction -> (n, d) displacement
-        grids = [np.zeros(shape) for _ in range(d)]
-        for j in range(d):
-            grids[j][nodes] = q_nodes[:, j]
-        u = compliance.tangential(*grids)
-        return np.stack([u[j][nodes] for j in range(d)], axis=1)
-
+    apply = _nodal_operator(compliance, nodes, d)
     u_p = np.stack([offset[j][nodes] for j in range(d)], axis=1)
     q0 = None if start is None else np.stack([start[j][nodes] for j in range(d)], axis=1)
     if not nodes[0].size or (not stuck and not np.any(bound)):  # no traction possible (Q = 0 checked)
@@ -189,6 +184,8 @@ def solve_tangential(compliance, pressure, contact, friction, tangential_force, 
     for j in range(d):
         q_grid[j][nodes] = q[:, j]
     u = np.stack(compliance.tangential(*q_grid), axis=0) if d == 2 else compliance.tangential(q_grid[0])[0][None]
+    if nodes[0].size and np.any(q):  # a cropped plane-strain operator differs by a constant: shift s with it
+        s = s + np.mean(np.stack([u[j][nodes] for j in range(d)], axis=1) - apply(q), axis=0)
     uz = compliance.normal_from_tangential(*q_grid) if d == 2 else compliance.normal_from_tangential(q_grid[0])
     stick = np.zeros(shape, dtype=bool)
     stick[nodes] = np.hypot.reduce(q, axis=1) < bound * (1 - STICK_MARGIN) if d == 2 else \
@@ -196,6 +193,27 @@ def solve_tangential(compliance, pressure, contact, friction, tangential_force, 
     return TangentialSolution(qx=q_grid[0], qy=q_grid[1] if d == 2 else None, stick=stick, slip=mask & ~stick,
                               shift=s, displacement=u + offset, normal_displacement=uz, iterations=its,
                               converged=bool(res <= tol), residual=float(res))
+
+
+def _nodal_operator(compliance, nodes: tuple, d: int):
+    """``q (n, d) -> u_t (n, d)`` at the contact nodes. An isolated grid is cropped to the contact's
+    bounding box first: its operator depends on offsets only, and a smaller padded FFT is cheaper."""
+    shape = tuple(compliance.shape)
+    if not compliance.periodic and nodes[0].size:
+        lo = [int(i.min()) for i in nodes]
+        box = tuple(int(i.max()) - l + 1 for i, l in zip(nodes, lo))
+        if box != shape:
+            compliance = ContactCompliance(compliance.skin, box, compliance.spacing, periodic=False)
+            nodes, shape = tuple(i - l for i, l in zip(nodes, lo)), box
+
+    def apply(q: np.ndarray) -> np.ndarray:
+        grids = [np.zeros(shape) for _ in range(d)]
+        for j in range(d):
+            grids[j][nodes] = q[:, j]
+        u = compliance.tangential(*grids)
+        return np.stack([u[j][nodes] for j in range(d)], axis=1)
+
+    return apply
 
 
 def _grid(value, name: str, shape: tuple) -> np.ndarray:
@@ -222,44 +240,54 @@ def _project(z: np.ndarray, bound: np.ndarray, area: float, Q: np.ndarray, lam: 
 
     The projection is ``q_i = clip_i(z_i + lam)`` with the shift ``lam`` (d,) the root of
     ``F(lam) = area sum clip_i(z_i + lam) - Q``, the gradient of the convex function
-    ``phi(lam) = area sum (|x|^2 - dist(x, disc_i)^2) / 2 - Q.lam`` (``x = z_i + lam``): damped
-    semismooth Newton on ``phi`` from the previous ``lam``. Returns ``(q, lam)``.
+    ``phi(lam) = area sum (|x|^2 - dist(x, disc_i)^2) / 2 - Q.lam`` (``x = z_i + lam``): semismooth
+    Newton from the previous ``lam``, with Armijo backtracking on ``phi`` when a full step does not
+    shrink ``F``. Returns ``(q, lam)``.
     """
     d = z.shape[1]
-    scale = area * float(bound.sum())
-    lam = lam.copy()
+    small = 1e-13 * area * float(bound.sum())
 
-    def state(lam):
+    def clip(lam):
         x = z + lam
-        norm = np.abs(x[:, 0]) if d == 1 else np.hypot(x[:, 0], x[:, 1])
-        out = norm > bound
-        ratio = np.where(out, bound / np.where(out, norm, 1.0), 1.0)
+        norm = np.abs(x[:, 0]) if d == 1 else np.sqrt(x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1])
+        ratio = np.minimum(1.0, bound / np.maximum(norm, 1e-300))
         q = x * ratio[:, None]
-        excess = np.where(out, norm - bound, 0.0)
-        phi = area * 0.5 * float(np.sum(x * x) - np.sum(excess * excess)) - float(Q @ lam)
-        return x, norm, out, ratio, q, area * q.sum(axis=0) - Q, phi
+        return x, norm, ratio, q, area * q.sum(axis=0) - Q
 
-    x, norm, out, ratio, q, F, phi = state(lam)
+    def phi(x, norm):
+        excess = np.maximum(norm - bound, 0.0)
+        return area * 0.5 * float(np.sum(x * x) - np.sum(excess * excess)) - float(Q @ (x[0] - z[0]))
+
+    x, norm, ratio, q, F = clip(lam)
     for _ in range(100):
-        if np.max(np.abs(F)) <= 1e-13 * scale:
+        size = float(np.max(np.abs(F)))
+        if size <= small:
             break
         # generalised Jacobian of F: identity inside a disc, (b/|x|)(I - n n^T) outside
-        J = np.eye(d) * area * (np.sum(~out) + (np.sum(ratio[out]) if d == 2 else 0.0))
-        if d == 2 and out.any():
-            n = x[out] / norm[out, None]
-            J -= area * np.einsum("i,ij,ik->jk", ratio[out], n, n)
-        J += np.eye(d) * 1e-12 * area * len(bound)  # keeps J invertible when every node is clipped
-        step = -np.linalg.solve(J, F)
-        t, size = 1.0, float(np.max(np.abs(F)))
-        for _ in range(40):  # a smaller residual, or Armijo's decrease of the convex merit phi
-            trial = state(lam + t * step)
-            if float(np.max(np.abs(trial[-2]))) < size or trial[-1] <= phi + 1e-4 * t * float(F @ step):
-                break
-            t *= 0.5
+        if d == 1:
+            J = np.array([[area * float(np.sum(ratio >= 1.0))]])
         else:
-            break  # no progress at round-off level: lam is as good as it gets
-        lam = lam + t * step
-        x, norm, out, ratio, q, F, phi = trial
+            out = ratio < 1.0
+            w = ratio[out] / np.maximum(norm[out] * norm[out], 1e-300)
+            xo, yo = x[out, 0], x[out, 1]
+            inside = float(np.sum(~out))
+            J = area * np.array([[inside + float(np.sum(w * yo * yo)), -float(np.sum(w * xo * yo))],
+                                 [-float(np.sum(w * xo * yo)), inside + float(np.sum(w * xo * xo))]])
+        J += np.eye(d) * 1e-12 * area * len(bound)  # invertible even when every node is clipped
+        step = -np.linalg.solve(J, F)
+        trial = clip(lam + step)
+        if float(np.max(np.abs(trial[-1]))) >= size:  # backtrack on the convex merit phi
+            base, slope, t = phi(x, norm), float(F @ step), 1.0
+            for _ in range(40):
+                if phi(trial[0], trial[1]) <= base + 1e-4 * t * slope:
+                    break
+                t *= 0.5
+                trial = clip(lam + t * step)
+            else:
+                break  # no progress at round-off level: lam is as good as it gets
+            step = t * step
+        lam = lam + step
+        x, norm, ratio, q, F = trial
     return q, lam
 
 
