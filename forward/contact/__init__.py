@@ -24,6 +24,10 @@ _EXPORTS = {
     "stick_radius": "hertz",
     "stuck_shape": "hertz",
     "ContactCompliance": "compliance",
+    "ContactSolution": "solution",
+    "solve_contact": "solve",
+    "METHODS": "solve",
+    "memory_estimate": "inputs",
 }
 
 __all__ = sorted(_EXPORTS)
