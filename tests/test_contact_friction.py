@@ -162,6 +162,52 @@ def test_mindlin_no_slip(line, sizes):
     assert errors[1] < 0.09 and errors[1] < 0.6 * errors[0]
 
 
+
+def test_ciavarella_jaeger_rough_plane_strain(rng):
+    """Plane strain, nu = 1/2, a cylinder carrying seven random harmonics (several contact patches):
+    q = mu [p(P) - p(P - Q/mu)], the pressures from the normal solver on the same gap, and the stick
+    zone is the lighter load's contact. The identity holds for the discrete problem too (the
+    tangential and normal compliances are equal there), so only the solvers' tolerances remain
+    (measured 2e-8 of mu max p)."""
+    from tactilab.forward import solve_contact
+
+    radius, P, mu, Q = 0.01, 100.0, 0.4, 20.0  # m, N/m, 1, N/m
+    a = math.sqrt(4 * P * radius / (math.pi * E / 0.75))
+    n = 256
+    h = 3 * a / n
+    x = (np.arange(n) - n // 2) * h
+    gap = x * x / (2 * radius)
+    for k in range(1, 8):
+        gap += 3e-6 / k * np.cos(2 * np.pi * k * x / (a / 2) + rng.uniform(0, 2 * np.pi))
+    gap -= gap.min()
+    skin = HalfSpace(E, 0.5)
+    full = solve_contact(skin, gap, h, normal_force=P, tol=1e-10)
+    light = solve_contact(skin, gap, h, normal_force=P - Q / mu, tol=1e-10)
+    assert np.sum(np.diff(light.contact.astype(int)) == 1) >= 3  # several stick patches
+    C = ContactCompliance(skin, (n,), h, False)
+    sol = solve_tangential(C, full.pressure, full.contact, mu, Q, tol=1e-10)
+    assert np.abs(sol.qx - mu * (full.pressure - light.pressure)).max() <= 1e-6 * mu * full.pressure.max()
+    assert np.array_equal(sol.stick, light.contact)
+    _check_coulomb(sol, full.pressure, [Q], h, mu)
+
+
+@pytest.mark.parametrize("stuck", [False, True])
+def test_warm_start_gives_the_cold_answer(stuck):
+    """A converged traction as ``initial`` is a fixed point (a few products), a perturbed one
+    converges to the cold answer."""
+    C, p, r, h = _hertz(48)
+    force = (0.5 * MU * _total(p, h, False), 0.0)
+    mu = math.inf if stuck else MU
+    cold = solve_tangential(C, p, p > 0, mu, force, stuck=stuck, tol=1e-10)
+    q = np.stack([cold.qx, cold.qy])
+    warm = solve_tangential(C, p, p > 0, mu, force, stuck=stuck, tol=1e-10, initial=q)
+    assert warm.iterations <= 0.2 * cold.iterations
+    bumped = solve_tangential(C, p, p > 0, mu, force, stuck=stuck, tol=1e-10, initial=1.3 * q[::-1])
+    for sol in (warm, bumped):
+        assert sol.converged and np.array_equal(sol.stick, cold.stick)
+        assert np.abs(sol.qx - cold.qx).max() <= 1e-6 * np.abs(cold.qx).max()
+
+
 def test_bad_input():
     C, p, r, h = _hertz(16)
     ok = dict(compliance=C, pressure=p, contact=p > 0, friction=MU, tangential_force=(1e-3, 0.0))
