@@ -208,6 +208,50 @@ def test_warm_start_gives_the_cold_answer(stuck):
         assert np.abs(sol.qx - cold.qx).max() <= 1e-6 * np.abs(cold.qx).max()
 
 
+
+@pytest.mark.parametrize("nu", [0.5, 0.3])
+def test_coupling_below_half_after_frictionless_loading(nu):
+    """nu < 1/2, the normal load applied first without friction, then Q with the normal-tangential
+    coupling (the tangential step's offset is the pressure change's tangential displacement),
+    alternated with the normal solve. The stick radius stays within a spacing of Cattaneo-Mindlin
+    (measured at 64^2: +0.12 h at nu = 0.45, +0.19 h at 0.3, +0.30 h at 0; +0.12 h at 1/2), and the
+    pressure shifts against Q: q along +x pushes the surface ahead of it into a compressible skin,
+    opening the gap there (measured centroid -0.029 a at nu = 0.3, 64^2; exactly 0 at nu = 1/2)."""
+    from tactilab.forward.contact.normal import polonsky_keer
+
+    radius, P, n = 0.01, 0.5, 48
+    a = (3 * P * radius / (4 * E / (1 - nu * nu))) ** (1 / 3)
+    h = 2.5 * a / n
+    x = (np.arange(n) - n // 2) * h
+    X, Y = np.meshgrid(x, x)
+    gap = (X * X + Y * Y) / (2 * radius)
+    C = ContactCompliance(HalfSpace(E, nu), (n, n), h, False)
+
+    def normal(start, extra=None):
+        return polonsky_keer(C, gap, total=P / (h * h), approach=None, tol=1e-10, max_iter=1000, p0=start,
+                             extra_gap=extra).pressure
+
+    hertz = normal(np.ones((n, n)))
+    p, sol = hertz, None
+    for outer in range(40):
+        offset = np.stack(C.tangential_from_normal(p - hertz))
+        start = None if sol is None else np.stack([sol.qx, sol.qy])
+        sol = solve_tangential(C, p, p > 0, MU, (0.5 * MU * P, 0.0), pressure_displacement=offset, initial=start,
+                               tol=1e-10)
+        new = normal(p, sol.normal_displacement)
+        change, p = np.abs(new - p).max() / p.max(), new
+        if change < 1e-8:
+            break
+    assert change < 1e-8 and outer < 20
+    c = math.sqrt(sol.stick.sum() * h * h / math.pi)
+    assert abs(c - a * 0.5 ** (1 / 3)) <= h
+    centroid = (p * X).sum() / p.sum() / a
+    if nu == 0.5:
+        assert outer == 0 and not sol.normal_displacement.any() and abs(centroid) < 1e-8
+    else:
+        assert -0.05 < centroid < -0.015
+
+
 def test_bad_input():
     C, p, r, h = _hertz(16)
     ok = dict(compliance=C, pressure=p, contact=p > 0, friction=MU, tangential_force=(1e-3, 0.0))

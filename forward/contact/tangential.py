@@ -37,11 +37,15 @@ count grows like the square root of the contact's width in nodes. The step is ``
 ``L`` the largest eigenvalue of ``C`` on the contact (power iteration). ``"stuck"`` is a linear
 problem (no bound): conjugate gradients on the contact nodes with the force held fixed.
 
-Normal-tangential coupling (nu < 1/2): pass the tangential displacement produced by the pressure
-(``pressure_displacement``, :meth:`ContactCompliance.tangential_from_normal`); the result
-carries the normal displacement produced by ``q`` (``normal_displacement``,
-:meth:`ContactCompliance.normal_from_tangential`) for the normal solve's gap. The caller
-alternates the two solves until the pressure stops changing.
+Normal-tangential coupling (nu < 1/2) and loading history: ``pressure_displacement`` is a fixed
+tangential displacement added to ``C q`` in the slip. ``C_tp p`` (the pressure's, from
+:meth:`ContactCompliance.tangential_from_normal`) loads in one step from the unloaded state
+(proportional loading: at nu < 1/2 the normal load alone then leaves Spence's outward slip
+annulus). A step from a previous state ``(p_prev, q_prev)`` passes ``C_tp (p - p_prev) - C q_prev``:
+a normal load applied first without friction is ``q_prev = 0``, and that is the path on which
+Cattaneo--Mindlin is the reference. The result carries the normal displacement produced by ``q``
+(``normal_displacement``, :meth:`ContactCompliance.normal_from_tangential`) for the normal solve's
+gap; the caller alternates the two solves until the pressure stops changing.
 """
 
 from __future__ import annotations
@@ -117,7 +121,8 @@ def solve_tangential(compliance, pressure, contact, friction, tangential_force, 
     stuck : bool
         True: no slip anywhere in the contact (Mindlin's no-slip solution).
     pressure_displacement : ndarray, shape (1 or 2,) + grid shape, optional
-        Tangential surface displacement (m) produced by the pressure, for nu < 1/2; None: zero.
+        Fixed tangential surface displacement (m) added to ``C q``: the pressure's (nu < 1/2) or a
+        loading step's history (see the module docstring); None: zero.
     tol : float
         Stop when ``residual <= tol`` (see :class:`TangentialSolution`).
     max_iter : int, optional
