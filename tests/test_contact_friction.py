@@ -252,6 +252,56 @@ def test_coupling_below_half_after_frictionless_loading(nu):
         assert -0.05 < centroid < -0.015
 
 
+
+@pytest.mark.parametrize("d", [1, 2])
+def test_projection_is_the_euclidean_projection(d, rng):
+    """friction_qp.project: the result is admissible (discs, force) and satisfies the variational
+    inequality that characterises the Euclidean projection onto a convex set, (z - q).(y - q) <= 0
+    for every admissible y (random admissible points: convex combinations of scaled extremes)."""
+    from tactilab.forward.contact.friction_qp import project
+
+    n, area = 200, 0.3
+    bound = rng.uniform(0.0, 2.0, n)
+    Q = 0.4 * area * bound.sum() * (np.array([1.0]) if d == 1 else np.array([0.6, 0.8]))
+    z = rng.normal(0.0, 2.0, (n, d))
+    q, _ = project(z, bound, area, Q, np.zeros(d))
+    assert np.all(np.sqrt((q * q).sum(axis=1)) <= bound * (1 + 1e-12))
+    np.testing.assert_allclose(q.sum(axis=0) * area, Q, rtol=1e-10)
+    for _ in range(50):
+        angle = rng.uniform(0, 2 * np.pi, n)
+        direction = np.stack([np.cos(angle), np.sin(angle)], axis=1)[:, :d] if d == 2 else np.sign(rng.normal(size=(n, 1)))
+        y = bound[:, None] * direction * rng.uniform(0, 1, (n, 1))
+        y, _ = project(y, bound, area, Q, np.zeros(d))  # an admissible point
+        assert np.sum((z - q) * (y - q)) <= 1e-9 * np.sum(z * z)
+
+
+def test_newton_phase_agrees_with_the_gradient_method():
+    """Two methods, one answer: the accelerated projected gradient alone (thousands of products)
+    and the solver's gradient-then-Newton phases reach the same traction on a 3-D Hertz frame."""
+    from tactilab.forward.contact import friction_qp as qp
+
+    C, p, r, h = _hertz(40)
+    sol = solve_tangential(C, p, p > 0, MU, (0.4 * MU * _total(p, h, False), 0.1 * MU * _total(p, h, False)),
+                           tol=1e-11)
+    nodes = np.nonzero(p > 0)
+    bound = MU * p[nodes]
+
+    def apply(q):
+        grids = [np.zeros(p.shape), np.zeros(p.shape)]
+        for j in range(2):
+            grids[j][nodes] = q[:, j]
+        return np.stack([u[nodes] for u in C.tangential(*grids)], axis=1)
+
+    force = np.array([sol.qx.sum(), sol.qy.sum()]) * h * h
+    L, _ = qp.largest_eigenvalue(apply, np.repeat(bound[:, None], 2, axis=1))
+    q0, _ = qp.project(np.zeros((len(bound), 2)), bound, h * h, force, np.zeros(2))
+    q, u, used = qp._fista(apply, bound, h * h, force, np.zeros_like(q0), q0, apply(q0), L, 1e-12, 20000)
+    assert used < 20000
+    scale = MU * P0
+    assert np.abs(q[:, 0] - sol.qx[nodes]).max() < 1e-8 * scale
+    assert np.abs(q[:, 1] - sol.qy[nodes]).max() < 1e-8 * scale
+
+
 def test_bad_input():
     C, p, r, h = _hertz(16)
     ok = dict(compliance=C, pressure=p, contact=p > 0, friction=MU, tangential_force=(1e-3, 0.0))
