@@ -23,9 +23,10 @@ Measured on a Hertz contact (radius a quarter of the grid) at Q/(mu P) = 0.5, to
 91 compliance products at 64^2 / 128^2 / 256^2 (FISTA alone: 113 / 347 / 962; without the Jacobi
 preconditioner of the Newton system: 78 / 127 / 201).
 
-The residual is ``max |q - P(q - (u - s) / L)| / max(b)``: the change of one projected gradient
-step of length ``1 / L`` (``L`` the largest eigenvalue of ``C`` on the contact), in units of the
-largest friction bound; 0 exactly at the solution.
+The residual is ``max |q - P(q - (u - s) / L)| / max |q|``: the change of one projected gradient
+step of length ``1 / L`` (``L`` the largest eigenvalue of ``C`` on the contact), relative to the
+largest traction (so that a small force is solved as accurately as a large one); 0 exactly at
+the solution.
 """
 
 from __future__ import annotations
@@ -108,7 +109,12 @@ def largest_eigenvalue(apply, start: np.ndarray) -> tuple[float, int]:
 def residual(q, u, bound, area, Q, L) -> tuple[float, np.ndarray]:
     """Optimality residual at ``q`` (``u = C q + u_p``) and the shift ``s`` (module docstring)."""
     step, lam = project(q - u / L, bound, area, Q, np.zeros(q.shape[1]))
-    return float(np.max(np.abs(step - q))) / float(bound.max()), lam * L
+    return float(np.max(np.abs(step - q))) / _size(q), lam * L
+
+
+def _size(q: np.ndarray) -> float:
+    """The largest traction component, the residual's unit (1e-300 for q = 0: a zero step stays 0)."""
+    return max(float(np.max(np.abs(q))), 1e-300)
 
 
 def solve_partial(apply, bound, area, Q, u_p, q0, tol, max_products):
@@ -144,14 +150,14 @@ def solve_partial(apply, bound, area, Q, u_p, q0, tol, max_products):
 
 
 def _fista(apply, bound, area, Q, u_p, q, u, L, tol, max_products):
-    """FISTA with adaptive restart from ``(q, u)`` until one step changes q by <= tol max(b)."""
+    """FISTA with adaptive restart from ``(q, u)`` until one step changes q by <= tol max |q|."""
     lam = np.zeros(q.shape[1])
-    y, u_y, t, products, top = q, u, 1.0, 0, float(bound.max())
+    y, u_y, t, products = q, u, 1.0, 0
     while products < max_products:
         q_new, lam = project(y - u_y / L, bound, area, Q, lam)
         u_new = apply(q_new) + u_p
         products += 1
-        change = float(np.max(np.abs(q_new - y))) / top
+        change = float(np.max(np.abs(q_new - y))) / _size(q_new)
         if float(np.sum((y - q_new) * (q_new - q))) > 0:  # the momentum points uphill: restart
             t = 1.0
         t_new = 0.5 * (1.0 + math.sqrt(1.0 + 4.0 * t * t))

@@ -84,7 +84,7 @@ class TangentialSolution:
     converged : bool
         Whether ``residual <= tol``.
     residual : float
-        Optimality residual: the largest change of one projected gradient step, over ``mu max(p)``
+        Optimality residual: the largest change of one projected gradient step, over ``max |q|``
         (partial; see :mod:`~tactilab.forward.contact.friction_qp`), or the largest slip in the
         contact over the largest displacement (stuck).
     """
@@ -166,19 +166,23 @@ def solve_tangential(compliance, pressure, contact, friction, tangential_force, 
     start = None if initial is None else _grid(initial, "initial", (d,) + shape)
     area = float(np.prod(compliance.spacing))
     nodes = np.nonzero(mask)
-    bound = mu * p[nodes]
     total = float(p[nodes].sum()) * area
-    if not stuck and np.linalg.norm(Q) > mu * total * (1 + 1e-12):
-        raise ValueError(f"tangential_force: |Q| = {np.linalg.norm(Q):g} exceeds the friction limit mu P = "
-                         f"{mu * total:g} (mu = {mu:g}, P = {total:g}); the contact slides: use "
-                         f"condition='sliding', or lower the force / raise the friction")
-    if stuck and not nodes[0].size and np.any(Q != 0):
-        raise ValueError("contact: a stuck contact with a tangential force needs at least one contact node")
+    if stuck:
+        bound = np.full(nodes[0].size, math.inf)
+        if not nodes[0].size and np.any(Q != 0):
+            raise ValueError("contact: a stuck contact with a tangential force needs at least one contact node")
+    else:
+        if np.linalg.norm(Q) > mu * total * (1 + 1e-12):
+            raise ValueError(f"tangential_force: |Q| = {np.linalg.norm(Q):g} exceeds the friction limit mu P = "
+                             f"{mu * total:g} (mu = {mu:g}, P = {total:g}); the contact slides: use "
+                             f"condition='sliding', or lower the force / raise the friction")
+        bound = mu * p[nodes]
+        nodes, bound = tuple(i[bound > 0] for i in nodes), bound[bound > 0]  # mu p = 0: no traction there
 
     apply = _nodal_operator(compliance, nodes, d)
     u_p = np.stack([offset[j][nodes] for j in range(d)], axis=1)
     q0 = None if start is None else np.stack([start[j][nodes] for j in range(d)], axis=1)
-    if not nodes[0].size or (not stuck and not np.any(bound)):  # no traction possible (Q = 0 checked)
+    if not nodes[0].size:  # no node can carry traction (Q = 0 checked)
         q, s, its, res = np.zeros((nodes[0].size, d)), np.zeros(d), 0, 0.0
     elif stuck:
         q, s, its, res = solve_stuck(apply, area, Q, u_p, q0, tol, max_iter)
