@@ -19,8 +19,8 @@ runs in two phases:
    node's angle (the friction disc's curvature). A step that does not halve the residual is
    rejected and FISTA resumes with a tighter switch, so the method cannot do worse than FISTA.
 
-Measured on a Hertz contact (radius a quarter of the grid) at Q/(mu P) = 0.5, tol 1e-8: 68 / 84 /
-91 compliance products at 64^2 / 128^2 / 256^2 (FISTA alone: 113 / 347 / 962; without the Jacobi
+Measured on a Hertz contact (radius a quarter of the grid) at Q/(mu P) = 0.5, tol 1e-8: 73 / 96 /
+101 compliance products at 64^2 / 128^2 / 256^2 (FISTA alone: 113 / 347 / 962; without the Jacobi
 preconditioner of the Newton system: 78 / 127 / 201).
 
 The residual is ``max |q - P(q - (u - s) / L)| / max |q|``: the change of one projected gradient

@@ -31,7 +31,7 @@ gradients on the stick tractions and the slip directions). Why not a Polonsky--K
 conjugate gradient alone: in 3-D the bound is a disc, not a one-sided bound, and the slip direction
 is unknown; a prototype of it converged in 42 products in plane strain but wandered in 3-D at
 nu = 1/2, where the slip rotates. The projected gradient needs no set heuristics and keeps every
-iterate admissible; the Newton phase removes its slow linear tail (128^2 Hertz at tol 1e-8: 84
+iterate admissible; the Newton phase removes its slow linear tail (128^2 Hertz at tol 1e-8: 96
 compliance products instead of 347). ``"stuck"`` is linear (no bound): conjugate gradients on the
 contact nodes with the force held fixed. An isolated grid is solved on the contact's bounding box
 (its operator depends on offsets only), whose padded FFT is smaller.
