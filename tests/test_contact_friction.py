@@ -18,8 +18,7 @@ import numpy as np
 import pytest
 
 from tactilab.forward import HalfSpace
-from tactilab.forward.contact import ContactCompliance
-from tactilab.forward.contact.tangential import solve_tangential
+from tactilab.forward.contact import ContactCompliance, solve_tangential
 
 E, A, P0, MU = 1e6, 1e-3, 1e4, 0.5  # Pa, m (contact radius), Pa (peak pressure), friction
 
