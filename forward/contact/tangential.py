@@ -54,6 +54,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tactilab.core import rules as check
+
 from .compliance import ContactCompliance
 from .friction_qp import solve_partial, solve_stuck
 from .hertz import _check_friction
@@ -142,7 +144,7 @@ def solve_tangential(compliance, pressure, contact, friction, tangential_force, 
         a force that is not finite or (partial slip) above ``mu P``, or ``tol`` / ``max_iter`` out of range.
     """
     shape, dims = tuple(compliance.shape), compliance.ndim
-    p = _grid(pressure, "pressure", shape)
+    p = _grid(pressure, "pressure", shape, "Pa")
     if np.any(p < 0):
         raise ValueError(f"pressure: must be >= 0 Pa (it pushes into the skin), min {p.min():g} Pa; "
                          f"pass the normal solution's pressure")
@@ -155,15 +157,14 @@ def solve_tangential(compliance, pressure, contact, friction, tangential_force, 
         raise ValueError("friction: partial slip needs a finite friction coefficient, got inf; "
                          "use condition='stuck' for mu -> infinity")
     Q = _force(tangential_force, dims)
-    if not (tol > 0 and math.isfinite(tol)):
-        raise ValueError(f"tol: must be finite and > 0, got {tol!r}; the default is 1e-8")
+    tol = check.positive(tol, "tol", "1", "the default is 1e-8")
     max_iter = 5000 if max_iter is None else int(max_iter)
     if max_iter < 1:
         raise ValueError(f"max_iter: must be >= 1, got {max_iter}; None picks 5000")
     d = 1 if dims == 1 else 2
     offset = np.zeros((d,) + shape) if pressure_displacement is None else \
-        _grid(pressure_displacement, "pressure_displacement", (d,) + shape)
-    start = None if initial is None else _grid(initial, "initial", (d,) + shape)
+        _grid(pressure_displacement, "pressure_displacement", (d,) + shape, "m")
+    start = None if initial is None else _grid(initial, "initial", (d,) + shape, "Pa")
     area = float(np.prod(compliance.spacing))
     nodes = np.nonzero(mask)
     total = float(p[nodes].sum()) * area
@@ -226,13 +227,10 @@ def _nodal_operator(compliance, nodes: tuple, d: int):
     return apply
 
 
-def _grid(value, name: str, shape: tuple) -> np.ndarray:
-    arr = np.asarray(value, dtype=float)
+def _grid(value, name: str, shape: tuple, unit: str) -> np.ndarray:
+    arr = check.finite_array(value, name, unit)
     if arr.shape != shape:
         raise ValueError(f"{name}: expected shape {shape} (the grid), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name}: must be finite, got {int(np.sum(~np.isfinite(arr)))} NaN or inf value(s); "
-                         f"check the normal solution or the input")
     return arr
 
 
