@@ -53,6 +53,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import fft as sfft
 
 from tactilab.core import rules as check
 
@@ -208,12 +209,13 @@ def solve_tangential(compliance, pressure, contact, friction, tangential_force, 
 
 def _nodal_operator(compliance, nodes: tuple, d: int):
     """``q (n, d) -> u_t (n, d)`` at the contact nodes. An isolated grid is cropped to the contact's
-    bounding box first: its operator depends on offsets only, and a smaller padded FFT is cheaper."""
+    bounding box first (grown so that its padded FFT length is 5-smooth): its operator depends on
+    offsets only, and a smaller padded FFT is cheaper."""
     shape = tuple(compliance.shape)
     if not compliance.periodic and nodes[0].size:
         lo = [int(i.min()) for i in nodes]
-        box = tuple(int(i.max()) - l + 1 for i, l in zip(nodes, lo))
-        if box != shape:
+        box = tuple(_fast_half(int(i.max()) - l + 1) for i, l in zip(nodes, lo))
+        if all(b < n for b, n in zip(box, shape)):
             compliance = ContactCompliance(compliance.skin, box, compliance.spacing, periodic=False)
             nodes, shape = tuple(i - l for i, l in zip(nodes, lo)), box
 
@@ -225,6 +227,14 @@ def _nodal_operator(compliance, nodes: tuple, d: int):
         return np.stack([u[j][nodes] for j in range(d)], axis=1)
 
     return apply
+
+
+def _fast_half(n: int) -> int:
+    """The least m >= n whose double is a fast FFT length (the zero-padded operator's size)."""
+    m = n
+    while sfft.next_fast_len(2 * m, real=True) != 2 * m:
+        m += 1
+    return m
 
 
 def _grid(value, name: str, shape: tuple, unit: str) -> np.ndarray:
