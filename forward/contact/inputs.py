@@ -102,7 +102,7 @@ def check_inputs(skin, gap, spacing, *, normal_force, mean_pressure, approach, p
     if condition not in CONDITIONS:
         raise ValueError(f"condition: must be one of {CONDITIONS}, got {condition!r}")
     _check_memory(shape, bool(periodic), condition)
-    g0 = check.finite_array(gap, "gap", "m")
+    g0 = np.ascontiguousarray(check.finite_array(gap, "gap", "m"))  # strided views slow every pass
     spacing = check.spacing(spacing, len(shape))
     given = {k: v for k, v in (("normal_force", normal_force), ("mean_pressure", mean_pressure),
                                ("approach", approach)) if v is not None}

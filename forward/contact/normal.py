@@ -67,7 +67,7 @@ def polonsky_keer(compliance, g0: np.ndarray, *, total: float | None, approach: 
     g0 = g0 if extra_gap is None else g0 + extra_gap
     scale = float(g0.max() - g0.min()) or float(np.abs(g0).max()) or 1.0
     target = tol * scale
-    p = np.array(p0, dtype=float)
+    p = np.array(p0, dtype=float, order="C")
     force = total is not None
     if force:
         s = p.sum()

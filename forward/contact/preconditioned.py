@@ -39,7 +39,7 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     scale = float(g0.max() - g0.min()) or float(np.abs(g0).max()) or 1.0
     target = tol * scale
     force = total is not None
-    p = np.array(p0, dtype=float)
+    p = np.array(p0, dtype=float, order="C")
     if force:
         s = p.sum()
         p = p * (total / s) if s > 0 else np.full(p.shape, total / p.size)

@@ -127,7 +127,7 @@ def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, 
         c_comp = _compliance(skin, inp.gap[sub].shape, tuple(2 * h for h in inp.spacing), inp.periodic)
         c_total = None if inp.total is None else inp.total / 2 ** len(inp.shape)
         p0 = inp.initial.pressure[sub] if inp.initial is not None else np.ones(inp.gap[sub].shape)
-        coarse = _solve_grid(solver, c_comp, inp.gap[sub], inp, c_total, p0)
+        coarse = _solve_grid(solver, c_comp, np.ascontiguousarray(inp.gap[sub]), inp, c_total, p0)
     if inp.initial is not None:
         p0 = np.array(inp.initial.pressure, dtype=float)
     elif coarse is not None:
@@ -179,7 +179,7 @@ def _prolong(coarse: np.ndarray, shape, periodic: bool) -> np.ndarray:
         if start == 1:
             fine[0] = mid[-1] if periodic else c[0]
         out = np.moveaxis(fine, 0, axis)
-    return out
+    return np.ascontiguousarray(out)
 
 
 def _solve_grid(solver, comp: ContactCompliance, g0: np.ndarray, inp, total, p0) -> dict:
