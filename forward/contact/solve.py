@@ -193,6 +193,7 @@ def _solve_grid(solver, comp: ContactCompliance, g0: np.ndarray, inp, total, p0)
     if inp.condition == "sliding":
         res0 = res
         if _coupled(comp):
+            settled = False
             for _ in range(MAX_COUPLING):
                 extra = _sliding_uz(comp, res.pressure, mu, d)
                 new = solver(comp, g0, total=total, approach=inp.approach, tol=inp.tol, max_iter=inp.max_iter,
@@ -200,17 +201,19 @@ def _solve_grid(solver, comp: ContactCompliance, g0: np.ndarray, inp, total, p0)
                 iterations += new.iterations
                 change = float(np.abs(new.pressure - res.pressure).max())
                 res = new
-                if change <= inp.tol * float(res.pressure.max()):
+                settled = change <= inp.tol * float(res.pressure.max())
+                if settled:
                     break
             coupling = _coupling(res0, res)
+            converged = res.converged and settled
         qx = mu * d[0] * res.pressure
         if qy is not None:
             qy = mu * d[1] * res.pressure
     elif inp.condition in ("partial", "stuck"):
-        res, tang, iterations, coupling = _partial_or_stuck(solver, comp, g0, inp, total, res)
+        res, tang, iterations, coupling, settled = _partial_or_stuck(solver, comp, g0, inp, total, res)
         qx, qy, stick = tang.qx, tang.qy, tang.stick
         tangential_residual = mu * tang.residual if math.isfinite(mu) else tang.residual
-        converged = res.converged and tang.converged
+        converged = res.converged and tang.converged and settled
     contact = res.pressure > 0
     return dict(pressure=res.pressure, qx=qx, qy=qy, contact=contact, stick=stick & contact,
                 slip=contact & ~stick, gap=np.maximum(res.gap, 0.0), approach=res.approach, iterations=iterations,
@@ -226,8 +229,8 @@ def _partial_or_stuck(solver, comp, g0, inp, total, res):
     tang = solve_tangential(comp, res.pressure, res.pressure > 0, inp.friction, inp.tangential_force, **kwargs)
     iterations, coupling = res.iterations + tang.iterations, {"force": 0.0, "area": 0.0}
     if not _coupled(comp):
-        return res, tang, iterations, coupling
-    res0 = res
+        return res, tang, iterations, coupling, True
+    res0, settled = res, False
     for _ in range(MAX_COUPLING):
         new = solver(comp, g0, total=total, approach=inp.approach, tol=inp.tol, max_iter=inp.max_iter,
                      p0=res.pressure, extra_gap=tang.normal_displacement)
@@ -238,9 +241,10 @@ def _partial_or_stuck(solver, comp, g0, inp, total, res):
         iterations += new.iterations + tang.iterations
         change = float(np.abs(new.pressure - res.pressure).max())
         res = new
-        if change <= inp.tol * float(res.pressure.max()):
+        settled = change <= inp.tol * float(res.pressure.max())
+        if settled:
             break
-    return res, tang, iterations, _coupling(res0, res)
+    return res, tang, iterations, _coupling(res0, res), settled
 
 
 def _coupled(comp: ContactCompliance) -> bool:
@@ -309,8 +313,9 @@ def _package(inp, comp, skin, out: dict, coarse: dict | None) -> ContactSolution
              "discretisation": _discretisation_error(inp, out, coarse)}
     _resolution_warning(inp, out["contact"])
     if not out["converged"]:
-        warnings.warn(f"max_iter: the solver stopped after {out['iterations']} iterations with the gap residual "
-                      f"{out['residual']:.3g} m above tol; raise max_iter or tol", AccuracyWarning, stacklevel=3)
+        warnings.warn(f"max_iter: the solver stopped after {out['iterations']} iterations short of tol (gap residual "
+                      f"{out['residual']:.3g} m; or the tangential solve, or the normal-tangential coupling, did "
+                      "not settle); raise max_iter or tol", AccuracyWarning, stacklevel=3)
     force = float(out["pressure"].sum()) * math.prod(inp.spacing)
     return ContactSolution(pressure=out["pressure"], qx=out["qx"], qy=out["qy"], contact=out["contact"],
                            stick=out["stick"], slip=out["slip"], gap=out["gap"], spacing=inp.spacing,
