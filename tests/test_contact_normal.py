@@ -224,3 +224,17 @@ def test_coarse_grid_is_centred_and_interpolates_linear_fields(n, periodic):
     field = np.add.outer(xc, 2 * xc)
     assert np.allclose(_prolong(field, (n, n), periodic)[np.ix_(inside, inside)],
                        np.add.outer(x, 2 * x)[np.ix_(inside, inside)])
+
+
+def test_flat_circular_punch_under_approach_control():
+    """A rigid flat circular punch pressed by delta: F = 2 a E* delta (Johnson, Contact Mechanics, 3.39)."""
+    n, h, delta = 64, 5e-5, 1e-6
+    x = grid(n, h)
+    X, Y = np.meshgrid(x, x)
+    g0 = np.where(np.hypot(X, Y) < 20 * h, 0.0, 1e-3)  # the punch's face; the rest never touches
+    sol = solve_contact(SKIN, g0, h, approach=delta)
+    assert sol.converged and sol.contact.sum() == (g0 == 0).sum()
+    a = math.sqrt(sol.area / math.pi)
+    assert sol.normal_force == pytest.approx(2 * a * ES * delta, rel=0.03)
+    uniform = solve_contact(SKIN, np.zeros((n, n)), h, approach=delta)  # a uniform gap moves too
+    assert uniform.contact.all() and uniform.converged

@@ -154,7 +154,8 @@ class ContactCompliance:
 
     def stiffness(self, gap) -> np.ndarray:
         """The periodic surface stiffness of the grid applied to ``gap`` (m -> Pa): the inverse of the
-        periodic normal compliance on the unpadded grid (``E* |k| / 2`` for a half-space; 0 at ``k = 0``).
+        periodic normal compliance on the unpadded grid (``E* |k| / 2`` for a half-space; at ``k = 0``
+        the value of the grid's longest wave).
 
         Exactly the inverse of :meth:`normal` on zero-mean fields of a periodic grid; for an isolated
         grid an approximate inverse (the solvers' preconditioner), at the cost of an unpadded FFT pair.
@@ -167,7 +168,11 @@ class ContactCompliance:
                 ky = 2 * np.pi * sfft.fftfreq(self.shape[0], self.spacing[1])
                 c = np.real(np.asarray(self.skin.surface_compliance(kx[None, :], ky[:, None]))[..., 0, 0])
             with np.errstate(divide="ignore"):
-                self._spectra["stiffness"] = np.where(c > 0, 1.0 / np.where(c > 0, c, 1.0), 0.0)
+                stiff = np.where(c > 0, 1.0 / np.where(c > 0, c, 1.0), 0.0)
+            # k = 0: the stiffness of the longest wave on the grid, so that a uniform gap still moves
+            # the pressure (an isolated contact under a given approach); force control removes the mean
+            stiff.flat[0] = stiff[stiff > 0].min() if (stiff > 0).any() else 0.0
+            self._spectra["stiffness"] = stiff
         spectrum = sfft.rfftn(self._check(gap, "gap"), axes=self._axes, workers=1)
         return sfft.irfftn(self._spectra["stiffness"] * spectrum, s=self.shape, axes=self._axes, workers=1)
 
