@@ -12,7 +12,7 @@ import warnings
 import numpy as np
 import pytest
 
-from contact_oracles import check_complementarity, grid, hertz_cylinder, hertz_sphere
+from contact_oracles import check_complementarity, ellipse, grid, hertz_cylinder, hertz_sphere
 from tactilab.forward import AccuracyWarning, HalfSpace, solve_contact
 
 E, R = 1.0e6, 0.01
@@ -36,6 +36,10 @@ def test_cattaneo_mindlin_sphere():
     q = np.hypot(sol.qx, sol.qy)
     assert (q <= 0.5 * sol.pressure * (1 + 1e-9)).all()
     assert np.array_equal(sol.stick | sol.slip, sol.contact)
+    r, c_exact = np.hypot(X, Y), a * 0.5 ** (1 / 3)
+    q_exact = 0.5 * (ellipse(r, a, p0) - ellipse(r, c_exact, p0 * c_exact / a))  # Johnson 7.34
+    true = max(float(np.abs(sol.qx - q_exact).max()), float(np.abs(sol.pressure - ellipse(r, a, p0)).max())) / p0
+    assert sol.error_estimate >= true
 
 
 def test_cattaneo_mindlin_cylinder_and_ciavarella_jaeger():
