@@ -133,6 +133,11 @@ def test_jgh_full_contact_pressure():
     g0 = bisinusoid(n)
     above = solve_contact(SKIN, g0, L / n, mean_pressure=1.001 * p_full, periodic=True)
     assert above.contact.all()
+    x = grid(n, L / n)
+    X, Y = np.meshgrid(x, x)
+    exact = p_full * (1.001 + np.cos(2 * np.pi * X / L) * np.cos(2 * np.pi * Y / L))  # pressed flat
+    true = float(np.abs(above.pressure - exact).max()) / float(exact.max())
+    assert true <= 1e-6 and true <= above.error_estimate
     below = solve_contact(SKIN, g0, L / n, mean_pressure=0.97 * p_full, periodic=True)
     assert not below.contact.all()
     check_complementarity(below, g0, TOL)
