@@ -135,6 +135,38 @@ def test_complementarity_at_extreme_forces(line, ratio):
     assert sol.stick[p > 0].all() if ratio < 1e-2 else sol.stick.sum() <= 1
 
 
+
+@pytest.mark.parametrize("periodic", [True, False])
+def test_rough_contact_complementarity(periodic, rng):
+    """A random rough surface (3-D, many contact patches; the normal solution from solve_contact):
+    every Coulomb condition at three force levels, and a stuck contact without slip."""
+    from tactilab.forward import solve_contact
+
+    n, h = 64, 20e-6
+    k2 = np.fft.fftfreq(n)[:, None] ** 2 + np.fft.fftfreq(n)[None, :] ** 2
+    spectrum = np.where((k2 > 0) & (k2 < 0.1), (k2 + 1e-4) ** -0.9, 0.0)
+    surface = np.real(np.fft.ifft2(spectrum * np.exp(2j * np.pi * rng.random((n, n)))))
+    surface *= 5e-6 / surface.std()
+    x = (np.arange(n) - n // 2) * h
+    X, Y = np.meshgrid(x, x)
+    gap = (0.0 if periodic else (X * X + Y * Y) / 0.02) - surface
+    skin = HalfSpace(E, 0.5)
+    load = dict(mean_pressure=1e4) if periodic else dict(normal_force=2e-3)
+    normal = solve_contact(skin, gap - gap.min(), h, periodic=periodic, tol=1e-10, **load)
+    p = normal.pressure
+    assert np.sum(np.diff(normal.contact.astype(int), axis=1) == 1) >= 10  # many patches
+    C = ContactCompliance(skin, (n, n), h, periodic)
+    for ratio in (0.2, 0.5, 0.9):
+        force = ratio * MU * _total(p, h, False) * np.array([0.8, 0.6])
+        sol = solve_tangential(C, p, normal.contact, MU, force)
+        assert sol.converged and sol.stick.any() and sol.slip.any()
+        _check_coulomb(sol, p, force, h * h)
+    stuck = solve_tangential(C, p, normal.contact, math.inf, 0.3 * _total(p, h, False) * np.array([0.8, 0.6]),
+                             stuck=True)
+    slip = stuck.displacement - stuck.shift[:, None, None]
+    assert stuck.converged and np.abs(slip[:, normal.contact]).max() <= 1e-6 * np.abs(stuck.displacement).max()
+
+
 @pytest.mark.parametrize("line", [False, True])
 def test_no_force_no_traction_and_full_sliding(line):
     """Q = 0 gives q = 0 (all stuck); Q = mu P gives the sliding traction q = mu p (all slipping)."""
