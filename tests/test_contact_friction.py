@@ -352,6 +352,30 @@ def test_newton_phase_agrees_with_the_gradient_method():
     assert np.abs(q[:, 1] - sol.qy[nodes]).max() < 1e-8 * scale
 
 
+
+@pytest.mark.parametrize("line", [False, True])
+def test_isolated_answer_does_not_depend_on_the_empty_grid_around_it(line):
+    """An isolated contact embedded in a grid twice as wide (solved on its cropped bounding box)
+    has the traction of the tight grid (solved uncropped), and the same slip s - u_t (plane strain
+    displacements differ by a constant, the rigid shift with them)."""
+    n = 32 if not line else 64
+    C, p, r, h = _hertz(n, line=line)
+    p = np.where(r < A, p, 0.0)
+    wide = np.pad(p, n // 2)
+    Cw = ContactCompliance(C.skin, wide.shape, h, False)
+    force = 0.5 * MU * _total(p, h, line)
+    F = force if line else (force, 0.0)
+    tight = solve_tangential(C, p, p > 0, MU, F, tol=1e-11)
+    embedded = solve_tangential(Cw, wide, wide > 0, MU, F, tol=1e-11)
+    inner = (slice(n // 2, n // 2 + n),) * p.ndim
+    scale = MU * P0
+    assert np.abs(embedded.qx[inner] - tight.qx).max() < 1e-8 * scale
+    assert np.array_equal(embedded.stick[inner], tight.stick)
+    s_tight = tight.displacement - tight.shift.reshape((-1,) + (1,) * p.ndim)
+    s_wide = (embedded.displacement - embedded.shift.reshape((-1,) + (1,) * p.ndim))[(slice(None),) + inner]
+    assert np.abs((s_wide - s_tight)[:, p > 0]).max() < 1e-7 * np.abs(tight.displacement).max()
+
+
 def test_bad_input():
     C, p, r, h = _hertz(16)
     ok = dict(compliance=C, pressure=p, contact=p > 0, friction=MU, tangential_force=(1e-3, 0.0))
