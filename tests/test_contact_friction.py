@@ -376,6 +376,30 @@ def test_isolated_answer_does_not_depend_on_the_empty_grid_around_it(line):
     assert np.abs((s_wide - s_tight)[:, p > 0]).max() < 1e-7 * np.abs(tight.displacement).max()
 
 
+
+def test_unloading_mindlin_deresiewicz_cylinder():
+    """A loading history through pressure_displacement: load to Q* = 0.8 mu P, then unload to
+    Q = 0.2 mu P, the second step passing -C q* (nu = 1/2, plane strain). Mindlin and Deresiewicz
+    (Johnson, Contact Mechanics, 7.2): the traction is q* minus the partial-slip traction of friction
+    2 mu at force Q* - Q, mu p0 [-sqrt(1 - x^2/a^2) + 2 (b/a) sqrt(1 - x^2/b^2) - (c/a) sqrt(1 - x^2/c^2)]
+    with c/a = (1 - Q*/(mu P))^(1/2) and b/a = (1 - (Q* - Q)/(2 mu P))^(1/2); reverse slip q = -mu p
+    beyond b, and the stick zone |x| < b."""
+    C, p, r, h = _hertz(256, line=True)
+    P = _total(p, h, True)
+    loaded = solve_tangential(C, p, p > 0, MU, 0.8 * MU * P, tol=1e-10)
+    history = -C.tangential(loaded.qx)[0][None]
+    sol = solve_tangential(C, p, p > 0, MU, 0.2 * MU * P, pressure_displacement=history,
+                           initial=loaded.qx[None], tol=1e-10)
+    c, b = A * math.sqrt(0.2), A * math.sqrt(0.7)
+    root = lambda w: np.sqrt(np.clip(1 - r * r / w ** 2, 0, None))  # noqa: E731
+    expected = MU * P0 * (-root(A) + 2 * (b / A) * root(b) - (c / A) * root(c))
+    away = (np.abs(r - c) > 2 * h) & (np.abs(r - b) > 2 * h) & (r < A - 2 * h)
+    err = np.abs(sol.qx - expected) / (MU * P0)
+    assert sol.converged and err[away].max() < 0.008 and err.max() < 0.05  # measured 0.0036, 0.029
+    assert abs(sol.stick.sum() * h / 2 - b) <= h  # measured -0.05 h
+    np.testing.assert_allclose(sol.qx[sol.slip & (p > 0)], -MU * p[sol.slip & (p > 0)], rtol=1e-9)
+
+
 def test_bad_input():
     C, p, r, h = _hertz(16)
     ok = dict(compliance=C, pressure=p, contact=p > 0, friction=MU, tangential_force=(1e-3, 0.0))
