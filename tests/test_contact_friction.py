@@ -400,6 +400,20 @@ def test_unloading_mindlin_deresiewicz_cylinder():
     np.testing.assert_allclose(sol.qx[sol.slip & (p > 0)], -MU * p[sol.slip & (p > 0)], rtol=1e-9)
 
 
+
+def test_a_force_along_y_gives_the_transposed_traction():
+    """Rotating the load by 90 degrees on a square grid rotates the answer: Q along y gives the
+    transpose of the traction and stick zone of Q along x (a check of the operator's x-y coupling)."""
+    C, p, r, h = _hertz(48)
+    Q = 0.5 * MU * _total(p, h, False)
+    along_x = solve_tangential(C, p, p > 0, MU, (Q, 0.0), tol=1e-10)
+    along_y = solve_tangential(C, p, p > 0, MU, (0.0, Q), tol=1e-10)
+    scale = MU * P0
+    assert np.abs(along_y.qy - along_x.qx.T).max() < 1e-7 * scale
+    assert np.abs(along_y.qx - along_x.qy.T).max() < 1e-7 * scale
+    assert np.array_equal(along_y.stick, along_x.stick.T)
+
+
 def test_bad_input():
     C, p, r, h = _hertz(16)
     ok = dict(compliance=C, pressure=p, contact=p > 0, friction=MU, tangential_force=(1e-3, 0.0))
