@@ -135,6 +135,38 @@ def test_complementarity_at_extreme_forces(line, ratio):
     assert sol.stick[p > 0].all() if ratio < 1e-2 else sol.stick.sum() <= 1
 
 
+
+@pytest.mark.parametrize("periodic", [True, False])
+def test_rough_contact_complementarity(periodic, rng):
+    """A random rough surface (3-D, many contact patches; the normal solution from solve_contact):
+    every Coulomb condition at three force levels, and a stuck contact without slip."""
+    from tactilab.forward import solve_contact
+
+    n, h = 64, 20e-6
+    k2 = np.fft.fftfreq(n)[:, None] ** 2 + np.fft.fftfreq(n)[None, :] ** 2
+    spectrum = np.where((k2 > 0) & (k2 < 0.1), (k2 + 1e-4) ** -0.9, 0.0)
+    surface = np.real(np.fft.ifft2(spectrum * np.exp(2j * np.pi * rng.random((n, n)))))
+    surface *= 5e-6 / surface.std()
+    x = (np.arange(n) - n // 2) * h
+    X, Y = np.meshgrid(x, x)
+    gap = (0.0 if periodic else (X * X + Y * Y) / 0.02) - surface
+    skin = HalfSpace(E, 0.5)
+    load = dict(mean_pressure=1e4) if periodic else dict(normal_force=2e-3)
+    normal = solve_contact(skin, gap - gap.min(), h, periodic=periodic, tol=1e-10, **load)
+    p = normal.pressure
+    assert np.sum(np.diff(normal.contact.astype(int), axis=1) == 1) >= 10  # many patches
+    C = ContactCompliance(skin, (n, n), h, periodic)
+    for ratio in (0.2, 0.5, 0.9):
+        force = ratio * MU * _total(p, h, False) * np.array([0.8, 0.6])
+        sol = solve_tangential(C, p, normal.contact, MU, force)
+        assert sol.converged and sol.stick.any() and sol.slip.any()
+        _check_coulomb(sol, p, force, h * h)
+    stuck = solve_tangential(C, p, normal.contact, math.inf, 0.3 * _total(p, h, False) * np.array([0.8, 0.6]),
+                             stuck=True)
+    slip = stuck.displacement - stuck.shift[:, None, None]
+    assert stuck.converged and np.abs(slip[:, normal.contact]).max() <= 1e-6 * np.abs(stuck.displacement).max()
+
+
 @pytest.mark.parametrize("line", [False, True])
 def test_no_force_no_traction_and_full_sliding(line):
     """Q = 0 gives q = 0 (all stuck); Q = mu P gives the sliding traction q = mu p (all slipping)."""
@@ -318,6 +350,68 @@ def test_newton_phase_agrees_with_the_gradient_method():
     scale = MU * P0
     assert np.abs(q[:, 0] - sol.qx[nodes]).max() < 1e-8 * scale
     assert np.abs(q[:, 1] - sol.qy[nodes]).max() < 1e-8 * scale
+
+
+
+@pytest.mark.parametrize("line", [False, True])
+def test_isolated_answer_does_not_depend_on_the_empty_grid_around_it(line):
+    """An isolated contact embedded in a grid twice as wide (solved on its cropped bounding box)
+    has the traction of the tight grid (solved uncropped), and the same slip s - u_t (plane strain
+    displacements differ by a constant, the rigid shift with them)."""
+    n = 32 if not line else 64
+    C, p, r, h = _hertz(n, line=line)
+    p = np.where(r < A, p, 0.0)
+    wide = np.pad(p, n // 2)
+    Cw = ContactCompliance(C.skin, wide.shape, h, False)
+    force = 0.5 * MU * _total(p, h, line)
+    F = force if line else (force, 0.0)
+    tight = solve_tangential(C, p, p > 0, MU, F, tol=1e-11)
+    embedded = solve_tangential(Cw, wide, wide > 0, MU, F, tol=1e-11)
+    inner = (slice(n // 2, n // 2 + n),) * p.ndim
+    scale = MU * P0
+    assert np.abs(embedded.qx[inner] - tight.qx).max() < 1e-8 * scale
+    assert np.array_equal(embedded.stick[inner], tight.stick)
+    s_tight = tight.displacement - tight.shift.reshape((-1,) + (1,) * p.ndim)
+    s_wide = (embedded.displacement - embedded.shift.reshape((-1,) + (1,) * p.ndim))[(slice(None),) + inner]
+    assert np.abs((s_wide - s_tight)[:, p > 0]).max() < 1e-7 * np.abs(tight.displacement).max()
+
+
+
+def test_unloading_mindlin_deresiewicz_cylinder():
+    """A loading history through pressure_displacement: load to Q* = 0.8 mu P, then unload to
+    Q = 0.2 mu P, the second step passing -C q* (nu = 1/2, plane strain). Mindlin and Deresiewicz
+    (Johnson, Contact Mechanics, 7.2): the traction is q* minus the partial-slip traction of friction
+    2 mu at force Q* - Q, mu p0 [-sqrt(1 - x^2/a^2) + 2 (b/a) sqrt(1 - x^2/b^2) - (c/a) sqrt(1 - x^2/c^2)]
+    with c/a = (1 - Q*/(mu P))^(1/2) and b/a = (1 - (Q* - Q)/(2 mu P))^(1/2); reverse slip q = -mu p
+    beyond b, and the stick zone |x| < b."""
+    C, p, r, h = _hertz(256, line=True)
+    P = _total(p, h, True)
+    loaded = solve_tangential(C, p, p > 0, MU, 0.8 * MU * P, tol=1e-10)
+    history = -C.tangential(loaded.qx)[0][None]
+    sol = solve_tangential(C, p, p > 0, MU, 0.2 * MU * P, pressure_displacement=history,
+                           initial=loaded.qx[None], tol=1e-10)
+    c, b = A * math.sqrt(0.2), A * math.sqrt(0.7)
+    root = lambda w: np.sqrt(np.clip(1 - r * r / w ** 2, 0, None))  # noqa: E731
+    expected = MU * P0 * (-root(A) + 2 * (b / A) * root(b) - (c / A) * root(c))
+    away = (np.abs(r - c) > 2 * h) & (np.abs(r - b) > 2 * h) & (r < A - 2 * h)
+    err = np.abs(sol.qx - expected) / (MU * P0)
+    assert sol.converged and err[away].max() < 0.008 and err.max() < 0.05  # measured 0.0036, 0.029
+    assert abs(sol.stick.sum() * h / 2 - b) <= h  # measured -0.05 h
+    np.testing.assert_allclose(sol.qx[sol.slip & (p > 0)], -MU * p[sol.slip & (p > 0)], rtol=1e-9)
+
+
+
+def test_a_force_along_y_gives_the_transposed_traction():
+    """Rotating the load by 90 degrees on a square grid rotates the answer: Q along y gives the
+    transpose of the traction and stick zone of Q along x (a check of the operator's x-y coupling)."""
+    C, p, r, h = _hertz(48)
+    Q = 0.5 * MU * _total(p, h, False)
+    along_x = solve_tangential(C, p, p > 0, MU, (Q, 0.0), tol=1e-10)
+    along_y = solve_tangential(C, p, p > 0, MU, (0.0, Q), tol=1e-10)
+    scale = MU * P0
+    assert np.abs(along_y.qy - along_x.qx.T).max() < 1e-7 * scale
+    assert np.abs(along_y.qx - along_x.qy.T).max() < 1e-7 * scale
+    assert np.array_equal(along_y.stick, along_x.stick.T)
 
 
 def test_bad_input():

@@ -136,7 +136,8 @@ def solve_partial(apply, bound, area, Q, u_p, q0, tol, max_products):
         res, s = residual(q, u, bound, area, Q, L)
         while tol < res and products < max_products:
             step = _newton_step(apply, bound, area, Q, q, u - s, diagonal, max_products - products)
-            if step is None:
+            if step is None:  # no free variable to move (every node slips, in plane strain): FISTA to the end
+                switch = 0.0
                 break
             q_new, used = step
             u_new = apply(q_new) + u_p

@@ -50,6 +50,7 @@ gap; the caller alternates the two solves until the pressure stops changing.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,6 +64,9 @@ from .hertz import _check_friction
 
 #: relative margin below the friction bound under which a contact node counts as stuck
 STICK_MARGIN = 1e-6
+
+#: the cropped operators of each grid's compliance (its spectra are cached inside), by box shape
+_CROPS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 @dataclass(frozen=True)
@@ -216,7 +220,12 @@ def _nodal_operator(compliance, nodes: tuple, d: int):
         lo = [int(i.min()) for i in nodes]
         box = tuple(_fast_half(int(i.max()) - l + 1) for i, l in zip(nodes, lo))
         if all(b < n for b, n in zip(box, shape)):
-            compliance = ContactCompliance(compliance.skin, box, compliance.spacing, periodic=False)
+            crops = _CROPS.setdefault(compliance, {})
+            if box not in crops:  # kept with the grid's operator: a coupled or warm-started solve reuses it
+                if len(crops) >= 4:
+                    crops.pop(next(iter(crops)))
+                crops[box] = ContactCompliance(compliance.skin, box, compliance.spacing, periodic=False)
+            compliance = crops[box]
             nodes, shape = tuple(i - l for i, l in zip(nodes, lo)), box
 
     def apply(q: np.ndarray) -> np.ndarray:
