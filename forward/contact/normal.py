@@ -9,11 +9,13 @@ the step is exact for the quadratic energy, pressures that would turn negative a
 nodes outside ``I`` that penetrate (``g < 0``) re-enter with a gradient step, which restarts the
 conjugacy (Polonsky and Keer, Wear 231, 1999, the algorithm of section 3).
 
-One compliance product per iteration: the product ``A t`` of the search direction gives the
-step length, and ``uz`` is updated as ``s (uz - tau A t)`` whenever the step leaves the contact
-set unchanged (no clipping, no re-entry; ``s`` the force rescaling); only an iteration that
-changes the set recomputes ``uz = A p`` (a second product), and so does every 32nd, to stop
-round-off drift.
+Products: the product ``A t`` of the search direction gives the step length, and ``uz`` is
+updated as ``s (uz - tau A t)`` whenever the step leaves the contact set unchanged (no clipping,
+no re-entry; ``s`` the force rescaling), so an iteration that keeps the set costs one compliance
+product; one that changes it recomputes ``uz = A p`` (a second product), and so does every 32nd,
+to stop round-off drift. On a rough surface at 10 % contact the set changes in most iterations
+(about 1.85 products per iteration). :mod:`.preconditioned` is the default method; this one is
+kept as the reference (``method="polonsky_keer"``).
 
 Convergence: the gap residual ``max(|g| on I, max(-g) off I) <= tol * (max g0 - min g0)``.
 """

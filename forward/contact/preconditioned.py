@@ -21,7 +21,10 @@ One iteration:
 Products: one compliance product ``A t`` and one preconditioner product ``K r`` per iteration
 (the preconditioner is an FFT pair of the unpadded grid, a quarter of a padded product for an
 isolated contact); ``uz = A p`` is updated as ``uz - tau A t`` unless a pressure was clipped to 0,
-and recomputed exactly every 32 iterations and before convergence is declared.
+and recomputed exactly every 32 iterations and before convergence is declared. Clipping happens
+in most iterations until the contact set settles (at 512^2, 10 % contact: 177 FFT pairs in 61
+iterations, against Polonsky-Keer's 389 in 206), so an iteration costs about three FFT pairs of
+the grid where Polonsky-Keer's costs about two: the iterations saved pay for it twice over.
 """
 
 from __future__ import annotations
