@@ -174,7 +174,8 @@ class ContactCompliance:
             stiff.flat[0] = stiff[stiff > 0].min() if (stiff > 0).any() else 0.0
             self._spectra["stiffness"] = stiff
         spectrum = sfft.rfftn(self._check(gap, "gap"), axes=self._axes, workers=1)
-        return sfft.irfftn(self._spectra["stiffness"] * spectrum, s=self.shape, axes=self._axes, workers=1)
+        spectrum *= self._spectra["stiffness"]
+        return sfft.irfftn(spectrum, s=self.shape, axes=self._axes, workers=1)
 
     # -- products ---------------------------------------------------------------------------
     def _check(self, value, name: str) -> np.ndarray:
@@ -198,7 +199,10 @@ class ContactCompliance:
 
     def normal(self, p) -> np.ndarray:
         """``uz`` (m, positive into the skin) from the pressure ``p`` (Pa)."""
-        return self.product({"p": self.rfft(self._check(p, "p"))}, "uz")
+        spectrum = self.rfft(self._check(p, "p"))
+        spectrum *= self.spectrum("uz", "p")  # in place: the solvers call this every iteration
+        out = sfft.irfftn(spectrum, s=self.fft_shape, axes=self._axes, workers=1)
+        return out if self.periodic else out[tuple(slice(0, n) for n in self.shape)]
 
     def tangential(self, qx, qy=None) -> tuple[np.ndarray, np.ndarray | None]:
         """``(ux, uy)`` in m from the tangential tractions (Pa); ``uy`` is None in plane strain."""
