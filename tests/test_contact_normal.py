@@ -207,6 +207,8 @@ def test_both_methods_give_one_answer(periodic, rng):
     pk = solve_contact(SKIN, g0, L / n, method="polonsky_keer", **kw)
     assert fast.method == "preconditioned_cg" and pk.method == "polonsky_keer"
     assert fast.iterations < pk.iterations
+    force = 0.1 * P_STAR * L * L
+    assert fast.normal_force == pytest.approx(force, rel=1e-12) and pk.normal_force == pytest.approx(force, rel=1e-12)
     assert np.allclose(fast.pressure, pk.pressure, atol=1e-6 * fast.pressure.max())
     check_complementarity(fast, g0, TOL)
     check_complementarity(pk, g0, TOL)

@@ -15,7 +15,7 @@ One iteration:
 2. the working set ``S``: nodes in contact and nodes that penetrate (``g < 0``), which enter;
 3. the residual ``r = g`` on ``S``; the preconditioned residual ``z = K r`` on ``S`` (force
    control: minus its mean on ``S``, so that the step keeps the force);
-4. the direction ``t = z + beta t_old`` (Fletcher-Reeves; restarted when ``S`` changes);
+4. the direction ``t = z + beta t_old`` (Fletcher-Reeves, on ``S``; restarted when a node enters);
 5. the exact step ``tau = <r, t> / <A t, t>``; ``p = max(p - tau t, 0)``, rescaled to the force.
 
 Products: one compliance product ``A t`` and one preconditioner product ``K r`` per iteration
@@ -52,7 +52,7 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     g, r, tmp, t = (np.empty_like(p) for _ in range(4))
     inside, S = np.empty(p.shape, dtype=bool), np.empty(p.shape, dtype=bool)
     S_old = np.zeros(p.shape, dtype=bool)
-    restart, G_old, residual, delta = True, 1.0, np.inf, approach
+    G_old, residual, delta = 0.0, np.inf, approach
     it = 0
     while True:
         np.add(g0, u, out=g)
@@ -76,13 +76,14 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         if force:
             np.subtract(z, float(z.sum()) / int(np.count_nonzero(S)), out=z, where=S)
         G = _dot(r, z)
-        if not restart and G_old > 0 and np.array_equal(S, S_old):
+        if G_old > 0 and not np.any(S & ~S_old):  # no node entered: keep the conjugacy (as Polonsky-Keer)
             t *= G / G_old
+            t *= S  # nodes that left the set leave the direction
             t += z
         else:
             t[...] = z
         S_old[...] = S
-        G_old, restart = G, False
+        G_old = G
         At = A(t)
         products += 2
         denom = _dot(At, t)
@@ -90,17 +91,19 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         np.multiply(t, tau, out=tmp)
         p -= tmp
         it += 1
-        if float(p.min()) < 0:  # clipped: the displacement is no longer linear in the step
+        clipped = float(p.min()) < 0
+        if clipped:
             np.maximum(p, 0.0, out=p)
-            if force:
-                p *= total / p.sum()
-            u, exact, restart = A(p), True, True
-            products += 1
-        elif it % REFRESH == 0:
+        factor = total / float(p.sum()) if force else 1.0  # the force, held exactly at every step
+        if factor != 1.0:
+            p *= factor
+        if clipped or it % REFRESH == 0:  # clipped: the displacement is no longer linear in the step
             u, exact = A(p), True
             products += 1
         else:
             np.multiply(At, tau, out=tmp)
             u -= tmp
+            if factor != 1.0:
+                u *= factor
             exact = False
     return NormalResult(p, float(delta), g, it, residual <= target, residual, products)
