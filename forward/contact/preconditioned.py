@@ -6,7 +6,7 @@ like the square root of the grid's width, because the compliance's spectrum ``2 
 spans the ratio of the grid's largest and smallest wavenumbers. Here each iteration is
 preconditioned by the periodic surface stiffness ``E* |k| / 2`` (the exact inverse of the
 compliance on a fully touching periodic grid), restricted to the working set, which cuts the
-iterations three- to four-fold on rough surfaces (about 60 instead of 210 at 512^2, 10 %
+iterations three- to four-fold on rough surfaces (55 instead of 206 at 512^2, 10 %
 contact), in the spirit of Vollebregt's bound-constrained CG (J. Optim. Theory Appl. 162, 2014).
 
 One iteration:
@@ -22,7 +22,7 @@ Products: one compliance product ``A t`` and one preconditioner product ``K r`` 
 (the preconditioner is an FFT pair of the unpadded grid, a quarter of a padded product for an
 isolated contact); ``uz = A p`` is updated as ``uz - tau A t`` unless a pressure was clipped to 0,
 and recomputed exactly every 32 iterations and before convergence is declared. Clipping happens
-in most iterations until the contact set settles (at 512^2, 10 % contact: 177 FFT pairs in 61
+in most iterations until the contact set settles (at 512^2, 10 % contact: 158 FFT pairs in 55
 iterations, against Polonsky-Keer's 389 in 206), so an iteration costs about three FFT pairs of
 the grid where Polonsky-Keer's costs about two: the iterations saved pay for it twice over.
 """
