@@ -205,6 +205,10 @@ def test_both_methods_give_one_answer(periodic, rng):
     kw = dict(mean_pressure=0.1 * P_STAR, periodic=True) if periodic else dict(normal_force=0.1 * P_STAR * L * L)
     fast = solve_contact(SKIN, g0, L / n, **kw)
     pk = solve_contact(SKIN, g0, L / n, method="polonsky_keer", **kw)
+    from tactilab.forward.contact import METHODS
+
+    as_callable = solve_contact(SKIN, g0, L / n, method=METHODS["polonsky_keer"], **kw)
+    assert np.array_equal(as_callable.pressure, pk.pressure) and as_callable.method == "polonsky_keer"
     assert fast.method == "preconditioned_cg" and pk.method == "polonsky_keer"
     assert fast.iterations < pk.iterations
     force = 0.1 * P_STAR * L * L
