@@ -57,9 +57,9 @@ from scipy.optimize import minimize
 
 from tactilab.data_schemas.experiment import Stimulus
 from tactilab.experiments import ModelDiscrimination, TransductionModel
-from tactilab.experiments._transduction_data import p_correct_table
-from tactilab.experiments.model_power import ZERO_RATE_NATS, _from_free, _to_free
-from tactilab.experiments.models import power_analysis
+from tactilab.experiments.modelling._transduction_data import p_correct_table
+from tactilab.experiments.modelling.model_power import ZERO_RATE_NATS, _from_free, _to_free
+from tactilab.experiments.modelling.models import power_analysis
 
 
 def _grid(surfaces, amps, pitches):

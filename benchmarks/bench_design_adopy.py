@@ -8,7 +8,7 @@ Run (tactilab's environment; ADOpy 0.4.1 needs an older numpy, so it lives in it
 
 Where ADOpy applies (ONE psychometric model, the utility the mutual information between the next
 response and the parameters), both compute the same quantity: ``information_gain(...,
-utility="parameters")`` of :mod:`tactilab.experiments.design` with one model, and ADOpy's
+utility="parameters")`` of :mod:`tactilab.experiments.modelling.design` with one model, and ADOpy's
 ``Engine.mutual_info``. The model is the 2IFC link of ``zx@1mm`` (docs/model_comparison.md):
 P(correct) = 1/2 + (1/2 - lapse)(2 Phi((s / threshold)^exponent / sqrt 2) - 1), with s the
 hypothesis's statistic of each of 200 candidates (20 amplitudes 2-60 um x 10 pitches 0.8-8 mm,
@@ -72,7 +72,7 @@ def main() -> None:
 
     from tactilab.data_schemas.experiment import Stimulus
     from tactilab.experiments import ModelDiscrimination, TransductionModel
-    from tactilab.experiments.design import information_gain
+    from tactilab.experiments.modelling.design import information_gain
 
     cands = [Stimulus(amplitude_m=a, pitch_m=p, speed_m_per_s=0.02, duration_s=0.1)
              for a in np.geomspace(2e-6, 6e-5, 20) for p in np.geomspace(0.8e-3, 8e-3, 10)]
@@ -84,7 +84,7 @@ def main() -> None:
     stats = design.stats[0, :, 0]
     rng = np.random.default_rng(3)
     truth = np.array([[float(np.median(stats)), 1.3, 0.02]])
-    from tactilab.experiments._transduction_data import p_correct_table
+    from tactilab.experiments.modelling._transduction_data import p_correct_table
 
     p_true = p_correct_table("2ifc", stats, np.zeros_like(stats), truth)[0]
     ours, history, times = [], [], []

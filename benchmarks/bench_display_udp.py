@@ -35,20 +35,20 @@ from pathlib import Path
 import numpy as np
 
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.display import render_drive
-from tactilab.experiments.emulator import read_record
-from tactilab.experiments.link import FRAME, decode, encode
-from tactilab.experiments.safety import SafeDisplay
-from tactilab.experiments.udp import UdpDisplay
+from tactilab.experiments.devices.display import render_drive
+from tactilab.experiments.devices.emulator import read_record
+from tactilab.experiments.devices.link import FRAME, decode, encode
+from tactilab.experiments.devices.safety import SafeDisplay
+from tactilab.experiments.devices.udp import UdpDisplay
 
 EMULATOR = [sys.executable, "-m", "tactilab.cli.main", "device", "emulate", "--port", "0"]
 
 HOST = """
 import sys
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.display import render_drive
-from tactilab.experiments.safety import SafeDisplay
-from tactilab.experiments.udp import UdpDisplay
+from tactilab.experiments.devices.display import render_drive
+from tactilab.experiments.devices.safety import SafeDisplay
+from tactilab.experiments.devices.udp import UdpDisplay
 desc = DisplayDescription.stress2()
 safe = SafeDisplay(UdpDisplay(desc, "127.0.0.1", int(sys.argv[1])), lambda e: None)
 safe.load(render_drive(desc, amplitude_m=10e-6, pitch_m=2.4e-3, speed_m_per_s=0.04, duration_s=30.0,

@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from tactilab.data_schemas.experiment import Stimulus
-from tactilab.experiments.models import TransductionModel, compare_models, fit_transduction
+from tactilab.experiments.modelling.models import TransductionModel, compare_models, fit_transduction
 
 GRATING = Stimulus(amplitude_m=1e-6, pitch_m=4e-3, speed_m_per_s=0.02, duration_s=0.1)
 FAST = {"tau_factor": 10.0, "check_every": 200}  # the tests' sampler settings

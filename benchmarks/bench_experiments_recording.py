@@ -35,12 +35,12 @@ import numpy as np
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
 from tactilab.demo.experiments import DEMO_PROTOCOL
-from tactilab.experiments.responses import true_threshold_2ifc
-from tactilab.experiments.display import Display, PlaybackReport
-from tactilab.experiments.recording import Recorder
-from tactilab.experiments.responses import SimulatedObserver
-from tactilab.experiments.resume import replay_session, session_header
-from tactilab.experiments.runner import new_session
+from tactilab.experiments.session.responses import true_threshold_2ifc
+from tactilab.experiments.devices.display import Display, PlaybackReport
+from tactilab.experiments.session.recording import Recorder
+from tactilab.experiments.session.responses import SimulatedObserver
+from tactilab.experiments.session.resume import replay_session, session_header
+from tactilab.experiments.session.runner import new_session
 
 PAYLOAD = {"block": 0, "track": 1, "parameter": "amplitude_m", "level": 2.5e-6, "target": "2",
            "stimuli": [{"amplitude_m": 0.0, "pitch_m": 2e-3, "speed_m_per_s": 0.04, "duration_s": 0.3}] * 2}

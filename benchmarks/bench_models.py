@@ -23,8 +23,8 @@ import time
 import numpy as np
 
 from tactilab.data_schemas.experiment import Stimulus
-from tactilab.experiments.models import TransductionModel, fit_transduction
-from tactilab.experiments._transduction_data import TransductionLikelihood, conditions, default_priors
+from tactilab.experiments.modelling.models import TransductionModel, fit_transduction
+from tactilab.experiments.modelling._transduction_data import TransductionLikelihood, conditions, default_priors
 
 BASE = Stimulus(amplitude_m=1e-6, pitch_m=4e-3, speed_m_per_s=0.02, duration_s=0.1)
 AMPS = (0.15e-6, 0.3e-6, 0.6e-6, 1.2e-6, 2.4e-6)

@@ -48,7 +48,7 @@ _FLAGS = {"port": "--port", "watchdog_s": "--watchdog", "max_seconds": "--max-se
 
 def run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas.units import to_si
-    from tactilab.experiments.emulator import emulate
+    from tactilab.experiments.devices import emulate
 
     watchdog = to_si(args.watchdog, "time", name="--watchdog")
     max_seconds = to_si(args.max_seconds, "time", name="--max-seconds")

@@ -65,7 +65,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _device_args(p: argparse.ArgumentParser, resume: bool = False) -> None:
     p.add_argument("--display", default="simulated",
-                   help="'simulated' or 'udp://HOST:PORT' (frames of tractions in Pa at the device rate, 1 kHz default)")
+                   help="'simulated', 'udp://HOST:PORT' (frames of tractions in Pa at the device rate, 1 kHz default) "
+                        "or a device kind an installed plug-in registers")
     p.add_argument("--device", default=None if resume else "braille-row",
                    help="display description: 'braille-row', 'stress2' or a .json description file (limits in Pa, "
                         "m, 1/s); " + ("default: the description the session recorded (another one is refused)"
@@ -99,14 +100,14 @@ def _summary_args(p: argparse.ArgumentParser) -> None:
 
 def _finish(result, parameter: str, args: argparse.Namespace, warned: list[str]) -> int:
     """The end of a run or resume: one line, then the summary block with the fitted thresholds (or JSON)."""
-    from tactilab.experiments.runner import format_estimate
+    from tactilab.experiments.session import format_estimate
 
     info = sys.stderr if args.json else sys.stdout
     print(f"session {result.path}: {result.status} after {result.n_completed} trials; "
           f"procedure's running {format_estimate(result.estimate, parameter)}", file=info)
     exported = []
     if args.export is not None and result.status == "complete":
-        from tactilab.experiments.export import export_session
+        from tactilab.experiments.session import export_session
 
         out = result.path.parent / "bids" if args.export == "bids" else result.path.parent
         with _flags({"format": "--export", "out": "--export"}):
@@ -122,7 +123,7 @@ def _finish(result, parameter: str, args: argparse.Namespace, warned: list[str])
 
 def _check_export(fmt: str | None) -> None:
     """Refuse a bad ``--export`` before the session starts, not after it ends."""
-    from tactilab.experiments.export import FORMATS
+    from tactilab.experiments.session import FORMATS
 
     if fmt is not None and fmt not in FORMATS:
         raise ValueError(f"--export: must be one of {', '.join(FORMATS)}, got {fmt!r}")
@@ -138,7 +139,7 @@ def _print_summary(path, command: str, as_json: bool, warned: list[str] = (), ex
     """The session's summary table (``experiment status``'s), framed as a run summary, or one JSON object."""
     import json
 
-    from tactilab.experiments.session_report import session_summary, summary_lines
+    from tactilab.experiments.modelling import session_summary, summary_lines
 
     summary = session_summary(path)
     summary["warnings"] = list(warned) + summary["warnings"]
@@ -202,7 +203,7 @@ EXIT_DISPLAY_FAULT = 3
 
 
 def run(args: argparse.Namespace) -> int:
-    from tactilab.experiments.display import DisplayError
+    from tactilab.experiments.devices import DisplayError
 
     try:
         return _run(args)
@@ -216,7 +217,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
-    from tactilab.experiments import factory
+    from tactilab.experiments.devices import description_from_spec, open_display
+    from tactilab.experiments.session import make_responses, next_session_path
 
     if args.action in ("run", "resume"):
         _check_export(args.export)
@@ -226,24 +228,24 @@ def _run(args: argparse.Namespace) -> int:
             check_label(args.session_label, "--session")
         protocol = Protocol.from_toml(args.protocol)
         with _flags(_DEVICE):
-            description = factory.description_from_spec(args.device)
+            description = description_from_spec(args.device)
         make_out(args.out)
         with _flags({"folder": "--out"}):
-            path, label = factory.next_session_path(args.out, args.subject, protocol.name)
+            path, label = next_session_path(args.out, args.subject, protocol.name)
         if args.session_label is not None:
             label = args.session_label
             path = args.out / f"sub-{args.subject}_ses-{label}_task-{protocol.name}.sqlite"
         with _flags(_DISPLAY):
-            display = factory.display_from_spec(args.display, description, realtime=not args.no_wait,
-                                                 max_skipped_fraction=args.max_skipped)
+            display = open_display(args.display, description, realtime=not args.no_wait,
+                                   max_skipped_fraction=args.max_skipped)
         try:
             with _flags(_RESPONSES):
-                responses = factory.make_responses(args.responses, protocol, display,
-                                                   threshold=args.observer_threshold, strain=args.observer_strain)
+                responses = make_responses(args.responses, protocol, display,
+                                           threshold=args.observer_threshold, strain=args.observer_strain)
         except BaseException:
             display.close()
             raise
-        from tactilab.experiments.runner import new_session
+        from tactilab.experiments.session import new_session
 
         def created(file) -> None:  # printed once the file exists: a refused start leaves none behind
             print(f"session file: {file}", flush=True, file=sys.stderr if args.json else sys.stdout)
@@ -262,7 +264,7 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.action == "resume":
         from tactilab.data_schemas.display import DisplayDescription
-        from tactilab.experiments.resume import check_same_display, resume_session, session_header
+        from tactilab.experiments.session import check_same_display, resume_session, session_header
 
         state = session_header(args.session)  # no replay here: resume_session replays once
         recorded_description = state.meta.get("display_description")
@@ -270,18 +272,18 @@ def _run(args: argparse.Namespace) -> int:
             description = DisplayDescription.model_validate(recorded_description)
         else:
             with _flags(_DEVICE):
-                description = factory.description_from_spec(args.device or "braille-row")
+                description = description_from_spec(args.device or "braille-row")
         with _flags({"display": "--device"}):
             check_same_display(state.meta, _Described(description), args.session)
         kind = args.responses or state.meta["responses"]
         with _flags(_DISPLAY):
-            display = factory.display_from_spec(args.display, description, realtime=not args.no_wait,
-                                                 max_skipped_fraction=args.max_skipped)
+            display = open_display(args.display, description, realtime=not args.no_wait,
+                                   max_skipped_fraction=args.max_skipped)
         recorded = state.meta.get("responses_config") if kind == state.meta["responses"] else None
         try:
             with _flags(_RESPONSES):
-                responses = factory.make_responses(kind, state.protocol, display, threshold=args.observer_threshold,
-                                                   strain=args.observer_strain, recorded=recorded)
+                responses = make_responses(kind, state.protocol, display, threshold=args.observer_threshold,
+                                           strain=args.observer_strain, recorded=recorded)
         except BaseException:
             display.close()
             raise
@@ -303,7 +305,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.action == "export":
         import json
 
-        from tactilab.experiments.export import export_session
+        from tactilab.experiments.session import export_session
 
         if args.out is not None:
             out = args.out
@@ -329,7 +331,7 @@ def _print_status(args: argparse.Namespace) -> None:
     """``experiment status``: the summary table, or one JSON object with ``--json``."""
     import json
 
-    from tactilab.experiments.session_report import session_summary, summary_lines
+    from tactilab.experiments.modelling import session_summary, summary_lines
 
     summary = session_summary(args.session)
     if args.json:

@@ -82,7 +82,7 @@ def _out(args) -> Path:
 
 
 def run_fit(args: argparse.Namespace) -> int:
-    from tactilab.experiments.analysis import fit_conditions
+    from tactilab.experiments.modelling import fit_conditions
 
     fits = fit_conditions(args.sessions, sigmoid=args.sigmoid, rng=args.seed)
     out = _out(args)
@@ -124,7 +124,7 @@ def run_compare(args: argparse.Namespace) -> int:
         check_hypothesis(text, "--model")
     if wants_batch(args):
         return _run_compare_batch(args)
-    from tactilab.experiments.analysis import compare_sessions, plot_comparison
+    from tactilab.experiments.modelling import compare_sessions, plot_comparison
 
     table, fits = compare_sessions(args.sessions, args.model, statistic=args.statistic, rng=args.seed,
                                    sampler_options=_sampler(args))
@@ -144,7 +144,7 @@ def run_compare(args: argparse.Namespace) -> int:
 
 
 def _run_compare_batch(args: argparse.Namespace) -> int:
-    from tactilab.experiments.batch import compare_many, sessions_by_subject
+    from tactilab.experiments.modelling import compare_many, sessions_by_subject
 
     if len(args.model) < 2 or len(set(args.model)) != len(args.model):
         raise ValueError(f"--model: give two or more different hypotheses, got {args.model}; e.g. --model zx@1mm "
@@ -187,8 +187,8 @@ def _counts(text: str, name: str) -> list[int]:
 def run_power(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from tactilab.experiments.analysis import plot_power, read_design
-    from tactilab.experiments.models import TransductionModel, power_analysis
+    from tactilab.experiments.modelling import plot_power, read_design
+    from tactilab.experiments.modelling import TransductionModel, power_analysis
 
     ns = _counts(args.trials, "--trials") if args.trials is not None else None
     if args.seeds is None and (wants_batch(args) or args.trials is not None):
@@ -213,7 +213,7 @@ def run_power(args: argparse.Namespace) -> int:
                if math.isfinite(result.trials_for(4.0)) else 4 * n_design)
     sweep = None
     if args.seeds is not None:
-        from tactilab.experiments.batch import power_sweep
+        from tactilab.experiments.modelling import power_sweep
 
         ns = ns if ns is not None else [n_design, 2 * n_design, 4 * n_design]
         if args.repeats < 1:

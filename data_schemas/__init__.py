@@ -12,7 +12,7 @@ from tactilab.core import attach, package_version
 _EXPORTS = {
     "Record": "base",
     "DisplayDescription": "display",
-    "Stimulus": "experiment",
+    "Stimulus": "stimulus",
     "Task": "experiment",
     "Protocol": "experiment",
     "ConstantStimuliConfig": "experiment_procedures",

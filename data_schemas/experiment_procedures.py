@@ -18,6 +18,8 @@ from typing import Annotated, Any, ClassVar, Literal
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationInfo, model_validator
 
+from tactilab.core import rules
+
 from .units import to_si
 
 # The stimulus parameters a procedure may vary, with the dimension of their values.
@@ -43,19 +45,6 @@ def _quantity(dimension: str):
         return value
 
     return BeforeValidator(convert)
-
-
-def _finite(value: float, name: str) -> float:
-    if not math.isfinite(value):
-        raise ValueError(f"{name}: must be finite, got {value!r}; give a number")
-    return value
-
-
-def _positive(value: float, name: str, unit: str) -> float:
-    _finite(value, name)
-    if value <= 0:
-        raise ValueError(f"{name}: must be > 0 {unit}, got {value!r}; give a positive value")
-    return value
 
 
 def check_label(value: str, name: str) -> str:
@@ -274,7 +263,7 @@ class StaircaseTrack(_Model):
     @model_validator(mode="after")
     def _check(self) -> StaircaseTrack:
         for name in ("start", "min_level", "max_level"):
-            _finite(getattr(self, name), name)
+            rules.finite(getattr(self, name), name)
         if not self.step_sizes or any(not math.isfinite(s) or s <= 0 for s in self.step_sizes):
             raise ValueError(f"step_sizes: need at least one finite step > 0, got {self.step_sizes!r}")
         if not self.min_level <= self.start <= self.max_level or self.min_level >= self.max_level:

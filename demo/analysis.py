@@ -11,12 +11,9 @@ from __future__ import annotations
 import pathlib
 from typing import Iterator
 
-from tactilab.data_schemas.display import DisplayDescription
-from tactilab.data_schemas.experiment import Protocol
-from tactilab.experiments import SimulatedDisplay, new_session
-from tactilab.experiments.analysis import compare_sessions, fit_conditions, plot_comparison
-from tactilab.experiments.models import TransductionModel, power_analysis
-from tactilab.experiments.responses import SimulatedObserver
+from tactilab.data_schemas import DisplayDescription, Protocol
+from tactilab.experiments import (SimulatedDisplay, SimulatedObserver, TransductionModel, compare_sessions,
+                                  fit_conditions, new_session, plot_comparison, power_analysis)
 
 TRUTH, RIVAL = "zx@1mm", "zx@3mm"
 THRESHOLD_STRAIN, LAPSE = 1e-4, 0.02
@@ -70,7 +67,7 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
 
 
 def _trials(paths):
-    from tactilab.experiments.recording import SessionLog
+    from tactilab.experiments import SessionLog
 
     for path in paths:
         log = SessionLog(path)

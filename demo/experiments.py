@@ -14,15 +14,9 @@ from __future__ import annotations
 import pathlib
 from collections.abc import Iterator
 
-
-from tactilab.data_schemas.display import DisplayDescription
-from tactilab.data_schemas.experiment import Protocol
-
-from tactilab.experiments.export import export_session
-from tactilab.experiments.recording import SessionLog
-from tactilab.experiments.responses import SimulatedObserver, true_threshold_2ifc
-from tactilab.experiments.runner import new_session
-from tactilab.experiments.simulated_display import SimulatedDisplay
+from tactilab.data_schemas import DisplayDescription, Protocol
+from tactilab.experiments import (SessionLog, SimulatedDisplay, SimulatedObserver, export_session, new_session,
+                                  true_threshold_2ifc)
 
 DEMO_PROTOCOL = {
     "name": "gratingdetection", "seed": 20261122, "iti_s": "500ms",

@@ -63,6 +63,10 @@ _EXPORTS = {
     "wiener_kernel": "exploration",
     "linear_kernel": "exploration",
     "shape_invariance": "exploration",
+    "kernel_identification": "exploration",
+    "texture_spectrum": "exploration",
+    "plot_fingerprint_spectra": "finger_plots",
+    "plot_wiener_kernels": "finger_plots",
     # tractors, displays and synthesis
     "sliding_sinusoid_strain": "tractors",
     "tractor_row_strain": "tractors",
@@ -71,6 +75,7 @@ _EXPORTS = {
     "travelling_wave_drive": "tractor_display",
     "display_row_strain": "tractor_display",
     "render_virtual_surface": "tractor_display",
+    "display_patch_strain_3d": "tractor_display",
     "display_scene_outputs": "display_scene",
     "optimal_half_spacing": "synthesis",
     "matching_line_load": "synthesis",

@@ -33,20 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .halfspace import pressure_from_deflection
-
-
-def _pos(value, name: str, unit: str = "m") -> float:
-    value = float(value)
-    if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{name}: must be finite and > 0 {unit}, got {value!r}; give it in SI ({unit})")
-    return value
-
-
-def _finite(value, name: str, unit: str = "m") -> float:
-    value = float(value)
-    if not math.isfinite(value):
-        raise ValueError(f"{name}: must be finite ({unit}), got {value!r}")
-    return value
+from tactilab.core import rules as check
 
 
 def _xy(x, y):
@@ -87,8 +74,8 @@ class RandomSquareWaveGrating(Feature):
     start: float = 0.0
 
     def __post_init__(self):
-        _pos(self.bit_length, "bit_length")
-        _finite(self.amplitude, "amplitude")
+        check.positive(self.bit_length, "bit_length")
+        check.finite(self.amplitude, "amplitude", "m")
         bits = np.asarray(self.bits, dtype=float)
         if bits.ndim != 1 or bits.size < 2 or not np.all(np.abs(bits) == 1):
             raise ValueError(f"bits: need a 1-D array of at least 2 values, each +1 or -1, got shape "
@@ -194,9 +181,9 @@ class Surface:
     x_start: float = 0.0
 
     def __post_init__(self):
-        _pos(self.length, "length")
-        _pos(self.width, "width")
-        _finite(self.x_start, "x_start")
+        check.positive(self.length, "length", "m")
+        check.positive(self.width, "width")
+        check.finite(self.x_start, "x_start", "m")
         feats = []
         for i, f in enumerate(self.features):
             try:
@@ -236,7 +223,7 @@ class Surface:
 
         ``reference_height`` (m, > 0) is the height that doubles the local interfacial stress.
         """
-        h_ref = _pos(reference_height, "reference_height")
+        h_ref = check.positive(reference_height, "reference_height")
         return np.clip(1.0 + self.height(x, y) / h_ref, 0.0, None)
 
 
@@ -256,7 +243,7 @@ def rigid_surface_pressure(heights, spacing, young_modulus: float, poisson_ratio
     young_modulus : float
         E in Pa.
     poisson_ratio : float
-        nu in [0, 0.5].
+        nu in (-1, 0.5]; 0.5 (incompressible) is exact.
 
     Returns
     -------
@@ -265,16 +252,8 @@ def rigid_surface_pressure(heights, spacing, young_modulus: float, poisson_ratio
     h = np.asarray(heights, dtype=float)
     if h.ndim not in (1, 2) or not np.all(np.isfinite(h)):
         raise ValueError(f"heights: need a finite array of shape (nx,) or (ny, nx) in m, got shape {h.shape}")
-    E = _pos(young_modulus, "young_modulus", "Pa")
-    nu = float(poisson_ratio)
-    if not 0.0 <= nu <= 0.5:
-        raise ValueError(f"poisson_ratio: must lie in [0, 0.5], got {poisson_ratio!r}")
-    sp = np.atleast_1d(np.asarray(spacing, dtype=float))
-    sp = np.repeat(sp, h.ndim) if sp.size == 1 else sp
-    if sp.size != h.ndim:
-        raise ValueError(f"spacing: need {h.ndim} value(s) in m for heights of shape {h.shape}, got {spacing!r}")
-    for v in sp:
-        _pos(v, "spacing")
+    E = check.young_modulus(young_modulus, "young_modulus")
+    nu = check.poisson_ratio(poisson_ratio, "poisson_ratio")
+    sp = check.spacing(spacing, h.ndim)
     # the spectral module owns the transfer function (and its rho = 0 and Nyquist rules)
-    return pressure_from_deflection(h, tuple(float(v) for v in sp) if h.ndim == 2 else float(sp[0]),
-                                    E, nu).p
+    return pressure_from_deflection(h, sp if h.ndim == 2 else sp[0], E, nu).p

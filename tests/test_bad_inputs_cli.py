@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from tactilab.cli.main import main as cli_main
-from tactilab.experiments.emulator import emulate, read_record
+from tactilab.experiments.devices.emulator import emulate, read_record
 
 PROTOCOL = """name = "bad"
 seed = 3

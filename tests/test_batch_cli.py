@@ -18,9 +18,9 @@ from tactilab.core import batch as B
 from tactilab.core import task_rng
 from tactilab.data_schemas import DisplayDescription, Protocol
 from tactilab.experiments import SimulatedDisplay, TransductionModel, new_session, power_analysis
-from tactilab.experiments.analysis import read_design
-from tactilab.experiments.batch import sessions_by_subject
-from tactilab.experiments.responses import SimulatedObserver
+from tactilab.experiments.modelling.analysis import read_design
+from tactilab.experiments.modelling.batch import sessions_by_subject
+from tactilab.experiments.session.responses import SimulatedObserver
 from tactilab.forward import design_table
 
 DESIGN = "".join(f'[[trials]]\namplitude_m = "{a}um"\npitch_m = "{p}mm"\nspeed_m_per_s = "20mm/s"\nn = 50\n'
@@ -148,7 +148,7 @@ def test_metamer_scan_serial_and_on_a_scheduler(tmp_path, capsys, client):
     assert main([*argv[:-1], "--out", str(tmp_path / "w0")]) == 0
     assert "0 point(s) run, 8 skipped" in capsys.readouterr().out
     assert main([*argv, "--scan-pitch=-2mm", "--out", str(tmp_path)]) == 2
-    assert "--scan-pitch: must be > 0" in capsys.readouterr().err
+    assert "--scan-pitch: must be finite and > 0 m" in capsys.readouterr().err
 
 
 def test_experiment_fit_json(sessions, tmp_path, capsys):

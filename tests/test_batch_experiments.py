@@ -1,4 +1,4 @@
-"""Batch sweeps of tactilab.experiments.batch: power over (seed, N) and the design table, serial.
+"""Batch sweeps of tactilab.experiments.modelling.batch: power over (seed, N) and the design table, serial.
 
 Oracles: each sweep point equals the direct, in-process call with the same per-key generator
 (power) or the direct design table; a rerun resumes; bad input fails at the entry point. The
@@ -13,8 +13,8 @@ from scipy.special import ndtr
 
 from tactilab.core import task_rng
 from tactilab.data_schemas import Stimulus
-from tactilab.experiments.batch import design_sweep, power_sweep
-from tactilab.experiments.models import TransductionModel, power_analysis
+from tactilab.experiments.modelling.batch import design_sweep, power_sweep
+from tactilab.experiments.modelling.models import TransductionModel, power_analysis
 from tactilab.forward import design_table
 
 GRATING = Stimulus(amplitude_m=1e-6, pitch_m=4e-3, speed_m_per_s=0.02, duration_s=0.1)

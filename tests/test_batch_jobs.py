@@ -104,8 +104,13 @@ def test_compare_many_equals_direct_fits_and_records_the_broken_subject(serial_f
     direct = compare_models(fits)
     for m in MODELS:
         row = table.sel(subject="S02", model=m)
-        for col in ("elpd", "elpd_diff", "dse", "z", "pareto_k_max", "weight"):
+        for col in ("elpd", "elpd_diff", "dse", "pareto_k_max", "weight"):
             assert float(row[col]) == float(direct.loc[m, col]), (m, col)
+        # mcse (and z through it) comes from the chains' autocorrelation sums, which differ in the last
+        # bits between the batch (fits read back from its files) and in-memory fits (1.5e-15 relative
+        # measured with numpy 2.5.5); every other column is bitwise equal
+        for col in ("mcse", "z"):
+            assert float(row[col]) == pytest.approx(float(direct.loc[m, col]), rel=1e-12, abs=1e-15), (m, col)
         assert str(row["verdict"].values) == direct.loc[m, "verdict"]
         lo, hi = fits[m].params["threshold_strain"].ci95
         assert float(row["lower"].sel(parameter="threshold_strain")) == lo

@@ -14,7 +14,7 @@ import pytest
 
 from tactilab.cli.main import main as cli_main
 from tactilab.experiments import session_dataframe
-from tactilab.experiments.recording import SessionLog
+from tactilab.experiments.session.recording import SessionLog
 
 ROOT = Path(__file__).resolve().parents[1]
 VALIDATOR = ROOT / ".ci" / "node" / "node_modules" / ".bin" / "bids-validator"
@@ -122,7 +122,7 @@ def test_sidecar_describes_every_column_with_units_and_levels(sessions, tmp_path
 
 
 def test_one_name_per_quantity_and_flat_interval_columns(sessions, tmp_path):
-    from tactilab.experiments.export import export_session
+    from tactilab.experiments.session.export import export_session
 
     tsv = export_session(sessions[0], tmp_path)[0]
     table = pd.read_csv(tsv, sep="\t", keep_default_na=False, quoting=csv.QUOTE_NONE)

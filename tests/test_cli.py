@@ -111,7 +111,7 @@ def test_stress_command_reports_accuracy_warning_in_one_line(tmp_path, capsys):
     (["--depth=-1mm"], "depth: every depth must be finite and > 0"),
     (["--depth", "1furlong"], "unknown unit 'furlong'"),
     (["--depth", "1mm", "--young-modulus", "5mm"], "measures length, but a pressure is expected"),
-    (["--depth", "1mm", "--components", "zz,qq"], "unknown stress component"),
+    (["--depth", "1mm", "--components", "zz,qq"], "unknown component"),
 ])
 def test_stress_command_bad_options(tmp_path, capsys, argv, message):
     load = tmp_path / "load.npz"

@@ -140,7 +140,7 @@ BAD = [
     (dict(friction=-0.1), "friction: the Coulomb coefficient must be >= 0"),
     (dict(friction=math.nan), "friction: the Coulomb coefficient must be >= 0"),
     (dict(friction="0.5"), "friction: the Coulomb coefficient must be >= 0"),
-    (dict(normal_force=None, approach=math.nan), "approach: must be a finite number in m"),
+    (dict(normal_force=None, approach=math.nan), "approach: must be finite, got nan; give a finite number in m"),
     (dict(friction=math.inf, condition="sliding"), r"friction: .*inf only for condition='stuck'"),
     (dict(friction=0.2, condition="partial", tangential_force=(0.2, 0.0)), r"tangential_force: \|Q\| = 0.2 exceeds"),
     (dict(normal_force=None, mean_pressure=1e3), "mean_pressure: is the load of a periodic cell"),

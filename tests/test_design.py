@@ -10,8 +10,8 @@ import pytest
 
 from tactilab.data_schemas.experiment import Stimulus
 from tactilab.experiments import ModelDiscrimination
-from tactilab.experiments._transduction_data import p_correct_table
-from tactilab.experiments.design import information_gain, metameric_groups
+from tactilab.experiments.modelling._transduction_data import p_correct_table
+from tactilab.experiments.modelling.design import information_gain, metameric_groups
 
 
 def _sines(amps=(3e-6, 8e-6, 2e-5, 5e-5), pitches=(1.5e-3, 3e-3, 6e-3)):

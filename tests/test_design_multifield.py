@@ -14,9 +14,9 @@ from tactilab.data_schemas.design_config import ModelDiscriminationConfig
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
 from tactilab.experiments import SimulatedDisplay, SimulatedObserver, new_session, resume_session, session_dataframe
-from tactilab.experiments.design import ModelDiscrimination
-from tactilab.experiments.models import TransductionModel
-from tactilab.experiments.tasks import PlannedStimulus, plan_trial
+from tactilab.experiments.modelling.design import ModelDiscrimination
+from tactilab.experiments.modelling.models import TransductionModel
+from tactilab.experiments.procedures.tasks import PlannedStimulus, plan_trial
 
 PROTOCOL = """
 name = "designmulti"
@@ -89,7 +89,7 @@ def test_protocol_file_with_several_varied_fields_runs_through_the_cli(tmp_path,
     assert len({s["surface"] for s in shown}) == 2  # the design used both waveforms (they separate xx from zx)
 
     # compare works on the design session as on any other (shorter chains for the test)
-    import tactilab.experiments.analysis as analysis
+    import tactilab.experiments.modelling.analysis as analysis
 
     original = analysis.compare_sessions
 

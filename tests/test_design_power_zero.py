@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from tactilab.data_schemas.experiment import Stimulus
-from tactilab.experiments.models import TransductionModel, power_analysis
+from tactilab.experiments.modelling.models import TransductionModel, power_analysis
 
 TRUE = {"threshold_strain": 3e-4, "exponent": 1.2, "lapse": 0.02}
 

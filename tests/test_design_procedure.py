@@ -6,14 +6,13 @@ import json
 
 import pytest
 
-import tactilab.experiments.design  # noqa: F401 - registers method "model_discrimination"
 from tactilab.data_schemas.design_config import ModelDiscriminationConfig
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
 from tactilab.experiments import SimulatedDisplay, SimulatedObserver, make_procedure, new_session, resume_session
 from tactilab.experiments import session_dataframe, session_status
-from tactilab.experiments.design import ModelDiscrimination, from_config
-from tactilab.experiments.models import TransductionModel
+from tactilab.experiments.modelling.design import ModelDiscrimination, from_config
+from tactilab.experiments.modelling.models import TransductionModel
 
 STIMULUS = {"amplitude_m": "5um", "pitch_m": "3mm", "speed_m_per_s": "20mm/s", "duration_s": "50ms",
             "ramp_s": "5ms"}
@@ -104,7 +103,7 @@ def test_bad_configurations(changes, match):
 
 
 def test_progress_line_shows_the_model_probabilities_and_the_verdict():
-    from tactilab.experiments.runner import format_estimate
+    from tactilab.experiments.session.runner import format_estimate
 
     line = format_estimate({"threshold": None, "p_zx@1mm": 0.934, "p_zx@2mm": 0.066, "verdict": "undecided"},
                            "pitch_m")

@@ -13,9 +13,9 @@ import pytest
 
 from tactilab.cli.main import main as cli_main
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.analysis import fit_conditions
-from tactilab.experiments.recording import SessionLog
-from tactilab.experiments.session_report import session_summary, summary_lines
+from tactilab.experiments.modelling.analysis import fit_conditions
+from tactilab.experiments.session.recording import SessionLog
+from tactilab.experiments.modelling.session_report import session_summary, summary_lines
 
 PROTOCOL = """
 name = "status"
@@ -170,8 +170,7 @@ def test_a_run_that_ends_in_a_display_fault_still_prints_its_summary(tmp_path, m
     the summary block reports both on stdout, the error stays one line on stderr, exit 3."""
     import dataclasses
 
-    from tactilab.experiments import factory
-    from tactilab.experiments.simulated_display import SimulatedDisplay
+    from tactilab.experiments.devices import SimulatedDisplay, registry
 
     class LateThenStale(SimulatedDisplay):
         plays = 0
@@ -182,11 +181,12 @@ def test_a_run_that_ends_in_a_display_fault_still_prints_its_summary(tmp_path, m
             late = dataclasses.replace(report, late=report.frames_sent // 4)
             return dataclasses.replace(late, stale=3) if LateThenStale.plays == 7 else late
 
-    monkeypatch.setattr(factory, "display_from_spec",
+    # a device kind registered for this test only: the CLI opens it by name (--display late_then_stale)
+    monkeypatch.setitem(registry._DEVICES, "late_then_stale",
                         lambda spec, description, **kw: LateThenStale(description, realtime=False))
     (tmp_path / "p.toml").write_text(PROTOCOL)
     code = cli_main(["experiment", "run", str(tmp_path / "p.toml"), "--subject", "S03", "--responses", "simulated",
-                     "--no-wait", "--quiet", "--out", str(tmp_path)])
+                     "--display", "late_then_stale", "--no-wait", "--quiet", "--out", str(tmp_path)])
     captured = capsys.readouterr()
     assert code == 3 and captured.err.count("\n") == 1 and "ALARM" in captured.err
     out = captured.out
@@ -199,7 +199,7 @@ def test_a_run_that_ends_in_a_display_fault_still_prints_its_summary(tmp_path, m
 
 
 def test_a_running_session_says_who_runs_it(weak_run, tmp_path, capsys):
-    from tactilab.experiments.recording import Recorder
+    from tactilab.experiments.session.recording import Recorder
 
     source = weak_run / "s" / "sub-S01_ses-01_task-status.sqlite"
     if not source.exists():
@@ -218,9 +218,9 @@ def test_a_running_session_says_who_runs_it(weak_run, tmp_path, capsys):
 
 def test_an_interrupted_run_reports_the_stop_and_exports_nothing(tmp_path, monkeypatch, capsys):
     """q pressed in trial 2: exit 130, the summary says it stopped cleanly, --export says why it did not run."""
-    from tactilab.experiments import factory
+    from tactilab.experiments import session
 
-    real = factory.make_responses
+    real = session.make_responses
 
     class QuitsInTrial2:
         def __init__(self, inner):
@@ -241,7 +241,7 @@ def test_an_interrupted_run_reports_the_stop_and_exports_nothing(tmp_path, monke
         def __getattr__(self, name):  # name, config, ...: the real source's
             return getattr(self.inner, name)
 
-    monkeypatch.setattr(factory, "make_responses", lambda *a, **kw: QuitsInTrial2(real(*a, **kw)))
+    monkeypatch.setattr(session, "make_responses", lambda *a, **kw: QuitsInTrial2(real(*a, **kw)))
     (tmp_path / "p.toml").write_text(PROTOCOL)
     code = cli_main(["experiment", "run", str(tmp_path / "p.toml"), "--subject", "S04", "--responses", "simulated",
                      "--no-wait", "--quiet", "--out", str(tmp_path), "--export", "bids", "--json"])

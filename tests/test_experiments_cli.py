@@ -15,10 +15,11 @@ import pytest
 
 from tactilab.cli.main import main as cli_main
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments import factory
-from tactilab.experiments.export import export_session, read_trials_csv, session_dataframe
-from tactilab.experiments.recording import Recorder, RecordingError, SessionLog, _FileLock
-from tactilab.experiments.resume import replay_session
+from tactilab.experiments import devices
+from tactilab.experiments.session import factory
+from tactilab.experiments.session.export import export_session, read_trials_csv, session_dataframe
+from tactilab.experiments.session.recording import Recorder, RecordingError, SessionLog, _FileLock
+from tactilab.experiments.session.resume import replay_session
 
 PROTOCOL = """
 name = "cli"
@@ -130,7 +131,7 @@ def test_user_mistakes_give_one_line_and_exit_2(session, tmp_path, capsys):
         (["run", str(toml), "--subject", "Jane Doe"], "--subject: must be 1-32 letters or digits"),
         (["run", str(toml), "--subject", "S01", "--session", "1 2"], "--session: must be 1-32 letters"),
         (["run", str(toml), "--subject", "S02", "--device", "hologram"], "--device: must be one of"),
-        (["run", str(toml), "--subject", "S02", "--display", "tcp://x:1"], "--display: must be 'simulated'"),
+        (["run", str(toml), "--subject", "S02", "--display", "tcp://x:1"], "--display: device 'tcp' is not registered"),
         (["run", str(toml), "--subject", "S02", "--responses", "telepathy"], "--responses: must be 'terminal'"),
         (["run", str(toml), "--subject", "S02", "--responses", "terminal"], "standard input is not a terminal"),
         (["run", str(tmp_path / "missing.toml"), "--subject", "S02"], "protocol file not found"),
@@ -256,9 +257,9 @@ def test_make_responses_options():
 
 
 def test_factory_specs(tmp_path):
-    assert factory.description_from_spec("stress2").display_id == "STReSS2"
+    assert devices.description_from_spec("stress2").display_id == "STReSS2"
     path = DisplayDescription.braille_row().save(tmp_path / "d.json")
-    assert factory.description_from_spec(str(path)) == DisplayDescription.braille_row()
+    assert devices.description_from_spec(str(path)) == DisplayDescription.braille_row()
     for n in range(1, 1000):
         (tmp_path / f"sub-S9_ses-{n:02d}_task-t.sqlite").touch()
     with pytest.raises(ValueError, match="folder: .* already holds 999 sessions"):
@@ -291,12 +292,12 @@ def test_factory_rejects_bad_specs(tmp_path):
     protocol = Protocol.from_toml(protocol_file)
     description = DisplayDescription.braille_row()
     with pytest.raises(ValueError, match=r"spec: must be one of \['braille-row', 'stress2'\] .*got 'x.json'"):
-        factory.description_from_spec("x.json")  # no such file
-    with pytest.raises(ValueError, match="spec: must be 'simulated' or 'udp://HOST:PORT', got 'tcp://h:1'"):
-        factory.display_from_spec("tcp://h:1", description)
+        devices.description_from_spec("x.json")  # no such file
+    with pytest.raises(ValueError, match=r"spec: device 'tcp' is not registered \(known: \[.*'simulated', 'udp'.*\]\)"):
+        devices.open_display("tcp://h:1", description)
     with pytest.raises(ValueError, match="spec: must be 'terminal' or 'simulated', got 'mind'"):
         factory.responses_from_spec("mind", protocol)
-    display = factory.display_from_spec("simulated", description, realtime=False)
+    display = devices.open_display("simulated", description, realtime=False)
     try:
         with pytest.raises(ValueError, match="threshold: must be a strain > 0, got '0'"):
             factory.make_responses("simulated", protocol, display, threshold="0")
@@ -344,7 +345,7 @@ def test_resume_replays_the_log_once(session, monkeypatch, capsys):
     with contextlib.closing(sqlite3.connect(session)) as db, db:
         db.execute("DELETE FROM events WHERE kind = 'session_complete' OR trial_index >= 3")
         db.execute("DELETE FROM trials WHERE trial_index >= 3")
-    from tactilab.experiments import resume
+    from tactilab.experiments.session import resume
 
     calls = []
     original = resume.replay_log

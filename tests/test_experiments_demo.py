@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 
 from tactilab.demo.experiments import run_demo
-from tactilab.experiments.recording import SessionLog
+from tactilab.experiments.session.recording import SessionLog
 
 
 def test_demo_runs_a_recorded_exported_and_plotted_session(tmp_path):

@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.display import Display, DisplayError, render_drive, virtual_height
-from tactilab.experiments.display_limits import check_frames, limit_violations, limits, resolve_command
-from tactilab.experiments.display_strain import (
+from tactilab.experiments.devices.display import Display, DisplayError, render_drive, virtual_height
+from tactilab.experiments.devices.display_limits import check_frames, limit_violations, limits, resolve_command
+from tactilab.experiments.devices.display_strain import (
     row_strain,
     sliding_surface_strain_amplitude,
     strain_gain_line_load,
 )
-from tactilab.experiments.simulated_display import SimulatedDisplay
+from tactilab.experiments.devices.simulated_display import SimulatedDisplay
 
 STIM = dict(amplitude_m=10e-6, pitch_m=2.0e-3, speed_m_per_s=0.04, duration_s=0.2, frame_rate_hz=1000.0)
 
@@ -136,14 +136,14 @@ def test_deflection_command_gain_is_one_to_one():
 
 @pytest.mark.parametrize("change,match", [
     ({"amplitude_m": -1e-6}, "amplitude_m: must be a finite number >= 0"),
-    ({"pitch_m": 0.0}, "pitch_m: must be a finite number > 0"),
+    ({"pitch_m": 0.0}, "pitch_m: must be finite and > 0 m, got 0.0"),
     ({"speed_m_per_s": math.inf}, "speed_m_per_s: must be finite"),
-    ({"duration_s": math.nan}, "duration_s: must be a finite number > 0"),
-    ({"frame_rate_hz": -5.0}, "frame_rate_hz: must be a finite number > 0"),
+    ({"duration_s": math.nan}, "duration_s: must be finite and > 0 s, got nan"),
+    ({"frame_rate_hz": -5.0}, "frame_rate_hz: must be finite and > 0 Hz, got -5.0"),
     ({"ramp_s": 0.15}, r"ramp_s: must lie in \[0, duration_s / 2\]"),
     ({"phase_rad": math.nan}, "phase_rad: must be finite"),
-    ({"depth_m": 0.0}, "depth_m: must be a finite number > 0"),
-    ({"young_modulus_pa": True}, "young_modulus_pa: must be a finite number > 0"),
+    ({"depth_m": 0.0}, "depth_m: every depth must be finite and > 0 m"),
+    ({"young_modulus_pa": True}, "young_modulus_pa: Young's modulus must be finite and > 0 Pa, got True"),
     ({"gain": math.nan}, "gain: must be finite"),
     ({"surface": "triangle"}, "surface: must be 'sinusoid' or 'square'"),
     ({"command": "force"}, "command: must be 'traction' or 'deflection'"),
@@ -162,8 +162,8 @@ def test_command_without_a_limit_is_rejected():
     (np.zeros((5, 3)), 1000.0, r"frames: must have shape \(n_frames >= 1, n_tractors = 10\)"),
     (np.zeros((0, 10)), 1000.0, r"got shape \(0, 10\)"),
     (np.full((4, 10), np.nan), 1000.0, "frames: must be finite, got nan at frame 0, tractor 0"),
-    (np.zeros((4, 10)), 0.0, "frame_rate_hz: must be a finite number > 0"),
-    (np.zeros((4, 10)), True, "frame_rate_hz: must be a finite number > 0"),
+    (np.zeros((4, 10)), 0.0, "frame_rate_hz: must be finite and > 0 Hz, got 0.0; give e.g. 1000.0"),
+    (np.zeros((4, 10)), True, "frame_rate_hz: must be finite and > 0 Hz, got True"),
     (np.zeros((4, 10)), 2000.0, "frame_rate_hz: 2000.0 Hz exceeds the refresh rate of display "
                                 "'VirtualBrailleRow', 1000.0 Hz"),
 ])
@@ -190,7 +190,7 @@ class _Recorder(Display):
         self.zeroed = 0
 
     def _play(self, frames, rate):
-        from tactilab.experiments.display import PlaybackReport
+        from tactilab.experiments.devices.display import PlaybackReport
         return PlaybackReport(frames_sent=len(frames), late=0, missing=0, acked=len(frames))
 
     def _zero(self):
@@ -251,9 +251,9 @@ def test_simulated_display_deflection_needs_stiffness():
 
 
 @pytest.mark.parametrize("kwargs,match", [
-    ({"depth_m": -1.0}, "depth_m: must be a finite number > 0"),
-    ({"young_modulus_pa": math.nan}, "young_modulus_pa: must be a finite number > 0"),
-    ({"tractor_stiffness_pa_per_m": 0.0}, "tractor_stiffness_pa_per_m: must be a finite number > 0"),
+    ({"depth_m": -1.0}, "depth_m: every depth must be finite and > 0 m"),
+    ({"young_modulus_pa": math.nan}, "young_modulus_pa: Young's modulus must be finite and > 0 Pa, got nan"),
+    ({"tractor_stiffness_pa_per_m": 0.0}, "tractor_stiffness_pa_per_m: must be finite and > 0 Pa/m, got 0.0"),
     ({"x_m": [[0.0]]}, "x_m: must be a non-empty 1-D array"),
     ({"x_m": [np.nan]}, "x_m: must be a non-empty 1-D array"),
 ])
@@ -292,7 +292,7 @@ def test_3d_patches_of_long_tractors_approach_the_plane_model():
 @pytest.mark.parametrize("change,match", [
     ({"x_m": np.array([0.0, np.nan])}, "x_m: positions must be finite"),
     ({"amplitude_m": math.nan}, "amplitude_m: must be a finite number in m, got nan"),
-    ({"pitch_m": math.inf}, "pitch_m: must be a finite number > 0 m, got inf"),
+    ({"pitch_m": math.inf}, "pitch_m: must be finite and > 0 m, got inf"),
     ({"phase_rad": math.nan}, "phase_rad: must be a finite number in rad, got nan"),
 ])
 def test_virtual_height_rejects_non_finite_values(change, match):
@@ -306,9 +306,42 @@ def test_virtual_height_rejects_non_finite_values(change, match):
 
 @pytest.mark.parametrize("args,match", [
     ((math.nan, 2e-3, 1e-3), "amplitude_m: must be a finite number in m, got nan"),
-    ((1e-5, 0.0, 1e-3), "pitch_m: must be a finite number > 0 m, got 0.0"),
-    ((1e-5, 2e-3, math.nan), "depth_m: must be a finite number > 0 m, got nan"),
+    ((1e-5, 0.0, 1e-3), "pitch_m: must be finite and > 0 m, got 0.0"),
+    ((1e-5, 2e-3, math.nan), "depth_m: every depth must be finite and > 0 m .*, got nan"),
 ])
 def test_sliding_surface_strain_amplitude_rejects_bad_values(args, match):
     with pytest.raises(ValueError, match=match):
         sliding_surface_strain_amplitude(*args)
+
+
+def test_steady_drive_is_the_limited_drive_between_the_ramps_and_models_read_its_strain():
+    """``steady_drive`` renders and limits as the safety layer does and drops the ramps; the
+    strain at another depth equals the Flamant rows at that depth; a transduction model of the
+    display's strain reads exactly those rows (the one route shared with the simulated observer)."""
+    from tactilab.data_schemas.experiment import Stimulus
+    from tactilab.experiments import TransductionModel
+    from tactilab.experiments.devices import limit_drive
+
+    display = SimulatedDisplay(DisplayDescription.braille_row())
+    stimulus = Stimulus(amplitude_m=40e-6, pitch_m=2e-3, speed_m_per_s=0.04, duration_s=0.2, ramp_s=0.02)
+    frames = render_drive(display.description, **stimulus.model_dump(), depth_m=display.depth_m,
+                          young_modulus_pa=display.young_modulus_pa)
+    applied, events = limit_drive(frames, stimulus.frame_rate_hz, display.description, display.command)
+    assert events  # 40 um asks for more traction than the display gives: the limiter acts
+    steady = display.steady_drive(stimulus)
+    assert steady.shape == (len(frames) - 40, display.description.n_tractors)  # 20 ramp frames at each end
+    np.testing.assert_array_equal(steady, applied[20:-20])
+    assert not limit_violations(steady, stimulus.frame_rate_hz, display.description)
+    q = display.line_loads(steady)
+    for depth in (0.5e-3, 2e-3):
+        exx, exz = row_strain(display.x_m, display.description.tractor_x_m, q, depth, display.young_modulus_pa,
+                              display.description.tractor_width_m)
+        got = display.strain(steady, depth_m=depth)
+        np.testing.assert_array_equal(got[0], exx)
+        np.testing.assert_array_equal(got[1], exz)
+    np.testing.assert_array_equal(display.strain(steady)[0], display.strain(steady, depth_m=display.depth_m)[0])
+    exx, exz = display.strain(steady, depth_m=2e-3)
+    model = TransductionModel("xx@2mm", statistic="rms", source="display", display=display)
+    assert model.statistic_of(stimulus) == pytest.approx(float(np.sqrt(np.mean(exx * exx))), rel=1e-12)
+    with pytest.raises(ValueError, match="depth_m: every depth must be finite and > 0 m .*, got -0.001"):
+        display.strain(steady, depth_m=-1e-3)

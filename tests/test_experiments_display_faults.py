@@ -12,9 +12,9 @@ from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
 from tactilab.experiments import (
     DisplayFault, SessionLog, SimulatedObserver, UdpDisplay, emulate, new_session, resume_session, session_status)
-from tactilab.experiments.display import PlaybackReport
-from tactilab.experiments.runner import MAX_UNACKED_FRACTION, display_fault
-from tactilab.experiments.link import ACK, ARM, ARMED, DISARM, FRAME, STATUS_CODE, ZERO, decode, encode
+from tactilab.experiments.devices.display import PlaybackReport
+from tactilab.experiments.devices import MAX_UNACKED_FRACTION, display_fault
+from tactilab.experiments.devices.link import ACK, ARM, ARMED, DISARM, FRAME, STATUS_CODE, ZERO, decode, encode
 
 PROTOCOL = {
     "name": "faults", "seed": 3, "iti_s": 0, "task": {"kind": "yes_no"},
@@ -143,7 +143,7 @@ def test_the_fault_rule_allows_a_small_stated_fraction_of_lost_acknowledgements(
 
 def test_an_absent_device_is_found_before_any_session_file_exists(tmp_path, capsys):
     """A ZERO round trip comes first: no device, no file (and one line from the command line)."""
-    from tactilab.experiments.display import DisplayError
+    from tactilab.experiments.devices.display import DisplayError
 
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
         probe.bind(("127.0.0.1", 0))

@@ -24,12 +24,12 @@ from hypothesis import HealthCheck, given, settings
 
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
-from tactilab.experiments.display import limit_violations
-from tactilab.experiments.emulator import emulate, read_record
-from tactilab.experiments.recording import SessionLog
-from tactilab.experiments.responses import SimulatedObserver
-from tactilab.experiments.runner import new_session
-from tactilab.experiments.udp import UdpDisplay
+from tactilab.experiments.devices.display import limit_violations
+from tactilab.experiments.devices.emulator import emulate, read_record
+from tactilab.experiments.session.recording import SessionLog
+from tactilab.experiments.session.responses import SimulatedObserver
+from tactilab.experiments.session.runner import new_session
+from tactilab.experiments.devices.udp import UdpDisplay
 
 DESCRIPTION = DisplayDescription.braille_row(display_id="FuzzRow", max_slew_rate_per_s=40.0, max_duty_cycle=0.6)
 

@@ -20,7 +20,7 @@ from tactilab.experiments import (
     replay_session, resume_session, session_status)
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
-from tactilab.experiments import registry
+from tactilab.experiments.procedures import registry
 
 CANARY = "tactilab_canary_mod"
 CANARY_CODE = """

@@ -11,11 +11,11 @@ from scipy.optimize import brentq
 
 from tactilab.data_schemas.experiment import (
     ConstantStimuliConfig, Protocol, PsiConfig, StaircaseConfig)
-from tactilab.experiments.build import make_procedure
+from tactilab.experiments.procedures.build import make_procedure
 from tactilab.experiments.procedures import ConstantStimuli, PlannedLevel, Staircase, replay
-from tactilab.experiments.psi import Psi, psychometric, resolve_likelihood
-from tactilab.experiments.registry import UnregisteredError, register_likelihood, register_procedure
-from tactilab.experiments.tasks import outcome_of, plan_trial, score
+from tactilab.experiments.procedures.psi import Psi, psychometric, resolve_likelihood
+from tactilab.experiments.procedures.registry import UnregisteredError, register_likelihood, register_procedure
+from tactilab.experiments.procedures.tasks import outcome_of, plan_trial, score
 
 
 def staircase(**track) -> Staircase:

@@ -14,8 +14,8 @@ import pytest
 
 from tactilab.cli.main import main as cli_main
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.emulator import LOOPBACK, emulate, read_record
-from tactilab.experiments.link import ARMED, FRAME, STATUS_CODE, RawLink
+from tactilab.experiments.devices.emulator import LOOPBACK, emulate, read_record
+from tactilab.experiments.devices.link import ARMED, FRAME, STATUS_CODE, RawLink
 
 DESC = DisplayDescription.braille_row(n_tractors=2, max_slew_rate_per_s=100.0)  # 5 kPa per 1 ms tick
 FULL = DESC.max_traction_pa
@@ -98,7 +98,7 @@ def test_the_host_skips_late_frames_forward_and_never_bursts(device, monkeypatch
     the values after the stall are re-limited to one slew step per frame, and the device never
     has to clamp."""
     from tactilab.experiments import SafeDisplay, UdpDisplay
-    from tactilab.experiments import udp
+    from tactilab.experiments.devices import udp
 
     link, record = device
     port = link.sock.getpeername()[1]

@@ -15,12 +15,12 @@ import pytest
 from tactilab.cli.main import main as cli_main
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
-from tactilab.experiments.display import Display, PlaybackReport
-from tactilab.experiments.build import make_procedure
-from tactilab.experiments.recording import Recorder, RecordingError, SessionLockedError, SessionLog
-from tactilab.experiments.responses import SimulatedObserver
-from tactilab.experiments.resume import replay_session, resume_session, session_status
-from tactilab.experiments.runner import Runner, new_session
+from tactilab.experiments.devices.display import Display, PlaybackReport
+from tactilab.experiments.procedures.build import make_procedure
+from tactilab.experiments.session.recording import Recorder, RecordingError, SessionLockedError, SessionLog
+from tactilab.experiments.session.responses import SimulatedObserver
+from tactilab.experiments.session.resume import replay_session, resume_session, session_status
+from tactilab.experiments.session.runner import Runner, new_session
 
 PROTOCOL = {
     "name": "rec", "seed": 11, "iti_s": 0, "task": {"kind": "2ifc"},

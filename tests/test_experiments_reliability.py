@@ -28,12 +28,12 @@ import pytest
 
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
-from tactilab.experiments import recording
-from tactilab.experiments.recording import Recorder, RecordingError, SessionLockedError, SessionLog
-from tactilab.experiments.responses import SimulatedObserver
-from tactilab.experiments.resume import replay_session, resume_session, session_status
-from tactilab.experiments.runner import new_session
-from tactilab.experiments.simulated_display import SimulatedDisplay
+from tactilab.experiments.session import recording
+from tactilab.experiments.session.recording import Recorder, RecordingError, SessionLockedError, SessionLog
+from tactilab.experiments.session.responses import SimulatedObserver
+from tactilab.experiments.session.resume import replay_session, resume_session, session_status
+from tactilab.experiments.session.runner import new_session
+from tactilab.experiments.devices.simulated_display import SimulatedDisplay
 
 pytestmark = [
     pytest.mark.skipif(not hasattr(os, "fork"), reason="needs os.fork (POSIX)"),

@@ -15,10 +15,10 @@ from scipy.special import ndtr
 from tactilab.data_schemas.experiment import Protocol, Stimulus
 from tactilab.experiments.procedures import PlannedLevel
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.responses import (
+from tactilab.experiments.session.responses import (
     SimulatedObserver, TerminalResponses, receptor_strain, rendered_strain)
-from tactilab.experiments.simulated_display import SimulatedDisplay
-from tactilab.experiments.tasks import plan_trial
+from tactilab.experiments.devices.simulated_display import SimulatedDisplay
+from tactilab.experiments.procedures.tasks import plan_trial
 
 
 def protocol(task, **extra) -> Protocol:
@@ -133,9 +133,9 @@ def test_observer_is_reproducible_per_trial_and_times_responses_from_onset():
 
 
 @pytest.mark.parametrize("kwargs,match", [
-    ({"threshold_strain": 0.0}, "threshold_strain: must be finite and > 0"),
-    ({"exponent": math.nan}, "exponent: must be finite and > 0"),
-    ({"depth_m": -1.0}, "depth_m: must be finite and > 0"),
+    ({"threshold_strain": 0.0}, "threshold_strain: must be finite and > 0 1, got 0.0"),
+    ({"exponent": math.nan}, "exponent: must be finite and > 0 1, got nan"),
+    ({"depth_m": -1.0}, "depth_m: every depth must be finite and > 0 m"),
     ({"criterion": math.inf}, "criterion: must be finite"),
 ])
 def test_observer_parameters_are_validated(kwargs, match):

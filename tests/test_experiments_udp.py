@@ -20,12 +20,12 @@ from hypothesis import strategies as st
 
 from tactilab.cli.main import main as cli_main
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.display import DisplayError, render_drive
-from tactilab.experiments.display_limits import limit_violations
-from tactilab.experiments.emulator import LOOPBACK, emulate, read_record
-from tactilab.experiments.safety import SafeDisplay
-from tactilab.experiments.link import ARM, ARMED, DISARM, RawLink
-from tactilab.experiments.udp import (
+from tactilab.experiments.devices.display import DisplayError, render_drive
+from tactilab.experiments.devices.display_limits import limit_violations
+from tactilab.experiments.devices.emulator import LOOPBACK, emulate, read_record
+from tactilab.experiments.devices.safety import SafeDisplay
+from tactilab.experiments.devices.link import ARM, ARMED, DISARM, RawLink
+from tactilab.experiments.devices.udp import (
     ACK,
     FRAME,
     STATUS_CODE,
@@ -285,9 +285,9 @@ def test_wrong_tractor_count_and_watchdog_trip_raise_and_zero(tmp_path):
 HOST = """
 import sys, numpy as np
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.display import render_drive
-from tactilab.experiments.safety import SafeDisplay
-from tactilab.experiments.udp import UdpDisplay
+from tactilab.experiments.devices.display import render_drive
+from tactilab.experiments.devices.safety import SafeDisplay
+from tactilab.experiments.devices.udp import UdpDisplay
 desc = DisplayDescription.stress2()
 safe = SafeDisplay(UdpDisplay(desc, "127.0.0.1", int(sys.argv[1]), max_skipped_fraction=1.0), print)
 safe.load(render_drive(desc, amplitude_m=10e-6, pitch_m=2.4e-3, speed_m_per_s=0.04, duration_s=30.0,

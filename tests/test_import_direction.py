@@ -113,3 +113,32 @@ def test_door_checker_catches_a_breach():
         "tactilab.forward.halfspace.spectral"}
     assert door_breaches("from .halfspace import HalfSpace", True) == set()
     assert door_breaches("from .contact.hertz import HertzContact", True, "contact") == {".contact.hertz"}
+
+
+FACES = {"tactilab.core", "tactilab.data_schemas", "tactilab.forward", "tactilab.inversion", "tactilab.experiments",
+         "tactilab.demo"}
+
+
+def deep_imports(source: str) -> set[str]:
+    """Imports of tactilab modules other than the part faces (``from tactilab.forward import X`` is fine)."""
+    found = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("tactilab."):
+            if node.module not in FACES:
+                found.add(node.module)
+        elif isinstance(node, ast.Import):
+            found |= {a.name for a in node.names if a.name.startswith("tactilab.") and a.name not in FACES}
+    return found
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "demo").glob("*.py")), ids=lambda p: p.name)
+def test_the_demo_imports_only_from_faces(path):
+    """The demo is what users copy: it imports what they can import, from the faces."""
+    deep = deep_imports(path.read_text())
+    assert not deep, f"{path}: import from the faces, not {sorted(deep)} (add a missing name to its face's _EXPORTS)"
+
+
+def test_deep_import_checker():
+    assert deep_imports("from tactilab.forward.tractors import pair_phi_psi") == {"tactilab.forward.tractors"}
+    assert deep_imports("import tactilab.inversion.mcmc") == {"tactilab.inversion.mcmc"}
+    assert deep_imports("from tactilab.forward import HalfSpace\nfrom .sections import x") == set()

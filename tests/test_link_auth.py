@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.display import DisplayError
-from tactilab.experiments.emulator import emulate, read_record
-from tactilab.experiments.link import (
+from tactilab.experiments.devices.display import DisplayError
+from tactilab.experiments.devices.emulator import emulate, read_record
+from tactilab.experiments.devices.link import (
     ARM, ARMED, DISARM, FRAME, STATUS, STATUS_CODE, ZERO, FrameFormatError, RawLink, decode, encode)
-from tactilab.experiments.runner import display_fault
-from tactilab.experiments.udp import UdpDisplay
+from tactilab.experiments.devices import display_fault
+from tactilab.experiments.devices.udp import UdpDisplay
 
 DESC = DisplayDescription.braille_row(n_tractors=2)
 
@@ -168,8 +168,8 @@ def test_a_sequence_reset_is_refused(device):
 CLIENT = """
 import sys
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.display import DisplayError
-from tactilab.experiments.udp import UdpDisplay
+from tactilab.experiments.devices.display import DisplayError
+from tactilab.experiments.devices.udp import UdpDisplay
 display = UdpDisplay(DisplayDescription.braille_row(n_tractors=2), "127.0.0.1", int(sys.argv[1]))
 try:
     display.zero()

@@ -15,10 +15,10 @@ import pandas as pd
 import pytest
 
 from tactilab.data_schemas.experiment import Protocol, Stimulus
-from tactilab.experiments.models import TransductionModel, power_analysis
-from tactilab.experiments._transduction_data import TransductionLikelihood, conditions, default_priors, p_correct_table
-from tactilab.experiments.responses import SimulatedObserver
-from tactilab.experiments.tasks import TrialPlan, blank
+from tactilab.experiments.modelling.models import TransductionModel, power_analysis
+from tactilab.experiments.modelling._transduction_data import TransductionLikelihood, conditions, default_priors, p_correct_table
+from tactilab.experiments.session.responses import SimulatedObserver
+from tactilab.experiments.procedures.tasks import TrialPlan, blank
 
 GRATING = Stimulus(amplitude_m=1e-6, pitch_m=4e-3, speed_m_per_s=0.02, duration_s=0.1)
 

@@ -10,8 +10,8 @@ from tactilab.cli.experiment_analysis import add_subcommands
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
 from tactilab.experiments import SimulatedDisplay, new_session
-from tactilab.experiments.models import TransductionModel
-from tactilab.experiments.responses import SimulatedObserver
+from tactilab.experiments.modelling.models import TransductionModel
+from tactilab.experiments.session.responses import SimulatedObserver
 
 DESIGN = """
 [[trials]]
@@ -60,7 +60,7 @@ def test_fit_per_condition(tmp_path, capsys):
     path = tmp_path / "s.sqlite"
     new_session(protocol, path, SimulatedDisplay(DisplayDescription.braille_row()), observer, subject="S01",
                 realtime=False)
-    from tactilab.experiments.analysis import fit_summary
+    from tactilab.experiments.modelling.analysis import fit_summary
 
     (line,) = fit_summary(path)
     assert line.startswith("amplitude threshold ") and "95 % interval" in line and "60 trials" in line

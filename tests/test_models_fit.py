@@ -14,11 +14,11 @@ import pytest
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
 from tactilab.experiments import SimulatedDisplay, new_session
-from tactilab.experiments.models import (
+from tactilab.experiments.modelling.models import (
     TransductionModel, compare_models, elpd_mcse, fit_transduction, power_analysis)
-from tactilab.experiments.analysis import compare_sessions, plot_comparison
-from tactilab.experiments._transduction_data import TransductionLikelihood, conditions, default_priors
-from tactilab.experiments.responses import SimulatedObserver
+from tactilab.experiments.modelling.analysis import compare_sessions, plot_comparison
+from tactilab.experiments.modelling._transduction_data import TransductionLikelihood, conditions, default_priors
+from tactilab.experiments.session.responses import SimulatedObserver
 
 from test_models import GRATING, _frame
 
@@ -148,7 +148,7 @@ def test_yes_no_fit_recovers_the_false_alarm_rate():
     """Yes/no with 25 % blank trials: false_alarm is a parameter of the posterior and is recovered."""
     import pandas as pd
 
-    from tactilab.experiments.tasks import blank
+    from tactilab.experiments.procedures.tasks import blank
 
     model, rng, rows = TransductionModel("zx@1mm"), np.random.default_rng(5), []
     stims = [GRATING.model_copy(update={"amplitude_m": a}) for a in AMPS] + [blank(GRATING)]

@@ -15,7 +15,7 @@ import pytest
 from scipy.stats import norm
 
 from tactilab.experiments import fit_psychometric
-from tactilab.experiments.psychometric import SIGMOID_ALIASES, SIGMOIDS, ParamSummary, sigmoid_core
+from tactilab.experiments.modelling.psychometric import SIGMOID_ALIASES, SIGMOIDS, ParamSummary, sigmoid_core
 
 C_NORM = norm.ppf(0.95) - norm.ppf(0.05)
 
@@ -115,7 +115,7 @@ def test_emcee_agrees_with_the_grid():
 
 
 def test_interval_ends_match_a_finer_grid(monkeypatch):
-    from tactilab.experiments import _psychometric_grid as grid
+    from tactilab.experiments.modelling import _psychometric_grid as grid
 
     x = np.linspace(0.5, 3.5, 7)
     n = np.full(7, 40)

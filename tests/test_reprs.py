@@ -63,7 +63,7 @@ def test_mcmc_result_repr():
 
 
 def test_run_result_repr():
-    from tactilab.experiments.runner import RunResult
+    from tactilab.experiments.session.runner import RunResult
 
     res = RunResult(path=Path("sessions/sub-01"), status="complete", n_completed=40,
                     estimate={"threshold_m": 2.3456e-6, "procedure": "staircase"})

@@ -123,7 +123,7 @@ def check_inputs(skin, gap, spacing, *, normal_force, mean_pressure, approach, p
         if periodic:
             raise ValueError(f"approach: a periodic contact has no defined approach (the mean displacement of a "
                              f"half-space under a mean pressure is unbounded), got {approach!r}; give mean_pressure")
-        approach = check.finite(approach, "approach", "m", "give the rigid approach in m")
+        approach = check.finite(approach, "approach", "m")
     mu = float(friction) if isinstance(friction, (int, float, np.integer, np.floating)) \
         and not isinstance(friction, (bool, np.bool_)) else math.nan
     if math.isnan(mu) or mu < 0 or (math.isinf(mu) and condition != "stuck"):

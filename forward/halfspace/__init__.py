@@ -23,7 +23,7 @@ _EXPORTS = {
     "dcfft_stress": "dcfft",
     "DeflectionLoad": "continuous",
     "dottest": "adjoint",
-    "FieldResult": "facade",
+    "FieldResult": "solve",
     "HalfSpace": "facade",
     "INVARIANTS": "fields",
     "invariants": "fields",
