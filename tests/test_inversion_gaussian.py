@@ -146,7 +146,7 @@ def test_extremes_noise(rng):
 
 def test_validation(rng):
     op, prior, cov, truth, data = setup(n=32, rng=rng)
-    with pytest.raises(ValueError, match="variance: prior variance"):
+    with pytest.raises(ValueError, match="variance: must be finite and > 0 model units squared"):
         StationaryPrior(variance=0.0)
     with pytest.raises(ValueError, match="correlation_length"):
         StationaryPrior(variance=1.0, correlation_length=-1.0)

@@ -95,9 +95,31 @@ def test_mismatched_recordings_fail(rng, tmp_path):
         defect_problem(no_contact, rec)
 
 
-def test_cli_invert_end_to_end(rng, tmp_path, capsys):
+def test_a_prepared_problem_is_used_as_given(rng):
+    scene = small_scene()
+    rec, _ = synthetic_recording(scene, rng)
+    problem = defect_problem(scene, rec)
+    post, crit, x = defect_profile(scene, rec, problem=problem)
+    again, _, _ = defect_profile(scene, rec)
+    np.testing.assert_array_equal(post.mean, again.mean)
+    with pytest.raises(ValueError, match=r"problem: expected the \(model, data, info\) that defect_problem returns"):
+        defect_profile(scene, rec, problem=problem[:2])
+    with pytest.raises(ValueError, match="problem: data holds 3 values but the model predicts"):
+        invert_defect_position(scene, rec, rng, problem=(problem[0], problem[1][:3], problem[2]))
+
+
+def test_cli_invert_end_to_end(rng, tmp_path, capsys, monkeypatch):
+    import tactilab.inversion.scene_inversion as scene_inversion
     from tactilab.cli.main import main
 
+    prepared = []
+    real_problem = scene_inversion.defect_problem
+
+    def counting_problem(*args, **kwargs):
+        prepared.append(1)
+        return real_problem(*args, **kwargs)
+
+    monkeypatch.setattr(scene_inversion, "defect_problem", counting_problem)
     scene = small_scene()
     rec, _ = synthetic_recording(scene, rng)
     rec_path = rec.save(tmp_path / "rec.json")
@@ -110,6 +132,7 @@ def test_cli_invert_end_to_end(rng, tmp_path, capsys):
         status = main(["invert", str(rec_path), "--scene", str(scene_path), "--out", str(out), "--max-steps", "400",
                        "--quiet", "--sample", "friction"])
     assert status == 0
+    assert len(prepared) == 1  # the defect problem is prepared once, for the position and the profile
     for name in ("posterior.nc", "corner.png", "profile.png", "criteria.png"):
         assert (out / name).stat().st_size > 1000
     text = capsys.readouterr().out

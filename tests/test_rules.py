@@ -253,6 +253,8 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
 EXEMPT = {
     ("inversion.GaussianPosterior", "spacing"): "a result record: gaussian_posterior fills it with a checked spacing",
     ("inversion.metamer_scan", "young_modulus"): "runs a batch; its young_modulus is checked by TractorFamily.from_display",
+    ("forward.halfspace.point_unit", "nu"): "the unchecked formula behind point_green, for inner loops whose inputs "
+                                            "were checked once (the defect likelihood)",
 }
 
 

@@ -36,8 +36,10 @@ _EXPORTS = {
     "output_weights": "fields",
     "padded_shape": "dcfft",
     "pixel_influence": "surface_compliance",
+    "point_geometry": "kernel_formulas",  # unchecked: for inner loops whose inputs are checked once
     "point_green": "kernels",
     "point_load_stress": "kernels",
+    "point_unit": "kernel_formulas",  # unchecked: point_green's formula without its checks
     "pressure_from_deflection": "spectral",
     "select_method": "methods",
     "SHEAR_CONVENTION": "fields",
