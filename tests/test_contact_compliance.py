@@ -142,6 +142,10 @@ def test_bad_inputs():
         C.tangential(np.zeros(8), np.zeros(8))
     with pytest.raises(ValueError, match="a plane-strain grid has only"):
         C.spectrum("uy", "p")
+    with pytest.raises(ValueError, match="reference_length: must be finite and > 0 m, got None"):
+        hs.surface_influence(0.0, None, (1e-4,))
+    with pytest.raises(ValueError, match="spacing: grid spacing must be finite and > 0 m"):
+        hs.surface_influence(0.0, 0.0, (1e-4, -1e-4))
 
 
 @pytest.mark.parametrize("shape,spacing", [((32,), 1e-4), ((16, 24), (1e-4, 2e-4))])

@@ -444,7 +444,7 @@ def test_bad_input():
         call(pressure=p[:8])
     with pytest.raises(ValueError, match="contact: expected a bool mask"):
         call(contact=(p > 0).astype(int))
-    with pytest.raises(ValueError, match="tol: must be finite and > 0 1, got 0.0"):
+    with pytest.raises(ValueError, match="tol: must be finite and > 0, got 0.0"):
         call(tol=0.0)
     with pytest.raises(ValueError, match="max_iter: must be >= 1"):
         call(max_iter=0)

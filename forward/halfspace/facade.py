@@ -128,6 +128,10 @@ class HalfSpace:
         :meth:`surface_compliance`; ``entry=(row, column)`` computes that entry alone. Isolated
         contacts use it (exact aperiodic convolution).
         """
+        spacing = check.spacing(spacing, 1 if y is None else 2)
+        if y is None:
+            reference_length = check.positive(reference_length, "reference_length", "m",
+                                              "give the distance at which a line load's displacement is zero")
         return pixel_influence(x, y, spacing, self.E, self.nu, reference_length, entry)
 
     def operator(self, shape, spacing, sensors=None, depth: float = 1e-3, components=("zz",),
