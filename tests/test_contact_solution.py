@@ -189,3 +189,17 @@ def test_solution_is_read_only():
     check_complementarity(sol, g0, TOL)
     assert sol.area == pytest.approx(sol.contact.sum() * h * h)
     assert ellipse(np.array([0.0]), 1.0, 2.0)[0] == 2.0
+
+
+def test_grid_operators_are_reused_for_an_equal_skin():
+    from tactilab.forward.contact import solve as solve_module
+
+    g0, h = sphere(16)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AccuracyWarning)
+        solve_contact(HalfSpace(E, 0.5), g0, h, normal_force=F)
+        first = list(solve_module._OPERATORS.values())
+        solve_contact(HalfSpace(E, 0.5), g0, h, normal_force=F)  # a new, equal skin
+        assert list(solve_module._OPERATORS.values()) == first
+        solve_contact(HalfSpace(E, 0.4), g0, h, normal_force=F)  # another skin: new operators
+    assert all(op.skin.nu == 0.4 for op in solve_module._OPERATORS.values())

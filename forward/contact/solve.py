@@ -15,7 +15,7 @@ The steps (each on the grid and, for the error estimate, on the grid of twice th
 
 from __future__ import annotations
 
-import functools
+import collections
 import math
 import warnings
 
@@ -147,14 +147,21 @@ def _method(method):
     return METHODS[name]
 
 
-@functools.lru_cache(maxsize=2)
-def _cached_compliance(key, skin, shape, spacing, periodic) -> ContactCompliance:
-    return ContactCompliance(skin, shape, spacing, periodic)
+#: the last grid operators built (fine and coarse grid of the last solve), keyed by the skin's repr
+_OPERATORS: collections.OrderedDict = collections.OrderedDict()
 
 
 def _compliance(skin, shape, spacing, periodic) -> ContactCompliance:
-    """The grid operator, kept for the next solve on the same skin and grid (a sequence of frames)."""
-    return _cached_compliance((type(skin).__name__, repr(skin)), skin, tuple(shape), tuple(spacing), periodic)
+    """The grid operator, kept for the next solve on an equal skin and the same grid (a sequence of
+    frames reuses its kernel spectra); keyed by the skin's type and repr (``HalfSpace(E=..., nu=...)``)."""
+    key = (type(skin).__name__, repr(skin), tuple(shape), tuple(spacing), bool(periodic))
+    if key in _OPERATORS:
+        _OPERATORS.move_to_end(key)
+        return _OPERATORS[key]
+    operator = _OPERATORS[key] = ContactCompliance(skin, shape, spacing, periodic)
+    while len(_OPERATORS) > 2:
+        _OPERATORS.popitem(last=False)
+    return operator
 
 
 def _coarse_index(shape) -> tuple[slice, ...]:
