@@ -45,7 +45,9 @@ class ContactSolution:
         Rigid approach delta in m (``g = g0 + uz - delta``); for a periodic contact it is relative
         to the zero-mean displacement (the half-space's mean displacement is unbounded).
     iterations : int
-        Iterations of the solver on the full grid (summed over the coupling iterations).
+        Iterations on the full grid: the normal solver's, plus the tangential solver's for
+        ``"partial"`` and ``"stuck"``, summed over the coupling rounds at nu < 1/2 (the check solve
+        on the grid of twice the spacing is not counted).
     converged : bool
         Whether the solver met ``tol``.
     error_estimate : float
