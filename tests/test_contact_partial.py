@@ -14,6 +14,7 @@ import pytest
 
 from contact_oracles import check_complementarity, ellipse, grid, hertz_cylinder, hertz_sphere
 from tactilab.forward import AccuracyWarning, HalfSpace, solve_contact
+from tactilab.forward.contact import ContactCompliance
 
 E, R = 1.0e6, 0.01
 TOL = 1e-8
@@ -36,6 +37,9 @@ def test_cattaneo_mindlin_sphere():
     q = np.hypot(sol.qx, sol.qy)
     assert (q <= 0.5 * sol.pressure * (1 + 1e-9)).all()
     assert np.array_equal(sol.stick | sol.slip, sol.contact)
+    # no slip in the stick zone: the skin's tangential displacement there is one rigid shift
+    ux, uy = ContactCompliance(HalfSpace(E, 0.5), g0.shape, h, periodic=False).tangential(sol.qx, sol.qy)
+    assert np.ptp(ux[sol.stick]) <= 1e-5 * np.abs(ux).max() and np.ptp(uy[sol.stick]) <= 1e-5 * np.abs(ux).max()
     r, c_exact = np.hypot(X, Y), a * 0.5 ** (1 / 3)
     q_exact = 0.5 * (ellipse(r, a, p0) - ellipse(r, c_exact, p0 * c_exact / a))  # Johnson 7.34
     true = max(float(np.abs(sol.qx - q_exact).max()), float(np.abs(sol.pressure - ellipse(r, a, p0)).max())) / p0
