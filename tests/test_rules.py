@@ -135,6 +135,9 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.HertzContact", "poisson_ratio"): lambda v: fwd.HertzContact(0.5, poisson_ratio=v),
     ("forward.HertzContact.load", "spacing"): lambda v: CONTACT.load(spacing=v),
     ("forward.ContactLoad", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=v),
+    ("forward.solve_contact", "spacing"): lambda v: fwd.solve_contact(HS, np.linspace(-1, 1, N) ** 2 * 1e-6, v,
+                                                                      normal_force=1.0),
+    ("forward.HalfSpace.surface_influence", "spacing"): lambda v: HS.surface_influence(X, X, v),
     ("forward.ContactLoad.sample", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=H).sample((N, N), v),
     ("forward.angular_wavenumbers", "spacing"): lambda v: fwd.angular_wavenumbers((N, N), v),
     ("forward.pressure_from_deflection", "spacing"): lambda v: fwd.pressure_from_deflection(np.zeros(N), v, 1e6, 0.5),
@@ -255,6 +258,10 @@ EXEMPT = {
     ("inversion.metamer_scan", "young_modulus"): "runs a batch; its young_modulus is checked by TractorFamily.from_display",
     ("forward.halfspace.point_unit", "nu"): "the unchecked formula behind point_green, for inner loops whose inputs "
                                             "were checked once (the defect likelihood)",
+    ("forward.ContactSolution", "spacing"): "a result record: solve_contact fills it with a checked spacing",
+    ("forward.halfspace.pixel_influence", "E"): "the unchecked formula behind HalfSpace.surface_influence",
+    ("forward.halfspace.pixel_influence", "nu"): "the unchecked formula behind HalfSpace.surface_influence",
+    ("forward.halfspace.pixel_influence", "spacing"): "the unchecked formula behind HalfSpace.surface_influence",
 }
 
 

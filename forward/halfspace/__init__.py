@@ -35,6 +35,7 @@ _EXPORTS = {
     "METHODS": "methods",
     "output_weights": "fields",
     "padded_shape": "dcfft",
+    "pixel_influence": "surface_compliance",
     "point_geometry": "kernel_formulas",  # unchecked: for inner loops whose inputs are checked once
     "point_green": "kernels",
     "point_load_stress": "kernels",
@@ -42,6 +43,7 @@ _EXPORTS = {
     "pressure_from_deflection": "spectral",
     "select_method": "methods",
     "SHEAR_CONVENTION": "fields",
+    "surface_compliance": "surface_compliance",
     "SurfaceLoad": "loads",
     "to_engineering": "fields",
     "TractionField": "continuous",

@@ -25,6 +25,7 @@ from .methods import AccuracyWarning  # noqa: F401  (re-exported: the solver's d
 from .sampled import continuous_field
 from .solve import FLOAT32_TOL, FieldResult, check_points, package, solve  # noqa: F401  (re-exports)
 from .spectral import pressure_from_deflection
+from .surface_compliance import pixel_influence, surface_compliance
 
 
 class HalfSpace:
@@ -97,6 +98,42 @@ class HalfSpace:
         the load is marked periodic (see :func:`pressure_from_deflection`)."""
         return pressure_from_deflection(deflection, spacing, self.E, self.nu)
 
+    def surface_compliance(self, kx, ky=None) -> np.ndarray:
+        """Surface tractions to surface displacements per wavenumber (the contact solver's skin protocol).
+
+        Parameters
+        ----------
+        kx : array_like
+            Angular wavenumbers along x, rad/m.
+        ky : array_like, optional
+            Angular wavenumbers along y, rad/m (broadcast with ``kx``); ``None`` for plane strain.
+
+        Returns
+        -------
+        ndarray, complex, shape ``(..., 3, 3)`` or ``(..., 2, 2)`` in plane strain, m/Pa per unit
+            Fourier amplitude: rows ``(uz, ux, uy)`` (``uz`` positive into the skin), columns
+            ``(p, qx, qy)``; ``2 / (E* |k|)`` on the normal diagonal, cross terms proportional to
+            ``1 - 2 nu``; 0 at ``k = 0`` (a rigid shift). See
+            :mod:`tactilab.forward.halfspace.surface_compliance`.
+        """
+        return surface_compliance(kx, ky, self.E, self.nu)
+
+    def surface_influence(self, x, y, spacing, reference_length: float | None = None,
+                          entry: tuple[int, int] | None = None) -> np.ndarray:
+        """Surface displacement (m/Pa) at offsets ``(x, y)`` (m) from one pixel of unit uniform traction.
+
+        The exact integral of Boussinesq's and Cerruti's surface displacements over the pixel
+        (Love's closed form for the normal entry); ``y=None`` gives the plane-strain strip, whose
+        displacement is zero at ``reference_length`` (m). Rows and columns as in
+        :meth:`surface_compliance`; ``entry=(row, column)`` computes that entry alone. Isolated
+        contacts use it (exact aperiodic convolution).
+        """
+        spacing = check.spacing(spacing, 1 if y is None else 2)
+        if y is None:
+            reference_length = check.positive(reference_length, "reference_length", "m",
+                                              "give the distance at which a line load's displacement is zero")
+        return pixel_influence(x, y, spacing, self.E, self.nu, reference_length, entry)
+
     def operator(self, shape, spacing, sensors=None, depth: float = 1e-3, components=("zz",),
                  loads=("p",), quantity: str = "stress", periodic: bool = False):
         """The linear load-to-sensor map as a ``scipy.sparse.linalg.LinearOperator``.
@@ -126,4 +163,4 @@ class HalfSpace:
                                     want_invariants)
         pts = check_points(points, load)
         sol = solve(self.E, self.nu, load, depths, comps, pts, method, tol, quantity, want_invariants)
-        return package(self.E, self.nu, load, sol, depths, comps, pts, want_invariants, error_covers="method")
+        return package(self.E, self.nu, load, sol, depths, comps, pts, want_invariants, error_covers="method+load" if load.error_estimate else "method")

@@ -52,7 +52,9 @@ class FieldResult:
     error_estimate : float
         Estimated max error relative to the field's peak magnitude; ``data.attrs["error_covers"]``
         says what it covers: ``"method"`` (a nodal ``SurfaceLoad``: the method's error for the
-        values as given) or ``"method+sampling"`` (a ``ContinuousLoad``: also its sampling).
+        values as given), ``"method+load"`` (a ``SurfaceLoad`` with its own ``error_estimate``, as a
+        solved contact's load carries: that error too) or ``"method+sampling"`` (a
+        ``ContinuousLoad``: also its sampling).
     reason : str
         Why this method was chosen.
     candidates : dict
@@ -106,6 +108,20 @@ def check_points(points, load: SurfaceLoad) -> np.ndarray | None:
     return pts
 
 
+def load_error(load: SurfaceLoad, values: np.ndarray, stress_scale: float) -> float:
+    """The load's own error (``SurfaceLoad.error_estimate``, relative to its peak traction) relative to the field's peak.
+
+    The field is linear in the tractions, so a traction error of ``e`` times the peak traction
+    moves the field by about that much stress (the scaling of ``Method.field_error``)."""
+    if not load.error_estimate:
+        return 0.0
+    peak_traction = float(sum(np.abs(a) for a in load.components.values()).max())
+    peak_field = float(np.abs(values).max()) * stress_scale
+    if peak_field == 0.0:
+        return load.error_estimate
+    return load.error_estimate * peak_traction / peak_field
+
+
 def solve(E: float, nu: float, load: SurfaceLoad, depths, comps, pts, method, tol: float, quantity: str,
           want_invariants: bool) -> Solution:
     """Choose a method and compute on a nodal load; values have the load's grid (or points).
@@ -123,7 +139,8 @@ def solve(E: float, nu: float, load: SurfaceLoad, depths, comps, pts, method, to
     if chosen.name == "closed_form" and dtype == np.float32:
         problem = Problem(work_load, depths, nu, weights, work_pts, np.dtype(np.float64))
     values = chosen.compute(problem)
-    err = chosen.field_error(problem, values, E if weight_quantity == "strain" else 1.0)
+    stress_scale = E if weight_quantity == "strain" else 1.0
+    err = chosen.field_error(problem, values, stress_scale) + load_error(load, values, stress_scale)
     if reduced and pts is None:  # broadcast the plane-strain row over y
         values = np.broadcast_to(values[..., None, :], values.shape[:-1] + load.shape).copy()
     return Solution(values, chosen, reason, candidates, float(err), weight_quantity, reduced, str(problem.dtype))
