@@ -44,6 +44,7 @@ _EXPORTS = {
     "SquareWaveGrating": "surface",
     "IsolatedDefect": "surface",
     "HeightMap": "surface",
+    "random_rough_surface": "surface",
     "to_si": "units",
     "parse_hypothesis": "hypothesis",
     "stable_hash": "batch",

@@ -46,6 +46,7 @@ _EXPORTS = {
     "RecordFeature": "surfaces",
     "RandomSquareWaveGrating": "surfaces",
     "rigid_surface_pressure": "surfaces",
+    "random_rough_surface": "surfaces",
     # the biomimetic finger and scans
     "BiomimeticFinger": "finger",
     "Fingerprint": "finger",
