@@ -45,6 +45,7 @@ _EXPORTS = {
     "IsolatedDefect": "surface",
     "HeightMap": "surface",
     "random_rough_surface": "surface",
+    "read_height_map": "height_map",
     "to_si": "units",
     "parse_hypothesis": "hypothesis",
     "stable_hash": "batch",
