@@ -194,7 +194,7 @@ def parse_options(args) -> dict:
     return out
 
 
-def _scene_or_map(path: Path, args):
+def _scene_or_map(path: Path, args, spacing):
     """A scene record or a HeightMap from a file, by suffix."""
     suffix = path.suffix.lower()
     if suffix in (".toml", ".json"):
@@ -207,7 +207,7 @@ def _scene_or_map(path: Path, args):
         return scene, None
     from tactilab.data_schemas.height_map import read_height_map
 
-    return None, read_height_map(path, spacing=args.spacing_m, height_unit=args.height_unit)
+    return None, read_height_map(path, spacing=spacing, height_unit=args.height_unit)
 
 
 def _load_settings(load: dict[str, float], periodic: bool, scene) -> dict[str, float]:
@@ -226,7 +226,6 @@ def build_problem(args, opts: dict) -> tuple[Problem, dict]:
     """The gap, grid and settings of ``tactilab contact`` from its arguments and ``parse_options(args)`` (SI)."""
     from tactilab.data_schemas.units import to_si
 
-    args.spacing_m = opts["spacing"]
     builtin = parse_builtin(args.surface)
     scene = hmap = None
     path = Path(args.surface)
@@ -235,7 +234,7 @@ def build_problem(args, opts: dict) -> tuple[Problem, dict]:
             raise ValueError(f"SURFACE: {args.surface!r} is neither a file nor a built-in; give a height map "
                              "(.npy, .csv, .nc), a scene (.toml) or sphere:R=10mm, sinusoid:A=5um,p=1mm, "
                              "rough:rms=2um,hurst=0.8,seed=1")
-        scene, hmap = _scene_or_map(path, args)
+        scene, hmap = _scene_or_map(path, args, opts["spacing"])
     elif args.spacing is not None or args.height_unit is not None:
         raise ValueError("--spacing, --height-unit: they describe a .npy or .csv height map, not a built-in; use "
                          "--grid-spacing for a built-in's nodes")
@@ -296,17 +295,32 @@ def build_problem(args, opts: dict) -> tuple[Problem, dict]:
 
 def _grid_spacing(given, kind, params, shape, radius, e_star, plane_strain, load) -> float:
     """--grid-spacing (``given``, m), or the default rule of the module docstring (m)."""
-    from tactilab.data_schemas.units import to_si
-
     if given is not None:
         return given
     n = shape[-1]
     if radius is not None and "mean_pressure" not in load:
+        if load.get("approach", 1.0) <= 0:
+            raise ValueError(f"--approach: {load['approach']:g} m leaves the finger out of contact, so it cannot size "
+                             "the grid; give a positive approach, or --grid-spacing")
         a = hertz_radius(radius, e_star, plane_strain, load.get("normal_force"), load.get("approach"))
         return 2 * SPAN_CONTACT_DIAMETERS * a / n
     if kind == "sinusoid":
-        return to_si(params.get("p", ""), "length", name="sinusoid p") / n
+        return _sinusoid(params)[1] / n
     return DEFAULT_ROUGH_SPACING
+
+
+def _sinusoid(params: dict[str, str]) -> tuple[float, float]:
+    """Amplitude and period (m) of ``sinusoid:A=..,p=..``."""
+    from tactilab.data_schemas.units import to_si
+
+    missing = {"A", "p"} - set(params)
+    if missing:
+        raise ValueError(f"SURFACE sinusoid: {', '.join(sorted(missing))} missing; e.g. sinusoid:A=5um,p=1mm")
+    amplitude = to_si(params["A"], "length", name="sinusoid A")
+    period = to_si(params["p"], "length", name="sinusoid p")
+    if amplitude <= 0 or period <= 0:
+        raise ValueError(f"SURFACE sinusoid: A and p must be > 0, got A={params['A']!r}, p={params['p']!r}")
+    return amplitude, period
 
 
 def _builtin_heights(kind, params, x, shape, spacing, periodic, notes) -> np.ndarray:
@@ -317,13 +331,7 @@ def _builtin_heights(kind, params, x, shape, spacing, periodic, notes) -> np.nda
     if kind == "sphere":
         return np.zeros(shape)
     if kind == "sinusoid":
-        missing = {"A", "p"} - set(params)
-        if missing:
-            raise ValueError(f"SURFACE sinusoid: {', '.join(sorted(missing))} missing; e.g. sinusoid:A=5um,p=1mm")
-        amplitude = to_si(params["A"], "length", name="sinusoid A")
-        period = to_si(params["p"], "length", name="sinusoid p")
-        if amplitude <= 0 or period <= 0:
-            raise ValueError(f"SURFACE sinusoid: A and p must be > 0, got A={params['A']!r}, p={params['p']!r}")
+        amplitude, period = _sinusoid(params)
         width = shape[-1] * (spacing if np.ndim(spacing) == 0 else spacing[0])
         periods = width / period
         if periodic and abs(periods - round(periods)) > 1e-9 * max(periods, 1):
