@@ -1,10 +1,12 @@
 """tactilab.forward: skin mechanics, from surface tractions to strain and stress at receptor depth.
 
 The elastic half-space solver (:class:`HalfSpace`, :class:`SurfaceLoad`, the operator and the
-kernels) lives in :mod:`tactilab.forward.halfspace`; touch scenes (contacts, surfaces, the
-biomimetic finger), tractor displays and tactile synthesis are built on it. Import from here::
+kernels) lives in :mod:`tactilab.forward.halfspace`; the contact engine (:func:`solve_contact`,
+the frictional contact of the skin with a rigid surface, and the Hertz closed forms) in
+:mod:`tactilab.forward.contact`; touch scenes (contacts, surfaces, the biomimetic finger),
+tractor displays and tactile synthesis are built on them. Import from here::
 
-    from tactilab.forward import HalfSpace, SurfaceLoad, HertzContact
+    from tactilab.forward import HalfSpace, SurfaceLoad, HertzContact, solve_contact
 """
 
 from tactilab.data_schemas._lazy import attach, package_version
@@ -34,6 +36,8 @@ _EXPORTS = {
     "invariants": "halfspace",
     "ReceptorHypothesis": "receptors",
     # contacts and surfaces
+    "solve_contact": "contact",
+    "ContactSolution": "contact",
     "HertzContact": "contact",
     "interfacial_traction": "contact",
     "stick_radius": "contact",

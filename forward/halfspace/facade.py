@@ -26,6 +26,7 @@ from .fields import SHEAR_CONVENTION, compliance_matrix, invariants, label, outp
 from .loads import SurfaceLoad
 from .methods import AccuracyWarning, Problem, select_method  # noqa: F401  (AccuracyWarning: re-export)
 from .spectral import pressure_from_deflection
+from .surface_compliance import pixel_influence, surface_compliance
 from .continuous import ContinuousLoad
 from .sampled import Solution, continuous_field
 
@@ -48,7 +49,9 @@ class FieldResult:
     error_estimate : float
         Estimated max error relative to the field's peak magnitude; ``data.attrs["error_covers"]``
         says what it covers: ``"method"`` (a nodal ``SurfaceLoad``: the method's error for the
-        values as given) or ``"method+sampling"`` (a ``ContinuousLoad``: also its sampling).
+        values as given), ``"method+load"`` (a ``SurfaceLoad`` with its own ``error_estimate``, as a
+        solved contact's load carries: that error too) or ``"method+sampling"`` (a
+        ``ContinuousLoad``: also its sampling).
     reason : str
         Why this method was chosen.
     candidates : dict
@@ -99,6 +102,20 @@ def _check_points(points, load: SurfaceLoad) -> np.ndarray | None:
     if not np.all(np.isfinite(pts)):
         raise ValueError("points: coordinates must be finite (no NaN or inf), in m")
     return pts
+
+
+def _load_error(load: SurfaceLoad, values: np.ndarray, stress_scale: float) -> float:
+    """The load's own error (``SurfaceLoad.error_estimate``, relative to its peak traction) relative to the field's peak.
+
+    The field is linear in the tractions, so a traction error of ``e`` times the peak traction
+    moves the field by about that much stress (the scaling of ``Method.field_error``)."""
+    if not load.error_estimate:
+        return 0.0
+    peak_traction = float(sum(np.abs(a) for a in load.components.values()).max())
+    peak_field = float(np.abs(values).max()) * stress_scale
+    if peak_field == 0.0:
+        return load.error_estimate
+    return load.error_estimate * peak_traction / peak_field
 
 
 class HalfSpace:
@@ -171,6 +188,36 @@ class HalfSpace:
         the load is marked periodic (see :func:`pressure_from_deflection`)."""
         return pressure_from_deflection(deflection, spacing, self.E, self.nu)
 
+    def surface_compliance(self, kx, ky=None) -> np.ndarray:
+        """Surface tractions to surface displacements per wavenumber (the contact solver's skin protocol).
+
+        Parameters
+        ----------
+        kx : array_like
+            Angular wavenumbers along x, rad/m.
+        ky : array_like, optional
+            Angular wavenumbers along y, rad/m (broadcast with ``kx``); ``None`` for plane strain.
+
+        Returns
+        -------
+        ndarray, complex, shape ``(..., 3, 3)`` or ``(..., 2, 2)`` in plane strain, m/Pa per unit
+            Fourier amplitude: rows ``(uz, ux, uy)`` (``uz`` positive into the skin), columns
+            ``(p, qx, qy)``; ``2 / (E* |k|)`` on the normal diagonal, cross terms proportional to
+            ``1 - 2 nu``; 0 at ``k = 0`` (a rigid shift). See
+            :mod:`tactilab.forward.halfspace.surface_compliance`.
+        """
+        return surface_compliance(kx, ky, self.E, self.nu)
+
+    def surface_influence(self, x, y, spacing, reference_length: float | None = None) -> np.ndarray:
+        """Surface displacement (m/Pa) at offsets ``(x, y)`` (m) from one pixel of unit uniform traction.
+
+        The exact integral of Boussinesq's and Cerruti's surface displacements over the pixel
+        (Love's closed form for the normal entry); ``y=None`` gives the plane-strain strip, whose
+        displacement is zero at ``reference_length`` (m). Rows and columns as in
+        :meth:`surface_compliance`. Isolated contacts use it (exact aperiodic convolution).
+        """
+        return pixel_influence(x, y, spacing, self.E, self.nu, reference_length)
+
     def operator(self, shape, spacing, sensors=None, depth: float = 1e-3, components=("zz",),
                  loads=("p",), quantity: str = "stress", periodic: bool = False):
         """The linear load-to-sensor map as a ``scipy.sparse.linalg.LinearOperator``.
@@ -199,7 +246,7 @@ class HalfSpace:
             return continuous_field(self, load, depths, points, comps, method, tol, quantity, want_invariants)
         pts = _check_points(points, load)
         sol = self._solve(load, depths, comps, pts, method, tol, quantity, want_invariants)
-        return self._package(load, sol, depths, comps, pts, want_invariants, error_covers="method")
+        return self._package(load, sol, depths, comps, pts, want_invariants, error_covers="method+load" if load.error_estimate else "method")
 
     def _solve(self, load, depths, comps, pts, method, tol, quantity, want_invariants) -> Solution:
         """Choose a method and compute on a nodal load; values have the load's grid (or points)."""
@@ -214,7 +261,8 @@ class HalfSpace:
         if chosen.name == "closed_form" and dtype == np.float32:
             problem = Problem(work_load, depths, self.nu, weights, work_pts, np.dtype(np.float64))
         values = chosen.compute(problem)
-        err = chosen.field_error(problem, values, self.E if weight_quantity == "strain" else 1.0)
+        stress_scale = self.E if weight_quantity == "strain" else 1.0
+        err = chosen.field_error(problem, values, stress_scale) + _load_error(load, values, stress_scale)
         if reduced and pts is None:  # broadcast the plane-strain row over y
             values = np.broadcast_to(values[..., None, :], values.shape[:-1] + load.shape).copy()
         return Solution(values, chosen, reason, candidates, float(err), weight_quantity, reduced, str(problem.dtype))
