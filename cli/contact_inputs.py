@@ -15,7 +15,6 @@ finger, or --finger-radius), and -h(x, y) without one (a nominally flat skin: a 
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,7 +24,6 @@ BUILTINS = {"sphere": {"R"}, "sinusoid": {"A", "p"}, "rough": {"rms", "slope", "
 DEFAULT_GRID = 256
 SPAN_CONTACT_DIAMETERS = 3.0  # a finger's default grid spans 3 Hertz contact diameters
 DEFAULT_ROUGH_SPACING = 20e-6  # m, a periodic rough cell without a finger
-BYTES_PER_NODE = 160  # solver work arrays per (padded) node: about 10 float64 and complex128 arrays
 
 
 @dataclass
@@ -78,28 +76,25 @@ def parse_grid(text: str | None, plane_strain: bool) -> tuple[int, ...]:
     return (ny, nx)
 
 
-def memory_estimate(shape: tuple[int, ...], periodic: bool) -> int:
-    """Bytes the solve needs: BYTES_PER_NODE per node of the FFT grid (doubled per axis when isolated)."""
-    nodes = math.prod(n if periodic else 2 * n for n in shape)
-    return BYTES_PER_NODE * nodes
+def check_memory(shape: tuple[int, ...], periodic: bool, condition: str, limit: int | None = None) -> int:
+    """Refuse a grid whose solve needs more than ``limit`` bytes, naming the largest square grid that fits.
 
+    The estimate and the limit (half the available memory) are the solver's own
+    (``tactilab.forward.contact.memory_estimate`` / ``memory_limit``); checked here before the surface is
+    built, so that a refused grid costs nothing.
+    """
+    from tactilab.forward.contact import memory_estimate, memory_limit
 
-def memory_limit() -> int:
-    """Bytes a solve may use: half the machine's physical memory."""
-    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2
-
-
-def check_memory(shape: tuple[int, ...], periodic: bool, limit: int | None = None) -> int:
-    """Refuse a grid whose estimate exceeds ``limit`` bytes, naming the largest square grid that fits."""
     limit = memory_limit() if limit is None else limit
-    need = memory_estimate(shape, periodic)
+    need = memory_estimate(shape, periodic, condition)
     if need > limit:
-        per_axis = (limit / BYTES_PER_NODE) ** (1 / len(shape)) / (1 if periodic else 2)
-        fits = 2 ** int(math.floor(math.log2(max(per_axis, 1))))
+        side = 1
+        while memory_estimate((2 * side,) * len(shape), periodic, condition) <= limit:
+            side *= 2
         kind = "periodic" if periodic else "isolated (zero-padded to twice the grid)"
         raise ValueError(f"--grid: a {kind} contact on {' x '.join(map(str, shape[::-1]))} nodes needs about "
-                         f"{need / 2**30:.1f} GiB, above the limit {limit / 2**30:.1f} GiB (half the memory); "
-                         f"use at most {fits} nodes per axis, or a coarser --grid-spacing")
+                         f"{need / 2**30:.1f} GiB, above the limit {limit / 2**30:.1f} GiB (half the available "
+                         f"memory); use at most {side} nodes per axis, or a coarser --grid-spacing")
     return need
 
 
@@ -272,7 +267,7 @@ def build_problem(args, opts: dict) -> tuple[Problem, dict]:
     else:
         shape = opts["grid"]
         spacing = _grid_spacing(opts["grid_spacing"], kind, params, shape, radius, e_star, plane_strain, load)
-    need = check_memory(shape, args.periodic)
+    need = check_memory(shape, args.periodic, condition)
     x, y = node_coordinates(shape, spacing)
     if hmap is not None:
         heights = hmap.heights_m

@@ -14,8 +14,7 @@ from .plots import _figure
 
 
 def _axes_mm(solution) -> tuple[np.ndarray, np.ndarray | None]:
-    load = solution.load()
-    return load.x * 1e3, (None if load.y is None else load.y * 1e3)
+    return solution.x * 1e3, (None if solution.y is None else solution.y * 1e3)
 
 
 def _extent(x_mm: np.ndarray, y_mm: np.ndarray) -> list[float]:
@@ -70,8 +69,8 @@ def plot_stick_slip(solution, path: str | pathlib.Path, friction: float, title: 
     ax = fig.subplots()
     if y_mm is None:
         q = np.abs(np.asarray(solution.qx)) / 1e3
-        ax.plot(x_mm, friction * np.asarray(solution.pressure) / 1e3, "--", color="0.4", label="mu p")
         ax.plot(x_mm, q, color="C3", label="|q|")
+        ax.plot(x_mm, friction * np.asarray(solution.pressure) / 1e3, "--", color="k", lw=1, label="mu p")
         ax.fill_between(x_mm, 0, q, where=stick, color="C2", alpha=0.3, label="stick")
         ax.set_ylabel("traction (kPa)")
         ax.legend(loc="upper right")
@@ -108,8 +107,8 @@ def write_contact(solution, folder: str | pathlib.Path, *, skin=None, depths=(),
     depths : sequence of float, m
         Receptor depths of ``strain.nc`` / ``strain.png`` (nothing written when empty).
     friction : float, optional
-        Coulomb coefficient drawn as the bound mu p; a stick/slip map is written when the solution
-        has a stick or slip zone.
+        Coulomb coefficient drawn as the bound mu p (default ``solution.friction``); the stick/slip
+        map is written for a frictional condition with mu > 0.
     title : str
         A label for the figure titles.
 
@@ -126,9 +125,8 @@ def write_contact(solution, folder: str | pathlib.Path, *, skin=None, depths=(),
     solution.to_dataset().to_netcdf(nc, engine="h5netcdf")
     written.append(nc)
     written.append(plot_contact_pressure(solution, folder / "pressure.png", title))
-    has_zones = np.any(np.asarray(solution.stick)) or np.any(np.asarray(solution.slip))
-    if has_zones:
-        mu = friction if friction is not None else _friction_of(solution)
+    mu = float(solution.friction) if friction is None else friction
+    if mu > 0 and solution.condition != "frictionless":
         written.append(plot_stick_slip(solution, folder / "stick_slip.png", mu, title))
     if len(depths):
         if skin is None:
@@ -137,11 +135,3 @@ def write_contact(solution, folder: str | pathlib.Path, *, skin=None, depths=(),
         written += write_field(result, folder, stem="strain")
     return written
 
-
-def _friction_of(solution) -> float:
-    """mu read back from a sliding or partial-slip solution (max |q| / p over the slip zone)."""
-    slip = np.asarray(solution.slip, dtype=bool) & (np.asarray(solution.pressure) > 0)
-    if not slip.any():
-        return 0.0
-    q = np.hypot(np.asarray(solution.qx), 0.0 if solution.qy is None else np.asarray(solution.qy))
-    return float(np.median(q[slip] / np.asarray(solution.pressure)[slip]))

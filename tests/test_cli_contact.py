@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from tactilab.cli.contact_inputs import check_memory, memory_estimate
+from tactilab.cli.contact_inputs import check_memory
 from tactilab.cli.main import main
 
 SPHERE = ["contact", "sphere:R=10mm", "--normal-force", "0.5N", "--grid", "32", "--quiet"]
@@ -98,10 +98,77 @@ def test_refused_height_map_options(capsys, tmp_path):
     _fails(["contact", str(tmp_path / "display.toml"), "--normal-force", "0.5N"], capsys, "display.toml")
 
 
-def test_memory_estimate_pads_isolated_contacts():
-    assert memory_estimate((2048, 2048), periodic=False) == 4 * memory_estimate((2048, 2048), periodic=True)
-    check_memory((64, 64), periodic=False, limit=10**9)
-    with pytest.raises(ValueError, match=r"use at most 1024 nodes per axis"):
-        check_memory((2048, 2048), periodic=False, limit=memory_estimate((1024, 1024), periodic=False))
+def test_memory_check_names_the_grid_that_fits():
+    from tactilab.forward.contact import memory_estimate
+
+    assert memory_estimate((2048, 2048), False, "frictionless") > memory_estimate((2048, 2048), True, "frictionless")
+    assert check_memory((64, 64), False, "frictionless", limit=10**9) == memory_estimate((64, 64), False, "frictionless")
+    with pytest.raises(ValueError, match=r"isolated .* on 2048 x 2048 nodes .* use at most 1024 nodes per axis"):
+        check_memory((2048, 2048), False, "partial", limit=memory_estimate((1024, 1024), False, "partial"))
     with pytest.raises(ValueError, match=r"use at most 2048 nodes per axis"):
-        check_memory((4096, 4096), periodic=True, limit=memory_estimate((2048, 2048), periodic=True) + 1)
+        check_memory((4096, 4096), True, "frictionless", limit=memory_estimate((2048, 2048), True, "frictionless") + 1)
+
+
+# --------------------------------------------------------------------------------------------- runs
+def test_sphere_run_prints_the_summary_and_writes_the_files(tmp_path, capsys):
+    """A Hertz sphere on 32^2 nodes: the summary's numbers, the solution file and the three PNGs."""
+    import xarray as xr
+
+    out = tmp_path / "out"
+    assert main([*SPHERE, "--depth", "1mm,2mm", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    for phrase in ("contact area", "fraction", "peak pressure", "iterations", "error estimate:", "warnings: 0",
+                   "dropped: stick/slip map: frictionless contact"):
+        assert phrase in text, phrase
+    assert sorted(p.name for p in out.iterdir()) == ["contact.nc", "pressure.png", "strain.nc", "strain.png"]
+    with xr.open_dataset(out / "contact.nc", engine="h5netcdf") as ds:
+        p = ds["pressure"].values
+        cell = float(np.diff(ds["x"].values[:2])[0]) ** 2
+    assert p.sum() * cell == pytest.approx(0.5, rel=1e-9)  # the total force is exact
+    a = (3 * 0.5 * 10e-3 / (4 * 1e6 / 0.75)) ** (1 / 3)  # Hertz contact radius
+    area = float(text.split("contact area ")[1].split(" mm^2")[0]) * 1e-6
+    assert np.sqrt(area / np.pi) == pytest.approx(a, abs=2 * np.sqrt(cell))
+
+
+def test_json_prints_one_object_and_force_overwrites(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main([*SPHERE, "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["command"] == "contact" and summary["normal_force_n"] == pytest.approx(0.5, rel=1e-9)
+    assert summary["converged"] is True and summary["iterations"] > 0 and summary["time_s"] >= 0
+    assert 0 < summary["contact_fraction"] < 1 and summary["peak_pressure_kpa"] > 0
+    assert set(summary["error_parts"]) >= {"solver", "discretisation"}
+    _fails([*SPHERE, "--out", str(out)], capsys, "exists and is not empty; choose a new folder, or add --force")
+    assert main([*SPHERE, "--out", str(out), "--force", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["files"]  # rewritten
+
+
+def test_plane_strain_sinusoid_matches_westergaard(tmp_path, capsys):
+    """A periodic sinusoid below full contact: the contact width against Westergaard's closed form."""
+    assert main(["contact", "sinusoid:A=5um,p=1mm", "--periodic", "--plane-strain", "--mean-pressure", "3kPa",
+                 "--grid", "256", "--out", str(tmp_path / "o"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    p_star = np.pi * (1e6 / 0.75) * 5e-6 / 1e-3
+    half_width = np.arcsin(np.sqrt(3e3 / p_star)) / np.pi * 1e-3  # sin^2(pi a / L) = p / p*
+    assert summary["contact_length_mm"] * 1e-3 == pytest.approx(2 * half_width, abs=2 * 1e-3 / 256)
+    assert summary["normal_force_n_per_m"] == pytest.approx(3e3 * 1e-3, rel=1e-9)
+
+
+def test_height_map_file_and_scene(tmp_path, capsys):
+    """A .npy height map pressed by a finger, and a scene file: both run and report their source."""
+    rng = np.random.default_rng(0)
+    np.save(tmp_path / "plate.npy", rng.standard_normal((32, 32)) * 0.5)
+    assert main(["contact", str(tmp_path / "plate.npy"), "--spacing", "80um", "--height-unit", "um",
+                 "--finger-radius", "10mm", "--normal-force", "0.2N", "--out", str(tmp_path / "a"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["surface"] == "plate" and summary["shape"] == [32, 32]
+    scene = tmp_path / "scene.toml"
+    scene.write_text('name = "bump"\n[material]\nyoung_modulus = "1MPa"\n[surface]\nkind = "defect"\n'
+                     'shape = "bump"\nsize = "1mm"\nheight = "10um"\n[contact]\nnormal_force = "0.2N"\n'
+                     'finger_radius = "10mm"\n[sensors]\nquantity = "strain"\ncomponents = ["zz"]\ndepth = "1mm"\n'
+                     '[sensors.grid]\nnx = 1\nny = 1\nspacing_x = "1mm"\n[scan]\nspeed = "0mm/s"\n'
+                     'duration = "0.1s"\nsampling_rate = "10Hz"\n')
+    assert main(["contact", str(scene), "--grid", "32", "--out", str(tmp_path / "b"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["surface"] == "bump" and summary["normal_force_n"] == pytest.approx(0.2, rel=1e-9)
+    assert any("finger R = 10 mm" in line for line in summary["computed"])

@@ -28,6 +28,7 @@ _EXPORTS = {
     "solve_contact": "solve",
     "METHODS": "solve",
     "memory_estimate": "inputs",
+    "memory_limit": "inputs",
 }
 
 __all__ = sorted(_EXPORTS)
