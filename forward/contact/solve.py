@@ -27,6 +27,7 @@ from .compliance import ContactCompliance
 from .inputs import check_inputs
 from .normal import polonsky_keer
 from .solution import ContactSolution
+from .tangential import solve_tangential
 
 #: normal-contact methods by name; ``method="auto"`` picks ``"polonsky_keer"``
 METHODS = {"polonsky_keer": polonsky_keer}
@@ -180,6 +181,7 @@ def _solve_grid(solver, comp: ContactCompliance, g0: np.ndarray, inp, total, p0)
     """Normal solve with the friction condition on one grid: pressure, tractions, masks and coupling."""
     res = solver(comp, g0, total=total, approach=inp.approach, tol=inp.tol, max_iter=inp.max_iter, p0=p0)
     iterations, coupling = res.iterations, {"force": 0.0, "area": 0.0}
+    tangential_residual, converged = 0.0, res.converged
     mu, d = inp.friction, inp.direction
     qx, qy = np.zeros(g0.shape), (np.zeros(g0.shape) if g0.ndim == 2 else None)
     stick = np.zeros(g0.shape, dtype=bool)
@@ -200,16 +202,40 @@ def _solve_grid(solver, comp: ContactCompliance, g0: np.ndarray, inp, total, p0)
         if qy is not None:
             qy = mu * d[1] * res.pressure
     elif inp.condition in ("partial", "stuck"):
-        from .tangential import solve_tangential
-
-        tang = solve_tangential(comp, res, inp)
-        res, qx, qy, stick = tang.normal, tang.qx, tang.qy, tang.stick
-        iterations += tang.iterations
-        coupling = _coupling_values(tang.coupling)
+        res, tang, iterations, coupling = _partial_or_stuck(solver, comp, g0, inp, total, res)
+        qx, qy, stick = tang.qx, tang.qy, tang.stick
+        tangential_residual = mu * tang.residual if math.isfinite(mu) else tang.residual
+        converged = res.converged and tang.converged
     contact = res.pressure > 0
     return dict(pressure=res.pressure, qx=qx, qy=qy, contact=contact, stick=stick & contact,
                 slip=contact & ~stick, gap=np.maximum(res.gap, 0.0), approach=res.approach, iterations=iterations,
-                converged=res.converged, residual=res.residual, coupling=coupling)
+                converged=converged, residual=res.residual, coupling=coupling, tangential_residual=tangential_residual)
+
+
+def _partial_or_stuck(solver, comp, g0, inp, total, res):
+    """The tangential solve under the normal solution; at nu < 1/2, alternated with the normal solve
+    (the tangential traction's normal displacement in the gap, the pressure's tangential displacement in
+    the tangential problem) until the pressure stops changing."""
+    stuck = inp.condition == "stuck"
+    kwargs = dict(stuck=stuck, tol=inp.tol, max_iter=inp.max_iter)
+    tang = solve_tangential(comp, res.pressure, res.pressure > 0, inp.friction, inp.tangential_force, **kwargs)
+    iterations, coupling = res.iterations + tang.iterations, {"force": 0.0, "area": 0.0}
+    if not _coupled(comp):
+        return res, tang, iterations, coupling
+    res0 = res
+    for _ in range(MAX_COUPLING):
+        new = solver(comp, g0, total=total, approach=inp.approach, tol=inp.tol, max_iter=inp.max_iter,
+                     p0=res.pressure, extra_gap=tang.normal_displacement)
+        u_p = np.stack([u for u in comp.tangential_from_normal(new.pressure) if u is not None])
+        start = np.stack([q for q in (tang.qx, tang.qy) if q is not None])
+        tang = solve_tangential(comp, new.pressure, new.pressure > 0, inp.friction, inp.tangential_force,
+                                pressure_displacement=u_p, initial=start, **kwargs)
+        iterations += new.iterations + tang.iterations
+        change = float(np.abs(new.pressure - res.pressure).max())
+        res = new
+        if change <= inp.tol * float(res.pressure.max()):
+            break
+    return res, tang, iterations, _coupling(res0, res)
 
 
 def _coupled(comp: ContactCompliance) -> bool:
@@ -226,10 +252,6 @@ def _coupling(uncoupled, coupled) -> dict:
     f0, f1 = float(uncoupled.pressure.sum()), float(coupled.pressure.sum())
     a0, a1 = int(np.count_nonzero(uncoupled.pressure)), int(np.count_nonzero(coupled.pressure))
     return {"force": (f1 - f0) / f0 if f0 else 0.0, "area": (a1 - a0) / a0 if a0 else 0.0}
-
-
-def _coupling_values(value) -> dict:
-    return {"force": float(value.get("force", 0.0)), "area": float(value.get("area", 0.0))}
 
 
 def _solver_error(comp: ContactCompliance, skin, out: dict) -> float:
@@ -278,7 +300,7 @@ def _resolution_warning(inp, contact: np.ndarray) -> None:
 
 
 def _package(inp, comp, skin, out: dict, coarse: dict | None) -> ContactSolution:
-    parts = {"solver": _solver_error(comp, skin, out), "discretisation": _discretisation_error(inp, out, coarse)}
+    parts = {"solver": _solver_error(comp, skin, out) + out["tangential_residual"], "discretisation": _discretisation_error(inp, out, coarse)}
     _resolution_warning(inp, out["contact"])
     if not out["converged"]:
         warnings.warn(f"max_iter: the solver stopped after {out['iterations']} iterations with the gap residual "
