@@ -187,7 +187,7 @@ def hertz_grid(n: int):
     return (xx**2 + yy**2) / (2 * radius), dx, force, a
 
 
-def section_b(n: int, tol: float, peer: bool, cap: float) -> None:
+def section_b(n: int, tol: float, peer: bool, cap: float, peer_tol: float, peer_iter: int) -> None:
     mu, ratio = 0.5, 0.5
     gap, dx, force, a = hertz_grid(n)
     c_exact = a * (1 - ratio) ** (1 / 3)
@@ -201,9 +201,11 @@ def section_b(n: int, tol: float, peer: bool, cap: float) -> None:
     print(f"{'tactilab':<22}{t:10.3f}{(c - c_exact) / dx:20.2f}  {sol.iterations} iterations")
     if not peer:
         return
+    # Tamaas in units of the grid's size and E (its stopping test is absolute: SI pressures stop it at once)
     size = n * dx
-    res = run_peer(CONDAT_SCRIPT, {"h": -gap, "size": size, "tol": tol, "mu": mu, "E": E_PA, "nu": NU,
-                                   "max_iter": 10**6, "qmean": q / size**2, "pmean": force / size**2}, cap)
+    res = run_peer(CONDAT_SCRIPT, {"h": -gap / size, "size": 1.0, "tol": peer_tol, "mu": mu, "E": 1.0, "nu": NU,
+                                   "max_iter": peer_iter, "qmean": q / size**2 / E_PA, "pmean": force / size**2 / E_PA},
+                   cap)
     if isinstance(res, str):
         print(f"{'Tamaas Condat':<22}{'-':>10}{'-':>20}  {res}")
         return
@@ -212,7 +214,7 @@ def section_b(n: int, tol: float, peer: bool, cap: float) -> None:
     stick = (p > 0) & (qm < mu * p * (1 - 1e-3))
     c_peer = np.sqrt(np.count_nonzero(stick) * dx * dx / np.pi)
     print(f"{'Tamaas Condat':<22}{float(res['time']):10.3f}{(c_peer - c_exact) / dx:20.2f}  "
-          f"periodic cell, associated friction law, tamaas {res['version']}")
+          f"tol {peer_tol:g}, at most {peer_iter} iterations, periodic cell, associated friction law, tamaas {res['version']}")
 
 
 def fingertip(n: int, frames: int = 0, extent: float = 5.12e-3):
@@ -269,6 +271,9 @@ def main(argv=None) -> int:
     parser.add_argument("--sliding-size", type=int, default=256, help="grid of the sliding sequence (c)")
     parser.add_argument("--partial-size", type=int, default=128, help="grid of the partial-slip frame (b)")
     parser.add_argument("--tol", type=float, default=1e-8, help="solver tolerance of every solve (and Tamaas's)")
+    parser.add_argument("--condat-tol", type=float, default=1e-4,
+                        help="Tamaas Condat's tolerance in (b) (its own cost criterion; 1e-8 gives no answer in minutes)")
+    parser.add_argument("--condat-max-iter", type=int, default=20000, help="Tamaas Condat's iteration limit in (b)")
     parser.add_argument("--peer-cap", type=float, default=300.0, help="seconds Tamaas may take per solve")
     parser.add_argument("--no-peer", action="store_true", help="skip Tamaas")
     parser.add_argument("--quick", action="store_true", help="tiny grids: checks the harness (about a minute)")
@@ -286,7 +291,8 @@ def main(argv=None) -> int:
         section_a(sizes_a, args.tol, peer, args.peer_cap)
         section_a_memory(max(sizes_a), args.tol)
     if "b" in args.sections:
-        section_b(32 if args.quick else args.partial_size, args.tol, peer, 60 if args.quick else args.peer_cap)
+        section_b(32 if args.quick else args.partial_size, args.tol, peer, 60 if args.quick else args.peer_cap,
+                  args.condat_tol, args.condat_max_iter)
     if "c" in args.sections:
         frames = args.frames or (3 if args.quick else 10)
         section_c(frames, args.tol, 32 if args.quick else args.sliding_size)

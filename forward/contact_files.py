@@ -113,8 +113,9 @@ def write_contact(solution, folder: str | pathlib.Path, *, skin=None, depths=(),
         A label for the figure titles.
 
     Files: ``contact.nc`` (``solution.to_dataset()``, SI), ``pressure.png`` (mm, kPa), ``stick_slip.png``,
-    and ``strain.nc`` + ``strain.png`` (the strain of ``solution.load()`` at ``depths``, its error
-    estimate covering the contact's).
+    and ``strain.nc`` + ``strain.png`` (the strain of ``solution.load()`` at ``depths``, requested to the
+    contact's own error estimate, or 1e-6 when that is smaller; the field's error estimate covers the
+    contact's).
     """
     from .load_files import write_field
 
@@ -131,7 +132,9 @@ def write_contact(solution, folder: str | pathlib.Path, *, skin=None, depths=(),
     if len(depths):
         if skin is None:
             raise ValueError("skin: the strain at depth needs the HalfSpace that was solved; pass skin=HalfSpace(E, nu)")
-        result = skin.strain(solution.load(), list(depths))
+        # no more accurate than the load it comes from: the contact's own error sets the field's tolerance
+        tol = max(1e-6, float(solution.error_estimate))
+        result = skin.strain(solution.load(), list(depths), tol=tol)
         written += write_field(result, folder, stem="strain")
     return written
 

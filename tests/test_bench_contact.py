@@ -18,11 +18,11 @@ def _bench():
 @pytest.mark.filterwarnings("ignore::UserWarning")  # tiny grids resolve the contacts coarsely (AccuracyWarning)
 def test_bench_contact_sections_run(capsys):
     bench = _bench()
-    assert bench.main(["--quick", "--sections", "a", "c", "d", "--sizes", "16", "32", "--frames", "2", "--no-peer",
+    assert bench.main(["--quick", "--sections", "a", "b", "c", "d", "--sizes", "16", "32", "--frames", "2", "--no-peer",
                        "--tol", "1e-6"]) == 0
     out = capsys.readouterr().out
     assert "(a) normal contact" in out and "Tamaas skipped (--no-peer)" in out
-    assert "memory at 32^2" in out and "(c) sliding fingertip" in out and "(d) time and iterations" in out
+    assert "memory at 32^2" in out and "(b) partial slip" in out and "(c) sliding fingertip" in out and "(d) time and iterations" in out
     rows = [line.split() for line in out.splitlines() if line.strip().startswith(("16 ", "32 "))]
     assert len(rows) == 4  # two sizes in (a) and in (d)
 

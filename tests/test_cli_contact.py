@@ -172,3 +172,17 @@ def test_height_map_file_and_scene(tmp_path, capsys):
     summary = json.loads(capsys.readouterr().out)
     assert summary["surface"] == "bump" and summary["normal_force_n"] == pytest.approx(0.2, rel=1e-9)
     assert any("finger R = 10 mm" in line for line in summary["computed"])
+
+
+def test_partial_slip_reports_the_stick_radius(tmp_path, capsys):
+    """Cattaneo-Mindlin at nu = 1/2: c = a (1 - Q / (mu P))^(1/3) within two grid spacings; the map is written."""
+    out = tmp_path / "o"
+    assert main([*SPHERE, "--friction", "0.5", "--condition", "partial", "--tangential-force", "0.125N",
+                 "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    a = (3 * 0.5 * 10e-3 / (4 * 1e6 / 0.75)) ** (1 / 3)
+    dx = 6 * a / 32  # the default grid spans 3 contact diameters
+    assert summary["stick_radius_mm"] * 1e-3 == pytest.approx(a * 0.5 ** (1 / 3), abs=2 * dx)
+    assert (out / "stick_slip.png").is_file()
+    _fails([*SPHERE, "--friction", "0.5", "--condition", "partial", "--tangential-force", "0.3N",
+            "--out", str(tmp_path / "p")], capsys, "tangential_force")
