@@ -126,6 +126,7 @@ def _summarise(report: RunReport, sol, problem, settings, elapsed: float, depths
     parts = ", ".join(f"{k} {float(v):.1e}" for k, v in dict(sol.error_parts).items())
     report.error_estimate = (f"max |pressure error| <= {float(sol.error_estimate):.1e} of the peak pressure "
                              f"({parts}); requested --tol {settings['tol']:g}")
+    report.dropped += problem.dropped
     if not depths:
         report.dropped.append("strain at depth: no --depth given")
     if settings["condition"] not in ("partial", "stuck") and settings["friction"] == 0:

@@ -37,6 +37,7 @@ class Problem:
     finger_radius: float | None = None
     scene: object = None
     notes: list[str] = field(default_factory=list)
+    dropped: list[str] = field(default_factory=list)
 
     @property
     def plane_strain(self) -> bool:
@@ -261,6 +262,7 @@ def build_problem(args, opts: dict) -> tuple[Problem, dict]:
     load = _load_settings(opts["load"], args.periodic, scene)
     e_star = young / (1 - nu**2)
     notes: list[str] = []
+    dropped: list[str] = []
     if hmap is not None:
         shape, spacing = hmap.heights_m.shape, (hmap.spacing_x_m if plane_strain
                                                  else (hmap.spacing_x_m, hmap.spacing_y_m))
@@ -277,12 +279,16 @@ def build_problem(args, opts: dict) -> tuple[Problem, dict]:
         heights = scene.surface.height_at(x + x0, y)
         label = scene.name or path.stem
         notes.append(f"scene {label}: finger R = {radius * 1e3:g} mm at world x = {x0 * 1e3:g} mm")
+        if scene.contact.fingerprint_period_m is not None:
+            dropped.append("the scene's fingerprint ridges: the skin is solved smooth")
+        if scene.contact.adhesion > 0:
+            dropped.append(f"the scene's adhesion blend ({scene.contact.adhesion:g}): adhesion is out of scope here")
     else:
         heights = _builtin_heights(kind, params, x, shape, spacing, args.periodic, notes)
         label = kind
     gap = finger_gap(radius, x, y) - heights
     problem = Problem(gap=np.asarray(gap, dtype=float), spacing=spacing, periodic=args.periodic, label=label,
-                      finger_radius=radius, scene=scene, notes=notes)
+                      finger_radius=radius, scene=scene, notes=notes, dropped=dropped)
     settings = {"young_modulus": young, "nu": nu, "friction": friction, "condition": condition, "load": load,
                 "memory_bytes": need, "tol": args.tol}
     return problem, settings
