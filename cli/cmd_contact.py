@@ -76,6 +76,8 @@ def run(args: argparse.Namespace) -> int:
     from tactilab.forward.contact_files import write_contact
 
     depths = opts["depths"]
+    folder = args.out if args.out is not None else Path(f"{problem.label}-contact")
+    new_folder = not folder.exists() if args.out is not None else True
     out = report.watch(choose_out(args.out, Path(f"{problem.label}-contact"), args.force))
     skin = HalfSpace(E=settings["young_modulus"], nu=settings["nu"])
     shape = " x ".join(str(n) for n in problem.gap.shape[::-1])
@@ -84,10 +86,15 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr, flush=True)
     with report.collecting_warnings():
         t0 = time.perf_counter()
-        sol = solve_contact(skin, problem.gap, problem.spacing, periodic=problem.periodic,
-                            friction=settings["friction"], condition=settings["condition"],
-                            tangential_force=opts["tangential_force"], slide_direction=opts["slide_direction"],
-                            tol=args.tol, **settings["load"])
+        try:
+            sol = solve_contact(skin, problem.gap, problem.spacing, periodic=problem.periodic,
+                                friction=settings["friction"], condition=settings["condition"],
+                                tangential_force=opts["tangential_force"], slide_direction=opts["slide_direction"],
+                                tol=args.tol, **settings["load"])
+        except ValueError as exc:
+            if new_folder and not any(out.iterdir()):
+                out.rmdir()  # refused: leave no empty folder behind
+            raise ValueError(as_option(str(exc))) from None
         elapsed = time.perf_counter() - t0
         write_contact(sol, out, skin=skin, depths=depths, friction=settings["friction"],
                               title=problem.label)
@@ -95,6 +102,20 @@ def run(args: argparse.Namespace) -> int:
     report.data["time_s"] = float(np.round(elapsed, 6))
     report.emit(args.json)
     return 0
+
+
+#: solve_contact's argument names -> the options that set them (its errors are reworded with these)
+OPTION_OF = {"tangential_force": "--tangential-force", "friction": "--friction", "condition": "--condition",
+             "normal_force": "--normal-force", "mean_pressure": "--mean-pressure", "approach": "--approach",
+             "slide_direction": "--slide-direction", "tol": "--tol", "gap": "--grid", "spacing": "--grid-spacing",
+             "periodic": "--periodic"}
+
+
+def as_option(message: str) -> str:
+    """A solver error ``"arg: text"`` as ``"--option (arg): text"``, so the user sees the option to change."""
+    arg, sep, rest = message.partition(":")
+    option = OPTION_OF.get(arg.strip())
+    return f"{option} ({arg.strip()}):{rest}" if sep and option else message
 
 
 def _summarise(report: RunReport, sol, problem, settings, elapsed: float, depths) -> None:

@@ -185,4 +185,17 @@ def test_partial_slip_reports_the_stick_radius(tmp_path, capsys):
     assert summary["stick_radius_mm"] * 1e-3 == pytest.approx(a * 0.5 ** (1 / 3), abs=2 * dx)
     assert (out / "stick_slip.png").is_file()
     _fails([*SPHERE, "--friction", "0.5", "--condition", "partial", "--tangential-force", "0.3N",
-            "--out", str(tmp_path / "p")], capsys, "tangential_force")
+            "--out", str(tmp_path / "p")], capsys, r"--tangential-force \(tangential_force\): .* exceeds the friction")
+    _fails([*SPHERE, "--friction", "0.5", "--condition", "partial", "--out", str(tmp_path / "p")], capsys,
+           "--tangential-force")
+    assert not (tmp_path / "p").exists()  # a solve refused by the engine leaves no empty folder
+
+
+def test_engine_refusals_name_the_option(tmp_path, capsys):
+    _fails(["contact", "rough:rms=1um", "--periodic", "--mean-pressure", "3kPa", "--grid", "33",
+            "--quiet", "--out", str(tmp_path / "o")], capsys,
+           r"--grid \(gap\): a periodic grid needs an even number of nodes")
+    from tactilab.cli.cmd_contact import as_option
+
+    assert as_option("no colon here") == "no colon here"
+    assert as_option("unknown_arg: text") == "unknown_arg: text"
