@@ -185,13 +185,13 @@ def _read_csv(path: pathlib.Path, spacing, height_unit) -> HeightMap:
 
 def _nc_values(var, where: str) -> np.ndarray:
     """A netCDF variable's values as floats; refuses external storage, applies CF packing and fill values."""
-    dset = var._h5ds  # the h5py dataset: external or virtual storage points outside the file
+    dset, name = var._h5ds, var.name.lstrip("/")  # the h5py dataset: external or virtual storage points outside
     if dset.external or dset.is_virtual:
-        raise ValueError(f"{where}: variable {var.name.lstrip("/")!r} is stored outside the file (HDF5 external or virtual "
+        raise ValueError(f"{where}: variable {name!r} is stored outside the file (HDF5 external or virtual "
                          "storage); save the data inside the file")
     values = np.asarray(var[...])
     if values.dtype.kind not in "iuf":
-        raise ValueError(f"{where}: variable {var.name.lstrip("/")!r} must be numeric, got dtype {values.dtype}")
+        raise ValueError(f"{where}: variable {name!r} must be numeric, got dtype {values.dtype}")
     values = values.astype(float)
     attrs = dict(var.attrs)
     if "_FillValue" in attrs:
