@@ -42,7 +42,8 @@ import time
 
 import numpy as np
 
-from tactilab.data_schemas import Scan, SensorArray, load_example, read_result, run_batch
+from tactilab.core import read_result, run_batch
+from tactilab.data_schemas import Scan, SensorArray, load_example
 from tactilab.forward import simulate_scene
 from tactilab.inversion import StationaryPrior, gaussian_posterior, halfspace_fourier_operator, invert_many
 
@@ -72,7 +73,7 @@ def _peak_rss_mib() -> float:
 def _cluster(n: int):
     import distributed
 
-    from tactilab.data_schemas.batch import local_cluster
+    from tactilab.core.batch import local_cluster
 
     t0 = time.perf_counter()
     cluster = local_cluster(n, dashboard_address=None)  # the cluster a batch starts
@@ -209,7 +210,7 @@ def bench_fft(n: int, tmp: pathlib.Path, n_files: int | None = None) -> tuple[li
 
 def result_file_s(folder: pathlib.Path, shared: dict, n: int = 50) -> float:
     """Seconds to write one result of a single inversion (netCDF4 via h5netcdf, atomic rename), in-process."""
-    from tactilab.data_schemas.batch import _write_atomic, result_path
+    from tactilab.core.batch import _write_atomic, result_path
 
     (folder / "results").mkdir(parents=True)
     result = _fft_task(0, np.random.default_rng(0), **shared)

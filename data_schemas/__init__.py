@@ -6,7 +6,7 @@ and are converted once. Import records from here::
     from tactilab.data_schemas import Scene, SensorArray, Protocol, load_example
 """
 
-from ._lazy import attach, package_version
+from tactilab.core import attach, package_version
 
 #: public name -> module that defines it
 _EXPORTS = {
@@ -48,16 +48,13 @@ _EXPORTS = {
     "read_height_map": "height_map",
     "to_si": "units",
     "parse_hypothesis": "hypothesis",
-    "stable_hash": "batch",
-    "task_rng": "batch",
-    "result_path": "batch",
-    "read_result": "batch",
-    "write_netcdf_atomic": "batch",
-    "BatchReport": "batch",
-    "batch_client": "batch",
-    "run_batch": "batch",
 }
+
+#: names that moved to the ground floor (tactilab.core): they still resolve here, with a
+#: DeprecationWarning, until 0.2.0
+_MOVED = {name: "tactilab.core" for name in ("BatchReport", "batch_client", "read_result", "result_path",
+                                             "run_batch", "stable_hash", "task_rng", "write_netcdf_atomic")}
 
 __version__ = package_version()
 __all__ = sorted(_EXPORTS)
-__getattr__, __dir__ = attach(__name__, _EXPORTS)
+__getattr__, __dir__ = attach(__name__, _EXPORTS, moved=_MOVED, removed_in="0.2.0")

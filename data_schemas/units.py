@@ -1,163 +1,33 @@
-"""Unit strings at the file and command-line edges, converted to SI once.
+"""Unit strings at the file and command-line edges, converted to SI once, with skin plausibility.
 
-Quantities inside tactilab are SI (m, Pa, N, s, Hz, m/s). Files and options may write a
-number with an explicit unit suffix, such as ``"1.25mm"``, ``"20 kPa"`` or ``"5ms"``;
-:func:`to_si` turns it into the SI float and checks that the unit measures what the
-field expects (a length for a depth, a pressure for a modulus).
+The parser lives on the ground floor (:mod:`tactilab.core.units`); this module adds the
+plausibility ranges of skin quantities (:mod:`tactilab.data_schemas.plausibility`), which warn
+when a value converted from a file or an option lies far outside what skin measures.
 """
 
 from __future__ import annotations
 
-import math
-import re
-from decimal import Decimal
+from tactilab.core.units import SI_UNIT, UNITS, factor
+from tactilab.core.units import to_si as _parse
 
 from .plausibility import check_plausible
 
-# unit -> (dimension, factor to SI)
-UNITS: dict[str, tuple[str, float]] = {
-    "m": ("length", 1.0),
-    "cm": ("length", 1e-2),
-    "mm": ("length", 1e-3),
-    "um": ("length", 1e-6),
-    "µm": ("length", 1e-6),
-    "nm": ("length", 1e-9),
-    "Pa": ("pressure", 1.0),
-    "kPa": ("pressure", 1e3),
-    "MPa": ("pressure", 1e6),
-    "GPa": ("pressure", 1e9),
-    "N": ("force", 1.0),
-    "mN": ("force", 1e-3),
-    "s": ("time", 1.0),
-    "ms": ("time", 1e-3),
-    "us": ("time", 1e-6),
-    "Hz": ("frequency", 1.0),
-    "kHz": ("frequency", 1e3),
-    "m/s": ("speed", 1.0),
-    "cm/s": ("speed", 1e-2),
-    "mm/s": ("speed", 1e-3),
-    "N/m": ("line_load", 1.0),
-    "N/mm": ("line_load", 1e3),
-    "1/m": ("wavenumber", 1.0),
-    "1/mm": ("wavenumber", 1e3),
-    "rad/m": ("wavenumber", 1.0),
-    "rad/mm": ("wavenumber", 1e3),
-    "1": ("dimensionless", 1.0),
-    "": ("dimensionless", 1.0),
-}
-
-SI_UNIT = {
-    "length": "m",
-    "pressure": "Pa",
-    "force": "N",
-    "time": "s",
-    "frequency": "Hz",
-    "speed": "m/s",
-    "line_load": "N/m",
-    "wavenumber": "1/m",
-    "dimensionless": "1",
-}
-
-# the unit a researcher most likely meant, for the fix in error messages
-_EXAMPLE_UNIT = {
-    "length": "mm",
-    "pressure": "kPa",
-    "force": "N",
-    "time": "ms",
-    "frequency": "Hz",
-    "speed": "mm/s",
-    "line_load": "N/m",
-    "wavenumber": "rad/mm",
-}
-
-_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?inf|nan)\s*(\S*)\s*$")
-
-
-def _known_units(dimension: str) -> str:
-    """The units of ``dimension`` for error messages ("1 or no unit" for dimensionless)."""
-    units = [u for u, (d, _) in UNITS.items() if d == dimension and u]
-    return ", ".join(units) + (" or no unit" if dimension == "dimensionless" else "")
-
-
-def factor(unit: str, dimension: str, *, name: str = "value") -> float:
-    """Return the factor that converts ``unit`` to SI, checking its dimension.
-
-    Raises
-    ------
-    ValueError
-        If ``unit`` is unknown or measures another dimension than ``dimension``.
-    """
-    if unit not in UNITS:
-        raise ValueError(
-            f"{name}: unknown unit {unit!r}; use one of {_known_units(dimension)} (SI: {SI_UNIT[dimension]})"
-        )
-    dim, f = UNITS[unit]
-    if dim != dimension and not (unit == "" and dimension == "dimensionless"):
-        wanted = "dimensionless number" if dimension == "dimensionless" else dimension
-        raise ValueError(
-            f"{name}: unit {unit!r} measures {dim}, but a {wanted} is expected; use one of {_known_units(dimension)}"
-        )
-    return f
+__all__ = ["SI_UNIT", "UNITS", "factor", "to_si"]
 
 
 def to_si(value: str | float | int, dimension: str, *, name: str = "value",
           default_unit: str | None = None) -> float:
-    """Convert ``value`` to an SI float.
+    """Convert ``value`` to an SI float and check it against the skin's plausible range.
 
-    Parameters
-    ----------
-    value : str or float
-        A number with a unit suffix (``"1.25mm"``), or a number. A Python number (int or
-        float) is taken in ``default_unit`` if given, else it is SI. A string without a unit
-        (``"1.25"``) is an error for a dimensional quantity unless ``default_unit`` is given:
-        at the edges (options, files) a bare number is never silently SI.
-    dimension : str
-        What the value measures: one of ``SI_UNIT``'s keys.
-    name : str
-        The argument or field name, used in error messages.
-    default_unit : str, optional
-        Unit of a bare number (for example ``"mm"`` in files that state it).
+    Parameters and errors are those of :func:`tactilab.core.units.to_si`; in addition a value
+    outside the plausible range of the quantity ``name`` names gets a warning
+    (:func:`tactilab.data_schemas.plausibility.check_plausible`).
 
     Returns
     -------
     float
         The value in SI units.
     """
-    if dimension not in SI_UNIT:
-        raise ValueError(f"dimension: unknown dimension {dimension!r}; use one of {sorted(SI_UNIT)}")
-    if isinstance(value, bool):
-        raise ValueError(f"{name}: expected a number with a unit, got the boolean {value!r}")
-    if isinstance(value, (int, float)):
-        unit = default_unit if default_unit is not None else SI_UNIT[dimension]
-        number = float(value)
-    elif isinstance(value, str):
-        match = _QUANTITY.match(value)
-        if match is None:
-            raise ValueError(
-                f"{name}: cannot read {value!r} as a quantity; write a number and a unit, "
-                f"e.g. '1.5{SI_UNIT[dimension]}'"
-            )
-        number = float(match.group(1))
-        unit = match.group(2)
-        if not unit:
-            if default_unit is not None:
-                unit = default_unit
-            elif dimension == "dimensionless" or not math.isfinite(number):
-                unit = SI_UNIT[dimension]  # non-finite values get their own message below
-            else:
-                # A bare number at an edge is never silently SI: '--depth 1.25' is not 1.25 m.
-                raise ValueError(
-                    f"{name}: {value.strip()!r} has no unit, and a {dimension} needs one; "
-                    f"write it with a unit, e.g. '{value.strip()}{_EXAMPLE_UNIT[dimension]}' "
-                    f"(units: {_known_units(dimension)})"
-                )
-    else:
-        raise ValueError(f"{name}: expected a number or a string like '1.5mm', got {type(value).__name__}")
-    if not math.isfinite(number):
-        raise ValueError(f"{name}: must be finite, got {value!r}; give a finite number with a unit, "
-                         f"e.g. '1.5{SI_UNIT[dimension]}'")
-    f = factor(unit, dimension, name=name)
-    # decimal product, so "1.25mm" gives exactly the float nearest 1.25e-3
-    si = number if f == 1.0 else float(Decimal(repr(number)) * Decimal(repr(f)))
+    si = _parse(value, dimension, name=name, default_unit=default_unit)
     check_plausible(si, name, SI_UNIT[dimension])
     return si

@@ -7,7 +7,7 @@ Import from here::
     from tactilab.experiments import new_session, resume_session, export_session, SimulatedObserver
 """
 
-from tactilab.data_schemas._lazy import attach, package_version
+from tactilab.core import attach, package_version
 
 #: public name -> module that defines it
 _EXPORTS = {

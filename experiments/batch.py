@@ -1,6 +1,6 @@
 """Batch jobs of the experiments part on the generic batch layer: model fits per subject, power, design tables.
 
-All run through :func:`tactilab.data_schemas.batch.run_batch`: serial with ``workers=0``, on a
+All run through :func:`tactilab.core.batch.run_batch`: serial with ``workers=0``, on a
 LocalCluster or a running Dask scheduler otherwise; one result file per key in ``out_dir``;
 a rerun with the same ``out_dir`` resumes; a failing point goes into ``errors.tsv``.
 
@@ -24,7 +24,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from tactilab.data_schemas.batch import batch_client, read_result, result_path, run_batch, write_netcdf_atomic
+from tactilab.core.batch import batch_client, read_result, result_path, run_batch, write_netcdf_atomic
 
 from .model_power import power_analysis
 
@@ -70,7 +70,7 @@ def power_sweep(true_model, true_params: dict, rival, design, n_trials: Sequence
     task, n_repeats, z
         As in :func:`~.model_power.power_analysis` and ``PowerResult.p_select``.
     client, workers, scheduler, per_task, progress
-        Where and how to run: see :func:`tactilab.data_schemas.batch.run_batch`.
+        Where and how to run: see :func:`tactilab.core.batch.run_batch`.
 
     Returns
     -------
@@ -128,7 +128,7 @@ def design_sweep(depths, widths, pairs_list, *, out_dir, seed: int = 0, client=N
     seed : int
         Batch seed (the design points are deterministic; kept for the file attributes).
     client, workers, scheduler, per_task, progress
-        See :func:`tactilab.data_schemas.batch.run_batch`.
+        See :func:`tactilab.core.batch.run_batch`.
 
     Returns
     -------
@@ -259,7 +259,7 @@ def compare_many(subjects: Mapping, models: Sequence, *, seed: int, out_dir, sta
     n_ensembles, sampler_options
         As in :func:`~.models.fit_transduction`.
     client, workers, scheduler, per_task, progress
-        See :func:`tactilab.data_schemas.batch.run_batch`.
+        See :func:`tactilab.core.batch.run_batch`.
 
     Returns
     -------

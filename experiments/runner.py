@@ -28,7 +28,6 @@ link), the run stops with :class:`DisplayFault`, and the trial is repeated on re
 from __future__ import annotations
 
 import contextlib
-import functools
 import os
 import signal
 import threading
@@ -36,12 +35,12 @@ import time
 import uuid
 from dataclasses import dataclass
 from datetime import datetime
-from importlib import metadata
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
+from tactilab.core import package_version  # noqa: F401 - defined once in core; used here and by bids.py
 from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
 from tactilab.data_schemas.experiment_records import TrialRecord
 
@@ -54,15 +53,6 @@ from .recording import Recorder, RecordingError, utc_now
 from .responses import ResponseSource
 from .safety import STOP_SIGNALS, SafeDisplay
 from .tasks import plan_trial, score
-
-
-@functools.cache
-def package_version() -> str:
-    """The installed tactilab version (``0+unknown`` from a bare source tree)."""
-    try:
-        return metadata.version("tactilab")
-    except metadata.PackageNotFoundError:
-        return "0+unknown"
 
 
 def trial_generators(seed: int, trial_index: int) -> tuple[np.random.Generator, np.random.Generator]:

@@ -9,7 +9,7 @@ tractor displays and tactile synthesis are built on them. Import from here::
     from tactilab.forward import HalfSpace, SurfaceLoad, HertzContact, solve_contact
 """
 
-from tactilab.data_schemas._lazy import attach, package_version
+from tactilab.core import attach, package_version
 
 #: public name -> module that defines it
 _EXPORTS = {

@@ -8,7 +8,7 @@ defect localisation. Import from here::
     from tactilab.inversion import invert_linear, gaussian_posterior, StationaryPrior
 """
 
-from tactilab.data_schemas._lazy import attach, package_version
+from tactilab.core import attach, package_version
 
 #: public name -> module that defines it
 _EXPORTS = {

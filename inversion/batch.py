@@ -1,7 +1,7 @@
 """Invert many recordings of one defect scene: serial or on Dask, resumable, same answer on any worker count.
 
 :func:`invert_many` runs one task per recording through the generic batch layer
-(:mod:`tactilab.data_schemas.batch`): the defect position by emcee
+(:mod:`tactilab.core.batch`): the defect position by emcee
 (:func:`~.scene_inversion.invert_defect_position`, all ensembles of a recording in its task, so
 the between-ensemble R-hat is computed there) and the load-density profile with its credible
 band (:func:`~.scene_inversion.defect_profile`). Each recording's seed is derived from its key
@@ -22,7 +22,7 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
-from tactilab.data_schemas.batch import batch_client, result_path, run_batch, write_netcdf_atomic
+from tactilab.core.batch import batch_client, result_path, run_batch, write_netcdf_atomic
 from tactilab.data_schemas.recording import Recording
 
 from .scene_inversion import defect_profile, invert_defect_position

@@ -1,6 +1,6 @@
 """Metamer scans on the generic batch layer: the tractor metamer of a grating over (display, pitch, phase).
 
-:func:`metamer_scan` runs one batch task (:func:`tactilab.data_schemas.batch.run_batch`) per
+:func:`metamer_scan` runs one batch task (:func:`tactilab.core.batch.run_batch`) per
 (display, pitch, phase): the best tractor-load match (:func:`~.metameres.metamer_pair`) of a
 sinusoidal indentation ``H = A sin(2 pi x / p + phase)`` on one row of the display, scored under
 a receptor hypothesis (relative residual, d', P(correct) in 2IFC, metameric or not). Serial with
@@ -18,7 +18,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from tactilab.data_schemas.batch import read_result, run_batch, write_netcdf_atomic
+from tactilab.core.batch import read_result, run_batch, write_netcdf_atomic
 from tactilab.forward import ReceptorHypothesis
 
 from .metamer_families import SinusoidFamily, TractorFamily
@@ -95,7 +95,7 @@ def metamer_scan(pitches: Sequence[float], phases: Sequence[float], displays, hy
     criterion : float
         d' below which a pair is metameric.
     client, workers, scheduler, per_task, progress
-        See :func:`tactilab.data_schemas.batch.run_batch`.
+        See :func:`tactilab.core.batch.run_batch`.
 
     Returns
     -------

@@ -1,4 +1,4 @@
-"""Batches: the generic layer (tactilab.data_schemas.batch), the batch inversion
+"""Batches: the generic layer (tactilab.core.batch), the batch inversion
 (tactilab.inversion.batch.invert_many) and its CLI options (tactilab.cli.batch_options).
 
 Generic layer: per-key seeds, atomic results, resume, errors.tsv, killed workers and clients,
@@ -30,10 +30,10 @@ import pytest
 import xarray as xr
 
 from tactilab.cli.batch_options import add_batch_options, run_invert_batch
+from tactilab.core import batch as B
+from tactilab.core import batch_cluster as BC
+from tactilab.core.batch import read_result, result_path, run_batch, stable_hash, task_rng
 from tactilab.data_schemas import Scan, SensorArray, load_example, read_recording
-from tactilab.data_schemas import batch as B
-from tactilab.data_schemas import batch_cluster as BC
-from tactilab.data_schemas.batch import read_result, result_path, run_batch, stable_hash, task_rng
 from tactilab.forward import simulate_scene
 from tactilab.inversion.batch import invert_many, recording_keys
 
@@ -77,7 +77,7 @@ def _values(out, keys):
 def test_stable_hash_is_sha256_and_process_independent():
     h = stable_hash("scans/a.nc")
     assert h == int(hashlib.sha256(b"scans/a.nc").hexdigest()[:16], 16)
-    code = "from tactilab.data_schemas.batch import stable_hash; print(stable_hash('scans/a.nc'))"
+    code = "from tactilab.core.batch import stable_hash; print(stable_hash('scans/a.nc'))"
     for hseed in ("0", "123"):
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                              env={**os.environ, "PYTHONHASHSEED": hseed}, check=True)
@@ -137,7 +137,7 @@ def test_client_killed_mid_batch_then_rerun_finishes_without_recomputing(tmp_pat
         import sys
         sys.path.insert(0, {str(Path(__file__).parent)!r})
         from test_batch import draw
-        from tactilab.data_schemas.batch import run_batch
+        from tactilab.core.batch import run_batch
         if __name__ == "__main__":
             run_batch(draw, {items!r}, seed=2, out_dir={str(out)!r}, scheduler={client.scheduler.address!r},
                       shared={{"log": {str(log)!r}, "sleep": 0.2}}, progress=False)

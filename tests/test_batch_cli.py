@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 
 from tactilab.cli.main import main
-from tactilab.data_schemas import DisplayDescription, Protocol, task_rng
-from tactilab.data_schemas import batch as B
+from tactilab.core import batch as B
+from tactilab.core import task_rng
+from tactilab.data_schemas import DisplayDescription, Protocol
 from tactilab.experiments import SimulatedDisplay, TransductionModel, new_session, power_analysis
 from tactilab.experiments.analysis import read_design
 from tactilab.experiments.batch import sessions_by_subject

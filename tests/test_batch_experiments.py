@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 from scipy.special import ndtr
 
-from tactilab.data_schemas import Stimulus, task_rng
+from tactilab.core import task_rng
+from tactilab.data_schemas import Stimulus
 from tactilab.experiments.batch import design_sweep, power_sweep
 from tactilab.experiments.models import TransductionModel, power_analysis
 from tactilab.forward import design_table

@@ -18,8 +18,9 @@ import pandas as pd
 import pytest
 import xarray as xr
 
-from tactilab.data_schemas import DisplayDescription, Stimulus, read_result, run_batch, task_rng
-from tactilab.data_schemas import batch as B
+from tactilab.core import batch as B
+from tactilab.core import read_result, run_batch, task_rng
+from tactilab.data_schemas import DisplayDescription, Stimulus
 from tactilab.experiments import TransductionModel, compare_many, compare_models, fit_transduction
 from tactilab.forward import ReceptorHypothesis
 from tactilab.inversion import SinusoidFamily, TractorFamily, metamer_pair, metamer_scan

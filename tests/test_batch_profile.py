@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from tactilab.data_schemas import read_result, run_batch, write_netcdf_atomic
-from tactilab.data_schemas.batch import BATCH_CLUSTER_CONFIG, batch_client
+from tactilab.core import read_result, run_batch, write_netcdf_atomic
+from tactilab.core.batch import BATCH_CLUSTER_CONFIG, batch_client
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the workers cannot import this file
 

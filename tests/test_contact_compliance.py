@@ -142,3 +142,13 @@ def test_bad_inputs():
         C.tangential(np.zeros(8), np.zeros(8))
     with pytest.raises(ValueError, match="a plane-strain grid has only"):
         C.spectrum("uy", "p")
+
+
+@pytest.mark.parametrize("shape,spacing", [((32,), 1e-4), ((16, 24), (1e-4, 2e-4))])
+def test_stiffness_inverts_the_periodic_compliance(shape, spacing, rng):
+    C = ContactCompliance(HalfSpace(E, 0.3), shape, spacing, periodic=True)
+    p = rng.standard_normal(shape)
+    p -= p.mean()
+    assert np.allclose(C.stiffness(C.normal(p)), p, atol=1e-10 * np.abs(p).max())
+    a, b = rng.standard_normal(shape), rng.standard_normal(shape)
+    assert float((C.stiffness(a) * b).sum()) == pytest.approx(float((a * C.stiffness(b)).sum()), rel=1e-12)

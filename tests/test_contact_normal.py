@@ -188,3 +188,18 @@ def test_warm_start_gives_the_cold_answer():
     other = solve_contact(SKIN, np.roll(g0, 2, axis=1), h, normal_force=0.5, initial=cold)
     ref = solve_contact(SKIN, np.roll(g0, 2, axis=1), h, normal_force=0.5)
     assert np.allclose(other.pressure, ref.pressure, atol=1e-5 * p0)
+
+
+@pytest.mark.filterwarnings("ignore:spacing. the largest contact patch")  # small rough patches, on purpose
+@pytest.mark.parametrize("periodic", [True, False])
+def test_both_methods_give_one_answer(periodic, rng):
+    n = 64
+    g0 = bisinusoid(n) + 0.3 * D * rng.random((n, n))
+    kw = dict(mean_pressure=0.1 * P_STAR, periodic=True) if periodic else dict(normal_force=0.1 * P_STAR * L * L)
+    fast = solve_contact(SKIN, g0, L / n, **kw)
+    pk = solve_contact(SKIN, g0, L / n, method="polonsky_keer", **kw)
+    assert fast.method == "preconditioned_cg" and pk.method == "polonsky_keer"
+    assert fast.iterations < pk.iterations
+    assert np.allclose(fast.pressure, pk.pressure, atol=1e-6 * fast.pressure.max())
+    check_complementarity(fast, g0, TOL)
+    check_complementarity(pk, g0, TOL)

@@ -1,4 +1,4 @@
-"""Imports flow one way: data_schemas <- forward <- inversion <- experiments; cli on top."""
+"""Imports flow one way: core <- data_schemas <- forward <- inversion <- experiments <- demo <- cli."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-LAYER = {"data_schemas": 0, "forward": 1, "inversion": 2, "experiments": 3, "demo": 4, "cli": 5}
+LAYER = {"core": 0, "data_schemas": 1, "forward": 2, "inversion": 3, "experiments": 4, "demo": 5, "cli": 6}
 
 
 def imported_parts(source: str, part: str, module_parts: tuple[str, ...]) -> set[str]:
@@ -50,8 +50,20 @@ def test_imports_flow_one_way(part, path):
         assert target != "cli", f"{path}: nothing may import tactilab.cli"
         assert LAYER[target] <= LAYER[part], (
             f"{path}: tactilab.{part} may not import tactilab.{target} "
-            "(data_schemas <- forward <- inversion <- experiments)"
+            "(core <- data_schemas <- forward <- inversion <- experiments <- demo <- cli)"
         )
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "core").rglob("*.py")), ids=lambda p: p.name)
+def test_core_imports_no_other_part(path):
+    """The ground floor stands alone: it names no touch concept and imports no other part."""
+    parts = imported_parts(path.read_text(), "core", path.relative_to(ROOT / "core").parts[:-1])
+    assert parts <= {"core"}, f"{path}: tactilab.core may import only itself, not {sorted(parts - {'core'})}"
+
+
+def test_the_top_level_package_imports_only_core():
+    parts = imported_parts((ROOT / "toplevel" / "__init__.py").read_text(), "toplevel", ())
+    assert parts == {"core"}, "tactilab/__init__.py (toplevel/) must stay light: it may import only tactilab.core"
 
 
 def test_checker_catches_a_backward_import():

@@ -6,7 +6,7 @@ import tomllib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PARTS = ["data_schemas", "forward", "inversion", "experiments", "demo", "cli"]
+PARTS = ["core", "data_schemas", "forward", "inversion", "experiments", "demo", "cli"]
 
 
 def _pyproject() -> dict:
@@ -17,7 +17,7 @@ def test_every_package_folder_is_listed():
     tool = _pyproject()["tool"]["setuptools"]
     listed = set(tool["packages"])
     package_dir = tool["package-dir"]
-    found = set()
+    found = {"tactilab"} if (ROOT / "toplevel" / "__init__.py").is_file() else set()
     for part in PARTS:
         for init in (ROOT / part).rglob("__init__.py"):
             rel = init.parent.relative_to(ROOT / part).parts
@@ -28,11 +28,19 @@ def test_every_package_folder_is_listed():
     assert not stale, f"{sorted(stale)} listed in pyproject.toml but have no __init__.py"
     for part in PARTS:
         assert package_dir[f"tactilab.{part}"] == part
+    assert "tactilab" in listed and package_dir["tactilab"] == "toplevel"
 
 
-def test_namespace_package_has_no_init():
+def test_the_top_level_package_is_regular_and_lives_apart_from_the_checkout_root():
+    """``tactilab/__init__.py`` comes from ``toplevel/``: a regular package, so an installed copy wins
+    over a clone named ``tactilab`` in the current directory (a folder without ``__init__.py``)."""
+    import tactilab
+
+    assert (ROOT / "toplevel" / "__init__.py").is_file()
+    assert Path(tactilab.__file__).parent.name == "toplevel"
     assert not (ROOT / "tactilab" / "__init__.py").exists()
     assert not (ROOT / "__init__.py").exists()
+    assert not [p for p in (ROOT / "toplevel").iterdir() if p.name not in ("__init__.py", "__pycache__")]
 
 
 def test_installed_parts_come_from_the_mapped_folders():

@@ -13,7 +13,7 @@ Conventions (docs/theory.md section 1): tractions act on the skin, ``p`` pushes 
 are positive towards the skin, ``uz`` is positive into the skin; SI units.
 """
 
-from tactilab.data_schemas._lazy import attach
+from tactilab.core import attach
 
 #: public name -> module of the contact room that defines it (loaded on first use)
 _EXPORTS = {

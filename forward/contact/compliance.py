@@ -9,6 +9,7 @@
     ux_p, uy_p = C.tangential_from_normal(p)  # and (ux, uy) from p
     uz, ux, uy = C.apply(p, qx, qy)       # all of it
     C.self_compliance                     # (Czz, Cxx, Cyy) at zero offset, m/Pa (a Jacobi scale)
+    p_approx = C.stiffness(uz)            # Pa, the periodic inverse of normal (a preconditioner)
 
 Arrays have the grid's ``shape``: ``(nx,)`` (plane strain) or ``(ny, nx)`` (x last); node ``j``
 sits at ``x_j = (j - nx // 2) dx`` as in :class:`~tactilab.forward.halfspace.SurfaceLoad`.
@@ -41,7 +42,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import fft as sfft
 
-from ..halfspace import validation as check
+from tactilab.core import rules as check
 
 #: index of each displacement / traction component in the compliance matrices
 _ROW = {"uz": 0, "ux": 1, "uy": 2}
@@ -81,7 +82,7 @@ class ContactCompliance:
         self.periodic = bool(periodic)
         self.fft_shape = shape if periodic else tuple(2 * n for n in shape)
         self._axes = tuple(range(-self.ndim, 0))
-        self._spectra: dict[tuple[int, int], np.ndarray] = {}
+        self._spectra: dict = {}  # (row, col) -> block spectrum; "stiffness" -> the preconditioner
         self._matrix = None
 
     def __repr__(self) -> str:
@@ -136,7 +137,7 @@ class ContactCompliance:
         if key not in self._spectra:
             m = self._full_matrix()[..., key[0], key[1]]
             self._spectra[key] = m if self.periodic else sfft.rfftn(m, axes=self._axes, workers=1)
-            if len(self._spectra) == self.n_components ** 2:
+            if len([k for k in self._spectra if isinstance(k, tuple)]) == self.n_components ** 2:
                 self._matrix = None  # every block is cached: drop the kernel
         return self._spectra[key]
 
@@ -148,6 +149,25 @@ class ContactCompliance:
             s = self.spectrum(name, col)
             out.append(float(sfft.irfftn(s, s=self.fft_shape, axes=self._axes, workers=1).flat[0]))
         return tuple(out)
+
+    def stiffness(self, gap) -> np.ndarray:
+        """The periodic surface stiffness of the grid applied to ``gap`` (m -> Pa): the inverse of the
+        periodic normal compliance on the unpadded grid (``E* |k| / 2`` for a half-space; 0 at ``k = 0``).
+
+        Exactly the inverse of :meth:`normal` on zero-mean fields of a periodic grid; for an isolated
+        grid an approximate inverse (the solvers' preconditioner), at the cost of an unpadded FFT pair.
+        """
+        if "stiffness" not in self._spectra:
+            kx = 2 * np.pi * sfft.rfftfreq(self.shape[-1], self.spacing[0])
+            if self.ndim == 1:
+                c = np.real(np.asarray(self.skin.surface_compliance(kx, None))[..., 0, 0])
+            else:
+                ky = 2 * np.pi * sfft.fftfreq(self.shape[0], self.spacing[1])
+                c = np.real(np.asarray(self.skin.surface_compliance(kx[None, :], ky[:, None]))[..., 0, 0])
+            with np.errstate(divide="ignore"):
+                self._spectra["stiffness"] = np.where(c > 0, 1.0 / np.where(c > 0, c, 1.0), 0.0)
+        spectrum = sfft.rfftn(self._check(gap, "gap"), axes=self._axes, workers=1)
+        return sfft.irfftn(self._spectra["stiffness"] * spectrum, s=self.shape, axes=self._axes, workers=1)
 
     # -- products ---------------------------------------------------------------------------
     def _check(self, value, name: str) -> np.ndarray:

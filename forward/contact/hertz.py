@@ -34,8 +34,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..halfspace import ContinuousLoad, SurfaceLoad, positive
-from ..halfspace import validation as check
+from tactilab.core import rules as check
+from tactilab.core.rules import positive
+
+from ..halfspace import ContinuousLoad, SurfaceLoad
 
 CONDITIONS = ("frictionless", "sliding", "partial", "stuck")
 

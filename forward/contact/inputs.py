@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..halfspace import validation as check
+from tactilab.core import rules as check
 from .hertz import CONDITIONS
 
 #: fraction of the available memory a solve may use
@@ -122,10 +122,9 @@ def check_inputs(skin, gap, spacing, *, normal_force, mean_pressure, approach, p
         if periodic:
             raise ValueError(f"approach: a periodic contact has no defined approach (the mean displacement of a "
                              f"half-space under a mean pressure is unbounded), got {approach!r}; give mean_pressure")
-        approach = check._number(approach, "approach", "must be a finite length in m", "give the approach in m")
-        if not math.isfinite(approach):
-            raise ValueError(f"approach: must be a finite length in m, got {approach!r}; give the approach in m")
-    mu = check._number(friction, "friction", "must be >= 0", "use 0 for a frictionless contact")
+        approach = check.finite(approach, "approach", "m", "give the rigid approach in m")
+    mu = float(friction) if isinstance(friction, (int, float, np.integer, np.floating)) \
+        and not isinstance(friction, (bool, np.bool_)) else math.nan
     if math.isnan(mu) or mu < 0 or (math.isinf(mu) and condition != "stuck"):
         raise ValueError(f"friction: the Coulomb coefficient must be >= 0 (inf only for condition='stuck'), got "
                          f"{friction!r}; use 0 for a frictionless contact")

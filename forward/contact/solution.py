@@ -79,7 +79,7 @@ class ContactSolution:
     error_estimate: float
     error_parts: dict = field(default_factory=dict)
     coupling: dict = field(default_factory=dict)
-    method: str = "polonsky_keer"
+    method: str = "preconditioned_cg"
     condition: str = "frictionless"
     friction: float = 0.0
 

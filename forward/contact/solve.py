@@ -26,11 +26,12 @@ from ..halfspace import AccuracyWarning
 from .compliance import ContactCompliance
 from .inputs import check_inputs
 from .normal import polonsky_keer
+from .preconditioned import preconditioned_cg
 from .solution import ContactSolution
 from .tangential import solve_tangential
 
-#: normal-contact methods by name; ``method="auto"`` picks ``"polonsky_keer"``
-METHODS = {"polonsky_keer": polonsky_keer}
+#: normal-contact methods by name; ``method="auto"`` picks ``"preconditioned_cg"``
+METHODS = {"preconditioned_cg": preconditioned_cg, "polonsky_keer": polonsky_keer}
 #: nodes across the largest contact patch below which an AccuracyWarning is raised
 MIN_NODES_ACROSS = 8
 #: Richardson factor for a pressure error of order h^(1/2): error(h) = diff / (sqrt(2) - 1)
@@ -77,7 +78,9 @@ def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, 
         For ``"sliding"``: the direction of the traction ON THE SKIN, x first; ``(1, 0)`` gives
         ``qx = +mu p`` (the sign convention of ``interfacial_traction``); in plane strain
         ``(1, 0)`` or ``(-1, 0)``.
-    method : "auto", "polonsky_keer" or a callable with the signature of ``normal.polonsky_keer``
+    method : "auto", "preconditioned_cg", "polonsky_keer" or a callable
+        ``"auto"`` is ``"preconditioned_cg"`` (:mod:`.preconditioned`); a callable takes the
+        arguments of ``normal.polonsky_keer`` and returns a ``normal.NormalResult``.
     tol : float
         Relative gap residual: ``max |g|`` on the contact and ``max(-g)`` off it, at most
         ``tol * (max(gap) - min(gap))``.
@@ -136,7 +139,7 @@ def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, 
 def _method(method):
     if callable(method):
         return method
-    name = "polonsky_keer" if method == "auto" else method
+    name = "preconditioned_cg" if method == "auto" else method
     if name not in METHODS:
         raise ValueError(f"method: must be 'auto', one of {sorted(METHODS)} or a callable, got {method!r}")
     return METHODS[name]

@@ -5,9 +5,9 @@ This package is the solver's one door. Scene, display and synthesis code in
 The theory is in ``docs/theory.md``.
 """
 
-from tactilab.data_schemas._lazy import attach
-
-from . import _validation as validation  # noqa: F401 (public: the validation rules)
+from tactilab.core import attach
+from tactilab.core import rules as validation  # noqa: F401 (public: the input rules, whose home is core)
+from tactilab.core.rules import positive  # noqa: F401 (public)
 
 #: public name -> module of the solver that defines it (loaded on first use, so that importing one
 #: kernel does not load xarray through the facade)
@@ -38,7 +38,6 @@ _EXPORTS = {
     "pixel_influence": "surface_compliance",
     "point_green": "kernels",
     "point_load_stress": "kernels",
-    "positive": "_validation",
     "pressure_from_deflection": "spectral",
     "select_method": "methods",
     "SHEAR_CONVENTION": "fields",
@@ -49,5 +48,5 @@ _EXPORTS = {
     "transfer": "spectral",
 }
 
-__all__ = sorted([*_EXPORTS, "validation"])
+__all__ = sorted([*_EXPORTS, "positive", "validation"])
 __getattr__, __dir__ = attach(__name__, _EXPORTS)

@@ -36,7 +36,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import _validation as check
+from tactilab.core import rules as check
 from .loads import LOAD_COMPONENTS, SurfaceLoad
 from .spectral import pressure_from_deflection
 

@@ -31,7 +31,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from .kernel_formulas import line_geometry, line_unit, point_geometry, point_unit
-from . import _validation as check
+from tactilab.core import rules as check
 from .kernels import COMPONENTS, active_pairs
 from .loads import SurfaceLoad
 

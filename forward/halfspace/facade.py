@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import xarray as xr
 
-from . import _validation as check
+from tactilab.core import rules as check
 from .fields import SHEAR_CONVENTION, compliance_matrix, invariants, label, output_weights
 from .loads import SurfaceLoad
 from .methods import AccuracyWarning, Problem, select_method  # noqa: F401  (AccuracyWarning: re-export)

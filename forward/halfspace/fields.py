@@ -14,8 +14,8 @@ from collections.abc import Sequence
 import numpy as np
 import xarray as xr
 
-from . import _validation as check
-from ._validation import COMPONENTS as VOIGT
+from tactilab.core import rules as check
+from tactilab.core.rules import COMPONENTS as VOIGT
 
 #: The shear convention of every strain tactilab returns (recorded in result attributes)
 SHEAR_CONVENTION = "tensor shear eps_ij (engineering gamma_ij = 2 eps_ij; see to_engineering)"

@@ -39,8 +39,8 @@ from numpy.typing import ArrayLike
 from .kernel_formulas import line_geometry, line_unit, point_geometry, point_unit
 from .loads import SurfaceLoad
 
-from . import _validation as check
-from ._validation import COMPONENTS
+from tactilab.core import rules as check
+from tactilab.core.rules import COMPONENTS
 DIRECTIONS = ("x", "y", "z")
 
 __all__ = [

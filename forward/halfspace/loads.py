@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import _validation as check
+from tactilab.core import rules as check
 
 #: Surface traction components: normal pressure p (pushes in) and tangential qx, qy (Pa)
 LOAD_COMPONENTS = ("p", "qx", "qy")

@@ -26,7 +26,7 @@ import scipy.fft as sfft
 from scipy.sparse.linalg import LinearOperator
 
 from .dcfft import dcfft_convolve, dcfft_correlate, dcfft_kernel_spectrum
-from . import _validation as check
+from tactilab.core import rules as check
 from .fields import output_weights
 from .kernels import line_green, point_green
 from .loads import LOAD_COMPONENTS, SurfaceLoad

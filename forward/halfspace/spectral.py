@@ -32,8 +32,8 @@ import numpy as np
 import scipy.fft as sfft
 
 from . import _hotpath
-from . import _validation as check
-from ._validation import COMPONENTS as VOIGT
+from tactilab.core import rules as check
+from tactilab.core.rules import COMPONENTS as VOIGT
 from ._hotpath import clear_transfer_cache  # noqa: F401  (re-export)
 from .loads import SurfaceLoad
 

@@ -1,23 +1,26 @@
-"""Input rules of the half-space solver: one rule per quantity, one message style.
+"""Input rules: one function per quantity, one message style, used by every part of tactilab.
 
-Every public entry point of :mod:`tactilab.forward.halfspace` (and the scene, tractor and
-contact modules built on it) validates its arguments here, once, and passes checked values
-down the call chain. Each error names the argument, the rule, the value it got and the fix::
+This module names no touch concept: it knows lengths, moduli, ratios, arrays and tensor
+components, not skin or sensors. Records, the solver, the inversion and the command line all
+check their arguments here, so a rule cannot drift between them (``tests/test_rules.py`` runs
+one table of good and bad values against every public entry point). Each error names the
+argument, the rule, the value it got and the fix::
 
     depth: every depth must be finite and > 0 m (z points into the skin), got -0.001 at
     index 0; give depths below the surface as positive metres
 
 Rules
 -----
-- components: Voigt names ``xx, yy, zz, yz, zx, xy``; the aliases ``xz``, ``zy``, ``yx`` are
-  accepted everywhere and mean the same tensor entry; ``None`` means all six.
+- components: Voigt names ``xx, yy, zz, yz, zx, xy`` (:data:`COMPONENTS`, the one copy of
+  the order); the aliases ``xz``, ``zy``, ``yx`` (:data:`COMPONENT_ALIASES`) are accepted
+  everywhere and mean the same tensor entry; ``None`` means all six.
 - depth(s): finite and > 0 m (z points into the skin).
 - Poisson's ratio: in (-1, 0.5], the thermodynamic bounds of an isotropic solid (0.5 is
-  incompressible and exact); the same rule as the material record of
-  :mod:`tactilab.data_schemas`.
+  incompressible and exact).
 - Young's modulus: finite and > 0 Pa.
 - grid spacing: finite and > 0 m, x first.
-- any other positive length, force or rate: :func:`positive`.
+- any other positive length, force or rate: :func:`positive`; a signed one: :func:`finite`.
+- arrays: :func:`finite_array` (no NaN or inf); dtypes: :func:`float_dtype`.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ import numpy as np
 
 #: Voigt order of stress and strain components (tensor shear in the last three), docs/theory.md section 1
 COMPONENTS = ("xx", "yy", "zz", "yz", "zx", "xy")
-#: alternative spellings of the symmetric shear entries
+#: alternative spellings of the symmetric shear entries (alias -> Voigt name)
 COMPONENT_ALIASES = {"xz": "zx", "zy": "yz", "yx": "xy"}
 
 __all__ = [
@@ -38,10 +41,12 @@ __all__ = [
     "components",
     "depth",
     "depths",
+    "finite",
     "finite_array",
     "float_dtype",
     "poisson_ratio",
     "positive",
+    "show",
     "spacing",
     "young_modulus",
 ]
@@ -84,6 +89,18 @@ def positive(value, name: str, unit: str = "m", fix: str = "") -> float:
     v = _number(value, name, f"must be finite and > 0 {unit}", fix)
     if not math.isfinite(v) or v <= 0:
         raise ValueError(f"{name}: must be finite and > 0 {unit}, got {show(value)}; {fix}")
+    return v
+
+
+def finite(value, name: str, unit: str = "m", fix: str = "") -> float:
+    """A finite real number of any sign (a signed length, an offset ...), returned as float.
+
+    Raises ``ValueError`` ``"<name>: must be a finite number in <unit>, got <value>; <fix>"``.
+    """
+    fix = fix or f"give a finite value in {unit}"
+    v = _number(value, name, f"must be a finite number in {unit}", fix)
+    if not math.isfinite(v):
+        raise ValueError(f"{name}: must be a finite number in {unit}, got {show(value)}; {fix}")
     return v
 
 

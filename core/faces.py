@@ -1,5 +1,7 @@
 """Lazy public faces (PEP 562): a part's ``__init__`` names its exports; modules load on first use.
 
+Every face of tactilab (``tactilab.core``, ``tactilab.forward``, ...) is built with :func:`attach`.
+
 Keeping the faces lazy keeps ``tactilab --help`` fast: importing ``tactilab.inversion`` does not
 load emcee, arviz or matplotlib until a name that needs them is used. The module names come from
 the face's own constant table, never from data.
@@ -13,21 +15,13 @@ import json
 import sys
 import warnings
 from collections.abc import Callable, Mapping
-from importlib.metadata import PackageNotFoundError, distributions, version
+from importlib.metadata import distributions
 from pathlib import Path
 from urllib.parse import unquote, urlparse
 
 
 class ShadowedInstallWarning(UserWarning):
     """A part of tactilab was imported from a folder other than the installed distribution's."""
-
-
-def package_version() -> str:
-    """The installed distribution's version (``"unknown"`` when run from an uninstalled tree)."""
-    try:
-        return version("tactilab")
-    except PackageNotFoundError:
-        return "unknown"
 
 
 @functools.lru_cache(maxsize=1)
@@ -56,9 +50,11 @@ def _installed() -> tuple[dict[str, Path], Path | None]:
 def check_origin(package: str, file: str | None) -> bool:
     """Warn (:class:`ShadowedInstallWarning`) when face ``package`` was loaded from outside the installed tactilab.
 
-    ``tactilab`` is a namespace package, so a folder named ``tactilab`` in the current directory
-    (a checkout, when Python runs from the folder that holds it) becomes part of it ahead of the
-    installed copy. Returns True when the origin matches the installation (or nothing is installed).
+    ``tactilab`` is a regular package, so a folder named ``tactilab`` without ``__init__.py`` (a
+    checkout, when Python runs from the folder that holds it) no longer takes the installed copy's
+    place where the install is a wheel; an editable install is found after the current directory,
+    and a copied ``tactilab/__init__.py`` earlier on ``sys.path`` still wins. Returns True when the
+    origin matches the installation (or nothing is installed).
     """
     rel = "/".join([*package.split(".")[1:], "__init__.py"])  # tactilab.forward.halfspace -> forward/halfspace/...
     files, root = _installed()
@@ -75,7 +71,19 @@ def check_origin(package: str, file: str | None) -> bool:
     return False
 
 
-def attach(package: str, exports: Mapping[str, str]) -> tuple[Callable[[str], object], Callable[[], list[str]]]:
+def moved_name(package: str, name: str, new_home: str, removed_in: str) -> object:
+    """Return ``name`` from the module ``new_home``, warning that ``package.name`` moved there.
+
+    The :class:`DeprecationWarning` points at the caller's line and says where to import the
+    name from now and in which release the old spelling goes.
+    """
+    warnings.warn(f"{package}.{name} moved to {new_home}; import it from there ('from {new_home} import {name}'): "
+                  f"the old name goes in tactilab {removed_in}", DeprecationWarning, stacklevel=3)
+    return getattr(importlib.import_module(new_home), name)
+
+
+def attach(package: str, exports: Mapping[str, str], moved: Mapping[str, str] | None = None,
+           removed_in: str = "0.2.0") -> tuple[Callable[[str], object], Callable[[], list[str]]]:
     """Return ``(__getattr__, __dir__)`` for the face of ``package``.
 
     Parameters
@@ -84,11 +92,21 @@ def attach(package: str, exports: Mapping[str, str]) -> tuple[Callable[[str], ob
         The face's ``__name__``, e.g. ``"tactilab.forward"``.
     exports : mapping of str to str
         Public name -> submodule (relative to ``package``) that defines it.
+    moved : mapping of str to str, optional
+        Names that used to live here -> the module to import them from now (a face, e.g.
+        ``"tactilab.core"``, or a module for a moved module's names). They still
+        resolve, with a :class:`DeprecationWarning` (see :func:`moved_name`), and are left out of
+        ``dir()``.
+    removed_in : str
+        The release that drops the ``moved`` names, for the warning.
     """
 
     check_origin(package, getattr(sys.modules.get(package), "__file__", None))
+    moved = dict(moved or {})
 
     def __getattr__(name: str) -> object:
+        if name in moved:  # not cached, so every use warns
+            return moved_name(package, name, moved[name], removed_in)
         try:
             submodule = exports[name]
         except KeyError:

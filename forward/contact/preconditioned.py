@@ -1,0 +1,98 @@
+"""Normal contact by preconditioned conjugate gradients on a working set (the default method).
+
+Same problem as :mod:`.normal` (``p >= 0``, ``g = g0 + uz(p) - delta >= 0``, ``p g = 0``, the force
+or the approach given). Polonsky and Keer's iteration needs a number of iterations that grows
+like the square root of the grid's width, because the compliance's spectrum ``2 / (E* |k|)``
+spans the ratio of the grid's largest and smallest wavenumbers. Here each iteration is
+preconditioned by the periodic surface stiffness ``E* |k| / 2`` (the exact inverse of the
+compliance on a fully touching periodic grid), restricted to the working set, which cuts the
+iterations three- to four-fold on rough surfaces (about 60 instead of 210 at 512^2, 10 %
+contact), in the spirit of Vollebregt's bound-constrained CG (J. Optim. Theory Appl. 162, 2014).
+
+One iteration:
+
+1. the gap ``g`` (force control: minus its mean over the contact set, which sets ``delta``);
+2. the working set ``S``: nodes in contact and nodes that penetrate (``g < 0``), which enter;
+3. the residual ``r = g`` on ``S``; the preconditioned residual ``z = K r`` on ``S`` (force
+   control: minus its mean on ``S``, so that the step keeps the force);
+4. the direction ``t = z + beta t_old`` (Fletcher-Reeves; restarted when ``S`` changes);
+5. the exact step ``tau = <r, t> / <A t, t>``; ``p = max(p - tau t, 0)``, rescaled to the force.
+
+Products: one compliance product ``A t`` and one preconditioner product ``K r`` per iteration
+(the preconditioner is an FFT pair of the unpadded grid, a quarter of a padded product for an
+isolated contact); ``uz = A p`` is updated as ``uz - tau A t`` unless a pressure was clipped to 0,
+and recomputed exactly every 32 iterations and before convergence is declared.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .normal import REFRESH, NormalResult, _dot
+
+
+def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approach: float | None, tol: float,
+                      max_iter: int, p0: np.ndarray, extra_gap: np.ndarray | None = None) -> NormalResult:
+    """Solve the frictionless normal contact on one grid; the arguments of :func:`.normal.polonsky_keer`."""
+    A, K = compliance.normal, compliance.stiffness
+    g0 = g0 if extra_gap is None else g0 + extra_gap
+    scale = float(g0.max() - g0.min()) or float(np.abs(g0).max()) or 1.0
+    target = tol * scale
+    force = total is not None
+    p = np.array(p0, dtype=float)
+    if force:
+        s = p.sum()
+        p = p * (total / s) if s > 0 else np.full(p.shape, total / p.size)
+    u = A(p)
+    products, exact = 1, True
+    t = np.zeros_like(p)
+    S_old, G_old, residual, delta = None, 1.0, np.inf, approach
+    it = 0
+    while True:
+        g = g0 + u
+        inside = p > 0
+        n_in = int(np.count_nonzero(inside))
+        if force:
+            delta = float(np.sum(g, where=inside)) / n_in if n_in else float(g.min())
+            g -= delta
+        else:
+            g -= delta
+        S = inside | (g < 0)
+        r = np.where(S, g, 0.0)
+        residual = float(np.abs(r).max())  # |g| in contact, the penetration elsewhere
+        if residual <= target or it >= max_iter:
+            if exact or it >= max_iter:
+                break
+            u, exact = A(p), True  # confirm on the exact displacement
+            products += 1
+            continue
+        n_s = int(np.count_nonzero(S))
+        z = K(r)
+        z *= S
+        if force:
+            np.subtract(z, float(z.sum()) / n_s, out=z, where=S)
+        G = _dot(r, z)
+        if S_old is not None and np.array_equal(S, S_old) and G_old > 0:
+            t *= G / G_old
+            t += z
+        else:
+            t = z
+        S_old, G_old = S, G
+        At = A(t)
+        products += 2
+        denom = _dot(At, t)
+        tau = _dot(r, t) / denom if denom > 0 else 0.0
+        p = p - tau * t
+        clipped = float(p.min()) < 0
+        it += 1
+        if clipped:
+            np.maximum(p, 0.0, out=p)
+            if force:
+                p *= total / p.sum()
+        if clipped or it % REFRESH == 0:
+            u, exact = A(p), True
+            products += 1
+        else:
+            u -= tau * At
+            exact = False
+    return NormalResult(p, float(delta), g, it, residual <= target, residual, products)
