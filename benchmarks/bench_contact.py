@@ -216,7 +216,8 @@ def section_b(n: int, tol: float, peer: bool, cap: float, peer_tol: float, peer_
     stick = (p > 0) & (qm < mu * p * (1 - 1e-3))
     c_peer = np.sqrt(np.count_nonzero(stick) * dx * dx / np.pi)
     print(f"{'Tamaas Condat':<22}{float(res['time']):10.3f}{(c_peer - c_exact) / dx:20.2f}  "
-          f"tol {peer_tol:g}, at most {peer_iter} iterations, periodic cell, associated friction law, tamaas {res['version']}")
+          f"tol {peer_tol:g}, at most {peer_iter} iterations, periodic cell, associated friction law, "
+          f"tamaas {res['version']}")
 
 
 def fingertip(n: int, frames: int = 0, extent: float = 5.12e-3):
@@ -280,7 +281,8 @@ def main(argv=None) -> int:
     parser.add_argument("--partial-size", type=int, default=128, help="grid of the partial-slip frame (b)")
     parser.add_argument("--tol", type=float, default=1e-8, help="solver tolerance of every solve (and Tamaas's)")
     parser.add_argument("--condat-tol", type=float, default=1e-4,
-                        help="Tamaas Condat's tolerance in (b) (its own cost criterion; 1e-8 gives no answer in minutes)")
+                        help="Tamaas Condat's tolerance in (b) (its own cost criterion; 1e-8 gives no answer "
+                             "in minutes)")
     parser.add_argument("--condat-max-iter", type=int, default=20000, help="Tamaas Condat's iteration limit in (b)")
     parser.add_argument("--peer-cap", type=float, default=300.0, help="seconds Tamaas may take per solve")
     parser.add_argument("--no-peer", action="store_true", help="skip Tamaas")

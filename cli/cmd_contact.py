@@ -53,8 +53,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                       "20um or 20um,10um (x, y)")
     sk.add_argument("--height-unit", help="unit of the heights in a .npy or plain-matrix .csv, e.g. um")
     parser.add_argument("--tol", type=float, default=1e-8,
-                        help="solver tolerance: the largest gap residual relative to the gap's range (max - min), dimensionless "
-                             "(default 1e-8)")
+                        help="solver tolerance: the largest gap residual over the gap's range (max - min), "
+                             "dimensionless (default 1e-8)")
     parser.add_argument("--depth", action="append", default=[],
                         help="receptor depth(s) for the strain map, with unit: 1mm, or 1mm,2mm; repeatable")
     parser.add_argument("--out", type=Path, default=None,

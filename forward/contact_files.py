@@ -131,7 +131,8 @@ def write_contact(solution, folder: str | pathlib.Path, *, skin=None, depths=(),
         written.append(plot_stick_slip(solution, folder / "stick_slip.png", mu, title))
     if len(depths):
         if skin is None:
-            raise ValueError("skin: the strain at depth needs the HalfSpace that was solved; pass skin=HalfSpace(E, nu)")
+            raise ValueError("skin: the strain at depth needs the HalfSpace that was solved; "
+                             "pass skin=HalfSpace(E, nu)")
         # no more accurate than the load it comes from: the contact's own error sets the field's tolerance
         tol = max(1e-6, float(solution.error_estimate))
         result = skin.strain(solution.load(), list(depths), tol=tol)
