@@ -147,6 +147,8 @@ def _quantities(text: str, dimension: str, option: str, count: tuple[int, ...] =
 
 def parse_options(args) -> dict:
     """Every option with a unit converted to SI up front, so a wrong unit fails before any work."""
+    from tactilab.core import rules
+
     plane = bool(args.plane_strain)
     loads = {k: getattr(args, k) for k in ("normal_force", "mean_pressure", "approach") if getattr(args, k)}
     values = {key: _quantities(text, {"normal_force": "line_load" if plane else "force", "mean_pressure": "pressure",
@@ -159,8 +161,9 @@ def parse_options(args) -> dict:
         if key != "approach":
             _positive(value, "--" + key.replace("_", "-"), loads[key], "0.8N" if key == "normal_force" else "10kPa")
     out = {"load": values, "grid": parse_grid(args.grid, plane)}
-    out["young_modulus"] = (_positive(_quantities(args.young_modulus, "pressure", "--young-modulus", (1,))[0],
-                                      "--young-modulus", args.young_modulus, "1MPa") if args.young_modulus else None)
+    out["young_modulus"] = (rules.young_modulus(_quantities(args.young_modulus, "pressure", "--young-modulus",
+                                                            (1,))[0], "--young-modulus")
+                            if args.young_modulus else None)
     out["finger_radius"] = (_positive(_quantities(args.finger_radius, "length", "--finger-radius", (1,))[0],
                                       "--finger-radius", args.finger_radius, "10mm") if args.finger_radius else None)
     out["grid_spacing"] = (_positive(_quantities(args.grid_spacing, "length", "--grid-spacing", (1,))[0],
@@ -181,8 +184,8 @@ def parse_options(args) -> dict:
     out["slide_direction"] = tuple(direction)
     depths = [z for text in args.depth for z in _quantities(text, "length", "--depth", tuple(range(1, 65)))]
     out["depths"] = [_positive(z, "--depth", ",".join(args.depth), "1mm") for z in depths]
-    if args.nu is not None and not -1 < args.nu <= 0.5:
-        raise ValueError(f"--nu: Poisson's ratio must be in (-1, 0.5], got {args.nu!r}; 0.5 for skin")
+    if args.nu is not None:
+        rules.poisson_ratio(args.nu, "--nu")
     if args.friction is not None and not args.friction >= 0:
         raise ValueError(f"--friction: the Coulomb coefficient must be >= 0, got {args.friction!r}; e.g. 0.5")
     if not 0 < args.tol < 1:

@@ -23,6 +23,8 @@ import numpy as np
 from pydantic import Field, model_validator
 from scipy.interpolate import RegularGridInterpolator
 
+from tactilab.core import rules
+
 from .base import Record, at_least, finite, float_array, positive
 
 Finite = Annotated[float, finite()]
@@ -290,13 +292,7 @@ def _grid_spacing(shape, spacing) -> tuple[tuple[int, ...], tuple[float, ...]]:
     if len(shape) not in (1, 2) or min(shape) < 4:
         raise ValueError(f"shape: expected (nx,) for a profile or (ny, nx) for a surface, at least 4 nodes "
                          f"per axis, got {shape}; give e.g. (256, 256)")
-    values = np.atleast_1d(np.asarray(spacing, dtype=float))
-    if values.size == 1:
-        values = np.repeat(values, len(shape))
-    if values.size != len(shape) or not np.all(np.isfinite(values)) or np.any(values <= 0):
-        raise ValueError(f"spacing: expected a positive, finite node spacing in m (one value, or (dx, dy) for a "
-                         f"surface, x first), got {spacing!r}; e.g. 20e-6")
-    return shape, tuple(float(v) for v in values)
+    return shape, rules.spacing(spacing, len(shape))
 
 
 def random_rough_surface(shape, spacing, *, rms_height: float | None = None, rms_slope: float | None = None,
@@ -363,9 +359,10 @@ def random_rough_surface(shape, spacing, *, rms_height: float | None = None, rms
     if (rms_height is None) == (rms_slope is None):
         raise ValueError(f"rms_height, rms_slope: give exactly one of them, got rms_height={rms_height!r}, "
                          f"rms_slope={rms_slope!r}; e.g. rms_height=2e-6 (m) or rms_slope=0.1")
-    name, target = ("rms_height", rms_height) if rms_height is not None else ("rms_slope", rms_slope)
-    if not (isinstance(target, (int, float, np.floating, np.integer)) and np.isfinite(target) and target > 0):
-        raise ValueError(f"{name}: must be a positive, finite number, got {target!r}")
+    if rms_height is not None:
+        target = rules.positive(rms_height, "rms_height", "m", "give the rms height in m, e.g. 2e-6")
+    else:
+        target = rules.positive(rms_slope, "rms_slope", "1", "give the rms slope, e.g. 0.1")
     if not (isinstance(hurst, (int, float, np.floating, np.integer)) and 0 < hurst <= 1):
         raise ValueError(f"hurst: the Hurst exponent must be in (0, 1], got {hurst!r}; 0.8 is typical")
     if not isinstance(rng, np.random.Generator):
@@ -374,9 +371,8 @@ def random_rough_surface(shape, spacing, *, rms_height: float | None = None, rms
     lengths = [n * d for n, d in zip(reversed(shape), spacing)]  # (Lx, Ly)
     long_cutoff = max(lengths) if long_cutoff is None else long_cutoff
     short_cutoff = 2.0 * max(spacing) if short_cutoff is None else short_cutoff
-    for cut, label in ((long_cutoff, "long_cutoff"), (short_cutoff, "short_cutoff")):
-        if not (isinstance(cut, (int, float, np.floating, np.integer)) and np.isfinite(cut) and cut > 0):
-            raise ValueError(f"{label}: must be a positive, finite wavelength in m, got {cut!r}")
+    long_cutoff = rules.positive(long_cutoff, "long_cutoff", "m", "give a wavelength in m")
+    short_cutoff = rules.positive(short_cutoff, "short_cutoff", "m", "give a wavelength in m")
     if short_cutoff < 2.0 * max(spacing) * (1 - 1e-12):
         raise ValueError(f"short_cutoff: {short_cutoff!r} m is below 2 node spacings ({2 * max(spacing)!r} m), "
                          "the shortest wavelength the grid carries; give at least that, or a finer spacing")

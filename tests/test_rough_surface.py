@@ -97,19 +97,19 @@ def test_periodic_over_the_grid(rng):
 @pytest.mark.parametrize(("kwargs", "match"), [
     ({}, "give exactly one of them"),
     ({"rms_height": 1e-6, "rms_slope": 0.1}, "give exactly one of them"),
-    ({"rms_height": -1e-6}, "rms_height: must be a positive, finite number"),
-    ({"rms_slope": float("nan")}, "rms_slope: must be a positive, finite number"),
+    ({"rms_height": -1e-6}, r"rms_height: must be finite and > 0 m, got -1e-06"),
+    ({"rms_slope": float("nan")}, r"rms_slope: must be finite and > 0 1, got nan"),
     ({"rms_height": 1e-6, "hurst": 1.5}, r"hurst: the Hurst exponent must be in \(0, 1\]"),
     ({"rms_height": 1e-6, "hurst": 0.0}, r"hurst: the Hurst exponent must be in \(0, 1\]"),
     ({"rms_height": 1e-6, "rng": 3}, "rng: expected a numpy.random.Generator"),
     ({"rms_height": 1e-6, "short_cutoff": 1e-5}, "short_cutoff: .* is below 2 node spacings"),
     ({"rms_height": 1e-6, "short_cutoff": 1e-4, "long_cutoff": 5e-5}, "short_cutoff: must be shorter than"),
-    ({"rms_height": 1e-6, "long_cutoff": float("inf")}, "long_cutoff: must be a positive, finite wavelength"),
+    ({"rms_height": 1e-6, "long_cutoff": float("inf")}, r"long_cutoff: must be finite and > 0 m, got inf"),
     ({"rms_height": 1e-6, "short_cutoff": 1.0, "long_cutoff": 2.0}, "short_cutoff: .* leaves no mode"),
     ({"rms_height": 1e-6, "shape": (3, 64)}, r"shape: expected \(nx,\) for a profile"),
     ({"rms_height": 1e-6, "shape": "big"}, r"shape: expected \(nx,\) or \(ny, nx\) integers"),
-    ({"rms_height": 1e-6, "spacing": 0.0}, "spacing: expected a positive, finite node spacing"),
-    ({"rms_height": 1e-6, "spacing": (1e-5, 1e-5, 1e-5)}, "spacing: expected a positive, finite node spacing"),
+    ({"rms_height": 1e-6, "spacing": 0.0}, "spacing: grid spacing must be finite and > 0 m"),
+    ({"rms_height": 1e-6, "spacing": (1e-5, 1e-5, 1e-5)}, r"spacing: expected one value or 2 values \(dx, dy\)"),
 ])
 def test_bad_inputs(kwargs, match):
     args = {"shape": (32, 32), "spacing": 1e-5, "rng": np.random.default_rng(0), **kwargs}
