@@ -261,6 +261,8 @@ def build_problem(args, opts: dict) -> tuple[Problem, dict]:
                          "cell; add --periodic, or press it with --finger-radius 10mm")
     friction = args.friction if args.friction is not None else (
         float(scene.contact.friction_coefficient) if scene is not None else 0.0)
+    if args.condition == "stuck" and args.friction is None:
+        friction = math.inf  # stuck: no slip whatever the load, the limit mu -> inf
     condition = args.condition or ("sliding" if friction > 0 else "frictionless")
     load = _load_settings(opts["load"], args.periodic, scene)
     e_star = young / (1 - nu**2)
@@ -288,7 +290,7 @@ def build_problem(args, opts: dict) -> tuple[Problem, dict]:
             dropped.append(f"the scene's adhesion blend ({scene.contact.adhesion:g}): adhesion is out of scope here")
     else:
         heights = _builtin_heights(kind, params, x, shape, spacing, args.periodic, notes)
-        label = kind
+        label = "cylinder" if kind == "sphere" and plane_strain else kind
     gap = finger_gap(radius, x, y) - heights
     problem = Problem(gap=np.asarray(gap, dtype=float), spacing=spacing, periodic=args.periodic, label=label,
                       finger_radius=radius, scene=scene, notes=notes, dropped=dropped)

@@ -70,7 +70,8 @@ def plot_stick_slip(solution, path: str | pathlib.Path, friction: float, title: 
     if y_mm is None:
         q = np.abs(np.asarray(solution.qx)) / 1e3
         ax.plot(x_mm, q, color="C3", label="|q|")
-        ax.plot(x_mm, friction * np.asarray(solution.pressure) / 1e3, "--", color="k", lw=1, label="mu p")
+        if np.isfinite(friction):  # stuck (mu = inf) has no Coulomb bound to draw
+            ax.plot(x_mm, friction * np.asarray(solution.pressure) / 1e3, "--", color="k", lw=1, label="mu p")
         ax.fill_between(x_mm, 0, q, where=stick, color="C2", alpha=0.3, label="stick")
         ax.set_ylabel("traction (kPa)")
         ax.legend(loc="upper right")

@@ -200,3 +200,35 @@ def test_engine_refusals_name_the_option(tmp_path, capsys):
 
     assert as_option("no colon here") == "no colon here"
     assert as_option("unknown_arg: text") == "unknown_arg: text"
+
+
+def test_stuck_needs_no_friction_and_a_profile_is_a_cylinder(tmp_path, capsys):
+    assert main(["contact", "sphere:R=10mm", "--plane-strain", "--normal-force", "100N/m", "--grid", "128",
+                 "--condition", "stuck", "--tangential-force", "10N/m", "--out", str(tmp_path / "o"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["surface"] == "cylinder" and summary["friction"] == float("inf")
+    a = np.sqrt(4 * 100 * 10e-3 / (np.pi * 1e6 / 0.75))  # Hertz half-width: stuck everywhere in contact
+    assert summary["stick_radius_mm"] * 1e-3 == pytest.approx(a, abs=2 * 6 * a / 128)
+    assert (tmp_path / "o" / "stick_slip.png").is_file()
+
+
+@pytest.mark.parametrize("fmt", ["csv", "nc"])
+def test_height_map_formats_with_coordinates(fmt, tmp_path, capsys):
+    """A labelled .csv and a netCDF map carry their own grid: no --spacing, no --height-unit."""
+    import xarray as xr
+
+    heights = np.random.default_rng(1).standard_normal((16, 16)) * 0.5  # um
+    coords = np.arange(16) * 0.1  # mm
+    path = tmp_path / f"plate.{fmt}"
+    if fmt == "csv":
+        rows = [",".join(["height [um]"] + [f"{c:.1f}mm" for c in coords])]
+        rows += [",".join([f"{y:.1f}mm"] + [repr(float(h)) for h in row]) for y, row in zip(coords, heights)]
+        path.write_text("\n".join(rows) + "\n")
+    else:
+        xr.Dataset({"height": (("y", "x"), heights, {"units": "um"})},
+                   coords={"x": ("x", coords, {"units": "mm"}), "y": ("y", coords, {"units": "mm"})}
+                   ).to_netcdf(path, engine="h5netcdf")
+    assert main(["contact", str(path), "--finger-radius", "10mm", "--normal-force", "0.2N",
+                 "--out", str(tmp_path / "o"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["shape"] == [16, 16] and "100 um" in summary["computed"][0]
