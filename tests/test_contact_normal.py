@@ -165,6 +165,8 @@ def test_deep_grating_is_a_periodic_flat_punch():
     exact = periodic_punch(x, period, b_eff, pm)
     assert np.allclose(sol.pressure[inner], exact[inner], rtol=0.1)
     assert np.allclose(sol.pressure[np.abs(x) < b / 2], exact[np.abs(x) < b / 2], rtol=0.01)
+    inner_error = float(np.abs(sol.pressure - exact)[inner].max()) / float(exact[inner].max())
+    assert sol.error_estimate >= inner_error
     edge = np.flatnonzero(sol.contact)[-1]  # last node in contact on the right
     dist = b_eff - x[edge - 10: edge - 2]
     slope = np.polyfit(np.log(dist), np.log(sol.pressure[edge - 10: edge - 2]), 1)[0]
@@ -203,3 +205,22 @@ def test_both_methods_give_one_answer(periodic, rng):
     assert np.allclose(fast.pressure, pk.pressure, atol=1e-6 * fast.pressure.max())
     check_complementarity(fast, g0, TOL)
     check_complementarity(pk, g0, TOL)
+
+
+@pytest.mark.parametrize("n", [15, 16, 17, 18])
+@pytest.mark.parametrize("periodic", [True, False])
+def test_coarse_grid_is_centred_and_interpolates_linear_fields(n, periodic):
+    """The check solve uses every other node with the origin kept (SurfaceLoad's centring), and its
+    solution returns by linear interpolation: exact for a linear field between coarse nodes."""
+    from tactilab.forward.contact.solve import _coarse_index, _prolong
+
+    x = grid(n, 1.0)
+    sub = _coarse_index((n,))
+    xc = x[sub]
+    assert 0.0 in xc and np.allclose(xc, grid(len(xc), 2.0))
+    fine = _prolong(3.0 * xc + 1.0, (n,), periodic)
+    inside = (x >= xc[0]) & (x <= xc[-1])
+    assert np.allclose(fine[inside], 3.0 * x[inside] + 1.0)
+    field = np.add.outer(xc, 2 * xc)
+    assert np.allclose(_prolong(field, (n, n), periodic)[np.ix_(inside, inside)],
+                       np.add.outer(x, 2 * x)[np.ix_(inside, inside)])

@@ -7,7 +7,9 @@ enforces it). Inside:
   :func:`interfacial_traction`, :func:`stick_radius`, :class:`ContactLoad`);
 - ``compliance``: the surface compliance of the skin per wavenumber and the operators that map
   surface tractions to surface displacements on a grid (:class:`ContactCompliance`);
-- ``solve``: the contact solver :func:`solve_contact` and its result :class:`ContactSolution`.
+- ``solve``: the contact solver :func:`solve_contact` and its result :class:`ContactSolution`;
+- ``tangential``: partial slip and stuck contact under a given pressure (:func:`solve_tangential`,
+  :class:`TangentialSolution`), on the quadratic program of ``friction_qp``.
 
 Conventions (docs/theory.md section 1): tractions act on the skin, ``p`` pushes into it, heights
 are positive towards the skin, ``uz`` is positive into the skin; SI units.
@@ -29,6 +31,8 @@ _EXPORTS = {
     "METHODS": "solve",
     "memory_estimate": "inputs",
     "memory_limit": "inputs",
+    "solve_tangential": "tangential",
+    "TangentialSolution": "tangential",
 }
 
 __all__ = sorted(_EXPORTS)

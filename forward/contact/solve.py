@@ -63,7 +63,9 @@ def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, 
     normal_force, mean_pressure, approach : float, optional
         Exactly one: total force on the skin (N; N/m in plane strain, > 0), the mean pressure of a
         periodic cell (Pa, > 0), or the rigid approach (m; isolated contacts only; at or below
-        ``min(gap)`` the contact is empty, with a warning).
+        ``min(gap)`` the contact is empty, with a warning). In plane strain the displacement of
+        a line load is defined up to a constant, taken as zero at one grid length from the load,
+        so an approach there depends on the grid's length.
     periodic : bool
         True: the grid is one period (an even number of nodes per axis); False: an isolated
         contact (zero-padded, exact aperiodic convolution, as DC-FFT does).
