@@ -1,6 +1,7 @@
 """Benchmark of the contact engine: time, iterations and error, against Tamaas and the FFT floor.
 
-Run: ``python benchmarks/bench_contact.py [--sections a b c d] [--sizes 256 512 1024] [--frames 10] [--no-peer]``
+Run: ``python benchmarks/bench_contact.py [--sections a b c d] [--sizes 256 512 1024] [--frames 10] [--method auto]
+[--no-peer]``
 (the full run takes tens of minutes; ``--quick`` uses small grids and checks the harness in about
 a minute). Everything runs on one core (OMP/BLAS threads 1, ``scipy.fft`` workers=1), float64, SI.
 
@@ -13,7 +14,9 @@ a. Normal contact, periodic: one self-affine surface per size (Hurst 0.8, rms sl
    criterion) in its own venv (``$TACTILAB_TAMAAS_VENV`` or ``.bench-venv`` at the repository root,
    as for ``bench_forward.py``). Columns: our time and iterations, contact fraction, the FFT floor
    (one rfft2 + one irfft2 of the grid, timed in the same run), our time per iteration over the
-   floor, Tamaas's time, the speed ratio (Tamaas / ours) and max |p - p_Tamaas| / max p. Then the
+   floor (the whole solve's time over its fine-grid iterations, so the coarse-grid solve and the error
+   estimate are counted in), Tamaas's time, the speed ratio (Tamaas / ours) and
+   max |p - p_Tamaas| / max p. Then the
    peak memory of one solve at the largest size (max RSS of a child process minus its RSS before
    the solve).
 b. Partial slip: a Hertz sphere on a 128^2 isolated grid (contact radius a quarter of the grid) at
@@ -48,7 +51,8 @@ import numpy as np  # noqa: E402
 import scipy.fft as sfft  # noqa: E402
 
 from tactilab.data_schemas import random_rough_surface  # noqa: E402
-from tactilab.forward import HalfSpace, solve_contact  # noqa: E402
+from tactilab.forward import HalfSpace  # noqa: E402
+from tactilab.forward import solve_contact as _solve_contact  # noqa: E402
 
 E_PA, NU = 1e6, 0.5
 E_STAR = E_PA / (1 - NU**2)
@@ -132,6 +136,15 @@ def rough_cell(n: int, spacing: float = 1e-6) -> tuple[np.ndarray, float]:
     return h, 0.05 * E_STAR * SLOPE
 
 
+#: the normal-contact method of every solve here (``--method``)
+METHOD = {"method": "auto"}
+
+
+def solve_contact(*args, **kwargs):
+    """``tactilab.forward.solve_contact`` with the benchmark's ``--method``."""
+    return _solve_contact(*args, **kwargs, **METHOD)
+
+
 def timed(fn):
     t0 = time.perf_counter()
     out = fn()
@@ -169,7 +182,8 @@ def memory_child(n: int, tol: float) -> None:
 
 
 def section_a_memory(n: int, tol: float) -> None:
-    proc = subprocess.run([sys.executable, __file__, "--memory-child", str(n), "--tol", str(tol)],
+    proc = subprocess.run([sys.executable, __file__, "--memory-child", str(n), "--tol", str(tol),
+                           "--method", METHOD["method"]],
                           capture_output=True, text=True)
     if proc.returncode != 0:
         print(f"memory at {n}^2: the child failed: {proc.stderr.strip().splitlines()[-1:]}")
@@ -279,6 +293,8 @@ def main(argv=None) -> int:
     parser.add_argument("--frames", type=int, default=None, help="frames of the sliding sequence (c); default 10")
     parser.add_argument("--sliding-size", type=int, default=256, help="grid of the sliding sequence (c)")
     parser.add_argument("--partial-size", type=int, default=128, help="grid of the partial-slip frame (b)")
+    parser.add_argument("--method", default="auto", choices=("auto", "preconditioned_cg", "polonsky_keer"),
+                        help="normal-contact method of every solve (default auto = preconditioned_cg)")
     parser.add_argument("--tol", type=float, default=1e-8, help="solver tolerance of every solve (and Tamaas's)")
     parser.add_argument("--condat-tol", type=float, default=1e-4,
                         help="Tamaas Condat's tolerance in (b) (its own cost criterion; 1e-8 gives no answer "
@@ -290,13 +306,15 @@ def main(argv=None) -> int:
     parser.add_argument("--memory-child", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.memory_child:
+        METHOD["method"] = args.method
         memory_child(args.memory_child, args.tol)
         return 0
     peer = not args.no_peer
+    METHOD["method"] = args.method
     sizes_a = args.sizes or ([32, 64] if args.quick else [256, 512, 1024])
     sizes_d = args.sizes or ([32, 64] if args.quick else [256, 512, 1024, 2048])
     print(f"bench_contact: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}, numpy {np.__version__}, "
-          f"tol {args.tol:g}, one thread")
+          f"tol {args.tol:g}, method {args.method}, one thread")
     if "a" in args.sections:
         section_a(sizes_a, args.tol, peer, args.peer_cap)
         section_a_memory(max(sizes_a), args.tol)

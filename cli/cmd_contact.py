@@ -13,6 +13,9 @@ NAME = "contact"
 HELP = ("solve the frictional contact of the skin with a rigid surface (height map, scene or built-in): "
         "contact area, peak pressure (kPa), stick zone; writes contact.nc (SI) and PNGs (mm, kPa, strain)")
 
+#: the normal-contact methods of solve_contact (tactilab.forward.contact.METHODS, and "auto")
+NORMAL_METHODS = ("auto", "preconditioned_cg", "polonsky_keer")
+
 GRID_RULE = ("Built-ins and scenes are sampled on --grid nodes (default 256 per axis) at --grid-spacing; "
              "without --grid-spacing a finger's grid spans 3 Hertz contact diameters of the requested load, "
              "a sinusoid's periodic cell is one period, a rough periodic cell has 20 um nodes. "
@@ -52,6 +55,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sk.add_argument("--spacing", help="node spacing of a .npy or plain-matrix .csv height map, with unit: "
                                       "20um or 20um,10um (x, y)")
     sk.add_argument("--height-unit", help="unit of the heights in a .npy or plain-matrix .csv, e.g. um")
+    parser.add_argument("--method", choices=NORMAL_METHODS, default="auto",
+                        help="normal-contact method (default auto: preconditioned_cg)")
     parser.add_argument("--tol", type=float, default=1e-8,
                         help="solver tolerance: the largest gap residual over the gap's range (max - min), "
                              "dimensionless (default 1e-8)")
@@ -91,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
             sol = solve_contact(skin, problem.gap, problem.spacing, periodic=problem.periodic,
                                 friction=settings["friction"], condition=settings["condition"],
                                 tangential_force=opts["tangential_force"], slide_direction=opts["slide_direction"],
-                                tol=args.tol, **settings["load"])
+                                method=args.method, tol=args.tol, **settings["load"])
         except ValueError as exc:
             if new_folder and not any(out.iterdir()):
                 out.rmdir()  # refused: leave no empty folder behind
@@ -106,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 #: solve_contact's argument names -> the options that set them (its errors are reworded with these)
-OPTION_OF = {"tangential_force": "--tangential-force", "friction": "--friction", "condition": "--condition",
+OPTION_OF = {"method": "--method", "tangential_force": "--tangential-force", "friction": "--friction", "condition": "--condition",
              "normal_force": "--normal-force", "mean_pressure": "--mean-pressure", "approach": "--approach",
              "slide_direction": "--slide-direction", "tol": "--tol", "gap": "--grid", "spacing": "--grid-spacing",
              "periodic": "--periodic"}
@@ -142,9 +147,11 @@ def _summarise(report: RunReport, sol, problem, settings, elapsed: float, depths
                                f"{settings['friction']:g})")
     report.computed.append(f"{int(sol.iterations)} iterations ({'converged' if sol.converged else 'NOT converged'})"
                            f" in {elapsed:.3g} s")
-    method = getattr(sol, "method", None)
-    report.method = (f"solve_contact{f' ({method})' if method else ''}: constrained conjugate gradients on the "
-                     f"FFT compliance, {settings['condition']}")
+    grid = "periodic" if problem.periodic else "isolated, zero-padded"
+    report.method = (f"solve_contact, normal method {sol.method}: conjugate gradients on the FFT compliance "
+                     f"({grid}); {settings['condition']}" + (
+                         ": tangential tractions by projected gradient and semismooth Newton"
+                         if settings["condition"] in ("partial", "stuck") else ""))
     parts = ", ".join(f"{k} {float(v):.1e}" for k, v in dict(sol.error_parts).items())
     report.error_estimate = (f"max |pressure error| <= {float(sol.error_estimate):.1e} of the peak pressure "
                              f"({parts}); requested --tol {settings['tol']:g}")

@@ -232,3 +232,12 @@ def test_height_map_formats_with_coordinates(fmt, tmp_path, capsys):
                  "--out", str(tmp_path / "o"), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["shape"] == [16, 16] and "100 um" in summary["computed"][0]
+
+
+def test_method_choices_are_the_engines(tmp_path, capsys):
+    from tactilab.cli.cmd_contact import NORMAL_METHODS
+    from tactilab.forward.contact import METHODS
+
+    assert set(NORMAL_METHODS) == {"auto", *METHODS}
+    assert main([*SPHERE, "--method", "polonsky_keer", "--out", str(tmp_path / "o"), "--json"]) == 0
+    assert "normal method polonsky_keer" in json.loads(capsys.readouterr().out)["method"]
