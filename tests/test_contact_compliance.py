@@ -152,3 +152,14 @@ def test_stiffness_inverts_the_periodic_compliance(shape, spacing, rng):
     assert np.allclose(C.stiffness(C.normal(p)), p, atol=1e-10 * np.abs(p).max())
     a, b = rng.standard_normal(shape), rng.standard_normal(shape)
     assert float((C.stiffness(a) * b).sum()) == pytest.approx(float((a * C.stiffness(b)).sum()), rel=1e-12)
+
+
+def test_one_entry_equals_the_full_matrix(rng):
+    hs = HalfSpace(E, 0.3)
+    x, y = rng.standard_normal(20) * 1e-3, rng.standard_normal(20) * 1e-3
+    full = hs.surface_influence(x, y, (1e-4, 2e-4))
+    for i in range(3):
+        for j in range(3):
+            assert np.array_equal(hs.surface_influence(x, y, (1e-4, 2e-4), entry=(i, j)), full[:, i, j])
+    line = hs.surface_influence(x, None, (1e-4,), reference_length=1e-2)
+    assert np.array_equal(hs.surface_influence(x, None, (1e-4,), reference_length=1e-2, entry=(0, 1)), line[:, 0, 1])

@@ -47,6 +47,8 @@ from tactilab.core import rules as check
 #: index of each displacement / traction component in the compliance matrices
 _ROW = {"uz": 0, "ux": 1, "uy": 2}
 _COL = {"p": 0, "qx": 1, "qy": 2}
+#: rows of the kernel evaluated at a time (bounds the temporaries of a large grid)
+_BAND = 128
 
 
 class ContactCompliance:
@@ -56,7 +58,8 @@ class ContactCompliance:
     ----------
     skin : object
         Provides ``surface_compliance(kx, ky)`` (periodic grids) and, for isolated grids,
-        ``surface_influence(x, y, spacing, reference_length)``, as :class:`HalfSpace` does.
+        ``surface_influence(x, y, spacing, reference_length, entry=(row, column))``, as
+        :class:`HalfSpace` does.
     shape : tuple of int
         ``(nx,)`` (plane strain) or ``(ny, nx)``.
     spacing : float or tuple of float
@@ -83,7 +86,6 @@ class ContactCompliance:
         self.fft_shape = shape if periodic else tuple(2 * n for n in shape)
         self._axes = tuple(range(-self.ndim, 0))
         self._spectra: dict = {}  # (row, col) -> block spectrum; "stiffness" -> the preconditioner
-        self._matrix = None
 
     def __repr__(self) -> str:
         kind = "periodic" if self.periodic else "isolated"
@@ -95,38 +97,40 @@ class ContactCompliance:
         return 2 if self.ndim == 1 else 3
 
     # -- the kernel -------------------------------------------------------------------------
-    def _full_matrix(self) -> np.ndarray:
-        """The compliance matrices on the FFT grid: spectral symbol (periodic) or real space (isolated)."""
-        if self._matrix is not None:
-            return self._matrix
+    def _block(self, key: tuple[int, int]) -> np.ndarray:
+        """One entry of the compliance on the FFT grid: spectral symbol (periodic) or real-space
+        influence coefficients (isolated), evaluated in bands of rows to bound the temporaries."""
+        i, j = key
+        odd = i != j  # the cross terms and xy are odd in k
         if self.periodic:
             kx = 2 * np.pi * sfft.rfftfreq(self.shape[-1], self.spacing[0])
             if self.ndim == 1:
-                m = self.skin.surface_compliance(kx, None)
-                nyq = [(-1,)] if self.shape[0] % 2 == 0 else []
-            else:
-                ky = 2 * np.pi * sfft.fftfreq(self.shape[0], self.spacing[1])
-                m = self.skin.surface_compliance(kx[None, :], ky[:, None])
-                nyq = [(slice(None), -1)] if self.shape[-1] % 2 == 0 else []
-                if self.shape[0] % 2 == 0:
-                    nyq.append((self.shape[0] // 2, slice(None)))
-            m = np.array(m, dtype=complex)
-            odd = [(0, 1), (1, 0)] if self.ndim == 1 else [(0, 1), (1, 0), (0, 2), (2, 0), (1, 2), (2, 1)]
-            for idx in nyq:
-                for i, j in odd:
-                    m[idx + (i, j)] = 0.0
-        else:
-            offsets = []
-            for n, h in zip(self.shape, self.spacing[::-1] if self.ndim == 2 else self.spacing):
-                j = np.arange(2 * n)
-                offsets.append(np.where(j < n, j, j - 2 * n) * h)  # wrapped: index n is never read
-            if self.ndim == 1:
-                m = self.skin.surface_influence(offsets[0], None, self.spacing,
-                                                reference_length=self.shape[0] * self.spacing[0])
-            else:
-                m = self.skin.surface_influence(offsets[1][None, :], offsets[0][:, None], self.spacing)
-            m = np.asarray(m, dtype=float)
-        self._matrix = m
+                m = np.array(np.asarray(self.skin.surface_compliance(kx, None))[..., i, j], dtype=complex)
+                if odd and self.shape[0] % 2 == 0:
+                    m[-1] = 0.0
+                return m
+            ky = 2 * np.pi * sfft.fftfreq(self.shape[0], self.spacing[1])
+            m = np.empty((len(ky), len(kx)), dtype=complex)
+            for lo in range(0, len(ky), _BAND):
+                band = self.skin.surface_compliance(kx[None, :], ky[lo:lo + _BAND, None])
+                m[lo:lo + _BAND] = np.asarray(band)[..., i, j]
+            if odd and self.shape[-1] % 2 == 0:
+                m[:, -1] = 0.0
+            if odd and self.shape[0] % 2 == 0:
+                m[self.shape[0] // 2] = 0.0
+            return m
+        offsets = []
+        for n, h in zip(self.shape, self.spacing[::-1] if self.ndim == 2 else self.spacing):
+            idx = np.arange(2 * n)
+            offsets.append(np.where(idx < n, idx, idx - 2 * n) * h)  # wrapped: index n is never read
+        if self.ndim == 1:
+            length = self.shape[0] * self.spacing[0]
+            return np.asarray(self.skin.surface_influence(offsets[0], None, self.spacing, length, entry=key),
+                              dtype=float)
+        m = np.empty((len(offsets[0]), len(offsets[1])))
+        for lo in range(0, len(offsets[0]), _BAND):
+            m[lo:lo + _BAND] = self.skin.surface_influence(offsets[1][None, :], offsets[0][lo:lo + _BAND, None],
+                                                           self.spacing, entry=key)
         return m
 
     def spectrum(self, row: str, col: str) -> np.ndarray:
@@ -135,10 +139,8 @@ class ContactCompliance:
         if max(key) >= self.n_components:
             raise ValueError(f"{row}/{col}: a plane-strain grid has only uz, ux and p, qx")
         if key not in self._spectra:
-            m = self._full_matrix()[..., key[0], key[1]]
+            m = self._block(key)
             self._spectra[key] = m if self.periodic else sfft.rfftn(m, axes=self._axes, workers=1)
-            if len([k for k in self._spectra if isinstance(k, tuple)]) == self.n_components ** 2:
-                self._matrix = None  # every block is cached: drop the kernel
         return self._spectra[key]
 
     @property

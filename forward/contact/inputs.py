@@ -112,11 +112,12 @@ def check_inputs(skin, gap, spacing, *, normal_force, mean_pressure, approach, p
     total = None
     if normal_force is not None:
         unit = "N/m" if len(shape) == 1 else "N"
-        total = check.positive(normal_force, "normal_force", unit, f"give the total force pressing the skin in {unit}") / cell
+        fix = f"give the total force pressing the skin in {unit}"
+        total = check.positive(normal_force, "normal_force", unit, fix) / cell
     if mean_pressure is not None:
         if not periodic:
-            raise ValueError(f"mean_pressure: is the load of a periodic cell, but periodic=False, got {mean_pressure!r}; "
-                             "give normal_force for an isolated contact, or set periodic=True")
+            raise ValueError(f"mean_pressure: is the load of a periodic cell, but periodic=False, got "
+                             f"{mean_pressure!r}; give normal_force for an isolated contact, or set periodic=True")
         total = check.positive(mean_pressure, "mean_pressure", "Pa") * g0.size
     if approach is not None:
         if periodic:
@@ -140,9 +141,9 @@ def check_inputs(skin, gap, spacing, *, normal_force, mean_pressure, approach, p
         raise ValueError(f"max_iter: must be a positive integer, got {max_iter!r}; or None for the default")
     if initial is not None and (getattr(initial, "pressure", None) is None or initial.pressure.shape != shape
                                 or tuple(initial.spacing) != spacing):
+        got = getattr(getattr(initial, "pressure", None), "shape", None)
         raise ValueError("initial: must be a ContactSolution of the same shape and spacing as the gap, got "
-                         f"{type(initial).__name__} of shape {getattr(getattr(initial, 'pressure', None), 'shape', None)}; "
-                         "solve once without initial first")
+                         f"{type(initial).__name__} of shape {got}; solve once without initial first")
     return ContactInputs(g0, spacing, bool(periodic), total, approach, mu, condition, Q, direction, method,
                          float(tol), int(max_iter), initial)
 

@@ -305,7 +305,8 @@ def _resolution_warning(inp, contact: np.ndarray) -> None:
 
 
 def _package(inp, comp, skin, out: dict, coarse: dict | None) -> ContactSolution:
-    parts = {"solver": _solver_error(comp, skin, out) + out["tangential_residual"], "discretisation": _discretisation_error(inp, out, coarse)}
+    parts = {"solver": _solver_error(comp, skin, out) + out["tangential_residual"],
+             "discretisation": _discretisation_error(inp, out, coarse)}
     _resolution_warning(inp, out["contact"])
     if not out["converged"]:
         warnings.warn(f"max_iter: the solver stopped after {out['iterations']} iterations with the gap residual "

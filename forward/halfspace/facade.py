@@ -208,15 +208,17 @@ class HalfSpace:
         """
         return surface_compliance(kx, ky, self.E, self.nu)
 
-    def surface_influence(self, x, y, spacing, reference_length: float | None = None) -> np.ndarray:
+    def surface_influence(self, x, y, spacing, reference_length: float | None = None,
+                          entry: tuple[int, int] | None = None) -> np.ndarray:
         """Surface displacement (m/Pa) at offsets ``(x, y)`` (m) from one pixel of unit uniform traction.
 
         The exact integral of Boussinesq's and Cerruti's surface displacements over the pixel
         (Love's closed form for the normal entry); ``y=None`` gives the plane-strain strip, whose
         displacement is zero at ``reference_length`` (m). Rows and columns as in
-        :meth:`surface_compliance`. Isolated contacts use it (exact aperiodic convolution).
+        :meth:`surface_compliance`; ``entry=(row, column)`` computes that entry alone. Isolated
+        contacts use it (exact aperiodic convolution).
         """
-        return pixel_influence(x, y, spacing, self.E, self.nu, reference_length)
+        return pixel_influence(x, y, spacing, self.E, self.nu, reference_length, entry)
 
     def operator(self, shape, spacing, sensors=None, depth: float = 1e-3, components=("zz",),
                  loads=("p",), quantity: str = "stress", periodic: bool = False):

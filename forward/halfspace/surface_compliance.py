@@ -118,7 +118,13 @@ def _pixel_integral(name: str, X, Y, a: float, b: float) -> np.ndarray:
     return F(X + a, Y + b) - F(X - a, Y + b) - F(X + a, Y - b) + F(X - a, Y - b)
 
 
-def pixel_influence(x, y, spacing, E: float, nu: float, reference_length: float | None = None) -> np.ndarray:
+#: the pixel integrals each entry of the 3-D matrix needs (rows uz, ux, uy; columns p, qx, qy)
+_NEEDS = {(0, 0): ("1/r",), (1, 1): ("1/r", "u2/r3"), (2, 2): ("1/r", "v2/r3"), (1, 2): ("uv/r3",),
+          (2, 1): ("uv/r3",), (0, 1): ("u/r2",), (1, 0): ("u/r2",), (0, 2): ("v/r2",), (2, 0): ("v/r2",)}
+
+
+def pixel_influence(x, y, spacing, E: float, nu: float, reference_length: float | None = None,
+                    entry: tuple[int, int] | None = None) -> np.ndarray:
     """Surface displacement at offset ``(x, y)`` from a pixel of unit uniform traction centred at 0.
 
     Parameters
@@ -134,11 +140,14 @@ def pixel_influence(x, y, spacing, E: float, nu: float, reference_length: float 
     reference_length : float, optional
         Plane strain only (required there): the distance in m at which a line load's normal and
         tangential displacement is zero (plane-strain displacements are defined up to a constant).
+    entry : (int, int), optional
+        One ``(row, column)`` entry only (computing just the integrals it needs).
 
     Returns
     -------
     ndarray, shape ``broadcast(x, y).shape + (3, 3)`` (3-D) or ``x.shape + (2, 2)``, in m/Pa
-        Rows ``(uz, ux, uy)``, columns ``(p, qx, qy)``; ``[..., i, j](x) = [..., j, i](-x)``.
+        Rows ``(uz, ux, uy)``, columns ``(p, qx, qy)``; ``[..., i, j](x) = [..., j, i](-x)``. With
+        ``entry``, that entry alone, shape ``broadcast(x, y).shape``.
     """
     Es, G, beta = _moduli(E, nu)
     X = np.asarray(x, dtype=float)
@@ -155,16 +164,26 @@ def pixel_influence(x, y, spacing, E: float, nu: float, reference_length: float 
         out[..., 0, 0] = out[..., 1, 1] = 2.0 / (math.pi * Es) * (H(X + a) - H(X - a))
         out[..., 0, 1] = beta / Es * (np.abs(X + a) - np.abs(X - a))
         out[..., 1, 0] = -out[..., 0, 1]
-        return out
+        return out if entry is None else out[..., entry[0], entry[1]]
     X, Y = np.broadcast_arrays(X, np.asarray(y, dtype=float))
     a, b = 0.5 * spacing[0], 0.5 * spacing[1]
-    I = {name: _pixel_integral(name, X, Y, a, b) for name in _PRIMITIVES}
-    out = np.zeros(X.shape + (3, 3))
-    out[..., 0, 0] = I["1/r"] / (math.pi * Es)
-    out[..., 1, 1] = ((1.0 - nu) * I["1/r"] + nu * I["u2/r3"]) / (2.0 * math.pi * G)
-    out[..., 2, 2] = ((1.0 - nu) * I["1/r"] + nu * I["v2/r3"]) / (2.0 * math.pi * G)
-    out[..., 1, 2] = out[..., 2, 1] = nu * I["uv/r3"] / (2.0 * math.pi * G)
+    needed = _PRIMITIVES if entry is None else _NEEDS[tuple(entry)]
+    I = {name: _pixel_integral(name, X, Y, a, b) for name in needed}
     cross = (1.0 - 2.0 * nu) / (4.0 * math.pi * G)
-    out[..., 0, 1], out[..., 1, 0] = cross * I["u/r2"], -cross * I["u/r2"]
-    out[..., 0, 2], out[..., 2, 0] = cross * I["v/r2"], -cross * I["v/r2"]
+    formulas = {
+        (0, 0): lambda: I["1/r"] / (math.pi * Es),
+        (1, 1): lambda: ((1.0 - nu) * I["1/r"] + nu * I["u2/r3"]) / (2.0 * math.pi * G),
+        (2, 2): lambda: ((1.0 - nu) * I["1/r"] + nu * I["v2/r3"]) / (2.0 * math.pi * G),
+        (1, 2): lambda: nu * I["uv/r3"] / (2.0 * math.pi * G),
+        (2, 1): lambda: nu * I["uv/r3"] / (2.0 * math.pi * G),
+        (0, 1): lambda: cross * I["u/r2"],
+        (1, 0): lambda: -cross * I["u/r2"],
+        (0, 2): lambda: cross * I["v/r2"],
+        (2, 0): lambda: -cross * I["v/r2"],
+    }
+    if entry is not None:
+        return formulas[tuple(entry)]()
+    out = np.zeros(X.shape + (3, 3))
+    for (i, j), f in formulas.items():
+        out[..., i, j] = f()
     return out
