@@ -27,7 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("surface", help="a height map (.npy with --spacing and --height-unit, .csv, .nc with x/y "
                                         "coordinates and units), a scene (.toml, .json), or a built-in: "
                                         "sphere:R=10mm, sinusoid:A=5um,p=1mm, rough:rms=2um,hurst=0.8,seed=1 "
-                                        "(or slope=0.1 instead of rms; long=, short= cut-off wavelengths)")
+                                        "(or slope=0.1 instead of rms; long=, short= cut-off wavelengths; "
+                                        "hurst 0.8 and seed 0 by default)")
     load = parser.add_argument_group("load (exactly one; a scene gives its normal force)")
     load.add_argument("--normal-force", help="total normal force with unit, e.g. 0.8N (N/m with --plane-strain)")
     load.add_argument("--mean-pressure", help="mean pressure over a periodic cell with unit, e.g. 10kPa")
@@ -142,7 +143,7 @@ def _summarise(report: RunReport, sol, problem, settings, elapsed: float, depths
     stick = None
     if settings["condition"] in ("partial", "stuck"):
         stick = stick_radius(sol.stick, problem.spacing)
-        what = "half-width" if ps else "radius (of the disc of equal area)"
+        what = "half-width (half its total length)" if ps else "radius (of the disc of equal area)"
         report.computed.append(f"stick zone {what} {stick * 1e3:.4g} mm ({settings['condition']}, mu = "
                                f"{settings['friction']:g})")
     report.computed.append(f"{int(sol.iterations)} iterations ({'converged' if sol.converged else 'NOT converged'})"
