@@ -44,6 +44,8 @@ _EXPORTS = {
     "SquareWaveGrating": "surface",
     "IsolatedDefect": "surface",
     "HeightMap": "surface",
+    "random_rough_surface": "surface",
+    "read_height_map": "height_map",
     "to_si": "units",
     "parse_hypothesis": "hypothesis",
 }

@@ -50,6 +50,10 @@ _EXPORTS = {
     "RecordFeature": "surfaces",
     "RandomSquareWaveGrating": "surfaces",
     "rigid_surface_pressure": "surfaces",
+    "random_rough_surface": "surfaces",
+    "write_contact": "contact_files",
+    "plot_contact_pressure": "contact_files",
+    "plot_stick_slip": "contact_files",
     # the biomimetic finger and scans
     "BiomimeticFinger": "finger",
     "Fingerprint": "finger",

@@ -32,6 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tactilab.data_schemas import surface as _surface_records
+
 from .halfspace import pressure_from_deflection
 from tactilab.core import rules as check
 
@@ -257,3 +259,17 @@ def rigid_surface_pressure(heights, spacing, young_modulus: float, poisson_ratio
     sp = check.spacing(spacing, h.ndim)
     # the spectral module owns the transfer function (and its rho = 0 and Nyquist rules)
     return pressure_from_deflection(h, sp if h.ndim == 2 else sp[0], E, nu).p
+
+
+def random_rough_surface(shape, spacing, *, rms_height: float | None = None, rms_slope: float | None = None,
+                         hurst: float = 0.8, long_cutoff: float | None = None,
+                         short_cutoff: float | None = None, rng: np.random.Generator) -> np.ndarray:
+    """A periodic, self-affine random surface (heights in m, shape ``shape``) with an exact spectrum and rms.
+
+    The same function as :func:`tactilab.data_schemas.random_rough_surface` (defined there, where the
+    scenes' surface records use it), offered here beside the contact solver that presses on it; see
+    that docstring for the spectrum, the rms conventions and the errors raised.
+    """
+    return _surface_records.random_rough_surface(shape, spacing, rms_height=rms_height, rms_slope=rms_slope,
+                                                 hurst=hurst, long_cutoff=long_cutoff,
+                                                 short_cutoff=short_cutoff, rng=rng)

@@ -30,6 +30,7 @@ _EXPORTS = {
     "solve_contact": "solve",
     "METHODS": "solve",
     "memory_estimate": "inputs",
+    "memory_limit": "inputs",
     "solve_tangential": "tangential",
     "TangentialSolution": "tangential",
 }
