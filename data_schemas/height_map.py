@@ -37,6 +37,8 @@ import pathlib
 
 import numpy as np
 
+from tactilab.core import rules
+
 from .surface import HeightMap
 from .units import UNITS, to_si
 
@@ -91,11 +93,9 @@ def _caller_spacing(spacing, ndim: int, where: str) -> tuple[float, float | None
     values = list(spacing) if isinstance(spacing, (tuple, list)) else [spacing]
     if len(values) not in (1, ndim):
         raise ValueError(f"{where}: spacing must be one length or (dx, dy), got {spacing!r}")
-    si = [to_si(v, "length", name="spacing") for v in values]
-    if min(si) <= 0:
-        raise ValueError(f"{where}: spacing must be > 0, got {spacing!r}; e.g. '20um'")
-    dx = si[0]
-    return dx, (si[-1] if ndim == 2 else None)
+    si = [to_si(v, "length", name="spacing") if isinstance(v, str) else v for v in values]
+    checked = rules.spacing(si if len(si) > 1 else si[0], ndim, name=f"{where}: spacing")
+    return checked[0], (checked[-1] if ndim == 2 else None)
 
 
 def _uniform(coords: np.ndarray, axis: str, where: str) -> tuple[float, float, bool]:

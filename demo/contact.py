@@ -15,8 +15,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from tactilab.data_schemas import random_rough_surface
-from tactilab.forward import HalfSpace, HertzContact, solve_contact
-from tactilab.forward.contact_files import plot_contact_pressure
+from tactilab.forward import HalfSpace, HertzContact, plot_contact_pressure, solve_contact
 
 RADIUS_M, FORCE_N, YOUNG_PA, NU, FRICTION = 10e-3, 0.5, 1e6, 0.5, 0.5
 

@@ -38,6 +38,9 @@ _EXPORTS = {
     # contacts and surfaces
     "solve_contact": "contact",
     "ContactSolution": "contact",
+    "ContactCompliance": "contact",
+    "solve_tangential": "contact",
+    "TangentialSolution": "contact",
     "HertzContact": "contact",
     "interfacial_traction": "contact",
     "stick_radius": "contact",

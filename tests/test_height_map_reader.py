@@ -124,7 +124,7 @@ def test_refuses_missing_and_wrong_units(tmp_path):
         read_height_map(tmp_path / "h.npy", height_unit="um")
     with pytest.raises(ValueError, match="spacing: '1' has no unit"):
         read_height_map(tmp_path / "h.npy", spacing="1", height_unit="um")
-    with pytest.raises(ValueError, match="spacing must be > 0"), pytest.warns(UserWarning, match="outside the usual"):
+    with pytest.raises(ValueError, match="spacing must be finite and > 0 m"), pytest.warns(UserWarning, match="outside the usual"):
         read_height_map(tmp_path / "h.npy", spacing="0um", height_unit="um")
     with pytest.raises(ValueError, match=r"spacing must be one length or \(dx, dy\)"):
         read_height_map(tmp_path / "h.npy", spacing=("1um", "1um", "1um"), height_unit="um")

@@ -98,7 +98,7 @@ def test_periodic_over_the_grid(rng):
     ({}, "give exactly one of them"),
     ({"rms_height": 1e-6, "rms_slope": 0.1}, "give exactly one of them"),
     ({"rms_height": -1e-6}, r"rms_height: must be finite and > 0 m, got -1e-06"),
-    ({"rms_slope": float("nan")}, r"rms_slope: must be finite and > 0 1, got nan"),
+    ({"rms_slope": float("nan")}, r"rms_slope: must be finite and > 0, got nan"),
     ({"rms_height": 1e-6, "hurst": 1.5}, r"hurst: the Hurst exponent must be in \(0, 1\]"),
     ({"rms_height": 1e-6, "hurst": 0.0}, r"hurst: the Hurst exponent must be in \(0, 1\]"),
     ({"rms_height": 1e-6, "rng": 3}, "rng: expected a numpy.random.Generator"),

@@ -24,7 +24,8 @@ import pytest
 import tactilab.forward as fwd
 import tactilab.inversion as inv
 from tactilab.core import rules
-from tactilab.data_schemas import Recording, SensorArray, SkinMaterial, load_example
+from tactilab.data_schemas import (Recording, SensorArray, SkinMaterial, load_example, random_rough_surface,
+                                  read_height_map)
 
 
 class Rule(NamedTuple):
@@ -58,6 +59,22 @@ X = np.linspace(-2e-3, 2e-3, 5)
 DESIGNS = {d: fwd.optimal_half_spacing(d, grid_points=20) for d in (1e-3, 2.5e-4)}
 ROW = np.zeros(DISPLAY.tractor_x_m.shape[-1])  # one line load per tractor of a row, N/m
 CONTACT = fwd.HertzContact(0.5, finger_radius=0.01, young_modulus=1e6)
+_HEIGHT_MAP: list = []
+
+
+def _height_map_file():
+    """A small .npy height map (um), written once per session in a temporary folder."""
+    if not _HEIGHT_MAP:
+        import atexit
+        import pathlib
+        import shutil
+        import tempfile
+
+        folder = pathlib.Path(tempfile.mkdtemp(prefix="tactilab-rules-"))
+        atexit.register(shutil.rmtree, folder, ignore_errors=True)
+        np.save(folder / "h.npy", np.zeros((N, N)))
+        _HEIGHT_MAP.append(folder / "h.npy")
+    return _HEIGHT_MAP[0]
 
 
 def _height(x, y=None):
@@ -135,6 +152,13 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.HertzContact", "poisson_ratio"): lambda v: fwd.HertzContact(0.5, poisson_ratio=v),
     ("forward.HertzContact.load", "spacing"): lambda v: CONTACT.load(spacing=v),
     ("forward.ContactLoad", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=v),
+    ("data_schemas.random_rough_surface", "spacing"): lambda v: random_rough_surface((N, N), v, rms_height=1e-6,
+                                                                                     rng=np.random.default_rng(0)),
+    ("forward.random_rough_surface", "spacing"): lambda v: fwd.random_rough_surface((N,), v, rms_height=1e-6,
+                                                                                    rng=np.random.default_rng(0)),
+    ("data_schemas.read_height_map", "spacing"): lambda v: read_height_map(_height_map_file(), spacing=v,
+                                                                           height_unit="um"),
+    ("forward.ContactCompliance", "spacing"): lambda v: fwd.ContactCompliance(HS, (N, N), v, periodic=True),
     ("forward.solve_contact", "spacing"): lambda v: fwd.solve_contact(HS, np.linspace(-1, 1, N) ** 2 * 1e-6, v,
                                                                       normal_force=1.0),
     ("forward.HalfSpace.surface_influence", "spacing"): lambda v: HS.surface_influence(X, X, v),
