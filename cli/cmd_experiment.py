@@ -7,6 +7,8 @@ import contextlib
 import sys
 from pathlib import Path
 
+from tactilab.core.outputs import printable
+
 from .common import RunReport, make_out
 
 from .experiment_analysis import add_subcommands as add_analysis_subcommands
@@ -149,8 +151,8 @@ def _print_summary(path, command: str, as_json: bool, warned: list[str] = (), ex
         return
     print(f"--- tactilab {command}: summary ---")
     for line in summary_lines(summary):
-        print(line)
-    print(f"files: session {path}" + "".join(f"\n  {p}" for p in exported))
+        print(printable(line))  # a field read from the file never reaches the terminal raw
+    print(printable(f"files: session {path}") + "".join(f"\n  {printable(str(p))}" for p in exported))
 
 
 #: library parameter (as it starts a library error) -> the flag that sets it, per call
@@ -320,7 +322,7 @@ def _run(args: argparse.Namespace) -> int:
                               "files": [str(p) for p in written]}))
         else:
             for path in written:
-                print(f"wrote {path}")
+                print(printable(f"wrote {path}"))
         return 0
 
     _print_status(args)
@@ -338,6 +340,6 @@ def _print_status(args: argparse.Namespace) -> None:
         print(json.dumps({"command": "experiment status", **summary}))
         return
     for line in summary_lines(summary):
-        print(line)
+        print(printable(line))  # a field read from the file never reaches the terminal raw
     if summary["status"] in ("interrupted", "failed"):
-        print(f"resume with: tactilab experiment resume {args.session}")
+        print(printable(f"resume with: tactilab experiment resume {args.session}"))

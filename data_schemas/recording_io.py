@@ -17,6 +17,7 @@ from collections.abc import Mapping
 import numpy as np
 import xarray as xr
 
+from .netcdf_files import check_self_contained
 from .recording import Recording
 
 #: File formats :func:`write_recording` writes
@@ -126,7 +127,9 @@ def read_recording(path) -> Recording:
     OSError
         If the file does not exist.
     ValueError
-        An unsupported suffix, a netCDF file without ``values``, or Parquet without pyarrow.
+        An unsupported suffix, a netCDF file without ``values`` or with data stored outside
+        itself (external storage, a virtual dataset, an external link), or Parquet without
+        pyarrow.
     """
     path = pathlib.Path(path)
     if not path.exists():
@@ -146,6 +149,7 @@ def read_recording(path) -> Recording:
         return Recording.from_dataframe(df, **order)
     if path.suffix != ".nc":
         raise ValueError(f"path: unsupported file type {path.suffix!r} ({path}); use .nc, .parquet or .json")
+    check_self_contained(path)  # no external storage, virtual dataset or external link
     with xr.open_dataset(path, engine="h5netcdf") as ds:
         if "values" not in ds:
             raise ValueError(f"path: {path} has no 'values' variable (time, sensor, component); "

@@ -18,9 +18,9 @@ It returns a bare display; the runner adds the safety layer.
 from __future__ import annotations
 
 from collections.abc import Callable
-from importlib import metadata
 from pathlib import Path
 
+from tactilab.core.plugins import installed_entry_point
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import check_name
 
@@ -74,9 +74,9 @@ def registered_devices() -> list[str]:
 
 def _opener(name: str) -> Opener:
     if name not in _DEVICES:
-        for entry in metadata.entry_points(group=ENTRY_POINT_GROUP, name=name):
+        entry = installed_entry_point(ENTRY_POINT_GROUP, name)  # never a *.dist-info in the current folder
+        if entry is not None:
             register_device(name, entry.load())
-            break
     if name not in _DEVICES:
         raise ValueError(
             f"spec: device {name!r} is not registered (known: {registered_devices()}); register it with "

@@ -36,6 +36,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from tactilab.core.outputs import printable
+from tactilab.data_schemas.experiment_procedures import check_label
 from tactilab.data_schemas.experiment_records import TrialRecord
 
 #: Metadata every session has and every reader (status, export, resume) relies on.
@@ -54,6 +56,33 @@ CREATE TABLE IF NOT EXISTS owner (
 EVENT_KINDS = ("session_started", "session_resumed", "trial_planned", "stimulus_presented",
                "response", "trial_complete", "safety_intervention", "session_stopped",
                "session_failed", "session_complete", "display_fault")
+
+
+#: the tables a session file holds (``sqlite_sequence`` is SQLite's own, for AUTOINCREMENT)
+TABLES = ("meta", "events", "trials", "owner", "sqlite_sequence")
+
+
+def check_schema(connection: sqlite3.Connection, path: Path) -> None:
+    """Refuse a session file that holds anything but its tables and their automatic indexes.
+
+    A trigger or a view is SQL that runs when the runner writes or a reader reads (a trigger
+    could rewrite a scored trial on resume), so such a file is refused before any statement
+    touches its tables.
+
+    Raises
+    ------
+    ValueError
+        Naming the first foreign object (its type and name) and the fix.
+    """
+    rows = connection.execute("SELECT type, name, tbl_name FROM sqlite_master").fetchall()
+    for kind, name, table in rows:
+        expected = (kind == "table" and name in TABLES) or (
+            kind == "index" and str(name).startswith("sqlite_autoindex_") and table in TABLES)
+        if not expected:
+            raise ValueError(
+                f"session: {printable(str(path))} holds a {printable(str(kind))} {printable(str(name))[:80]!r}, "
+                f"which no tactilab session has (only the tables {', '.join(TABLES[:4])}); the file was "
+                "edited: restore it from a copy")
 
 
 class RecordingError(OSError):
@@ -140,6 +169,12 @@ class Recorder:
     def _connect(path: Path, lock: _FileLock) -> sqlite3.Connection:
         try:
             connection = sqlite3.connect(path, isolation_level=None, timeout=5.0)
+            try:
+                check_schema(connection, path)  # before any statement writes: no trigger ever fires
+            except ValueError:
+                connection.close()
+                lock.release()
+                raise
             mode = connection.execute("PRAGMA journal_mode=WAL").fetchone()[0]
             connection.execute("PRAGMA synchronous=FULL")
             connection.executescript(SCHEMA)
@@ -317,6 +352,7 @@ class SessionLog:
             raise FileNotFoundError(f"session: no session file {self.path}; give the .sqlite file that `experiment run` printed")
         try:
             self.connection = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True)
+            check_schema(self.connection, self.path)
             self.connection.execute("SELECT count(*) FROM events").fetchone()
         except sqlite3.Error as exc:
             raise ValueError(f"session: {self.path} is not a tactilab session database ({exc}); give the .sqlite "
@@ -350,6 +386,16 @@ class SessionLog:
         if missing:  # status, export and resume all read these: one line here, never a KeyError there
             raise ValueError(f"session: {self.path} lacks the metadata {missing}; it is not a complete tactilab "
                              "session (was it edited or cut short while being created?); restore it from a copy")
+        # re-validated on every read: these become file names (exports) and printed lines (status)
+        protocol = meta["protocol"]
+        labels = {"subject": meta["subject"], "session": meta["session"],
+                  "protocol.name": protocol.get("name") if isinstance(protocol, dict) else None}
+        for key, value in labels.items():
+            try:
+                check_label(value, key)
+            except ValueError as exc:
+                raise ValueError(f"session: {printable(str(self.path))} holds an invalid {exc}; the file was edited, "
+                                 "restore it from a copy") from None
         return meta
 
     def events(self, kind: str | None = None) -> list[dict[str, Any]]:
