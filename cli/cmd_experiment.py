@@ -206,9 +206,11 @@ EXIT_DISPLAY_FAULT = 3
 
 def run(args: argparse.Namespace) -> int:
     from tactilab.experiments.devices import DisplayError
+    from tactilab.experiments.session import stop_signals
 
     try:
-        return _run(args)
+        with stop_signals():  # from the first instruction: a stop during start-up is a clean stop
+            return _run(args)
     except DisplayError as exc:
         path = getattr(args, "session_path", None)
         if path is not None and Path(path).is_file():  # the run's summary first: what was done, what failed
@@ -334,12 +336,18 @@ def _print_status(args: argparse.Namespace) -> None:
     import json
 
     from tactilab.experiments.modelling import session_summary, summary_lines
+    from tactilab.experiments.session import file_state
 
     summary = session_summary(args.session)
+    state = file_state(args.session)  # read after the readers closed: the last one folds a leftover log in
     if args.json:
-        print(json.dumps({"command": "experiment status", **summary}))
+        print(json.dumps({"command": "experiment status", **summary, "self_contained": state["self_contained"]}))
         return
     for line in summary_lines(summary):
         print(printable(line))  # a field read from the file never reaches the terminal raw
+    if not state["self_contained"] and summary["status"] != "running":
+        print(printable(f"file: not self-contained ({state['wal_bytes']} bytes of the log in {args.session}-wal"
+                        f"{', a hot journal' if state['hot_journal'] else ''}); run this command again once no "
+                        "other process reads it, from a writable folder"))
     if summary["status"] in ("interrupted", "failed"):
         print(printable(f"resume with: tactilab experiment resume {args.session}"))

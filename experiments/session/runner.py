@@ -29,8 +29,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import signal
-import threading
 import time
 import uuid
 from dataclasses import dataclass
@@ -48,6 +46,7 @@ from ..devices import (STOP_SIGNALS, Display, DisplayError, DisplayFault, SafeDi
                        description_record, display_fault, render_drive)
 from ..procedures import PlannedLevel, Procedure, make_procedure, plan_trial, score
 from .recording import Recorder, RecordingError, utc_now
+from .signals import signals_held, stop_signals
 from .responses import ResponseSource
 
 
@@ -126,7 +125,8 @@ class Runner:
         ``attempts`` maps an interrupted trial's index to ``(attempt, repeated)`` (from resume).
         """
         attempts = attempts or {}
-        previous_handlers = _stop_signals_as_interrupt()
+        stops = contextlib.ExitStack()
+        stops.enter_context(stop_signals())
         if self.progress:
             from tqdm.auto import tqdm
 
@@ -161,8 +161,7 @@ class Runner:
             raise
         finally:
             bar.close()
-            for sig, previous in previous_handlers.items():
-                signal.signal(sig, signal.SIG_DFL if previous is None else previous)
+            stops.close()
 
     def _stop(self, kind: str | None, reason: str) -> None:
         """Zero the display, then log why the run stopped (when the log itself still works)."""
@@ -243,18 +242,6 @@ class Runner:
         self.recorder.complete_trial(record, {"outcome": outcome, "correct": correct}, response_payload)
         self._current = (None, None)
         return record
-
-
-def _stop_signals_as_interrupt() -> dict:
-    """While a session runs, SIGTERM, SIGHUP, SIGQUIT and SIGUSR1 stop it like Ctrl-C: display
-    zeroed, stop logged (with the signal's name), lock released. Returns the previous handlers."""
-    if threading.current_thread() is not threading.main_thread():
-        return {}
-
-    def handler(signum, frame):
-        raise KeyboardInterrupt(signal.Signals(signum).name)
-
-    return {sig: signal.signal(sig, handler) for sig in STOP_SIGNALS if sig != signal.SIGINT}
 
 
 class _NoBar:
@@ -358,13 +345,33 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
             "likelihood": getattr(protocol.procedure, "likelihood", None)}
     # built before the file exists: an unregistered method or likelihood leaves no session behind
     procedure = make_procedure(protocol.procedure, protocol.task.guess_rate)
-    recorder = Recorder.create(path, meta)
-    try:
-        recorder.log("session_started", payload={"pid": os.getpid()})
-        if on_created is not None:
-            on_created(Path(path))
-        runner = Runner(protocol, recorder, display, responses, subject=subject, session=session,
-                        procedure=procedure, realtime=realtime, progress=progress)
-        return runner.run()
-    finally:
-        recorder.close()
+    recorder = None
+    with stop_signals():  # a stop from here on is a clean stop, before the first stimulus too
+        try:
+            with signals_held():  # the file is created and locked whole
+                recorder = Recorder.create(path, meta)
+                recorder.log("session_started", payload={"pid": os.getpid()})
+            if on_created is not None:
+                on_created(Path(path))
+            runner = Runner(protocol, recorder, display, responses, subject=subject, session=session,
+                            procedure=procedure, realtime=realtime, progress=progress)
+            return runner.run()
+        except KeyboardInterrupt as exc:
+            if recorder is None:
+                raise
+            return stopped(recorder, exc, procedure)
+        finally:
+            if recorder is not None:
+                with signals_held():
+                    recorder.close()
+
+
+def stopped(recorder: Recorder, exc: KeyboardInterrupt, procedure: Procedure | None) -> RunResult:
+    """Log a stop that came before the runner took over (while opening or replaying the session)."""
+    reason = f"interrupted ({exc.args[0] if exc.args else 'Ctrl-C'}) before the first stimulus"
+    with signals_held():
+        with contextlib.suppress(RecordingError):  # the stop is reported by the result either way
+            recorder.log("session_stopped", payload={"reason": reason})
+    if procedure is None:
+        return RunResult(recorder.path, "interrupted", 0, {})
+    return RunResult(recorder.path, "interrupted", procedure.n_done, procedure.estimate())
