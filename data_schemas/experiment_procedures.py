@@ -18,6 +18,8 @@ from typing import Annotated, Any, ClassVar, Literal
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationInfo, model_validator
 
+from tactilab.core.patterns import safe_pattern
+
 from .units import to_si
 
 # The stimulus parameters a procedure may vary, with the dimension of their values.
@@ -101,10 +103,7 @@ def check_subject(value: str, name: str = "subject", pattern: str | None = None)
     """
     check_label(value, name)
     if pattern is not None:
-        try:
-            matched = re.fullmatch(pattern, value) is not None
-        except re.error as exc:
-            raise ValueError(f"subject pattern: {pattern!r} is not a valid regular expression ({exc})") from None
+        matched = safe_pattern(pattern, "subject pattern").fullmatch(value) is not None  # no slow backtracking
         if not matched:
             raise ValueError(f"{name}: {value!r} does not match the lab's subject pattern {pattern!r}; use a code of "
                              "that form")

@@ -329,12 +329,12 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     # before any file exists: the device answers (a ZERO round trip: it is there and at rest)
     # and the first stimulus renders, so no empty or failed session litters the folder
     display.zero()
-    render_drive(display.description, **protocol.stimulus.model_dump())
     rates = sorted({s.frame_rate_hz for s in protocol.planned_stimuli()})
-    try:  # every stimulus the protocol plans can be played (a candidate may set its own frame rate)
-        check_frame_rate(rates[-1], display.description)
+    try:  # every stimulus the protocol plans can be played (a candidate may set its own frame rate);
+        check_frame_rate(rates[-1], display.description)  # checked BEFORE anything is rendered
     except ValueError as exc:
         raise ValueError(f"protocol: a planned stimulus's {exc} (frame rates planned: {rates} Hz)") from None
+    render_drive(display.description, **protocol.stimulus.model_dump())
     description, description_sha256 = description_record(display.description)
     meta = {"session_id": uuid.uuid4().hex, "created_utc": utc_now(),
             "subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
