@@ -94,6 +94,10 @@ class PlaybackReport:
     skipped : int
         Frames not sent because their time had passed by more than half a period (the host never
         sends a burst of late frames).
+    foreign : int
+        Frames the device applied that this host did not send, since its previous look at the
+        device's ``frames_applied`` counter (another process drove the display); 0 for a display
+        without such a counter.
     """
 
     frames_sent: int
@@ -109,6 +113,7 @@ class PlaybackReport:
     rejected: int = 0
     stale: int = 0
     skipped: int = 0
+    foreign: int = 0
 
     @property
     def unacknowledged(self) -> int:
@@ -202,6 +207,17 @@ class Display(abc.ABC):
     def zero(self) -> None:
         """Set every output to zero now (the safe state)."""
         self._zero()
+
+    def audit(self) -> int:
+        """Zero the outputs and count the frames the device applied that this host did not send
+        since its previous look (from the device's ``frames_applied`` counter).
+
+        The runner asks after each response, before the trial is scored: a display that another
+        process drove between stimuli, or while the subject answered, faults the trial. A display
+        without such a counter (a simulation) answers 0.
+        """
+        self.zero()
+        return 0
 
     @property
     def stop_requested(self) -> bool:

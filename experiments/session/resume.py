@@ -185,6 +185,7 @@ def resume_session(path: str | Path, display: Display, responses: ResponseSource
                     f"responses: the session was recorded with {responses.name} responses configured as "
                     f"{recorded}, got {dict(responses.config)}; resume with the same configuration"
                 )
+            display.zero()  # the device answers and is at rest; the host's look at its frames_applied starts here
             recorder.log("session_resumed", payload={
                 "completed": len(state.trials), "repeating": sorted(state.attempts)})
             runner = Runner(state.protocol, recorder, display, responses, subject=state.meta["subject"],

@@ -43,7 +43,7 @@ from tactilab.data_schemas.experiment import Protocol, check_label, check_subjec
 from tactilab.data_schemas.experiment_records import TrialRecord
 
 from ..devices import (STOP_SIGNALS, Display, DisplayError, DisplayFault, SafeDisplay, check_frame_rate,
-                       description_record, display_fault, render_drive)
+                       description_record, display_fault, foreign_reason, render_drive)
 from ..procedures import PlannedLevel, Procedure, make_procedure, plan_trial, score
 from .recording import Recorder, RecordingError, utc_now
 from .signals import signals_held, stop_signals
@@ -221,6 +221,16 @@ class Runner:
                 )
             reports.append(report)
         response = self.responses.collect(plan)
+        # before scoring: did anything else drive the display during this trial (between its
+        # stimuli, or while the subject answered)? Its frames_applied counter says so
+        foreign = self.display.audit()
+        if foreign:
+            self.recorder.log("display_fault", index, attempt, {
+                "reason": foreign_reason(foreign), "alarm": True, "foreign": foreign, "interval": None})
+            raise DisplayFault(
+                f"display fault in trial {index}: {foreign_reason(foreign)}. The display is zeroed and the "
+                f"trial was not scored; find the other process, then resume {self.recorder.path} (the trial "
+                "is repeated)")
         correct, outcome = score(self.protocol, plan, response.label)
         response_payload = {"response": response.label, "rt_s": response.rt_s,
                             "monotonic_ns": response.monotonic_ns}
