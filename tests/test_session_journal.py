@@ -178,7 +178,8 @@ def test_sigterm_while_resume_opens_or_replays_is_a_clean_stop(stopped_session, 
     finally:
         log.close()
     assert n == 2 and events[-1]["kind"] == "session_stopped"
-    assert "SIGTERM" in events[-1]["payload"]["reason"] and "before the first stimulus" in events[-1]["payload"]["reason"]
+    reason = events[-1]["payload"]["reason"]
+    assert "SIGTERM" in reason and "before the first stimulus" in reason
     assert file_state(path)["self_contained"] and not list(tmp_path.glob("*-wal"))
     assert resume_session(path, *_components(), realtime=False).status == "complete"
 

@@ -195,7 +195,8 @@ def _labels(meta: dict[str, Any]) -> list[str]:
 
 def _participants(out: Path, participant: str) -> list[Path]:
     """Add ``participant`` to participants.tsv (created with its .json when missing)."""
-    tsv, sidecar = output_path(out, "participants.tsv", option="out"), output_path(out, "participants.json", option="out")
+    tsv = output_path(out, "participants.tsv", option="out")
+    sidecar = output_path(out, "participants.json", option="out")
     written = []
     if os.path.lexists(tsv):
         table = pd.read_csv(tsv, sep="\t", dtype=str, keep_default_na=False)

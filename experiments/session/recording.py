@@ -93,7 +93,8 @@ def check_schema(connection: sqlite3.Connection, path: Path) -> None:
             raise ValueError(
                 f"session: {printable(str(path))} holds a {printable(str(kind))} {printable(str(name))[:80]!r}, "
                 f"which no tactilab session has (only the tables {', '.join(TABLES[:4])}): it is not a tactilab "
-                "session, or it was edited; give the .sqlite file that `experiment run` printed, or restore it from a copy")
+                "session, or it was edited; give the .sqlite file that `experiment run` printed, or restore it "
+                "from a copy")
 
 
 class NotSelfContainedWarning(UserWarning):
