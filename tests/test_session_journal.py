@@ -110,18 +110,20 @@ def _kill_at_statement(n: int, path) -> None:
     recording._FileLock.__init__ = locking
     original = Runner.run_trial
 
-    def first_trial_only(self, index, *args):  # the open ends where the first stimulus starts
-        os._exit(0)
+    def stop_at_first_trial(self, index, *args):  # a stop where the first stimulus would start:
+        raise KeyboardInterrupt("SIGTERM")  # the stop is logged and the file closed (more kill points)
 
-    Runner.run_trial = first_trial_only
-    resume_session(path, *_components(), realtime=False)
+    Runner.run_trial = stop_at_first_trial
+    assert resume_session(path, *_components(), realtime=False).status == "interrupted"
 
 
 @pytest.mark.parametrize("at_rest", ["wal", "delete"])
 def test_a_sigkill_at_each_statement_of_resumes_open_leaves_every_command_working(stopped_session, tmp_path,
                                                                                   at_rest, capsys):
     """At rest in WAL there is no journal-mode switch to interrupt; a session closed in rollback
-    mode by an older version is switched once, and a kill there leaves nothing unreadable."""
+    mode by an older version is switched once, and a kill there leaves nothing unreadable. The
+    points run from the lock through the replay and ``session_resumed`` to a stop at the first
+    stimulus, its ``session_stopped`` and the close's checkpoint (a kill inside the close)."""
     killed = 0
     for n in range(1, 60):
         path = tmp_path / f"{n}" / stopped_session.name
@@ -131,7 +133,7 @@ def test_a_sigkill_at_each_statement_of_resumes_open_leaves_every_command_workin
             with contextlib.closing(sqlite3.connect(path)) as db:
                 db.execute("PRAGMA journal_mode=DELETE")
         status = _fork(lambda: _kill_at_statement(n, path))
-        if status == 0:  # the open ran to the first stimulus: every statement before it was a kill point
+        if status == 0:  # the run got through its close: every operation before was a kill point
             break
         assert status == -signal.SIGKILL
         killed += 1
