@@ -108,7 +108,6 @@ def _kill_at_statement(n: int, path) -> None:
 
     sqlite3.connect = traced
     recording._FileLock.__init__ = locking
-    original = Runner.run_trial
 
     def stop_at_first_trial(self, index, *args):  # a stop where the first stimulus would start:
         raise KeyboardInterrupt("SIGTERM")  # the stop is logged and the file closed (more kill points)

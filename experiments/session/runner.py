@@ -42,12 +42,12 @@ from tactilab.core import package_version  # defined once in core
 from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
 from tactilab.data_schemas.experiment_records import TrialRecord
 
-from ..devices import (STOP_SIGNALS, Display, DisplayError, DisplayFault, SafeDisplay, check_frame_rate,
+from ..devices import (Display, DisplayError, DisplayFault, SafeDisplay, check_frame_rate,
                        description_record, display_fault, foreign_reason, render_drive)
 from ..procedures import PlannedLevel, Procedure, make_procedure, plan_trial, score
 from .recording import Recorder, RecordingError, utc_now
-from .signals import signals_held, stop_signals
 from .responses import ResponseSource
+from .signals import signals_held, stop_signals
 
 
 def trial_generators(seed: int, trial_index: int) -> tuple[np.random.Generator, np.random.Generator]:
