@@ -261,3 +261,34 @@ def test_a_stop_before_the_session_is_opened_is_a_clean_stop_of_the_command(stop
         err = pipe.read()
     assert err.strip() == "tactilab: interrupted", err
     assert session_status(path)["completed"] == 2 and file_state(path)["self_contained"]
+
+
+@pytest.mark.parametrize("where", ["create", "start_up"])
+def test_sigterm_while_run_starts_is_a_clean_stop(tmp_path, where):
+    """``new_session``: a SIGTERM while the file is created (held, delivered once it exists) logs
+    ``session_stopped`` before the first stimulus; one before the file exists leaves no file."""
+    path = tmp_path / "s.sqlite"
+
+    def work():
+        display, observer = _components()
+        if where == "create":
+            _signal_during(recording.Recorder, "_connect", signal.SIGTERM)
+        else:
+            _signal_during(display, "zero", signal.SIGTERM)
+        try:
+            result = new_session(PROTOCOL, path, display, observer, subject="S01", realtime=False)
+        except KeyboardInterrupt:
+            os._exit(130)
+        os._exit(0 if result.status == "interrupted" and result.n_completed == 0 else 4)
+
+    if where == "start_up":
+        assert _fork(work) == 130 and not path.exists()  # KeyboardInterrupt, before anything was written
+        return
+    assert _fork(work) == 0
+    log = SessionLog(path)
+    try:
+        kinds, reason = [e["kind"] for e in log.events()], log.events()[-1]["payload"].get("reason", "")
+    finally:
+        log.close()
+    assert kinds == ["session_started", "session_stopped"] and "SIGTERM" in reason
+    assert file_state(path)["self_contained"] and sorted(p.name for p in tmp_path.iterdir()) == ["s.sqlite"]

@@ -333,7 +333,20 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
         If another runner holds it.
     RecordingError
         If a write fails; the run stops before the next stimulus.
+    KeyboardInterrupt
+        On Ctrl-C or a stop signal (SIGTERM, SIGHUP, SIGQUIT, SIGUSR1: handled from this call's
+        first instruction) before the session file exists; once it exists a stop is logged and
+        the result is ``interrupted``.
     """
+    with stop_signals():  # from the first instruction: a stop during start-up is a clean stop
+        return _new_session(protocol, path, display, responses, subject=subject, session=session,
+                            subject_pattern=subject_pattern, realtime=realtime, progress=progress,
+                            on_created=on_created)
+
+
+def _new_session(protocol: Protocol, path: str | Path, display: Display, responses: ResponseSource, *,
+                 subject: str, session: str, subject_pattern: str | None, realtime: bool, progress: bool,
+                 on_created: Callable[[Path], None] | None) -> RunResult:
     check_subject(subject, "subject", subject_pattern)
     check_label(session, "session")
     # before any file exists: the device answers (a ZERO round trip: it is there and at rest)
@@ -356,24 +369,23 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     # built before the file exists: an unregistered method or likelihood leaves no session behind
     procedure = make_procedure(protocol.procedure, protocol.task.guess_rate)
     recorder = None
-    with stop_signals():  # a stop from here on is a clean stop, before the first stimulus too
-        try:
-            with signals_held():  # the file is created and locked whole
-                recorder = Recorder.create(path, meta)
-                recorder.log("session_started", payload={"pid": os.getpid()})
-            if on_created is not None:
-                on_created(Path(path))
-            runner = Runner(protocol, recorder, display, responses, subject=subject, session=session,
-                            procedure=procedure, realtime=realtime, progress=progress)
-            return runner.run()
-        except KeyboardInterrupt as exc:
-            if recorder is None:
-                raise
-            return stopped(recorder, exc, procedure)
-        finally:
-            if recorder is not None:
-                with signals_held():
-                    recorder.close()
+    try:
+        with signals_held():  # the file is created and locked whole
+            recorder = Recorder.create(path, meta)
+            recorder.log("session_started", payload={"pid": os.getpid()})
+        if on_created is not None:
+            on_created(Path(path))
+        runner = Runner(protocol, recorder, display, responses, subject=subject, session=session,
+                        procedure=procedure, realtime=realtime, progress=progress)
+        return runner.run()
+    except KeyboardInterrupt as exc:
+        if recorder is None:
+            raise  # nothing was written: the caller reports the stop
+        return stopped(recorder, exc, procedure)
+    finally:
+        if recorder is not None:
+            with signals_held():
+                recorder.close()
 
 
 def stopped(recorder: Recorder, exc: KeyboardInterrupt, procedure: Procedure | None) -> RunResult:
