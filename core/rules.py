@@ -47,6 +47,7 @@ __all__ = [
     "finite",
     "finite_array",
     "float_dtype",
+    "fraction",
     "poisson_ratio",
     "positive",
     "show",
@@ -227,3 +228,18 @@ def float_dtype(value) -> np.dtype:
     if dt not in (np.dtype(np.float32), np.dtype(np.float64)):
         raise ValueError(f"dtype: expected float32 or float64, got {dt}; use float64 for tolerances below 1e-6")
     return dt
+
+
+def fraction(value, name: str, fix: str = "") -> float:
+    """A finite number in [0, 1] (a share of frames, trials, samples), returned as float.
+
+    Raises
+    ------
+    ValueError
+        ``"<name>: must be a fraction in [0, 1], got <value>; <fix>"`` (NaN and inf included).
+    """
+    fix = fix or "give a number from 0 to 1, e.g. 0.01 for 1 %"
+    v = _number(value, name, "must be a fraction in [0, 1]", fix)
+    if not 0.0 <= v <= 1.0:  # also refuses NaN
+        raise ValueError(f"{name}: must be a fraction in [0, 1], got {show(value)}; {fix}")
+    return v

@@ -27,7 +27,7 @@ from .experiment_procedures import (  # noqa: F401 - the configs are part of thi
     LIKELIHOOD_FAMILIES, MAX_PLANNED_TRIALS, PARAMETERS, PROCEDURE_CONFIGS, TASKS, ConstantStimuliConfig,
     Frequency, Length, ProcedureConfigBase, PsiConfig, Speed, StaircaseConfig, StaircaseTrack, Time,
     _Model, check_label, check_name, check_subject, procedure_config, register_procedure_config)
-from .stimulus import PITCH_RANGE_M, Stimulus  # noqa: F401 - part of this module's API
+from .stimulus import MAX_FRAME_RATE_HZ, PITCH_RANGE_M, Stimulus  # noqa: F401 - part of this module's API
 
 #: Caps on what a protocol file may hold (a protocol is a page of text, not a data dump).
 MAX_PROTOCOL_BYTES = 1_000_000

@@ -17,6 +17,8 @@ from .experiment_procedures import Frequency, Length, Speed, Time, _Model
 
 #: The pitches a stimulus may have, m (the drive's strain gain overflows far outside; usual: 1 um to 200 mm).
 PITCH_RANGE_M = (1e-7, 100.0)
+#: the highest drive frame rate a protocol may ask for, Hz (tactile displays refresh at 1-10 kHz)
+MAX_FRAME_RATE_HZ = 100_000.0
 
 
 class Stimulus(_Model):
@@ -32,7 +34,7 @@ class Stimulus(_Model):
     duration_s: Time = Field(0.5, description="stimulus duration, s (> 0, <= 60)")
     ramp_s: Time = Field(0.02, description="raised-cosine onset/offset ramp, s (>= 0)")
     phase_rad: float = Field(0.0, description="phase of H at x = 0, t = 0, rad")
-    frame_rate_hz: Frequency = Field(1000.0, description="drive frame rate, Hz (> 0)")
+    frame_rate_hz: Frequency = Field(1000.0, description="drive frame rate, Hz (> 0, <= 100 kHz)")
 
     @model_validator(mode="after")
     def _check(self) -> Stimulus:
@@ -55,6 +57,9 @@ class Stimulus(_Model):
                 f"{self.ramp_s!r}; shorten the ramp or lengthen the stimulus"
             )
         rules.positive(self.frame_rate_hz, "frame_rate_hz", "Hz")
+        if self.frame_rate_hz > MAX_FRAME_RATE_HZ:  # a typo ('1e9Hz') must not reach the renderer
+            raise ValueError(f"frame_rate_hz: must be <= {MAX_FRAME_RATE_HZ:g} Hz (no tactile display refreshes "
+                             f"faster), got {self.frame_rate_hz!r} Hz; give the display's rate, e.g. '1kHz'")
         if self.frame_rate_hz * self.duration_s < 2:
             raise ValueError(
                 f"frame_rate_hz: {self.frame_rate_hz!r} Hz gives fewer than 2 frames in "
