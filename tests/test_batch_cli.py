@@ -59,6 +59,7 @@ def sessions(tmp_path_factory):
             enumerate([("S01", 1), ("S02", 1), ("S01", 2)], start=1)]
 
 
+@pytest.mark.slow
 def test_experiment_compare_per_subject_serial_and_on_a_scheduler(sessions, tmp_path, capsys, client):
     argv = ["experiment", "compare", *sessions, "--model", "zx@1mm", "--model", "zx@3mm", "--max-steps", "60",
             "--seed", "2", "--json"]

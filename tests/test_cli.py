@@ -55,6 +55,7 @@ def test_no_command_prints_help_and_fails(capsys):
     assert "usage" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_user_mistakes_are_one_line_without_traceback(tmp_path):
     cmd = [sys.executable, "-m", "tactilab.cli", "stress", str(tmp_path / "missing.toml"), "--depth", "1mm"]
     out = subprocess.run(cmd, capture_output=True, text=True)

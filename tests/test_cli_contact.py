@@ -111,6 +111,7 @@ def test_memory_check_names_the_grid_that_fits():
 
 
 # --------------------------------------------------------------------------------------------- runs
+@pytest.mark.slow
 def test_sphere_run_prints_the_summary_and_writes_the_files(tmp_path, capsys):
     """A Hertz sphere on 32^2 nodes: the summary's numbers, the solution file and the three PNGs."""
     import xarray as xr

@@ -68,6 +68,7 @@ def test_planned_stimulus_fields_replace_the_protocol_stimulus():
     assert plan.level == 0.005 and plan.track == 3
 
 
+@pytest.mark.slow
 def test_protocol_file_with_several_varied_fields_runs_through_the_cli(tmp_path, capsys, monkeypatch):
     path = tmp_path / "design.toml"
     path.write_text(PROTOCOL)

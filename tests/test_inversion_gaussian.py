@@ -216,6 +216,7 @@ def test_two_dimensional_fft_equals_dense(rng):
     assert draws.shape == (2, 12, 16)
 
 
+@pytest.mark.slow
 def test_irregular_sensors_with_forward_operator(rng):
     """Matrix-free path on the forward model's LoadToSensor (20 irregular sensors, 64 load nodes):
     iterative Gaussian mean = dense mean, Monte Carlo std close; discrepancy lam by CG = closed form."""

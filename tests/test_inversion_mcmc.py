@@ -53,6 +53,7 @@ def test_marginal_likelihood_equals_multivariate_normal(rng):
     assert cmean[0] == pytest.approx((g[0] @ data / 25.0 + amp.mean / amp.sd**2) / prec)
 
 
+@pytest.mark.slow
 def test_recovery_over_seeds_at_nominal_rate(seed):
     """90% central intervals of x0 and y0 contain the truth in about 90% of 8 synthetic data sets."""
     model = small_model()
@@ -238,6 +239,7 @@ def test_separated_modes_caught_across_ensembles():
     assert "y0" not in res.flat_parameters
 
 
+@pytest.mark.slow
 def test_defect_posterior_works_with_arviz_loo(rng):
     """Sensors the defect's signal never reaches give identical log-likelihood terms in every draw
     ("All tail values are the same" in PSIS): they are dropped and said so; loo then runs."""

@@ -118,6 +118,7 @@ def test_models_and_target_pickle(rng):
     np.testing.assert_array_equal(again.log_likelihood(full), defect.log_likelihood(full))
 
 
+@pytest.mark.slow
 def test_pool_is_used_and_gives_the_serial_result(seed):
     model = toy(np.random.default_rng(seed), vectorized=False)
     opts = dict(FAST, max_steps=100, check_every=100)
@@ -134,6 +135,7 @@ def test_pool_is_used_and_gives_the_serial_result(seed):
     np.testing.assert_array_equal(draws(parallel), draws(short))
 
 
+@pytest.mark.slow
 def test_hdf_backend_checkpoints_and_resumes(rng, tmp_path):
     model = toy(rng)
     path = tmp_path / "chains.h5"
@@ -264,6 +266,7 @@ class CorrelatedGaussian:
         return cov @ self.x.T @ self.observed / self.noise_std**2, cov
 
 
+@pytest.mark.slow
 def test_correlated_gaussian_map_start_and_moments(rng):
     model = CorrelatedGaussian(rng)
     mean, cov = model.exact()

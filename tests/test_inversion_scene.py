@@ -46,6 +46,7 @@ def test_defect_problem_removes_baseline_and_keeps_order(rng):
     assert info["noise_std"] == 20.0 and info["truth"] == (0.0, 0.0)
 
 
+@pytest.mark.slow
 def test_position_and_profile_recovered(rng, tmp_path):
     scene = small_scene()
     rec, _ = synthetic_recording(scene, rng)
@@ -108,6 +109,7 @@ def test_a_prepared_problem_is_used_as_given(rng):
         invert_defect_position(scene, rec, rng, problem=(problem[0], problem[1][:3], problem[2]))
 
 
+@pytest.mark.slow
 def test_cli_invert_end_to_end(rng, tmp_path, capsys, monkeypatch):
     import tactilab.inversion.scene_inversion as scene_inversion
     from tactilab.cli.main import main
@@ -143,6 +145,7 @@ def test_cli_invert_end_to_end(rng, tmp_path, capsys, monkeypatch):
     assert "--max-data" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_extra_parameters_sampled_and_validated(rng):
     scene = small_scene()
     rec, _ = synthetic_recording(scene, rng)

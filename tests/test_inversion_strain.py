@@ -103,6 +103,7 @@ def _simulated(quantity: str, noise: float, tmp_path):
     return scene, read_recording(out / "recording.nc")
 
 
+@pytest.mark.slow
 def test_strain_recording_inverts_to_the_stress_position(tmp_path):
     """The forward model (node weights of the finger, not the point-defect model) writes a stress and
     a strain recording of the same scene (noise 20 Pa and the equivalent 20 Pa / E); both invert to

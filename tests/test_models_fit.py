@@ -36,6 +36,7 @@ def fit_zx(frame):
     return fit_transduction(TransductionModel("zx@1mm"), frame, rng=1, sampler_options=FAST)
 
 
+@pytest.mark.slow
 def test_recovery_and_per_trial_terms(frame, fit_zx):
     fit = fit_zx
     assert fit.converged and fit.task == "2ifc"
@@ -56,6 +57,7 @@ def test_recovery_and_per_trial_terms(frame, fit_zx):
     np.testing.assert_allclose(lp, lik.log_prior(theta) + lik.total_log_likelihood(theta), rtol=1e-10)
 
 
+@pytest.mark.slow
 def test_identical_models_and_the_grating_tie(frame, fit_zx):
     """xx and zx at one depth read the same peak of every sinusoidal grating (bitwise the same
     statistics), so they predict identical responses and their fits differ by Monte Carlo noise only.
@@ -112,6 +114,7 @@ def _session(path, pitch_mm, seed, truth):
     return path
 
 
+@pytest.mark.slow
 def test_end_to_end_the_comparison_picks_the_read_hypothesis(tmp_path):
     """An observer reading zx@1mm, two sessions (pitch 2 mm and 8 mm) through the runner: zx@1mm
     beats zx@3mm by more than 2 standard errors, as the power analysis of the same design expects."""

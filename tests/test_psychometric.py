@@ -76,6 +76,7 @@ def test_recovery_with_many_trials():
     assert 0.05 < fit.gof_p < 1.0  # the true model fits: no evidence against it
 
 
+@pytest.mark.slow
 def test_interval_coverage_over_200_seeded_repeats():
     """The 95 % intervals of threshold and width cover the truth in 90 % to 98 % of 200 repeats."""
     x = np.linspace(1.0, 3.0, 6)
