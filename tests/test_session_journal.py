@@ -17,6 +17,7 @@ import signal
 import sqlite3
 import sys
 import threading
+import time
 
 import pytest
 
@@ -292,3 +293,30 @@ def test_sigterm_while_run_starts_is_a_clean_stop(tmp_path, where):
         log.close()
     assert kinds == ["session_started", "session_stopped"] and "SIGTERM" in reason
     assert file_state(path)["self_contained"] and sorted(p.name for p in tmp_path.iterdir()) == ["s.sqlite"]
+
+
+def test_signals_held_holds_a_signal_taken_by_another_thread():
+    """A process-directed signal may be taken by any thread that does not block it (scipy's FFT
+    starts worker threads); the hold must not depend on the main thread's mask. Nested holds keep
+    it until the outermost one ends; then it is delivered once, as KeyboardInterrupt."""
+    from tactilab.experiments.session import signals_held, stop_signals
+
+    before, reached = signal.getsignal(signal.SIGTERM), False
+    release = threading.Event()
+    other = threading.Thread(target=release.wait, daemon=True)  # a thread with the default signal mask
+    other.start()
+    try:
+        with stop_signals(), pytest.raises(KeyboardInterrupt, match="SIGTERM"):
+            with signals_held():
+                with signals_held():
+                    os.kill(os.getpid(), signal.SIGTERM)
+                    os.kill(os.getpid(), signal.SIGTERM)
+                    for _ in range(20):  # give the other thread time to take it, and the handler to run
+                        time.sleep(0.01)
+                reached = True
+            raise AssertionError("the held signal was not delivered when the hold ended")
+    finally:
+        release.set()
+        other.join()
+    assert reached, "the signal was delivered inside the hold"
+    assert signal.getsignal(signal.SIGTERM) == before
