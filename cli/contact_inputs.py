@@ -130,9 +130,11 @@ def finger_gap(radius: float | None, x: np.ndarray, y: np.ndarray | None) -> np.
 
 
 def _positive(value: float, option: str, text: str, example: str) -> float:
-    if not value > 0:
-        raise ValueError(f"{option}: must be > 0, got {text!r}; e.g. {example}")
-    return value
+    """The core rule for a positive quantity, its message naming the option and an example with a unit."""
+    from tactilab.core import rules
+
+    unit = {"N": "N", "a": "Pa"}.get(example[-1], "m")
+    return rules.positive(value, option, unit, fix=f"give e.g. {example} (got {text!r})")
 
 
 def _quantities(text: str, dimension: str, option: str, count: tuple[int, ...] = (1, 2)) -> list[float]:

@@ -40,7 +40,7 @@ def test_help_states_units_and_the_grid_rule(capsys):
 
 @pytest.mark.parametrize(("extra", "match"), [
     (["--normal-force", "0.5"], "--normal-force: '0.5' has no unit"),
-    (["--normal-force=-0.5N"], "--normal-force: must be > 0"),
+    (["--normal-force=-0.5N"], "--normal-force: must be finite and > 0"),
     (["--normal-force", "0.5N", "--approach", "5um"], "give exactly one, got --normal-force, --approach"),
     (["--mean-pressure", "10kPa"], "--mean-pressure: a mean pressure needs a periodic cell"),
     (["--approach", "5"], "--approach: '5' has no unit"),
@@ -56,10 +56,10 @@ def test_help_states_units_and_the_grid_rule(capsys):
     (["--normal-force", "0.5N", "--nu", "0.7"], r"--nu: Poisson's ratio must lie in \(-1, 0.5\]"),
     (["--normal-force", "0.5N", "--tol", "0"], r"--tol: must be in \(0, 1\)"),
     (["--normal-force", "0.5N", "--depth", "1"], "--depth: '1' has no unit"),
-    (["--normal-force", "0.5N", "--depth=-1mm"], "--depth: must be > 0"),
+    (["--normal-force", "0.5N", "--depth=-1mm"], "--depth: must be finite and > 0"),
     (["--normal-force", "0.5N", "--grid", "4"], "--grid: expected N or NX,NY with at least 8 nodes"),
     (["--normal-force", "0.5N", "--grid", "a"], "--grid: expected N or NX,NY"),
-    (["--normal-force", "0.5N", "--grid-spacing=-5um"], "--grid-spacing: must be > 0"),
+    (["--normal-force", "0.5N", "--grid-spacing=-5um"], "--grid-spacing: must be finite and > 0"),
     (["--normal-force", "0.5N", "--finger-radius", "10mm"], "SURFACE sphere: give its radius once"),
     (["--normal-force", "0.5N", "--spacing", "10um"], "--spacing, --height-unit: they describe a .npy"),
     (["--normal-force", "0.5N", "--grid", "1000000"], r"--grid: .* needs about .* GiB, above the limit .* use at "
