@@ -229,8 +229,15 @@ def _solve_grid(solver, comp: ContactCompliance, g0: np.ndarray, inp, total, p0)
 
 def _partial_or_stuck(solver, comp, g0, inp, total, res):
     """The tangential solve under the normal solution; at nu < 1/2, alternated with the normal solve
-    (the tangential traction's normal displacement in the gap, the pressure's tangential displacement in
-    the tangential problem) until the pressure stops changing."""
+    (the tangential traction's normal displacement in the gap, the pressure change's tangential
+    displacement in the tangential problem) until the pressure stops changing.
+
+    Loading path (Mindlin's, the one Cattaneo-Mindlin describes): the normal load first, without
+    tangential traction, then the tangential force. The tangential surface displacement that the first
+    normal solution causes at nu < 1/2 is locked in before Q is applied (no slip measured from it);
+    only the pressure change that Q causes enters the slip. Applying both loads together from rest would
+    include the normal load's own (Spence) slip ring, which a fingertip pressed and then pulled does not
+    see."""
     stuck = inp.condition == "stuck"
     kwargs = dict(stuck=stuck, tol=inp.tol, max_iter=inp.max_iter)
     tang = solve_tangential(comp, res.pressure, res.pressure > 0, inp.friction, inp.tangential_force, **kwargs)
@@ -241,7 +248,7 @@ def _partial_or_stuck(solver, comp, g0, inp, total, res):
     for _ in range(MAX_COUPLING):
         new = solver(comp, g0, total=total, approach=inp.approach, tol=inp.tol, max_iter=inp.max_iter,
                      p0=res.pressure, extra_gap=tang.normal_displacement)
-        u_p = np.stack([u for u in comp.tangential_from_normal(new.pressure) if u is not None])
+        u_p = np.stack([u for u in comp.tangential_from_normal(new.pressure - res0.pressure) if u is not None])
         start = np.stack([q for q in (tang.qx, tang.qy) if q is not None])
         tang = solve_tangential(comp, new.pressure, new.pressure > 0, inp.friction, inp.tangential_force,
                                 pressure_displacement=u_p, initial=start, **kwargs)
