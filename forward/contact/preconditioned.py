@@ -20,11 +20,14 @@ One iteration:
 
 Products: one compliance product ``A t`` and one preconditioner product ``K r`` per iteration
 (the preconditioner is an FFT pair of the unpadded grid, a quarter of a padded product for an
-isolated contact); ``uz = A p`` is updated as ``uz - tau A t`` unless a pressure was clipped to 0,
-and recomputed exactly every 32 iterations and before convergence is declared. Clipping happens
-in most iterations until the contact set settles (at 512^2, 10 % contact: 158 FFT pairs in 55
-iterations, against Polonsky-Keer's 389 in 206), so an iteration costs about three FFT pairs of
-the grid where Polonsky-Keer's costs about two: the iterations saved pay for it twice over.
+isolated contact). ``uz = A p`` is updated as ``uz - tau A t``; a pressure clipped to 0 adds its
+correction by direct summation of the influence coefficients when few nodes are clipped (up to
+``ContactCompliance.direct_limit``, about 8 on a periodic grid and 36 on a padded 256^2 one), and
+``uz`` is recomputed by FFT when more are, every 32 iterations, and before convergence is declared.
+Clipping of many nodes happens in most iterations until the contact set settles (self-affine
+surface, 10 % contact: hundreds to thousands of nodes for the first two thirds of the iterations,
+a few in the tail), so an iteration costs between two and three FFT pairs of the grid, where
+Polonsky-Keer's costs about two: the iterations saved pay for it twice over.
 """
 
 from __future__ import annotations
@@ -51,8 +54,10 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     # work arrays, reused: every pass over the grid costs about as much as a tenth of an FFT pair
     g, r, tmp, t = (np.empty_like(p) for _ in range(4))
     inside, S = np.empty(p.shape, dtype=bool), np.empty(p.shape, dtype=bool)
-    S_old = np.zeros(p.shape, dtype=bool)
+    S_old, entered = np.zeros(p.shape, dtype=bool), np.empty(p.shape, dtype=bool)
     G_old, residual, delta = 0.0, np.inf, approach
+    # clipped nodes up to which the displacement is corrected by direct summation, not an FFT pair
+    limit = getattr(compliance, "direct_limit", 0)
     it = 0
     while True:
         np.add(g0, u, out=g)
@@ -76,7 +81,8 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         if force:
             np.subtract(z, float(z.sum()) / int(np.count_nonzero(S)), out=z, where=S)
         G = _dot(r, z)
-        if G_old > 0 and not np.any(S & ~S_old):  # no node entered: keep the conjugacy (as Polonsky-Keer)
+        np.greater(S, S_old, out=entered)
+        if G_old > 0 and not entered.any():  # no node entered: keep the conjugacy (as Polonsky-Keer)
             t *= G / G_old
             t *= S  # nodes that left the set leave the direction
             t += z
@@ -91,19 +97,34 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         np.multiply(t, tau, out=tmp)
         p -= tmp
         it += 1
-        clipped = float(p.min()) < 0
-        if clipped:
+        m = 0
+        if float(p.min()) < 0:
+            np.less(p, 0.0, out=inside)  # the nodes to clip (inside is free until the next gap)
+            m = int(np.count_nonzero(inside))
+        if m > limit or it % REFRESH == 0:  # many clipped: the displacement is recomputed by FFT
             np.maximum(p, 0.0, out=p)
-        factor = total / float(p.sum()) if force else 1.0  # the force, held exactly at every step
-        if factor != 1.0:
-            p *= factor
-        if clipped or it % REFRESH == 0:  # clipped: the displacement is no longer linear in the step
+            _rescale(p, total)
             u, exact = A(p), True
             products += 1
-        else:
+        else:  # none or a few clipped: u = A p updated in place, the clipped ones by direct summation
             np.multiply(At, tau, out=tmp)
             u -= tmp
+            if m:
+                nodes = np.flatnonzero(inside)
+                flat = p.reshape(-1)
+                values = -flat[nodes]  # the pressure added to bring each clipped node back to 0
+                flat[nodes] = 0.0
+                compliance.add_normal_point_loads(u, nodes, values)
+            factor = _rescale(p, total)
             if factor != 1.0:
                 u *= factor
             exact = False
     return NormalResult(p, float(delta), g, it, residual <= target, residual, products)
+
+
+def _rescale(p: np.ndarray, total: float | None) -> float:
+    """Scale ``p`` in place to the force ``total`` (None: approach control, no scaling); the factor."""
+    factor = total / float(p.sum()) if total is not None else 1.0
+    if factor != 1.0:
+        p *= factor
+    return factor
