@@ -198,6 +198,7 @@ def test_warm_start_gives_the_cold_answer():
 
 
 @pytest.mark.filterwarnings("ignore:spacing. the largest contact patch")  # small rough patches, on purpose
+@pytest.mark.filterwarnings("ignore:gap. the isolated contact reaches")  # a grid-filling patch: two methods compared
 @pytest.mark.parametrize("periodic", [True, False])
 def test_both_methods_give_one_answer(periodic, rng):
     n = 64
@@ -237,6 +238,7 @@ def test_coarse_grid_is_centred_and_interpolates_linear_fields(n, periodic):
                        np.add.outer(x, 2 * x)[np.ix_(inside, inside)])
 
 
+@pytest.mark.filterwarnings("ignore:gap. the isolated contact reaches")  # the uniform gap fills the grid on purpose
 def test_flat_circular_punch_under_approach_control():
     """A rigid flat circular punch pressed by delta: F = 2 a E* delta (Johnson, Contact Mechanics, 3.39)."""
     n, h, delta = 64, 5e-5, 1e-6

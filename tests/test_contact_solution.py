@@ -111,6 +111,17 @@ def test_small_contact_warns_with_the_spacing_that_would_do():
         solve_contact(skin, g0, h, normal_force=F)
 
 
+def test_contact_at_the_grid_edge_warns_with_the_grid_that_would_do():
+    skin = HalfSpace(E, 0.5)
+    g0, h = sphere(24, cover=1.5)  # the grid spans 1.5 contact radii: the contact reaches its edge
+    with pytest.warns(AccuracyWarning, match=r"gap: the isolated contact reaches the grid's edge .* grid of 48 x 48"):
+        solve_contact(skin, g0, h, normal_force=F)
+    g1, h1 = sphere(24, cover=3.0)  # the whole contact inside: no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AccuracyWarning)
+        solve_contact(skin, g1, h1, normal_force=F)
+
+
 def test_approach_below_the_gap_gives_an_empty_contact():
     skin = HalfSpace(E, 0.5)
     g0, h = sphere(16)

@@ -107,7 +107,8 @@ def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, 
     -----
     AccuracyWarning
         When the largest contact patch spans fewer than 8 nodes (naming the spacing that would
-        do) or the solver did not converge.
+        do), when an isolated contact reaches the grid's outermost nodes (the grid is too small;
+        naming a grid twice as wide), or when the solver did not converge.
     UserWarning
         When the approach leaves the contact empty.
     """
@@ -322,10 +323,26 @@ def _resolution_warning(inp, contact: np.ndarray) -> None:
                       "(see error_estimate)", AccuracyWarning, stacklevel=3)
 
 
+def _edge_warning(inp, contact: np.ndarray) -> None:
+    """An isolated contact must lie inside the grid (the traction is zero outside it): warn when it
+    reaches the outermost ring of nodes, naming a grid twice as wide."""
+    if inp.periodic or not contact.any():
+        return
+    edge = contact.copy()
+    edge[tuple(slice(1, -1) for _ in contact.shape)] = False
+    if edge.any():
+        nodes = int(np.count_nonzero(edge))
+        bigger = " x ".join(str(2 * n) for n in reversed(contact.shape))
+        warnings.warn(f"gap: the isolated contact reaches the grid's edge ({nodes} contact nodes on the outermost "
+                      f"ring), so the grid is too small and the traction beyond it is missing; solve on a grid of "
+                      f"{bigger} nodes (x first) at this spacing, or a coarser spacing", AccuracyWarning, stacklevel=3)
+
+
 def _package(inp, comp, skin, out: dict, coarse: dict | None) -> ContactSolution:
     parts = {"solver": _solver_error(comp, skin, out) + out["tangential_residual"],
              "discretisation": _discretisation_error(inp, out, coarse)}
     _resolution_warning(inp, out["contact"])
+    _edge_warning(inp, out["contact"])
     if not out["converged"]:
         warnings.warn(f"max_iter: the solver stopped after {out['iterations']} iterations short of tol (gap residual "
                       f"{out['residual']:.3g} m; or the tangential solve, or the normal-tangential coupling, did "
