@@ -7,6 +7,7 @@ contact of radius of curvature L^2 / (4 pi^2 D) at each peak under a light load;
 flat punch (its inverse-square-root edge). Every solution is also checked for complementarity.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -195,6 +196,34 @@ def test_warm_start_gives_the_cold_answer():
     other = solve_contact(SKIN, np.roll(g0, 2, axis=1), h, normal_force=0.5, initial=cold)
     ref = solve_contact(SKIN, np.roll(g0, 2, axis=1), h, normal_force=0.5)
     assert np.allclose(other.pressure, ref.pressure, atol=1e-5 * p0)
+
+
+def test_warm_started_sliding_sequence_equals_cold_solves_frame_by_frame():
+    """A fingertip sliding one node per frame over a rough plate, each frame started from the previous
+    one shifted with the plate: the fine and the check solve both start warm, and every frame gives the
+    cold answer (to the solver's own error bound) with the same discretisation estimate."""
+    from tactilab.data_schemas import random_rough_surface
+
+    n, frames, h = 48, 4, 100e-6
+    plate = random_rough_surface((n, n + frames), h, rms_height=2e-6, hurst=0.8, rng=np.random.default_rng(3))
+    X, Y = np.meshgrid(grid(n, h), grid(n, h))
+    kw = dict(normal_force=0.5, friction=0.5, condition="sliding")
+    previous = None
+    for k in range(frames):
+        g0 = (X**2 + Y**2) / (2 * R) - plate[:, k:k + n]
+        cold = solve_contact(SKIN, g0, h, **kw)
+        if previous is not None:
+            start = dataclasses.replace(previous, pressure=np.roll(previous.pressure, -1, axis=-1))
+            warm = solve_contact(SKIN, g0, h, initial=start, **kw)
+            bound = (warm.error_parts["solver"] + cold.error_parts["solver"]) * cold.pressure.max()
+            assert np.abs(warm.pressure - cold.pressure).max() <= bound
+            assert np.allclose(warm.qx, 0.5 * warm.pressure)
+            assert warm.error_parts["discretisation"] == pytest.approx(cold.error_parts["discretisation"], rel=1e-3)
+            assert warm._coarse_pressure is not None and warm._coarse_pressure.shape == (n // 2, n // 2)
+            check_complementarity(warm, g0, TOL)
+            previous = warm
+        else:
+            previous = cold
 
 
 @pytest.mark.filterwarnings("ignore:spacing. the largest contact patch")  # small rough patches, on purpose
