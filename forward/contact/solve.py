@@ -38,6 +38,8 @@ MIN_NODES_ACROSS = 8
 RICHARDSON = 1.0 / (math.sqrt(2.0) - 1.0)
 #: outer iterations of the normal-tangential coupling at nu < 1/2
 MAX_COUPLING = 50
+#: the cold start's cascade of grids (:func:`_cascade`): its tolerance and its smallest grid
+CASCADE_TOL, CASCADE_MIN = 1e-4, 16
 
 
 def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, approach=None, periodic=False,
@@ -130,6 +132,8 @@ def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, 
         c_comp = _compliance(skin, inp.gap[sub].shape, tuple(2 * h for h in inp.spacing), inp.periodic)
         c_total = None if inp.total is None else inp.total / 2 ** len(inp.shape)
         p0 = _coarse_start(inp.initial, sub, inp.gap[sub].shape)
+        if inp.initial is None or getattr(inp.initial, "_coarse_pressure", None) is None:
+            p0 = _cascade(solver, skin, np.ascontiguousarray(inp.gap[sub]), c_comp.spacing, inp, c_total)
         coarse = _solve_grid(solver, c_comp, np.ascontiguousarray(inp.gap[sub]), inp, c_total, p0)
     if inp.initial is not None:
         p0 = np.array(inp.initial.pressure, dtype=float)
@@ -139,6 +143,23 @@ def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, 
         p0 = np.ones(inp.shape)
     out = _solve_grid(solver, fine, inp.gap, inp, inp.total, p0)
     return _package(inp, fine, skin, out, coarse)
+
+
+def _cascade(solver, skin, gap: np.ndarray, spacing, inp, total) -> np.ndarray:
+    """A cold start for the solve of ``gap``: the frictionless solution on the grid of twice the
+    spacing to the loose tolerance ``CASCADE_TOL`` (itself started this way), prolonged linearly;
+    uniform below ``CASCADE_MIN`` nodes per axis. Each level costs a quarter of the one above, and
+    a start within the discretisation error of the next grid is all a start can be."""
+    if min(gap.shape) < 2 * CASCADE_MIN:
+        return np.ones(gap.shape)
+    sub = _coarse_index(gap.shape)
+    g = np.ascontiguousarray(gap[sub])
+    h = tuple(2 * x for x in spacing)
+    sub_total = None if total is None else total / 2 ** gap.ndim
+    p0 = _cascade(solver, skin, g, h, inp, sub_total)
+    res = solver(_compliance(skin, g.shape, h, inp.periodic), g, total=sub_total, approach=inp.approach,
+                 tol=max(inp.tol, CASCADE_TOL), max_iter=inp.max_iter, p0=p0)
+    return _prolong(res.pressure, gap.shape, inp.periodic)
 
 
 def _coarse_start(initial, sub, shape) -> np.ndarray:
@@ -162,7 +183,7 @@ def _method(method):
     return METHODS[name]
 
 
-#: the last grid operators built (fine and coarse grid of the last solve), keyed by the skin's repr
+#: the last grid operators built (the grids of the last solve and its cascade), keyed by the skin's repr
 _OPERATORS: collections.OrderedDict = collections.OrderedDict()
 
 
@@ -174,7 +195,7 @@ def _compliance(skin, shape, spacing, periodic) -> ContactCompliance:
         _OPERATORS.move_to_end(key)
         return _OPERATORS[key]
     operator = _OPERATORS[key] = ContactCompliance(skin, shape, spacing, periodic)
-    while len(_OPERATORS) > 2:
+    while len(_OPERATORS) > 8:
         _OPERATORS.popitem(last=False)
     return operator
 
