@@ -6,7 +6,7 @@ like the square root of the grid's width, because the compliance's spectrum ``2 
 spans the ratio of the grid's largest and smallest wavenumbers. Here each iteration is
 preconditioned by the periodic surface stiffness ``E* |k| / 2`` (the exact inverse of the
 compliance on a fully touching periodic grid), restricted to the working set, which cuts the
-iterations three- to four-fold on rough surfaces (55 instead of 206 at 512^2, 10 %
+iterations five- to seven-fold on rough surfaces (30 instead of 206 at 512^2, 10 %
 contact), in the spirit of Vollebregt's bound-constrained CG (J. Optim. Theory Appl. 162, 2014).
 
 One iteration:
@@ -15,7 +15,9 @@ One iteration:
 2. the working set ``S``: nodes in contact and nodes that penetrate (``g < 0``), which enter;
 3. the residual ``r = g`` on ``S``; the preconditioned residual ``z = K r`` on ``S`` (force
    control: minus its mean on ``S``, so that the step keeps the force);
-4. the direction ``t = z + beta t_old`` (Fletcher-Reeves, on ``S``; restarted when a node enters);
+4. the direction ``t = z + beta t_old`` on ``S``, with Polak-Ribiere's
+   ``beta = max(0, <r, z - z_old> / <r_old, z_old>)`` (PR+), which restarts (``beta = 0``) by
+   itself when the working set's change spoils the conjugacy;
 5. the exact step ``tau = <r, t> / <A t, t>``; ``p = max(p - tau t, 0)``, rescaled to the force.
 
 Products: one compliance product ``A t`` and one preconditioner product ``K r`` per iteration
@@ -54,7 +56,7 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     # work arrays, reused: every pass over the grid costs about as much as a tenth of an FFT pair
     g, r, tmp, t = (np.empty_like(p) for _ in range(4))
     inside, S = np.empty(p.shape, dtype=bool), np.empty(p.shape, dtype=bool)
-    S_old, entered = np.zeros(p.shape, dtype=bool), np.empty(p.shape, dtype=bool)
+    z_old = np.zeros_like(p)
     G_old, residual, delta = 0.0, np.inf, approach
     # clipped nodes up to which the displacement is corrected by direct summation, not an FFT pair
     limit = getattr(compliance, "direct_limit", 0)
@@ -81,15 +83,17 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         if force:
             np.subtract(z, float(z.sum()) / int(np.count_nonzero(S)), out=z, where=S)
         G = _dot(r, z)
-        np.greater(S, S_old, out=entered)
-        if G_old > 0 and not entered.any():  # no node entered: keep the conjugacy (as Polonsky-Keer)
-            t *= G / G_old
+        # Polak-Ribiere, clipped at 0 (PR+): restarts by itself when the working set's change spoils
+        # the conjugacy; restarting at every entering node (Fletcher-Reeves) took 51 iterations
+        # instead of 30 at 512^2 and 89 instead of 40 at 1024^2 (periodic self-affine, 10 % contact)
+        beta = max(0.0, (G - _dot(r, z_old)) / G_old) if G_old > 0 else 0.0
+        if beta > 0:
+            t *= beta
             t *= S  # nodes that left the set leave the direction
             t += z
         else:
             t[...] = z
-        S_old[...] = S
-        G_old = G
+        z_old, G_old = z, G
         At = A(t)
         products += 2
         denom = _dot(At, t)
