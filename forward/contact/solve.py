@@ -94,8 +94,9 @@ def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, 
         A solution of the same shape and spacing to start from, used as given (shift it yourself
         for a moving finger; ``dataclasses.replace(sol, pressure=...)``). The check solve on the
         grid of twice the spacing (the error estimate's) starts from ``initial``'s own check
-        solution, which it carries privately, so both solves start warm. Without it the check
-        solve starts from a uniform pressure and the solve from the check solve's solution.
+        solution, which it carries privately; the solve then starts from ``initial`` or from the
+        check solve's solution, whichever has the smaller gap residual (one compliance product).
+        Without it the check solve starts from a cascade of coarser grids.
 
     Returns
     -------
@@ -137,6 +138,10 @@ def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, 
         coarse = _solve_grid(solver, c_comp, np.ascontiguousarray(inp.gap[sub]), inp, c_total, p0)
     if inp.initial is not None:
         p0 = np.array(inp.initial.pressure, dtype=float)
+        if coarse is not None:  # the better start of the two (a shifted previous frame often is not)
+            p1 = _prolong(coarse["pressure"], inp.shape, inp.periodic)
+            if _start_residual(fine, inp.gap, p1, inp) < _start_residual(fine, inp.gap, p0, inp):
+                p0 = p1
     elif coarse is not None:
         p0 = _prolong(coarse["pressure"], inp.shape, inp.periodic)
     else:
@@ -160,6 +165,20 @@ def _cascade(solver, skin, gap: np.ndarray, spacing, inp, total) -> np.ndarray:
     res = solver(_compliance(skin, g.shape, h, inp.periodic), g, total=sub_total, approach=inp.approach,
                  tol=max(inp.tol, CASCADE_TOL), max_iter=inp.max_iter, p0=p0)
     return _prolong(res.pressure, gap.shape, inp.periodic)
+
+
+def _start_residual(comp: ContactCompliance, g0: np.ndarray, p: np.ndarray, inp) -> float:
+    """The normal solvers' gap residual (m) at the start ``p`` (scaled to the force): max |g| where
+    ``p > 0``, max(-g) elsewhere. One compliance product."""
+    inside = p > 0
+    if inp.total is not None:
+        s = float(p.sum())
+        p = p * (inp.total / s) if s > 0 else np.full(p.shape, inp.total / p.size)
+        inside = p > 0
+    g = g0 + comp.normal(p)
+    delta = float(g[inside].mean()) if inp.approach is None and inside.any() else (inp.approach or 0.0)
+    g -= delta
+    return max(float(np.abs(g[inside]).max(initial=0.0)), float(-g[~inside].min(initial=0.0)))
 
 
 def _coarse_start(initial, sub, shape) -> np.ndarray:
