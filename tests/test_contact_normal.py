@@ -253,17 +253,17 @@ def test_both_methods_give_one_answer(periodic, rng):
 def test_coarse_grid_is_centred_and_interpolates_linear_fields(n, periodic):
     """The check solve uses every other node with the origin kept (SurfaceLoad's centring), and its
     solution returns by linear interpolation: exact for a linear field between coarse nodes."""
-    from tactilab.forward.contact.solve import _coarse_index, _prolong
+    from tactilab.forward.contact.starts import coarse_index, prolong
 
     x = grid(n, 1.0)
-    sub = _coarse_index((n,))
+    sub = coarse_index((n,))
     xc = x[sub]
     assert 0.0 in xc and np.allclose(xc, grid(len(xc), 2.0))
-    fine = _prolong(3.0 * xc + 1.0, (n,), periodic)
+    fine = prolong(3.0 * xc + 1.0, (n,), periodic)
     inside = (x >= xc[0]) & (x <= xc[-1])
     assert np.allclose(fine[inside], 3.0 * x[inside] + 1.0)
     field = np.add.outer(xc, 2 * xc)
-    assert np.allclose(_prolong(field, (n, n), periodic)[np.ix_(inside, inside)],
+    assert np.allclose(prolong(field, (n, n), periodic)[np.ix_(inside, inside)],
                        np.add.outer(x, 2 * x)[np.ix_(inside, inside)])
 
 

@@ -203,15 +203,15 @@ def test_solution_is_read_only():
 
 
 def test_grid_operators_are_reused_for_an_equal_skin():
-    from tactilab.forward.contact import solve as solve_module
+    from tactilab.forward.contact import starts
 
     g0, h = sphere(16)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AccuracyWarning)
         solve_contact(HalfSpace(E, 0.5), g0, h, normal_force=F)
-        first = list(solve_module._OPERATORS.values())
+        first = list(starts._OPERATORS.values())
         solve_contact(HalfSpace(E, 0.5), g0, h, normal_force=F)  # a new, equal skin
-        assert list(solve_module._OPERATORS.values()) == first
+        assert list(starts._OPERATORS.values()) == first
         solve_contact(HalfSpace(E, 0.4), g0, h, normal_force=F)  # another skin: new operators
-    latest = list(solve_module._OPERATORS.values())[-2:]  # the fine and check grids of the last solve
+    latest = list(starts._OPERATORS.values())[-2:]  # the fine and check grids of the last solve
     assert all(op.skin.nu == 0.4 and op not in first for op in latest)

@@ -15,7 +15,6 @@ The steps (each on the grid and, for the error estimate, on the grid of twice th
 
 from __future__ import annotations
 
-import collections
 import math
 import warnings
 
@@ -28,6 +27,7 @@ from .inputs import check_inputs
 from .normal import polonsky_keer
 from .preconditioned import preconditioned_cg
 from .solution import ContactSolution
+from .starts import cascade, coarse_index, coarse_start, grid_operator, prolong, start_residual
 from .tangential import solve_tangential
 
 #: normal-contact methods by name; ``method="auto"`` picks ``"preconditioned_cg"``
@@ -38,8 +38,6 @@ MIN_NODES_ACROSS = 8
 RICHARDSON = 1.0 / (math.sqrt(2.0) - 1.0)
 #: outer iterations of the normal-tangential coupling at nu < 1/2
 MAX_COUPLING = 50
-#: the cold start's cascade of grids (:func:`_cascade`): its tolerance and its smallest grid
-CASCADE_TOL, CASCADE_MIN = 1e-4, 16
 
 
 def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, approach=None, periodic=False,
@@ -126,71 +124,28 @@ def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, 
         warnings.warn(f"approach: {inp.approach:g} m is at or below min(gap) = {float(inp.gap.min()):g} m, so "
                       "nothing touches: the contact is empty", UserWarning, stacklevel=2)
         return _empty(inp)
-    fine = _compliance(skin, inp.shape, inp.spacing, inp.periodic)
+    fine = grid_operator(skin, inp.shape, inp.spacing, inp.periodic)
     coarse = None
     if min(inp.shape) >= 8:
-        sub = _coarse_index(inp.shape)
-        c_comp = _compliance(skin, inp.gap[sub].shape, tuple(2 * h for h in inp.spacing), inp.periodic)
+        sub = coarse_index(inp.shape)
+        c_comp = grid_operator(skin, inp.gap[sub].shape, tuple(2 * h for h in inp.spacing), inp.periodic)
         c_total = None if inp.total is None else inp.total / 2 ** len(inp.shape)
-        p0 = _coarse_start(inp.initial, sub, inp.gap[sub].shape)
+        p0 = coarse_start(inp.initial, sub, inp.gap[sub].shape)
         if inp.initial is None or getattr(inp.initial, "_coarse_pressure", None) is None:
-            p0 = _cascade(solver, skin, np.ascontiguousarray(inp.gap[sub]), c_comp.spacing, inp, c_total)
+            p0 = cascade(solver, skin, np.ascontiguousarray(inp.gap[sub]), c_comp.spacing, inp, c_total)
         coarse = _solve_grid(solver, c_comp, np.ascontiguousarray(inp.gap[sub]), inp, c_total, p0)
     if inp.initial is not None:
         p0 = np.array(inp.initial.pressure, dtype=float)
         if coarse is not None:  # the better start of the two (a shifted previous frame often is not)
-            p1 = _prolong(coarse["pressure"], inp.shape, inp.periodic)
-            if _start_residual(fine, inp.gap, p1, inp) < _start_residual(fine, inp.gap, p0, inp):
+            p1 = prolong(coarse["pressure"], inp.shape, inp.periodic)
+            if start_residual(fine, inp.gap, p1, inp) < start_residual(fine, inp.gap, p0, inp):
                 p0 = p1
     elif coarse is not None:
-        p0 = _prolong(coarse["pressure"], inp.shape, inp.periodic)
+        p0 = prolong(coarse["pressure"], inp.shape, inp.periodic)
     else:
         p0 = np.ones(inp.shape)
     out = _solve_grid(solver, fine, inp.gap, inp, inp.total, p0)
     return _package(inp, fine, skin, out, coarse)
-
-
-def _cascade(solver, skin, gap: np.ndarray, spacing, inp, total) -> np.ndarray:
-    """A cold start for the solve of ``gap``: the frictionless solution on the grid of twice the
-    spacing to the loose tolerance ``CASCADE_TOL`` (itself started this way), prolonged linearly;
-    uniform below ``CASCADE_MIN`` nodes per axis. Each level costs a quarter of the one above, and
-    a start within the discretisation error of the next grid is all a start can be."""
-    if min(gap.shape) < 2 * CASCADE_MIN:
-        return np.ones(gap.shape)
-    sub = _coarse_index(gap.shape)
-    g = np.ascontiguousarray(gap[sub])
-    h = tuple(2 * x for x in spacing)
-    sub_total = None if total is None else total / 2 ** gap.ndim
-    p0 = _cascade(solver, skin, g, h, inp, sub_total)
-    res = solver(_compliance(skin, g.shape, h, inp.periodic), g, total=sub_total, approach=inp.approach,
-                 tol=max(inp.tol, CASCADE_TOL), max_iter=inp.max_iter, p0=p0)
-    return _prolong(res.pressure, gap.shape, inp.periodic)
-
-
-def _start_residual(comp: ContactCompliance, g0: np.ndarray, p: np.ndarray, inp) -> float:
-    """The normal solvers' gap residual (m) at the start ``p`` (scaled to the force): max |g| where
-    ``p > 0``, max(-g) elsewhere. One compliance product."""
-    inside = p > 0
-    if inp.total is not None:
-        s = float(p.sum())
-        p = p * (inp.total / s) if s > 0 else np.full(p.shape, inp.total / p.size)
-        inside = p > 0
-    g = g0 + comp.normal(p)
-    delta = float(g[inside].mean()) if inp.approach is None and inside.any() else (inp.approach or 0.0)
-    g -= delta
-    return max(float(np.abs(g[inside]).max(initial=0.0)), float(-g[~inside].min(initial=0.0)))
-
-
-def _coarse_start(initial, sub, shape) -> np.ndarray:
-    """Start of the check solve on the grid of twice the spacing: the previous frame's own check
-    solution when ``initial`` carries one of this shape (the two grids' solutions differ by the
-    discretisation error, so the fine pressure's every other node is a worse start), else that."""
-    if initial is None:
-        return np.ones(shape)
-    previous = getattr(initial, "_coarse_pressure", None)
-    if previous is not None and previous.shape == shape:
-        return np.array(previous, dtype=float)
-    return np.array(initial.pressure[sub], dtype=float)
 
 
 def _method(method):
@@ -200,48 +155,6 @@ def _method(method):
     if name not in METHODS:
         raise ValueError(f"method: must be 'auto', one of {sorted(METHODS)} or a callable, got {method!r}")
     return METHODS[name]
-
-
-#: the last grid operators built (the grids of the last solve and its cascade), keyed by the skin's repr
-_OPERATORS: collections.OrderedDict = collections.OrderedDict()
-
-
-def _compliance(skin, shape, spacing, periodic) -> ContactCompliance:
-    """The grid operator, kept for the next solve on an equal skin and the same grid (a sequence of
-    frames reuses its kernel spectra); keyed by the skin's type and repr (``HalfSpace(E=..., nu=...)``)."""
-    key = (type(skin).__name__, repr(skin), tuple(shape), tuple(spacing), bool(periodic))
-    if key in _OPERATORS:
-        _OPERATORS.move_to_end(key)
-        return _OPERATORS[key]
-    operator = _OPERATORS[key] = ContactCompliance(skin, shape, spacing, periodic)
-    while len(_OPERATORS) > 8:
-        _OPERATORS.popitem(last=False)
-    return operator
-
-
-def _coarse_index(shape) -> tuple[slice, ...]:
-    """Every other node, keeping the origin node, so that the coarse grid is centred as SurfaceLoad centres it."""
-    return tuple(slice((n // 2) % 2, None, 2) for n in shape)
-
-
-def _prolong(coarse: np.ndarray, shape, periodic: bool) -> np.ndarray:
-    """Linear interpolation of a field on the coarse grid (every other node) onto the fine grid.
-
-    Between two coarse nodes the mean of the two; beyond the last coarse node the nearest one
-    (isolated) or the mean with the first node of the next period (periodic)."""
-    out = coarse
-    for axis, n in enumerate(shape):
-        c = np.moveaxis(out, axis, 0)
-        nxt = np.roll(c, -1, axis=0) if periodic else np.concatenate([c[1:], c[-1:]], axis=0)
-        fine = np.empty((n,) + c.shape[1:])
-        start = (n // 2) % 2
-        fine[start::2] = c[: len(range(start, n, 2))]
-        mid = 0.5 * (c + nxt)
-        fine[start + 1::2] = mid[: len(range(start + 1, n, 2))]
-        if start == 1:
-            fine[0] = mid[-1] if periodic else c[0]
-        out = np.moveaxis(fine, 0, axis)
-    return np.ascontiguousarray(out)
 
 
 def _solve_grid(solver, comp: ContactCompliance, g0: np.ndarray, inp, total, p0) -> dict:
@@ -359,7 +272,7 @@ def _discretisation_error(inp, out: dict, coarse: dict | None) -> float:
     diff = 0.0
     for name in ("pressure", "qx", "qy"):
         if out[name] is not None and (name == "pressure" or inp.condition != "frictionless"):
-            fine = _prolong(coarse[name], inp.shape, inp.periodic)
+            fine = prolong(coarse[name], inp.shape, inp.periodic)
             diff = max(diff, float(np.abs(out[name] - fine).max()))
     return RICHARDSON * diff / peak
 
