@@ -193,6 +193,9 @@ def test_warm_start_gives_the_cold_answer():
     warm = solve_contact(SKIN, g0, h, normal_force=0.5, initial=cold)
     assert warm.iterations <= 2
     assert np.allclose(warm.pressure, cold.pressure, atol=1e-6 * p0)
+    bare = solve_contact(SKIN, g0, h, normal_force=0.5, initial=dataclasses.replace(cold, _coarse_pressure=None))
+    assert np.allclose(bare.pressure, cold.pressure, atol=1e-6 * p0)  # no check solution carried: a cascade
+    assert bare.error_parts["discretisation"] == pytest.approx(cold.error_parts["discretisation"], rel=1e-4)
     other = solve_contact(SKIN, np.roll(g0, 2, axis=1), h, normal_force=0.5, initial=cold)
     ref = solve_contact(SKIN, np.roll(g0, 2, axis=1), h, normal_force=0.5)
     assert np.allclose(other.pressure, ref.pressure, atol=1e-5 * p0)

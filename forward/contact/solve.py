@@ -130,10 +130,11 @@ def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, 
         sub = coarse_index(inp.shape)
         c_comp = grid_operator(skin, inp.gap[sub].shape, tuple(2 * h for h in inp.spacing), inp.periodic)
         c_total = None if inp.total is None else inp.total / 2 ** len(inp.shape)
-        p0 = coarse_start(inp.initial, sub, inp.gap[sub].shape)
-        if inp.initial is None or getattr(inp.initial, "_coarse_pressure", None) is None:
-            p0 = cascade(solver, skin, np.ascontiguousarray(inp.gap[sub]), c_comp.spacing, inp, c_total)
-        coarse = _solve_grid(solver, c_comp, np.ascontiguousarray(inp.gap[sub]), inp, c_total, p0)
+        c_gap = np.ascontiguousarray(inp.gap[sub])
+        p0 = coarse_start(inp.initial, c_gap.shape)
+        if p0 is None:
+            p0 = cascade(solver, skin, c_gap, c_comp.spacing, inp, c_total)
+        coarse = _solve_grid(solver, c_comp, c_gap, inp, c_total, p0)
     if inp.initial is not None:
         p0 = np.array(inp.initial.pressure, dtype=float)
         if coarse is not None:  # the better start of the two (a shifted previous frame often is not)

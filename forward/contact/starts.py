@@ -92,13 +92,12 @@ def start_residual(comp: ContactCompliance, g0: np.ndarray, p: np.ndarray, inp) 
     return max(float(np.abs(g[inside]).max(initial=0.0)), float(-g[~inside].min(initial=0.0)))
 
 
-def coarse_start(initial, sub, shape) -> np.ndarray:
+def coarse_start(initial, shape) -> np.ndarray | None:
     """Start of the check solve on the grid of twice the spacing: the previous frame's own check
-    solution when ``initial`` carries one of this shape (the two grids' solutions differ by the
-    discretisation error, so the fine pressure's every other node is a worse start), else that."""
-    if initial is None:
-        return np.ones(shape)
+    solution when ``initial`` carries one of this shape, else None (then :func:`cascade`; the fine
+    pressure's every other node is a worse start: the two grids' solutions differ by the
+    discretisation error)."""
     previous = getattr(initial, "_coarse_pressure", None)
     if previous is not None and previous.shape == shape:
         return np.array(previous, dtype=float)
-    return np.array(initial.pressure[sub], dtype=float)
+    return None
