@@ -66,7 +66,7 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         np.greater(p, 0.0, out=inside)
         n_in = int(np.count_nonzero(inside))
         if force:
-            delta = float(np.sum(g, where=inside)) / n_in if n_in else float(g.min())
+            delta = _dot(g, inside) / n_in if n_in else float(g.min())  # a masked sum (where=) is 5x slower
         g -= delta
         np.less(g, 0.0, out=S)
         S |= inside  # the working set: in contact, or penetrating (entering)
@@ -79,9 +79,9 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
             products += 1
             continue
         z = K(r)
+        if force:  # minus its mean on S (then masked): np.subtract(..., where=S) costs half an FFT pair
+            z -= _dot(z, S) / int(np.count_nonzero(S))
         z *= S
-        if force:
-            np.subtract(z, float(z.sum()) / int(np.count_nonzero(S)), out=z, where=S)
         G = _dot(r, z)
         # Polak-Ribiere, clipped at 0 (PR+): restarts by itself when the working set's change spoils
         # the conjugacy; restarting at every entering node (Fletcher-Reeves) took 51 iterations
