@@ -168,3 +168,18 @@ def test_one_entry_equals_the_full_matrix(rng):
             assert np.array_equal(hs.surface_influence(x, y, (1e-4, 2e-4), entry=(i, j)), full[:, i, j])
     line = hs.surface_influence(x, None, (1e-4,), reference_length=1e-2)
     assert np.array_equal(hs.surface_influence(x, None, (1e-4,), reference_length=1e-2, entry=(0, 1)), line[:, 0, 1])
+
+
+@pytest.mark.parametrize("shape,periodic", [((32,), True), ((33,), False), ((16, 24), True), ((15, 17), False)])
+def test_direct_summation_of_point_loads_equals_the_fft_product(shape, periodic, rng):
+    """The clipped nodes' correction of the contact solver: influence coefficients summed directly."""
+    C = ContactCompliance(HalfSpace(E, 0.3), shape, (1e-4, 2e-4)[:len(shape)], periodic)
+    nodes = np.concatenate([[0], 1 + rng.choice(math.prod(shape) - 1, 4, replace=False)])  # 0: a corner
+    values = rng.standard_normal(5)
+    c = np.zeros(shape)
+    c.flat[nodes] = values
+    u = 1e-10 * rng.standard_normal(shape)
+    expected = u + C.normal(c)
+    C.add_normal_point_loads(u, nodes, values)
+    assert np.allclose(u, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+    assert C.direct_limit >= 1

@@ -7,6 +7,7 @@ contact of radius of curvature L^2 / (4 pi^2 D) at each peak under a light load;
 flat punch (its inverse-square-root edge). Every solution is also checked for complementarity.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -192,12 +193,44 @@ def test_warm_start_gives_the_cold_answer():
     warm = solve_contact(SKIN, g0, h, normal_force=0.5, initial=cold)
     assert warm.iterations <= 2
     assert np.allclose(warm.pressure, cold.pressure, atol=1e-6 * p0)
+    bare = solve_contact(SKIN, g0, h, normal_force=0.5, initial=dataclasses.replace(cold, _coarse_pressure=None))
+    assert np.allclose(bare.pressure, cold.pressure, atol=1e-6 * p0)  # no check solution carried: a cascade
+    assert bare.error_parts["discretisation"] == pytest.approx(cold.error_parts["discretisation"], rel=1e-4)
     other = solve_contact(SKIN, np.roll(g0, 2, axis=1), h, normal_force=0.5, initial=cold)
     ref = solve_contact(SKIN, np.roll(g0, 2, axis=1), h, normal_force=0.5)
     assert np.allclose(other.pressure, ref.pressure, atol=1e-5 * p0)
 
 
+def test_warm_started_sliding_sequence_equals_cold_solves_frame_by_frame():
+    """A fingertip sliding one node per frame over a rough plate, each frame started from the previous
+    one shifted with the plate: the fine and the check solve both start warm, and every frame gives the
+    cold answer (to the solver's own error bound) with the same discretisation estimate."""
+    from tactilab.data_schemas import random_rough_surface
+
+    n, frames, h = 48, 4, 100e-6
+    plate = random_rough_surface((n, n + frames), h, rms_height=2e-6, hurst=0.8, rng=np.random.default_rng(3))
+    X, Y = np.meshgrid(grid(n, h), grid(n, h))
+    kw = dict(normal_force=0.5, friction=0.5, condition="sliding")
+    previous = None
+    for k in range(frames):
+        g0 = (X**2 + Y**2) / (2 * R) - plate[:, k:k + n]
+        cold = solve_contact(SKIN, g0, h, **kw)
+        if previous is not None:
+            start = dataclasses.replace(previous, pressure=np.roll(previous.pressure, -1, axis=-1))
+            warm = solve_contact(SKIN, g0, h, initial=start, **kw)
+            bound = (warm.error_parts["solver"] + cold.error_parts["solver"]) * cold.pressure.max()
+            assert np.abs(warm.pressure - cold.pressure).max() <= bound
+            assert np.allclose(warm.qx, 0.5 * warm.pressure)
+            assert warm.error_parts["discretisation"] == pytest.approx(cold.error_parts["discretisation"], rel=1e-3)
+            assert warm._coarse_pressure is not None and warm._coarse_pressure.shape == (n // 2, n // 2)
+            check_complementarity(warm, g0, TOL)
+            previous = warm
+        else:
+            previous = cold
+
+
 @pytest.mark.filterwarnings("ignore:spacing. the largest contact patch")  # small rough patches, on purpose
+@pytest.mark.filterwarnings("ignore:gap. the isolated contact reaches")  # a grid-filling patch: two methods compared
 @pytest.mark.parametrize("periodic", [True, False])
 def test_both_methods_give_one_answer(periodic, rng):
     n = 64
@@ -223,20 +256,21 @@ def test_both_methods_give_one_answer(periodic, rng):
 def test_coarse_grid_is_centred_and_interpolates_linear_fields(n, periodic):
     """The check solve uses every other node with the origin kept (SurfaceLoad's centring), and its
     solution returns by linear interpolation: exact for a linear field between coarse nodes."""
-    from tactilab.forward.contact.solve import _coarse_index, _prolong
+    from tactilab.forward.contact.starts import coarse_index, prolong
 
     x = grid(n, 1.0)
-    sub = _coarse_index((n,))
+    sub = coarse_index((n,))
     xc = x[sub]
     assert 0.0 in xc and np.allclose(xc, grid(len(xc), 2.0))
-    fine = _prolong(3.0 * xc + 1.0, (n,), periodic)
+    fine = prolong(3.0 * xc + 1.0, (n,), periodic)
     inside = (x >= xc[0]) & (x <= xc[-1])
     assert np.allclose(fine[inside], 3.0 * x[inside] + 1.0)
     field = np.add.outer(xc, 2 * xc)
-    assert np.allclose(_prolong(field, (n, n), periodic)[np.ix_(inside, inside)],
+    assert np.allclose(prolong(field, (n, n), periodic)[np.ix_(inside, inside)],
                        np.add.outer(x, 2 * x)[np.ix_(inside, inside)])
 
 
+@pytest.mark.filterwarnings("ignore:gap. the isolated contact reaches")  # the uniform gap fills the grid on purpose
 def test_flat_circular_punch_under_approach_control():
     """A rigid flat circular punch pressed by delta: F = 2 a E* delta (Johnson, Contact Mechanics, 3.39)."""
     n, h, delta = 64, 5e-5, 1e-6

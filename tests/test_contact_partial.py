@@ -79,7 +79,8 @@ def test_stuck_plane_strain_has_no_slip():
 
 
 def test_partial_slip_below_half_reports_the_coupling():
-    """At nu = 0.3 the stick zone departs from Cattaneo-Mindlin; the coupling is reported (not 0)."""
+    """At nu = 0.3 (normal load first, then Q) the coupling is reported (not 0), the force is exact, and
+    the stick radius stays within a grid spacing of Cattaneo-Mindlin (its deviation is the coupling's)."""
     nu = 0.3
     Es = E / (1 - nu**2)
     a, _ = hertz_sphere(0.5, R, Es)
@@ -93,3 +94,5 @@ def test_partial_slip_below_half_reports_the_coupling():
                             condition="partial", tangential_force=(0.125, 0.0), tol=1e-6)
     assert sol.coupling["area"] != 0.0 and sol.coupling["force"] == pytest.approx(0.0, abs=1e-12)
     assert sol.qx.sum() * h * h == pytest.approx(0.125, rel=1e-6)
+    c = math.sqrt(sol.stick.sum() * h * h / math.pi)
+    assert abs(c - a * (1 - 0.125 / (0.5 * 0.5)) ** (1 / 3)) <= h

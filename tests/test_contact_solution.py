@@ -111,6 +111,17 @@ def test_small_contact_warns_with_the_spacing_that_would_do():
         solve_contact(skin, g0, h, normal_force=F)
 
 
+def test_contact_at_the_grid_edge_warns_with_the_grid_that_would_do():
+    skin = HalfSpace(E, 0.5)
+    g0, h = sphere(24, cover=1.5)  # the grid spans 1.5 contact radii: the contact reaches its edge
+    with pytest.warns(AccuracyWarning, match=r"gap: the isolated contact reaches the grid's edge .* grid of 48 x 48"):
+        solve_contact(skin, g0, h, normal_force=F)
+    g1, h1 = sphere(24, cover=3.0)  # the whole contact inside: no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AccuracyWarning)
+        solve_contact(skin, g1, h1, normal_force=F)
+
+
 def test_approach_below_the_gap_gives_an_empty_contact():
     skin = HalfSpace(E, 0.5)
     g0, h = sphere(16)
@@ -192,14 +203,15 @@ def test_solution_is_read_only():
 
 
 def test_grid_operators_are_reused_for_an_equal_skin():
-    from tactilab.forward.contact import solve as solve_module
+    from tactilab.forward.contact import starts
 
     g0, h = sphere(16)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AccuracyWarning)
         solve_contact(HalfSpace(E, 0.5), g0, h, normal_force=F)
-        first = list(solve_module._OPERATORS.values())
+        first = list(starts._OPERATORS.values())
         solve_contact(HalfSpace(E, 0.5), g0, h, normal_force=F)  # a new, equal skin
-        assert list(solve_module._OPERATORS.values()) == first
+        assert list(starts._OPERATORS.values()) == first
         solve_contact(HalfSpace(E, 0.4), g0, h, normal_force=F)  # another skin: new operators
-    assert all(op.skin.nu == 0.4 for op in solve_module._OPERATORS.values())
+    latest = list(starts._OPERATORS.values())[-2:]  # the fine and check grids of the last solve
+    assert all(op.skin.nu == 0.4 and op not in first for op in latest)

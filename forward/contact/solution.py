@@ -84,9 +84,12 @@ class ContactSolution:
     method: str = "preconditioned_cg"
     condition: str = "frictionless"
     friction: float = 0.0
+    # the pressure of the check solve on the grid of twice the spacing (every other node): private,
+    # it warm-starts that solve when this solution is passed as ``initial`` to the next frame
+    _coarse_pressure: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        for name in ("pressure", "qx", "qy", "contact", "stick", "slip", "gap"):
+        for name in ("pressure", "qx", "qy", "contact", "stick", "slip", "gap", "_coarse_pressure"):
             value = getattr(self, name)
             if value is not None:
                 value.setflags(write=False)

@@ -15,7 +15,6 @@ The steps (each on the grid and, for the error estimate, on the grid of twice th
 
 from __future__ import annotations
 
-import collections
 import math
 import warnings
 
@@ -28,6 +27,7 @@ from .inputs import check_inputs
 from .normal import polonsky_keer
 from .preconditioned import preconditioned_cg
 from .solution import ContactSolution
+from .starts import cascade, coarse_index, coarse_start, grid_operator, prolong, start_residual
 from .tangential import solve_tangential
 
 #: normal-contact methods by name; ``method="auto"`` picks ``"preconditioned_cg"``
@@ -90,8 +90,11 @@ def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, 
         Iteration limit of the normal solver (default 10000).
     initial : ContactSolution, optional
         A solution of the same shape and spacing to start from, used as given (shift it yourself
-        for a moving finger); without it the solve starts from the solution on the grid of twice
-        the spacing.
+        for a moving finger; ``dataclasses.replace(sol, pressure=...)``). The check solve on the
+        grid of twice the spacing (the error estimate's) starts from ``initial``'s own check
+        solution, which it carries privately; the solve then starts from ``initial`` or from the
+        check solve's solution, whichever has the smaller gap residual (one compliance product).
+        Without it the check solve starts from a cascade of coarser grids.
 
     Returns
     -------
@@ -107,7 +110,8 @@ def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, 
     -----
     AccuracyWarning
         When the largest contact patch spans fewer than 8 nodes (naming the spacing that would
-        do) or the solver did not converge.
+        do), when an isolated contact reaches the grid's outermost nodes (the grid is too small;
+        naming a grid twice as wide), or when the solver did not converge.
     UserWarning
         When the approach leaves the contact empty.
     """
@@ -120,18 +124,25 @@ def solve_contact(skin, gap, spacing, *, normal_force=None, mean_pressure=None, 
         warnings.warn(f"approach: {inp.approach:g} m is at or below min(gap) = {float(inp.gap.min()):g} m, so "
                       "nothing touches: the contact is empty", UserWarning, stacklevel=2)
         return _empty(inp)
-    fine = _compliance(skin, inp.shape, inp.spacing, inp.periodic)
+    fine = grid_operator(skin, inp.shape, inp.spacing, inp.periodic)
     coarse = None
     if min(inp.shape) >= 8:
-        sub = _coarse_index(inp.shape)
-        c_comp = _compliance(skin, inp.gap[sub].shape, tuple(2 * h for h in inp.spacing), inp.periodic)
+        sub = coarse_index(inp.shape)
+        c_comp = grid_operator(skin, inp.gap[sub].shape, tuple(2 * h for h in inp.spacing), inp.periodic)
         c_total = None if inp.total is None else inp.total / 2 ** len(inp.shape)
-        p0 = inp.initial.pressure[sub] if inp.initial is not None else np.ones(inp.gap[sub].shape)
-        coarse = _solve_grid(solver, c_comp, np.ascontiguousarray(inp.gap[sub]), inp, c_total, p0)
+        c_gap = np.ascontiguousarray(inp.gap[sub])
+        p0 = coarse_start(inp.initial, c_gap.shape)
+        if p0 is None:
+            p0 = cascade(solver, skin, c_gap, c_comp.spacing, inp, c_total)
+        coarse = _solve_grid(solver, c_comp, c_gap, inp, c_total, p0)
     if inp.initial is not None:
         p0 = np.array(inp.initial.pressure, dtype=float)
+        if coarse is not None:  # the better start of the two (a shifted previous frame often is not)
+            p1 = prolong(coarse["pressure"], inp.shape, inp.periodic)
+            if start_residual(fine, inp.gap, p1, inp) < start_residual(fine, inp.gap, p0, inp):
+                p0 = p1
     elif coarse is not None:
-        p0 = _prolong(coarse["pressure"], inp.shape, inp.periodic)
+        p0 = prolong(coarse["pressure"], inp.shape, inp.periodic)
     else:
         p0 = np.ones(inp.shape)
     out = _solve_grid(solver, fine, inp.gap, inp, inp.total, p0)
@@ -145,48 +156,6 @@ def _method(method):
     if name not in METHODS:
         raise ValueError(f"method: must be 'auto', one of {sorted(METHODS)} or a callable, got {method!r}")
     return METHODS[name]
-
-
-#: the last grid operators built (fine and coarse grid of the last solve), keyed by the skin's repr
-_OPERATORS: collections.OrderedDict = collections.OrderedDict()
-
-
-def _compliance(skin, shape, spacing, periodic) -> ContactCompliance:
-    """The grid operator, kept for the next solve on an equal skin and the same grid (a sequence of
-    frames reuses its kernel spectra); keyed by the skin's type and repr (``HalfSpace(E=..., nu=...)``)."""
-    key = (type(skin).__name__, repr(skin), tuple(shape), tuple(spacing), bool(periodic))
-    if key in _OPERATORS:
-        _OPERATORS.move_to_end(key)
-        return _OPERATORS[key]
-    operator = _OPERATORS[key] = ContactCompliance(skin, shape, spacing, periodic)
-    while len(_OPERATORS) > 2:
-        _OPERATORS.popitem(last=False)
-    return operator
-
-
-def _coarse_index(shape) -> tuple[slice, ...]:
-    """Every other node, keeping the origin node, so that the coarse grid is centred as SurfaceLoad centres it."""
-    return tuple(slice((n // 2) % 2, None, 2) for n in shape)
-
-
-def _prolong(coarse: np.ndarray, shape, periodic: bool) -> np.ndarray:
-    """Linear interpolation of a field on the coarse grid (every other node) onto the fine grid.
-
-    Between two coarse nodes the mean of the two; beyond the last coarse node the nearest one
-    (isolated) or the mean with the first node of the next period (periodic)."""
-    out = coarse
-    for axis, n in enumerate(shape):
-        c = np.moveaxis(out, axis, 0)
-        nxt = np.roll(c, -1, axis=0) if periodic else np.concatenate([c[1:], c[-1:]], axis=0)
-        fine = np.empty((n,) + c.shape[1:])
-        start = (n // 2) % 2
-        fine[start::2] = c[: len(range(start, n, 2))]
-        mid = 0.5 * (c + nxt)
-        fine[start + 1::2] = mid[: len(range(start + 1, n, 2))]
-        if start == 1:
-            fine[0] = mid[-1] if periodic else c[0]
-        out = np.moveaxis(fine, 0, axis)
-    return np.ascontiguousarray(out)
 
 
 def _solve_grid(solver, comp: ContactCompliance, g0: np.ndarray, inp, total, p0) -> dict:
@@ -229,8 +198,15 @@ def _solve_grid(solver, comp: ContactCompliance, g0: np.ndarray, inp, total, p0)
 
 def _partial_or_stuck(solver, comp, g0, inp, total, res):
     """The tangential solve under the normal solution; at nu < 1/2, alternated with the normal solve
-    (the tangential traction's normal displacement in the gap, the pressure's tangential displacement in
-    the tangential problem) until the pressure stops changing."""
+    (the tangential traction's normal displacement in the gap, the pressure change's tangential
+    displacement in the tangential problem) until the pressure stops changing.
+
+    Loading path (Mindlin's, the one Cattaneo-Mindlin describes): the normal load first, without
+    tangential traction, then the tangential force. The tangential surface displacement that the first
+    normal solution causes at nu < 1/2 is locked in before Q is applied (no slip measured from it);
+    only the pressure change that Q causes enters the slip. Applying both loads together from rest would
+    include the normal load's own (Spence) slip ring, which a fingertip pressed and then pulled does not
+    see."""
     stuck = inp.condition == "stuck"
     kwargs = dict(stuck=stuck, tol=inp.tol, max_iter=inp.max_iter)
     tang = solve_tangential(comp, res.pressure, res.pressure > 0, inp.friction, inp.tangential_force, **kwargs)
@@ -241,7 +217,7 @@ def _partial_or_stuck(solver, comp, g0, inp, total, res):
     for _ in range(MAX_COUPLING):
         new = solver(comp, g0, total=total, approach=inp.approach, tol=inp.tol, max_iter=inp.max_iter,
                      p0=res.pressure, extra_gap=tang.normal_displacement)
-        u_p = np.stack([u for u in comp.tangential_from_normal(new.pressure) if u is not None])
+        u_p = np.stack([u for u in comp.tangential_from_normal(new.pressure - res0.pressure) if u is not None])
         start = np.stack([q for q in (tang.qx, tang.qy) if q is not None])
         tang = solve_tangential(comp, new.pressure, new.pressure > 0, inp.friction, inp.tangential_force,
                                 pressure_displacement=u_p, initial=start, **kwargs)
@@ -297,7 +273,7 @@ def _discretisation_error(inp, out: dict, coarse: dict | None) -> float:
     diff = 0.0
     for name in ("pressure", "qx", "qy"):
         if out[name] is not None and (name == "pressure" or inp.condition != "frictionless"):
-            fine = _prolong(coarse[name], inp.shape, inp.periodic)
+            fine = prolong(coarse[name], inp.shape, inp.periodic)
             diff = max(diff, float(np.abs(out[name] - fine).max()))
     return RICHARDSON * diff / peak
 
@@ -315,10 +291,26 @@ def _resolution_warning(inp, contact: np.ndarray) -> None:
                       "(see error_estimate)", AccuracyWarning, stacklevel=3)
 
 
+def _edge_warning(inp, contact: np.ndarray) -> None:
+    """An isolated contact must lie inside the grid (the traction is zero outside it): warn when it
+    reaches the outermost ring of nodes, naming a grid twice as wide."""
+    if inp.periodic or not contact.any():
+        return
+    edge = contact.copy()
+    edge[tuple(slice(1, -1) for _ in contact.shape)] = False
+    if edge.any():
+        nodes = int(np.count_nonzero(edge))
+        bigger = " x ".join(str(2 * n) for n in reversed(contact.shape))
+        warnings.warn(f"gap: the isolated contact reaches the grid's edge ({nodes} contact nodes on the outermost "
+                      f"ring), so the grid is too small and the traction beyond it is missing; solve on a grid of "
+                      f"{bigger} nodes (x first) at this spacing, or a coarser spacing", AccuracyWarning, stacklevel=3)
+
+
 def _package(inp, comp, skin, out: dict, coarse: dict | None) -> ContactSolution:
     parts = {"solver": _solver_error(comp, skin, out) + out["tangential_residual"],
              "discretisation": _discretisation_error(inp, out, coarse)}
     _resolution_warning(inp, out["contact"])
+    _edge_warning(inp, out["contact"])
     if not out["converged"]:
         warnings.warn(f"max_iter: the solver stopped after {out['iterations']} iterations short of tol (gap residual "
                       f"{out['residual']:.3g} m; or the tangential solve, or the normal-tangential coupling, did "
@@ -330,7 +322,8 @@ def _package(inp, comp, skin, out: dict, coarse: dict | None) -> ContactSolution
                            iterations=out["iterations"], converged=out["converged"],
                            error_estimate=parts["solver"] + parts["discretisation"], error_parts=parts,
                            coupling=out["coupling"], method=getattr(_method(inp.method), "__name__", "custom"),
-                           condition=inp.condition, friction=inp.friction)
+                           condition=inp.condition, friction=inp.friction,
+                           _coarse_pressure=None if coarse is None else coarse["pressure"])
 
 
 def _empty(inp) -> ContactSolution:
