@@ -35,9 +35,14 @@ def add_subcommands(sub) -> None:
                      help="receptor hypothesis components@depths[:shear], depths with units, e.g. zx@1mm or "
                           "xx,zx@1.25mm; give two or more")
     cmp.add_argument("--statistic", default="peak", help="'peak' (largest |readout|) or 'rms' (default peak)")
-    cmp.add_argument("--seed", type=int, default=0, help="seed for the samplers (default 0)")
-    cmp.add_argument("--max-steps", type=int, default=20000,
-                     help="emcee step limit per ensemble (steps; default 20000); stops earlier once converged")
+    cmp.add_argument("--method", default="grid", choices=("grid", "emcee"),
+                     help="'grid' (quadrature on an adaptive grid: seconds, the same table for every seed) or "
+                          "'emcee' (the samplers, the reference; slower, seed-dependent within Monte Carlo error); "
+                          "default grid")
+    cmp.add_argument("--seed", type=int, default=0, help="seed for --method emcee (default 0); the grid uses none")
+    cmp.add_argument("--max-steps", type=int, default=None,
+                     help="--method emcee only: step limit per ensemble (steps; default 20000); stops earlier once "
+                          "converged")
     cmp.add_argument("--out", type=Path, default=None,
                      help="folder for the PNG (default: the first session's folder); with --workers or --scheduler "
                           "the batch folder (default: <first session's folder>/compare-batch; the same folder resumes)")
@@ -108,15 +113,27 @@ def run_fit(args: argparse.Namespace) -> int:
     return 0
 
 
+def _text(value) -> str:
+    return str(getattr(value, "values", value))
+
+
 def _compare_row(row, converged) -> dict:
+    sep = float(row["separation"])
     return dict(elpd=float(row["elpd"]), elpd_diff=float(row["elpd_diff"]), dse=float(row["dse"]), z=float(row["z"]),
-                pareto_k_max=float(row["pareto_k_max"]), converged=bool(converged), verdict=str(getattr(row["verdict"], "values", row["verdict"])))
+                pareto_k_max=float(row["pareto_k_max"]), converged=bool(converged),
+                separation=None if math.isnan(sep) else sep, verdict=_text(row["verdict"]), reason=_text(row["reason"]))
 
 
-def _sampler(args: argparse.Namespace) -> dict:
-    if args.max_steps < 1:
-        raise ValueError(f"--max-steps: must be >= 1 step, got {args.max_steps}; e.g. 20000")
-    return {"max_steps": args.max_steps}
+def _sampler(args: argparse.Namespace) -> dict | None:
+    if args.method != "emcee":
+        if args.max_steps is not None:
+            raise ValueError(f"--max-steps: only for --method emcee (the grid has no steps), got {args.max_steps}; "
+                             "drop it or add --method emcee")
+        return None
+    steps = 20000 if args.max_steps is None else args.max_steps
+    if steps < 1:
+        raise ValueError(f"--max-steps: must be >= 1 step, got {steps}; e.g. 20000")
+    return {"max_steps": steps}
 
 
 def run_compare(args: argparse.Namespace) -> int:
@@ -127,7 +144,7 @@ def run_compare(args: argparse.Namespace) -> int:
     from tactilab.experiments.modelling import compare_sessions, plot_comparison
 
     table, fits = compare_sessions(args.sessions, args.model, statistic=args.statistic, rng=args.seed,
-                                   sampler_options=_sampler(args))
+                                   method=args.method, sampler_options=_sampler(args))
     out = _out(args)
     path = out / "compare.png"
     plot_comparison(table, fits, path)
@@ -135,12 +152,21 @@ def run_compare(args: argparse.Namespace) -> int:
         print(json.dumps({"command": "experiment compare", "models": {
             name: _compare_row(row, fits[name].converged) for name, row in table.iterrows()}, "png": str(path)}))
         return 0
-    print(f"{'model':24s} {'elpd':>10s} {'elpd_diff':>10s} {'dse':>8s} {'z':>7s} {'k max':>6s} {'converged':>9s}  verdict")
+    print(f"{'model':24s} {'elpd':>10s} {'elpd_diff':>10s} {'dse':>8s} {'z':>7s} {'separ.':>7s} {'k max':>6s} "
+          f"{'converged':>9s}  verdict")
     for name, row in table.iterrows():
         print(f"{name:24s} {row['elpd']:10.2f} {row['elpd_diff']:10.2f} {row['dse']:8.2f} {row['z']:7.2f} "
-              f"{row['pareto_k_max']:6.2f} {str(fits[name].converged):>9s}  {row['verdict']}")
+              f"{row['separation']:7.2f} {row['pareto_k_max']:6.2f} {str(fits[name].converged):>9s}  {row['verdict']}")
+    _print_reasons(table["verdict"], table["reason"], table.index, "")
     print(f"wrote {path}")
     return 0
+
+
+def _print_reasons(verdicts, reasons, names, indent: str) -> None:
+    """The reason under the table for every row without a plain verdict (not identifiable, no verdict)."""
+    for name, verdict, reason in zip(names, verdicts, reasons):
+        if str(verdict).startswith(("not identifiable", "no verdict")) and reason:
+            print(f"{indent}{name}: {verdict}: {reason}")
 
 
 def _run_compare_batch(args: argparse.Namespace) -> int:
@@ -152,7 +178,7 @@ def _run_compare_batch(args: argparse.Namespace) -> int:
     subjects = sessions_by_subject(args.sessions)
     out = make_out(args.out if args.out is not None else Path(args.sessions[0]).parent / "compare-batch")
     table = compare_many(subjects, args.model, seed=args.seed, out_dir=out, statistic=args.statistic,
-                         sampler_options=_sampler(args),
+                         method=args.method, sampler_options=_sampler(args),
                          progress=not args.json, echo=(lambda _: None) if args.json else print, **batch_where(args))
     a = table.attrs
     if args.json:
@@ -164,12 +190,15 @@ def _run_compare_batch(args: argparse.Namespace) -> int:
         return 1 if a["n_failed"] else 0
     for s in table["subject"].values:
         print(f"subject {s}")
-        print(f"  {'model':22s} {'elpd':>10s} {'elpd_diff':>10s} {'dse':>8s} {'z':>7s} {'k max':>6s} {'converged':>9s}  verdict")
+        print(f"  {'model':22s} {'elpd':>10s} {'elpd_diff':>10s} {'dse':>8s} {'z':>7s} {'separ.':>7s} {'k max':>6s} "
+              f"{'converged':>9s}  verdict")
         for m in table["model"].values:
             row = table.sel(subject=s, model=m)
             print(f"  {m:22s} {float(row['elpd']):10.2f} {float(row['elpd_diff']):10.2f} {float(row['dse']):8.2f} "
-                  f"{float(row['z']):7.2f} {float(row['pareto_k_max']):6.2f} {str(bool(row['converged'])):>9s}  "
-                  f"{row['verdict'].values}")
+                  f"{float(row['z']):7.2f} {float(row['separation']):7.2f} {float(row['pareto_k_max']):6.2f} "
+                  f"{str(bool(row['converged'])):>9s}  {row['verdict'].values}")
+        sub = table.sel(subject=s)
+        _print_reasons([_text(v) for v in sub["verdict"]], [_text(v) for v in sub["reason"]], sub["model"].values, "  ")
     print(f"batch: {a['n_run']} fit(s) run, {a['n_skipped']} skipped (done before), {a['n_failed']} failed; "
           f"files: {out / 'results'} (one DataTree per subject and model), {out / 'compare_many.nc'} (the table)"
           + (f", {out / 'errors.tsv'}" if a["n_failed"] else ""))

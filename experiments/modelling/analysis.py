@@ -138,10 +138,16 @@ def condition_table(paths, *, sigmoid: str = "norm", rng=0) -> list[dict]:
     return rows
 
 
-def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, n_ensembles: int = 4,
-                     sampler_options=None):
-    """Fit one TransductionModel per hypothesis string to the sessions; returns (table, fits)."""
-    from .models import TransductionModel, compare_models, fit_transduction
+def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, method: str = "grid",
+                     n_ensembles: int = 4, sampler_options=None):
+    """Fit one TransductionModel per hypothesis string to the sessions; returns (table, fits).
+
+    ``method="grid"`` (default): quadrature, the same table for every ``rng``; ``"emcee"``:
+    the samplers (``rng``, ``n_ensembles``, ``sampler_options``). The table is
+    :func:`~.comparison.compare_models`' (verdicts only where the design can tell models apart).
+    """
+    from .comparison import compare_models
+    from .models import TransductionModel, fit_transduction
 
     if len(hypotheses) < 2:
         raise ValueError("model: give at least two hypotheses to compare, e.g. --model zx@1mm --model xx@1mm")
@@ -149,8 +155,8 @@ def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, n_
         raise ValueError(f"model: each hypothesis once, got {list(hypotheses)}")
     gen = np.random.default_rng(rng)
     models = {h: TransductionModel(h, statistic=statistic) for h in hypotheses}
-    fits = {h: fit_transduction(m, list(paths), rng=gen, n_ensembles=n_ensembles, sampler_options=sampler_options)
-            for h, m in models.items()}
+    options = dict(rng=gen, n_ensembles=n_ensembles, sampler_options=sampler_options) if method == "emcee" else {}
+    fits = {h: fit_transduction(m, list(paths), method=method, **options) for h, m in models.items()}
     return compare_models(fits), fits
 
 
@@ -188,10 +194,12 @@ def plot_comparison(table, fits, path) -> None:
     ax, bx = fig.subplots(1, 2)
     names = list(table.index)
     ax.errorbar(range(len(names)), table["elpd"], yerr=table["se"], fmt="o", capsize=4)
-    ax.set_xticks(range(len(names)), [f"{n}\n{v}" for n, v in zip(names, table["verdict"])], fontsize=8)
+    ax.set_xticks(range(len(names)), [f"{n}\n" + str(v).replace(": ", ":\n").replace(" on this", "\non this")
+                                      for n, v in zip(names, table["verdict"])], fontsize=7)
     for i, (_, row) in enumerate(table.iterrows()):
         if i:
-            ax.annotate(f"diff {row['elpd_diff']:.1f} +- {row['dse']:.1f} (z {row['z']:.2f})", (i, row["elpd"]),
+            ax.annotate(f"diff {row['elpd_diff']:.1f} +- {row['dse']:.1f} (z {row['z']:.2f}; "
+                        f"separation {row['separation']:.2g})", (i, row["elpd"]),
                         textcoords="offset points", xytext=(6, 6), fontsize=7)
     ax.set_ylabel("ELPD (PSIS-LOO, +- se), nats")
     ax.set_title("model comparison (higher is better)", fontsize=9)
