@@ -22,7 +22,10 @@ def add_subcommands(sub) -> None:
     fit = sub.add_parser("fit", help="psychometric fit per condition (psignifit-4 priors): threshold with its "
                                      "95 %% interval in um / mm / mm/s / ms, and a PNG per condition")
     fit.add_argument("sessions", nargs="+", type=Path, metavar="SESSION", help="session .sqlite file(s), one task")
-    fit.add_argument("--sigmoid", default="norm", help="norm, logistic, gumbel, rgumbel, tdist or weibull (default norm)")
+    fit.add_argument("--sigmoid", default="auto",
+                     help="auto (default: weibull on log levels for amplitude, pitch and duration, norm for a signed "
+                          "speed), weibull or lognorm (log levels), or norm, logistic, gumbel, rgumbel, tdist (linear "
+                          "levels: signed quantities only)")
     fit.add_argument("--out", type=Path, default=None, help="folder for the PNGs (default: the first session's folder)")
     fit.add_argument("--seed", type=int, default=0, help="seed for posterior draws (default 0)")
     fit.add_argument("--json", action="store_true", help=_JSON_HELP)

@@ -20,7 +20,10 @@ import numpy as np
 from tactilab.data_schemas.experiment import Stimulus
 
 from ..session import DISPLAY_UNITS
-from .psychometric import PsychometricFit, fit_psychometric
+from .psychometric import PsychometricFit, fit_psychometric, sigmoid_core
+
+#: varied parameters that cannot be <= 0 (data_schemas Stimulus): fitted on log levels
+POSITIVE = ("amplitude_m", "pitch_m", "duration_s")
 
 _LABEL_FIELDS = {"pitch_m": ("pitch", 1e3, "mm"), "speed_m_per_s": ("speed", 1e3, "mm/s"),
                  "amplitude_m": ("amplitude", 1e6, "um"), "duration_s": ("duration", 1e3, "ms")}
@@ -63,15 +66,32 @@ def _test_stimulus(trial, kind):
     return trial.stimuli[-1]
 
 
-def fit_conditions(paths, *, sigmoid: str = "norm", rng=None) -> list[ConditionFit]:
+def sigmoid_for(parameter: str, sigmoid: str = "auto") -> str:
+    """The sigmoid a condition varying ``parameter`` is fitted with: ``auto`` gives ``weibull`` (log
+    levels, as psignifit users fit positive quantities) for a positive quantity (:data:`POSITIVE`)
+    and ``norm`` for a signed one (a speed); a linear-level sigmoid on a positive quantity is
+    refused, since its interval can reach impossible values below 0."""
+    if sigmoid == "auto":
+        return "weibull" if parameter in POSITIVE else "norm"
+    if parameter in POSITIVE and not sigmoid_core(sigmoid).log_levels:
+        raise ValueError(f"sigmoid: {sigmoid!r} fits {parameter} on linear levels, where its interval can reach "
+                         "below 0 (impossible for a positive quantity); use 'auto' or 'weibull' (log levels) or "
+                         "'lognorm'")
+    return sigmoid
+
+
+def fit_conditions(paths, *, sigmoid: str = "auto", rng=None) -> list[ConditionFit]:
     """One :func:`fit_psychometric` per condition of the sessions (2IFC/2AFC: proportion correct;
     yes/no: proportion "yes" on signal trials).
+
+    ``sigmoid="auto"`` (default): ``weibull`` on log levels for a positive quantity (amplitude,
+    pitch, duration), ``norm`` for a signed one (speed); see :func:`sigmoid_for`.
 
     Raises
     ------
     ValueError
-        For a missing file, mixed tasks, a task without correct answers, or a condition with
-        fewer than two levels.
+        For a missing file, mixed tasks, a task without correct answers, a condition with
+        fewer than two levels, or a linear-level sigmoid on a positive quantity.
     """
     rows, kind = _session_rows(paths)
     if kind not in ("2ifc", "2afc", "yes_no"):
@@ -97,13 +117,13 @@ def fit_conditions(paths, *, sigmoid: str = "norm", rng=None) -> list[ConditionF
         if np.unique(levels).size < 2:
             raise ValueError(f"session: condition '{label}' has trials at one {name} only; a fit needs >= 2 levels")
         fit = fit_psychometric(levels, correct, experiment="yes_no" if kind == "yes_no" else "2afc",
-                               sigmoid=sigmoid, rng=gen)
+                               sigmoid=sigmoid_for(parameter, sigmoid), rng=gen)
         out.append(ConditionFit(label, parameter, unit, scale, len(items), fit,
                                 tuple(float(v) for v in np.unique(levels))))
     return out
 
 
-def fit_summary(paths, *, sigmoid: str = "norm", rng=0) -> list[str]:
+def fit_summary(paths, *, sigmoid: str = "auto", rng=0) -> list[str]:
     """One line per condition for a run summary or ``experiment status``: the fitted threshold and
     its 95 % interval in display units, e.g. ``amplitude threshold 0.295 um (95 % interval 0.159 to
     0.424 um; psychometric fit of 100 trials; sinusoid, pitch 2 mm, ...)``.
@@ -117,7 +137,7 @@ def fit_summary(paths, *, sigmoid: str = "norm", rng=0) -> list[str]:
     return lines
 
 
-def condition_table(paths, *, sigmoid: str = "norm", rng=0) -> list[dict]:
+def condition_table(paths, *, sigmoid: str = "auto", rng=0) -> list[dict]:
     """Per condition, SI values for ``experiment status --json``: keys carry the varied
     parameter's SI unit (``threshold_m``, ``threshold_ci95_m``, ``levels_m`` for an amplitude;
     ``_m_per_s`` for a speed, ``_s`` for a duration).
