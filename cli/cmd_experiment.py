@@ -81,13 +81,9 @@ def _device_args(p: argparse.ArgumentParser, resume: bool = False) -> None:
 
 
 def _observer_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--observer-threshold", default=None,
-                   help="simulated observer: RMS deviatoric strain at 1 mm depth felt at d' = 1 (strain, "
-                        "dimensionless; default 2e-3, or on resume the session's own observer)")
-    p.add_argument("--observer-strain", default=None,
-                   help="simulated observer feels 'surface' (the ideal virtual surface's strain at 1 mm depth) "
-                        "or 'display' (the simulated display's strain after the safety limits); default "
-                        "surface, or on resume the session's own")
+    from .experiment_observer import add_observer_args
+
+    add_observer_args(p)  # --observer, --observer-statistic, --observer-threshold, --observer-strain
 
 
 def _summary_args(p: argparse.ArgumentParser) -> None:
@@ -218,7 +214,9 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
     from tactilab.experiments.devices import description_from_spec, open_display
-    from tactilab.experiments.session import make_responses, next_session_path
+    from tactilab.experiments.session import next_session_path
+
+    from .experiment_observer import observer_responses
 
     if args.action in ("run", "resume"):
         _check_export(args.export)
@@ -240,8 +238,7 @@ def _run(args: argparse.Namespace) -> int:
                                    max_skipped_fraction=args.max_skipped)
         try:
             with _flags(_RESPONSES):
-                responses = make_responses(args.responses, protocol, display,
-                                           threshold=args.observer_threshold, strain=args.observer_strain)
+                responses = observer_responses(args.responses, protocol, display, args)
         except BaseException:
             display.close()
             raise
@@ -282,8 +279,7 @@ def _run(args: argparse.Namespace) -> int:
         recorded = state.meta.get("responses_config") if kind == state.meta["responses"] else None
         try:
             with _flags(_RESPONSES):
-                responses = make_responses(kind, state.protocol, display, threshold=args.observer_threshold,
-                                           strain=args.observer_strain, recorded=recorded)
+                responses = observer_responses(kind, state.protocol, display, args, recorded)
         except BaseException:
             display.close()
             raise

@@ -37,6 +37,8 @@ _EXPORTS = {
     "PowerResult": "model_power",
     "power_analysis": "model_power",
     "ModelDiscrimination": "design",
+    "HypothesisObserver": "observer",
+    "hypothesis_observer": "observer",
     "ConditionFit": "analysis",
     "compare_sessions": "analysis",
     "condition_table": "analysis",
