@@ -123,3 +123,8 @@ def test_grid_elpd_agrees_with_the_emcee_reference(design):
         for name, s in grid.params.items():
             r = ref.params[name]
             assert abs(s.median - r.median) < 0.1 * (r.ci95[1] - r.ci95[0]) + 1e-3 * abs(r.median), (design, h, name)
+
+
+def test_compare_sessions_refuses_sampler_options_for_the_grid(one_pitch):
+    with pytest.raises(ValueError, match="sampler_options: only for method='emcee'"):
+        compare_sessions(one_pitch, ["zx@1mm", "zx@3mm"], sampler_options=FAST)

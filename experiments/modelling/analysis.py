@@ -173,6 +173,9 @@ def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, me
         raise ValueError("model: give at least two hypotheses to compare, e.g. --model zx@1mm --model xx@1mm")
     if len(set(hypotheses)) != len(hypotheses):
         raise ValueError(f"model: each hypothesis once, got {list(hypotheses)}")
+    if method != "emcee" and sampler_options:
+        raise ValueError(f"sampler_options: only for method='emcee', got {dict(sampler_options)}; drop them or pass "
+                         "method='emcee'")
     gen = np.random.default_rng(rng)
     models = {h: TransductionModel(h, statistic=statistic) for h in hypotheses}
     options = dict(rng=gen, n_ensembles=n_ensembles, sampler_options=sampler_options) if method == "emcee" else {}
