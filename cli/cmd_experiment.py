@@ -35,6 +35,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run.add_argument("--session", dest="session_label", default=None,
                      help="session label (letters/digits); default: the next free number, 01, 02, ...")
     _observer_args(run)
+    run.add_argument("--clipped", default="refuse", choices=("refuse", "allow"),
+                     help="a planned stimulus (level, staircase bound, design candidate) the display would limit "
+                          "(amplitude, slew, duty): 'refuse' the protocol before the session starts (default; the "
+                          "error names the stimulus and the limit) or 'allow' the safety layer to limit it")
     _summary_args(run)
 
     resume = sub.add_parser("resume", help="continue a killed or stopped session exactly (repeats the interrupted trial)")
@@ -253,7 +257,7 @@ def _run(args: argparse.Namespace) -> int:
             with report.collecting_warnings():
                 result = new_session(protocol, path, display, responses, subject=args.subject, session=label,
                                      subject_pattern=args.subject_pattern, realtime=not args.no_wait,
-                                     progress=not args.quiet, on_created=created)
+                                     progress=not args.quiet, on_created=created, clipped=args.clipped)
             ended = True
         finally:
             _zero_and_close(display, responses, ended)

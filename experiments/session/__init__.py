@@ -50,6 +50,9 @@ _EXPORTS = {
     "rendered_strain": "responses",
     "true_threshold_2ifc": "responses",
     "make_responses": "factory",
+    "CLIPPED": "display_check",
+    "check_display_limits": "display_check",
+    "clipped_stimuli": "display_check",
     "next_session_path": "factory",
     "responses_from_spec": "factory",
 }

@@ -293,7 +293,8 @@ DISPLAY_UNITS = {"amplitude_m": ("amplitude", 1e6, "um"), "pitch_m": ("pitch", 1
 
 def new_session(protocol: Protocol, path: str | Path, display: Display, responses: ResponseSource, *,
                 subject: str, session: str = "01", subject_pattern: str | None = None, realtime: bool = True,
-                progress: bool = False, on_created: Callable[[Path], None] | None = None) -> RunResult:
+                progress: bool = False, on_created: Callable[[Path], None] | None = None,
+                clipped: str = "refuse") -> RunResult:
     """Create a session file at ``path`` and run the protocol to the end (or to an interruption).
 
     Parameters
@@ -320,6 +321,10 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     on_created : callable, optional
         Called with the session file's path once the file exists (after the start checks), e.g.
         to tell the user where it is.
+    clipped : {"refuse", "allow"}
+        A planned stimulus the display would limit (clip, slew- or duty-limit) refuses the protocol
+        before any file exists (``refuse``, :func:`~.display_check.check_display_limits`), or is
+        limited by the safety layer at run time and recorded as interventions (``allow``).
 
     Returns
     -------
@@ -348,6 +353,9 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
         check_frame_rate(rates[-1], display.description)
     except ValueError as exc:
         raise ValueError(f"protocol: a planned stimulus's {exc} (frame rates planned: {rates} Hz)") from None
+    from .display_check import check_display_limits
+
+    check_display_limits(protocol, display.description, clipped)
     description, description_sha256 = description_record(display.description)
     meta = {"session_id": uuid.uuid4().hex, "created_utc": utc_now(),
             "subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
