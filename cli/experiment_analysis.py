@@ -38,6 +38,10 @@ def add_subcommands(sub) -> None:
                      help="receptor hypothesis components@depths[:shear], depths with units, e.g. zx@1mm or "
                           "xx,zx@1.25mm; give two or more")
     cmp.add_argument("--statistic", default="peak", help="'peak' (largest |readout|) or 'rms' (default peak)")
+    cmp.add_argument("--source", default="surface", choices=("surface", "display"),
+                     help="strain the models read: 'surface' (the ideal virtual surface, default) or 'display' (what "
+                          "the sessions' display renders, from the display description they recorded; all sessions "
+                          "on one display; not with --workers or --scheduler)")
     cmp.add_argument("--method", default="grid", choices=("grid", "emcee"),
                      help="'grid' (quadrature on an adaptive grid: seconds, the same table for every seed) or "
                           "'emcee' (the samplers, the reference; slower, seed-dependent within Monte Carlo error); "
@@ -143,11 +147,16 @@ def run_compare(args: argparse.Namespace) -> int:
     for text in args.model:
         check_hypothesis(text, "--model")
     if wants_batch(args):
+        if args.source != "surface":
+            raise ValueError("--source: 'display' is for a pooled comparison; drop --workers/--scheduler or use "
+                             "--source surface")
         return _run_compare_batch(args)
     from tactilab.experiments.modelling import compare_sessions, plot_comparison
 
+    display = _recorded_display(args.sessions) if args.source == "display" else None
     table, fits = compare_sessions(args.sessions, args.model, statistic=args.statistic, rng=args.seed,
-                                   method=args.method, sampler_options=_sampler(args))
+                                   method=args.method, sampler_options=_sampler(args), source=args.source,
+                                   display=display)
     out = _out(args)
     path = out / "compare.png"
     plot_comparison(table, fits, path)
@@ -163,6 +172,21 @@ def run_compare(args: argparse.Namespace) -> int:
     _print_reasons(table["verdict"], table["reason"], table.index, "")
     print(f"wrote {path}")
     return 0
+
+
+def _recorded_display(sessions):
+    """A SimulatedDisplay of the display description the sessions recorded (all the same one)."""
+    from tactilab.data_schemas.display import DisplayDescription
+    from tactilab.experiments.devices import SimulatedDisplay
+    from tactilab.experiments.session import session_header
+
+    metas = [session_header(path).meta for path in sessions]
+    shas = {m.get("display_sha256") for m in metas}
+    if len(shas) != 1 or metas[0].get("display_description") is None:
+        raise ValueError(f"--source: 'display' needs sessions recorded on one display with its description; got "
+                         f"{len(shas)} display description(s) {sorted(map(str, shas))}; compare them per display "
+                         "or use --source surface")
+    return SimulatedDisplay(DisplayDescription.model_validate(metas[0]["display_description"]), realtime=False)
 
 
 def _print_reasons(verdicts, reasons, names, indent: str) -> None:

@@ -15,7 +15,7 @@ from tactilab.cli.main import main
 from tactilab.experiments.session import SessionLog
 
 
-def _protocol(tmp_path, pitch_mm, levels_um):
+def _protocol(tmp_path, pitch_mm, levels_um, blocks=6):
     text = f"""
 name = "p{pitch_mm}"
 seed = {pitch_mm}
@@ -32,7 +32,7 @@ method = "constant_stimuli"
 parameter = "amplitude_m"
 levels = [{", ".join(f'"{a}um"' for a in levels_um)}]
 repeats_per_block = 4
-n_blocks = 6
+n_blocks = {blocks}
 """
     path = tmp_path / f"p{pitch_mm}.toml"
     path.write_text(text)
@@ -107,3 +107,24 @@ def test_help_states_the_units(flag, capsys):
         main(["experiment", "run", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert flag in text and "the unit of `power --threshold`" in text
+
+
+def test_an_observer_feeling_the_display_is_found_by_models_of_the_display(tmp_path, capsys):
+    """The default for a simulated display: the observer feels what the display renders; compare
+    --source display fits models of that same rendered strain (from the recorded description)."""
+    observer = ["--observer", "xx@2mm", "--observer-threshold", "1e-4"]
+    # the braille row renders 2 and 6 mm gratings with different xx-to-zx ratios (0.31 and 1.10 at these depths)
+    paths = [_run(tmp_path, _protocol(tmp_path, 2, (0.15, 0.3, 0.6, 1.2, 2.4), blocks=12), *observer),
+             _run(tmp_path, _protocol(tmp_path, 6, (0.04, 0.08, 0.16, 0.32, 0.64), blocks=12), *observer)]
+    capsys.readouterr()
+    argv = ["experiment", "compare", *map(str, paths), "--model", "zx@1mm", "--model", "xx@2mm", "--out",
+            str(tmp_path), "--json"]
+    assert main([*argv, "--source", "display"]) == 0
+    rows = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["models"]
+    assert rows["xx@2mm"]["verdict"] == "best" and rows["zx@1mm"]["verdict"] in ("worse", "weakly worse")
+    assert main([*argv, "--source", "display", "--workers", "0"]) == 2
+    assert "--source: 'display' is for a pooled comparison" in capsys.readouterr().err
+    other = _run(tmp_path / "stress", _protocol(tmp_path, 2, (0.15, 0.3)), "--device", "stress2", *observer)
+    capsys.readouterr()
+    assert main([*argv[:2], str(paths[0]), str(other), *argv[4:], "--source", "display"]) == 2
+    assert "--source: 'display' needs sessions recorded on one display" in capsys.readouterr().err

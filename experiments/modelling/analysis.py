@@ -159,11 +159,13 @@ def condition_table(paths, *, sigmoid: str = "auto", rng=0) -> list[dict]:
 
 
 def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, method: str = "grid",
-                     n_ensembles: int = 4, sampler_options=None):
+                     n_ensembles: int = 4, sampler_options=None, source: str = "surface", display=None):
     """Fit one TransductionModel per hypothesis string to the sessions; returns (table, fits).
 
     ``method="grid"`` (default): quadrature, the same table for every ``rng``; ``"emcee"``:
-    the samplers (``rng``, ``n_ensembles``, ``sampler_options``). The table is
+    the samplers (``rng``, ``n_ensembles``, ``sampler_options``). ``source="display"`` with a
+    ``display`` (a SimulatedDisplay of the sessions' display description) fits the strain the
+    display renders instead of the ideal surface's. The table is
     :func:`~.comparison.compare_models`' (verdicts only where the design can tell models apart).
     """
     from .comparison import compare_models
@@ -177,7 +179,7 @@ def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, me
         raise ValueError(f"sampler_options: only for method='emcee', got {dict(sampler_options)}; drop them or pass "
                          "method='emcee'")
     gen = np.random.default_rng(rng)
-    models = {h: TransductionModel(h, statistic=statistic) for h in hypotheses}
+    models = {h: TransductionModel(h, statistic=statistic, source=source, display=display) for h in hypotheses}
     options = dict(rng=gen, n_ensembles=n_ensembles, sampler_options=sampler_options) if method == "emcee" else {}
     fits = {h: fit_transduction(m, list(paths), method=method, **options) for h, m in models.items()}
     return compare_models(fits), fits
