@@ -12,8 +12,11 @@ No random number is drawn. The draws that PSIS-LOO and the tree need are the gri
 by systematic resampling (draw j takes the cell where the cumulative mass crosses (j + 1/2) / N)
 and placed inside its cell by the unscrambled Halton sequence: the same draws for every seed.
 The exact leave-one-out predictive density of the quadrature, ``-log sum_g w_g / p(y_i | theta_g)``
-over all grid cells, is computed too; its distance from the PSIS-LOO estimate of the draws is
-the numerical error of the fit's elpd (reported where the sampler reports its Monte Carlo error).
+over all grid cells, is computed per trial too: it is the elpd a comparison uses (PSIS-LOO of
+the draws is 0.1 nats lower at 400 trials: uniform positions inside cells flatten the
+posterior a little, where the exact sum over cells agrees with emcee's PSIS-LOO to 0.015 nats);
+the distance between the two is reported as the fit's numerical error, where the sampler
+reports its Monte Carlo error.
 """
 
 from __future__ import annotations
@@ -190,13 +193,15 @@ class GridFit:
         return self.natural(out)
 
     def loo_quadrature(self):
-        """Exact leave-one-out elpd of the quadrature: sum over trials of
-        ``-log sum_g w_g exp(-log p(y_i | theta_g))``, computed per condition and outcome (nats)."""
+        """Exact leave-one-out of the quadrature, per trial (nats): ``(elpd_i, lppd_i)``, each shape
+        (n_trials,), with ``elpd_i = -log sum_g w_g / p(y_i | theta_g)`` (the leave-one-out
+        predictive density) and ``lppd_i = log sum_g w_g p(y_i | theta_g)`` (the in-sample one),
+        computed once per condition and outcome and gathered to the trials."""
         mesh = np.stack(np.meshgrid(*self.grid, indexing="ij"), axis=-1).reshape(-1, self.n_axes)
         keep = self.mass.ravel() > 0
         theta, log_w = self.natural(mesh[keep]), np.log(self.mass.ravel()[keep])
-        lp, lq = self.lik._table(theta)  # (G, n_conditions)
-        right = -logsumexp(log_w[:, None] - lp, axis=0)
-        wrong = -logsumexp(log_w[:, None] - lq, axis=0)
-        k, n = self.lik.k, self.lik.n
-        return float(np.sum(k * right) + np.sum(np.where(n > k, (n - k) * wrong, 0.0)))
+        lp, lq = self.lik._table(theta)  # (G, n_conditions): log P(correct), log P(incorrect)
+        loo = [-logsumexp(log_w[:, None] - v, axis=0) for v in (lp, lq)]
+        lppd = [logsumexp(log_w[:, None] + v, axis=0) for v in (lp, lq)]
+        idx, correct = self.lik.idx, self.lik.correct
+        return (np.where(correct, loo[0][idx], loo[1][idx]), np.where(correct, lppd[0][idx], lppd[1][idx]))

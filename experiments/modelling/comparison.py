@@ -55,10 +55,29 @@ def elpd_mcse(tree, var_name: str = "correct") -> float:
     return float(np.std(g, ddof=1) / np.sqrt(azs.ess(g, method="mean")))
 
 
-def _numerical_error(tree, elpd, var_name):
-    """Grid fits: |PSIS-LOO of the deterministic draws - the quadrature's exact LOO|; emcee: the MCSE."""
-    if tree.attrs.get("method") == "grid" and "elpd_quadrature" in tree.attrs:
-        return abs(float(elpd) - float(tree.attrs["elpd_quadrature"]))
+def _loo(tree, var_name):
+    """PSIS-LOO of a fit; for a grid fit, its pointwise elpd replaced by the quadrature's exact one
+    (``constant_data.elpd_loo_quadrature``; se and p recomputed from it, as arviz does)."""
+    import arviz_stats as azs
+
+    loo = azs.loo(tree, pointwise=True, var_name=var_name)
+    if tree.attrs.get("method") != "grid" or "elpd_loo_quadrature" not in tree.get("constant_data", {}):
+        return loo
+    exact = np.asarray(tree["constant_data"]["elpd_loo_quadrature"].values, float)
+    psis = float(loo.elpd)
+    loo.elpd_i = loo.elpd_i.copy(data=exact.reshape(loo.elpd_i.shape))
+    loo.elpd = float(exact.sum())
+    loo.se = float(np.sqrt(exact.size * np.var(exact)))
+    loo.p = float(tree.attrs["lppd_quadrature"]) - loo.elpd
+    loo.psis_elpd = psis  # kept for the numerical error
+    return loo
+
+
+def _numerical_error(tree, loo, var_name):
+    """Grid fits: |PSIS-LOO of the deterministic draws - the quadrature's exact LOO| (a bound on the
+    quadrature's error from a second route); emcee: the MCSE."""
+    if hasattr(loo, "psis_elpd"):
+        return abs(loo.psis_elpd - float(loo.elpd))
     return elpd_mcse(tree, var_name)
 
 
@@ -88,9 +107,10 @@ def compare_models(fits: Mapping, *, var_name: str = "correct", reference: str |
     pandas.DataFrame
         Indexed by model name, the leader first, then the converged rivals by elpd, then the fits
         that did not converge: arviz's columns (``elpd``, ``elpd_diff`` against the leader
-        (negative for a worse model), ``dse``, ``se``, ``p``, ``weight``) unrounded, ``rank``
-        (the row), ``mcse`` (the elpd's numerical error: Monte Carlo, :func:`elpd_mcse`, for emcee;
-        |PSIS-LOO - exact quadrature LOO| for the grid), ``mcse_diff`` (0 for the leader), ``z`` =
+        (negative for a worse model), ``dse``, ``se``, ``p``, ``weight``) unrounded (a grid fit's
+        elpd is the quadrature's exact leave-one-out elpd, pointwise), ``rank`` (the row),
+        ``mcse`` (the elpd's numerical error: Monte Carlo, :func:`elpd_mcse`, for emcee;
+        |PSIS-LOO of the draws - exact quadrature LOO| for the grid), ``mcse_diff`` (0 for the leader), ``z`` =
         |elpd_diff| / sqrt(dse^2 + mcse_diff^2), ``pareto_k_max``, ``converged``, ``separation``
         (expected separation from the leader on this design, in standard errors; the leader's
         is from its runner-up; NaN where not computed), ``identifiable``, ``verdict`` (one of
@@ -116,14 +136,14 @@ def compare_models(fits: Mapping, *, var_name: str = "correct", reference: str |
         raise ValueError(f"reference: must be one of {sorted(trees)}, got {reference!r}")
     converged = {name: (f.converged if isinstance(f, TransductionFit) else bool(trees[name].attrs.get("converged", 1)))
                  for name, f in fits.items()}
-    elpds = {name: azs.loo(tree, pointwise=True, var_name=var_name) for name, tree in trees.items()}
+    elpds = {name: _loo(tree, var_name) for name, tree in trees.items()}
     by_elpd = sorted(trees, key=lambda n: -float(elpds[n].elpd))
     ok = [n for n in by_elpd if converged[n]]
     leader = reference if reference is not None else (ok[0] if ok else by_elpd[0])
     order = [leader] + [n for n in ok if n != leader] + [n for n in by_elpd if n not in ok and n != leader]
     table = azs.compare(elpds, reference=leader, round_to="none").loc[order]
     table["rank"] = range(len(order))
-    mcse = {name: _numerical_error(trees[name], elpds[name].elpd, var_name) for name in order}
+    mcse = {name: _numerical_error(trees[name], elpds[name], var_name) for name in order}
     table["mcse"] = [mcse[name] for name in order]
     table["mcse_diff"] = [0.0 if name == leader else math.hypot(mcse[leader], mcse[name]) for name in order]
     diff = table["elpd_diff"].to_numpy(float)

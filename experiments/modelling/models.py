@@ -254,9 +254,11 @@ def _fit_grid(model, lik, data, n_draws):
     theta = grid.draws(n_draws)
     ll = lik.log_likelihood(theta)
     lp = lik.log_prior(theta) + lik.total_log_likelihood(theta)
-    attrs = {**grid.diagnostics, "method": "grid", "elpd_quadrature": grid.loo_quadrature()}
+    elpd_i, lppd_i = grid.loo_quadrature()
+    attrs = {**grid.diagnostics, "method": "grid", "elpd_quadrature": float(elpd_i.sum()),
+             "lppd_quadrature": float(lppd_i.sum())}
     tree = _tree({name: theta[None, :, j] for j, name in enumerate(lik.param_names)}, ll[None], lp[None], lik, data,
-                 best, attrs)
+                 best, attrs, elpd_i)
     params = {}
     for j, name in enumerate(lik.param_names):
         q = grid.quantiles(j, [0.5, 0.025, 0.975, 0.16, 0.84])
@@ -272,11 +274,12 @@ def _maps(raw):
     return [np.array([m[n] for n in names]) for m in json.loads(raw.attrs["map_estimates"])]
 
 
-def _tree(post, ll, lp, lik, data, best, attrs):
+def _tree(post, ll, lp, lik, data, best, attrs, elpd_i=None):
     """The fit's DataTree: ``posterior``, ``log_likelihood`` (``correct`` over dim ``trial``),
     ``observed_data``, ``sample_stats`` (``lp``) and ``constant_data`` (per trial: the model's
     statistic of the target and of the other interval, the target's pitch_m and amplitude_m, which
-    the identifiability check of :func:`compare_models` reads); root attrs: the method's
+    the identifiability check of :func:`compare_models` reads; for the grid also
+    ``elpd_loo_quadrature``, the exact leave-one-out elpd per trial); root attrs: the method's
     diagnostics, ``task`` and ``map_estimate`` (JSON)."""
     import json
 
@@ -285,6 +288,8 @@ def _tree(post, ll, lp, lik, data, best, attrs):
     idx = data["idx"]
     constant = {"statistic_target": data["s1"][idx], "statistic_other": data["s2"][idx],
                 "pitch_m": data["pitch_m"], "amplitude_m": data["amplitude_m"]}
+    if elpd_i is not None:
+        constant["elpd_loo_quadrature"] = elpd_i
     root = {k: v for k, v in attrs.items() if isinstance(v, (str, int, float, bool, np.integer, np.floating))}
     root = {k: (int(v) if isinstance(v, (bool, np.bool_)) else v) for k, v in root.items()}
     root.update(task=lik.kind, map_estimate=json.dumps(dict(zip(lik.param_names, map(float, best)))))
