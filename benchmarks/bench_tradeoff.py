@@ -7,7 +7,7 @@ method to pick for which need) and ``<out>/accuracy.png`` (log-log, time in ms a
 error, one curve per method). Timings are the minimum over repeats, single FFT thread.
 
 Forward job: a Hertz contact of radius a = 1 mm sliding with friction mu = 0.5 (p0 sqrt(1 - r^2/a^2),
-qx = mu p), given to the solver as a continuous load (forward/contact.py
+qx = mu p), given to the solver as a continuous load (forward/contact/hertz.py
 ``HertzContact.load(friction=0.5, condition="sliding", spacing=h, half_width=...)``), all six
 stress components at depth a/2 at 34 sensors every a/4 on two lines (y = 0 and y = a/2, |x| <= 2a), on
 grids of spacing h = a/4 to a/64. Methods (forced): ``closed_form`` and ``dcfft`` on a grid of

@@ -7,6 +7,8 @@ import contextlib
 import sys
 from pathlib import Path
 
+from tactilab.core.outputs import printable
+
 from .common import RunReport, make_out
 
 from .experiment_analysis import add_subcommands as add_analysis_subcommands
@@ -149,8 +151,8 @@ def _print_summary(path, command: str, as_json: bool, warned: list[str] = (), ex
         return
     print(f"--- tactilab {command}: summary ---")
     for line in summary_lines(summary):
-        print(line)
-    print(f"files: session {path}" + "".join(f"\n  {p}" for p in exported))
+        print(printable(line))  # a field read from the file never reaches the terminal raw
+    print(printable(f"files: session {path}") + "".join(f"\n  {printable(str(p))}" for p in exported))
 
 
 #: library parameter (as it starts a library error) -> the flag that sets it, per call
@@ -204,9 +206,11 @@ EXIT_DISPLAY_FAULT = 3
 
 def run(args: argparse.Namespace) -> int:
     from tactilab.experiments.devices import DisplayError
+    from tactilab.experiments.session import stop_signals
 
     try:
-        return _run(args)
+        with stop_signals():  # from the first instruction: a stop during start-up is a clean stop
+            return _run(args)
     except DisplayError as exc:
         path = getattr(args, "session_path", None)
         if path is not None and Path(path).is_file():  # the run's summary first: what was done, what failed
@@ -320,7 +324,7 @@ def _run(args: argparse.Namespace) -> int:
                               "files": [str(p) for p in written]}))
         else:
             for path in written:
-                print(f"wrote {path}")
+                print(printable(f"wrote {path}"))
         return 0
 
     _print_status(args)
@@ -332,12 +336,18 @@ def _print_status(args: argparse.Namespace) -> None:
     import json
 
     from tactilab.experiments.modelling import session_summary, summary_lines
+    from tactilab.experiments.session import file_state
 
     summary = session_summary(args.session)
+    state = file_state(args.session)  # read after the readers closed: the last one folds a leftover log in
     if args.json:
-        print(json.dumps({"command": "experiment status", **summary}))
+        print(json.dumps({"command": "experiment status", **summary, "self_contained": state["self_contained"]}))
         return
     for line in summary_lines(summary):
-        print(line)
+        print(printable(line))  # a field read from the file never reaches the terminal raw
+    if not state["self_contained"] and summary["status"] != "running":
+        print(printable(f"file: not self-contained ({state['wal_bytes']} bytes of the log in {args.session}-wal"
+                        f"{', a hot journal' if state['hot_journal'] else ''}); run this command again once no "
+                        "other process reads it, from a writable folder"))
     if summary["status"] in ("interrupted", "failed"):
-        print(f"resume with: tactilab experiment resume {args.session}")
+        print(printable(f"resume with: tactilab experiment resume {args.session}"))

@@ -73,12 +73,12 @@ def run(args: argparse.Namespace) -> int:
     report = RunReport("invert")
     out = report.watch(choose_out(args.out, Path(f"{args.recording.stem}-inversion"), args.force))
     rng = np.random.default_rng(args.seed)
-    _, _, info = defect_problem(scene, recording, max_data=args.max_data)
-    _report_selection(report, recording, info, args.max_data)
+    problem = defect_problem(scene, recording, max_data=args.max_data)  # prepared once, used by both methods
+    _report_selection(report, recording, problem[2], args.max_data)
     methods, errors = [], []
     if args.method in ("all", "profile"):
         with report.collecting_warnings():
-            post, crit, x = defect_profile(scene, recording, criterion=args.criterion, max_data=args.max_data)
+            post, crit, x = defect_profile(scene, recording, criterion=args.criterion, problem=problem)
             plot_profile(x, post.mean, post.std, out / "profile.png",
                          title=f"Defect-load density along the scan, not a height (lam by {args.criterion})")
             plot_criteria(crit, out / "criteria.png", data_unit=recording.unit)
@@ -97,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
     if args.method in ("all", "mcmc"):
         extra = tuple(q.strip() for q in args.sample.split(",") if q.strip())
         with report.collecting_warnings():
-            res, info = invert_defect_position(scene, recording, rng, sample=extra, max_data=args.max_data,
+            res, info = invert_defect_position(scene, recording, rng, sample=extra, problem=problem,
                                                progress=not (args.quiet or args.json), max_steps=args.max_steps)
             res.to_netcdf(out / "posterior.nc")
             plot_corner(res.tree, out / "corner.png")

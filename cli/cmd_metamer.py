@@ -90,13 +90,20 @@ def _count(text: str, name: str, minimum: int) -> int:
     return value
 
 
-def _positive(text: str, dimension: str, name: str) -> float:
+def _quantity(text: str, dimension: str, name: str) -> float:
+    """``text`` with its unit, in SI, checked by the positive rule (:func:`tactilab.core.rules.positive`)."""
+    from tactilab.core import rules
+    from tactilab.data_schemas.units import SI_UNIT, to_si
+
+    return rules.positive(to_si(text, dimension, name=name), name, SI_UNIT[dimension],
+                          fix="give a positive value" + ("" if dimension == "dimensionless" else " with a unit"))
+
+
+def _young_modulus(text: str) -> float:
+    from tactilab.core import rules
     from tactilab.data_schemas.units import to_si
 
-    value = to_si(text, dimension, name=name)
-    if value <= 0:
-        raise ValueError(f"{name}: must be > 0, got {text!r}")
-    return value
+    return rules.young_modulus(to_si(text, "pressure", name="--young-modulus"), "--young-modulus")
 
 
 def _scan(args: argparse.Namespace) -> int:
@@ -107,17 +114,17 @@ def _scan(args: argparse.Namespace) -> int:
     from tactilab.inversion import metamer_scan
 
     target = _target(args.target)
-    pitches = ([_positive(t.strip(), "length", "--scan-pitch") for t in args.scan_pitch.split(",") if t.strip()]
+    pitches = ([_quantity(t.strip(), "length", "--scan-pitch") for t in args.scan_pitch.split(",") if t.strip()]
                if args.scan_pitch is not None else [target["pitch"]])
     phases = ([to_si(t.strip(), "dimensionless", name="--scan-phase") for t in args.scan_phase.split(",") if t.strip()]
               if args.scan_phase is not None else [target["phase"]])
     displays = [_display(t.strip()) for t in (args.scan_display or args.display).split(",") if t.strip()]
-    hypothesis = check_hypothesis(args.hypothesis, "--hypothesis").with_noise(_positive(args.noise, "dimensionless", "--noise"))
-    window = _positive(args.window, "length", "--window")
+    hypothesis = check_hypothesis(args.hypothesis, "--hypothesis").with_noise(_quantity(args.noise, "dimensionless", "--noise"))
+    window = _quantity(args.window, "length", "--window")
     x = np.linspace(-window / 2, window / 2, _count(args.receptors, "--receptors", 2))
     out = make_out(args.out if args.out is not None else Path("metamer-scan"))
     scan = metamer_scan(pitches, phases, displays, hypothesis, amplitude=target["amplitude"],
-                        young_modulus=_positive(args.young_modulus, "pressure", "--young-modulus"), receptors=x,
+                        young_modulus=_young_modulus(args.young_modulus), receptors=x,
                         out_dir=out, bounds=None if args.unbounded else "family",
                         scan_frames=_count(args.scan, "--scan", 1), progress=not args.json,
                         echo=(lambda _: None) if args.json else print, **batch_where(args))
@@ -162,10 +169,10 @@ def run(args: argparse.Namespace) -> int:
 
     target_spec = _target(args.target)
     description = _display(args.display)
-    noise = _positive(args.noise, "dimensionless", "--noise")
+    noise = _quantity(args.noise, "dimensionless", "--noise")
     hypothesis = check_hypothesis(args.hypothesis, "--hypothesis").with_noise(noise)
-    young = _positive(args.young_modulus, "pressure", "--young-modulus")
-    window = _positive(args.window, "length", "--window")
+    young = _young_modulus(args.young_modulus)
+    window = _quantity(args.window, "length", "--window")
     x = np.linspace(-window / 2, window / 2, _count(args.receptors, "--receptors", 2))
     frames = _count(args.scan, "--scan", 1)
     out = make_out(args.out if args.out is not None else Path(f"metamer-{description.display_id}"))

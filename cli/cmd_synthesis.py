@@ -65,18 +65,17 @@ def _integers(text: str, name: str) -> list[int]:
     return out
 
 
-def _positive(value: float, name: str, unit: str) -> float:
-    if value <= 0:
-        raise ValueError(f"{name}: must be > 0, got {value:g} {unit}; give a positive value with a unit")
-    return value
+#: how to fix a length, pressure or width given as <= 0
+_FIX = "give a positive value with a unit, e.g. 1.25mm or 200kPa"
 
 
 class _Options:
     def __init__(self, args: argparse.Namespace) -> None:
+        from tactilab.core import rules
         from tactilab.data_schemas.units import to_si
 
-        self.depths = [_positive(z, "--depth", "m") for z in _lengths(args.depth, "--depth")]
-        self.width = _positive(to_si(args.width, "length", name="--width"), "--width", "m")
+        self.depths = [float(z) for z in rules.depths(_lengths(args.depth, "--depth"), "--depth")]
+        self.width = rules.positive(to_si(args.width, "length", name="--width"), "--width", "m", fix=_FIX)
         self.pairs = _integers(args.pairs, "--pairs")
         if len(self.pairs) != 1:
             raise ValueError(f"--pairs: give one number of pairs, got {args.pairs!r}; use --sensitivity-pairs for a list")
@@ -85,17 +84,17 @@ class _Options:
         if self.amplitude is not None and self.amplitude <= 0:
             raise ValueError(f"--amplitude: the sinusoid amplitude must be > 0, got {args.amplitude!r}; "
                              "give its size, e.g. 50um (a sign only shifts the phase)")
-        self.young = None if args.young_modulus is None else _positive(
-            to_si(args.young_modulus, "pressure", name="--young-modulus"), "--young-modulus", "Pa")
-        self.limit = None if args.traction_limit is None else _positive(
-            to_si(args.traction_limit, "pressure", name="--traction-limit"), "--traction-limit", "Pa")
-        self.footprint = None if args.footprint is None else _positive(
-            to_si(args.footprint, "length", name="--footprint"), "--footprint", "m")
+        self.young = None if args.young_modulus is None else rules.young_modulus(
+            to_si(args.young_modulus, "pressure", name="--young-modulus"), "--young-modulus")
+        self.limit = None if args.traction_limit is None else rules.positive(
+            to_si(args.traction_limit, "pressure", name="--traction-limit"), "--traction-limit", "Pa", fix=_FIX)
+        self.footprint = None if args.footprint is None else rules.positive(
+            to_si(args.footprint, "length", name="--footprint"), "--footprint", "m", fix=_FIX)
         if (self.amplitude is not None or self.limit is not None) and self.young is None:
             raise ValueError("--young-modulus: needed with --amplitude or --traction-limit (the traction scales "
                              "with E); give it as a pressure, e.g. 200kPa")
         self.widths = ([f * self.width for f in WIDTH_FACTORS] if args.sensitivity_widths is None
-                       else [_positive(w, "--sensitivity-widths", "m")
+                       else [rules.positive(w, "--sensitivity-widths", "m", fix=_FIX)
                              for w in _lengths(args.sensitivity_widths, "--sensitivity-widths")])
         self.pairs_list = (list(PAIRS_SENSITIVITY) if args.sensitivity_pairs is None
                            else _integers(args.sensitivity_pairs, "--sensitivity-pairs"))

@@ -22,6 +22,8 @@ import warnings
 from importlib import metadata
 from types import ModuleType
 
+from tactilab.core.outputs import printable
+
 EXIT_USER_ERROR = 2
 EXIT_INTERRUPTED = 130
 
@@ -90,7 +92,7 @@ def one_line(exc: BaseException) -> str:
     text = " ".join(str(exc).split())
     if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
         text = f"{exc.strerror}: {exc.filename}"
-    return text or type(exc).__name__
+    return printable(text) or type(exc).__name__  # a value quoted from a file never reaches the terminal raw
 
 
 def main(argv: list[str] | None = None) -> int:

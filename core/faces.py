@@ -50,11 +50,11 @@ def _installed() -> tuple[dict[str, Path], Path | None]:
 def check_origin(package: str, file: str | None) -> bool:
     """Warn (:class:`ShadowedInstallWarning`) when face ``package`` was loaded from outside the installed tactilab.
 
-    ``tactilab`` is a regular package, so a folder named ``tactilab`` without ``__init__.py`` (a
-    checkout, when Python runs from the folder that holds it) no longer takes the installed copy's
-    place where the install is a wheel; an editable install is found after the current directory,
-    and a copied ``tactilab/__init__.py`` earlier on ``sys.path`` still wins. Returns True when the
-    origin matches the installation (or nothing is installed).
+    ``tactilab`` is a regular package (``toplevel/__init__.py``), so an installed wheel wins over a
+    folder named ``tactilab`` without ``__init__.py`` (a clone) in the current directory. An
+    editable install is found only after Python has searched the current directory, so there such
+    a folder still loads first, and this check says so. Returns True when the origin matches the
+    installation (or nothing is installed).
     """
     rel = "/".join([*package.split(".")[1:], "__init__.py"])  # tactilab.forward.halfspace -> forward/halfspace/...
     files, root = _installed()

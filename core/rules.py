@@ -19,7 +19,7 @@ Rules
   incompressible and exact).
 - Young's modulus: finite and > 0 Pa.
 - grid spacing: finite and > 0 m, x first.
-- any other positive length, force or rate: :func:`positive`.
+- any other positive length, force or rate: :func:`positive`; any finite number: :func:`finite`.
 - arrays: :func:`finite_array` (no NaN or inf); dtypes: :func:`float_dtype`.
 """
 
@@ -32,17 +32,22 @@ import numpy as np
 
 #: Voigt order of stress and strain components (tensor shear in the last three), docs/theory.md section 1
 COMPONENTS = ("xx", "yy", "zz", "yz", "zx", "xy")
+#: Poisson's ratio of an isotropic solid lies in (low, high]: the thermodynamic bounds (0.5 = incompressible)
+POISSON_RATIO_BOUNDS = (-1.0, 0.5)
 #: alternative spellings of the symmetric shear entries (alias -> Voigt name)
 COMPONENT_ALIASES = {"xz": "zx", "zy": "yz", "yx": "xy"}
 
 __all__ = [
     "COMPONENTS",
     "COMPONENT_ALIASES",
+    "POISSON_RATIO_BOUNDS",
     "components",
     "depth",
     "depths",
+    "finite",
     "finite_array",
     "float_dtype",
+    "fraction",
     "poisson_ratio",
     "positive",
     "show",
@@ -75,7 +80,7 @@ def positive(value, name: str, unit: str = "m", fix: str = "") -> float:
     name : str
         The argument's name, as the caller spells it.
     unit : str
-        Its SI unit, for the message ("1" for dimensionless).
+        Its SI unit, for the message ("1" for dimensionless: no unit named).
     fix : str
         How to fix a bad value; default "give a finite value > 0 in <unit>".
 
@@ -84,10 +89,20 @@ def positive(value, name: str, unit: str = "m", fix: str = "") -> float:
     ValueError
         ``"<name>: must be finite and > 0 <unit>, got <value>; <fix>"``.
     """
-    fix = fix or f"give a finite value > 0 in {unit}"
-    v = _number(value, name, f"must be finite and > 0 {unit}", fix)
+    in_unit = "" if unit == "1" else f" {unit}"  # "1": dimensionless, no unit to name
+    fix = fix or "give a finite value > 0" + (f" in {unit}" if in_unit else "")
+    v = _number(value, name, f"must be finite and > 0{in_unit}", fix)
     if not math.isfinite(v) or v <= 0:
-        raise ValueError(f"{name}: must be finite and > 0 {unit}, got {show(value)}; {fix}")
+        raise ValueError(f"{name}: must be finite and > 0{in_unit}, got {show(value)}; {fix}")
+    return v
+
+
+def finite(value, name: str, unit: str = "1") -> float:
+    """A finite number (no NaN or inf), returned as float; ``unit`` is its SI unit ("1": none), for the message."""
+    fix = "give a finite number" + (f" in {unit}" if unit != "1" else "")
+    v = _number(value, name, "must be finite", fix)
+    if not math.isfinite(v):
+        raise ValueError(f"{name}: must be finite, got {show(value)}; {fix}")
     return v
 
 
@@ -105,7 +120,8 @@ def poisson_ratio(value, name: str = "nu") -> float:
     rule = "Poisson's ratio must lie in (-1, 0.5] (0.5 = incompressible)"
     fix = "skin is close to 0.5"
     v = _number(value, name, rule, fix)
-    if not math.isfinite(v) or not -1.0 < v <= 0.5:
+    low, high = POISSON_RATIO_BOUNDS
+    if not math.isfinite(v) or not low < v <= high:
         raise ValueError(f"{name}: {rule}, got {show(value)}; {fix}")
     return v
 
@@ -141,7 +157,7 @@ def depth(value, name: str = "depth") -> float:
 
 
 def components(value: Sequence[str] | str | None, name: str = "components") -> tuple[str, ...]:
-    """Stress or strain components: Voigt names, aliases accepted; None means all six.
+    """Stress or strain components: Voigt names, aliases accepted; a string is one name; None means all six.
 
     Returns
     -------
@@ -163,7 +179,7 @@ def components(value: Sequence[str] | str | None, name: str = "components") -> t
     canonical = []
     for comp in names:
         if not isinstance(comp, str) or COMPONENT_ALIASES.get(comp, comp) not in COMPONENTS:
-            raise ValueError(f"{name}: unknown stress component {comp!r}; valid names are {COMPONENTS} "
+            raise ValueError(f"{name}: unknown component {comp!r}; valid names are {COMPONENTS} "
                              f"(Voigt order; the aliases {tuple(COMPONENT_ALIASES)} are accepted)")
         canonical.append(COMPONENT_ALIASES.get(comp, comp))
     if len(set(canonical)) != len(canonical):
@@ -212,3 +228,18 @@ def float_dtype(value) -> np.dtype:
     if dt not in (np.dtype(np.float32), np.dtype(np.float64)):
         raise ValueError(f"dtype: expected float32 or float64, got {dt}; use float64 for tolerances below 1e-6")
     return dt
+
+
+def fraction(value, name: str, fix: str = "") -> float:
+    """A finite number in [0, 1] (a share of frames, trials, samples), returned as float.
+
+    Raises
+    ------
+    ValueError
+        ``"<name>: must be a fraction in [0, 1], got <value>; <fix>"`` (NaN and inf included).
+    """
+    fix = fix or "give a number from 0 to 1, e.g. 0.01 for 1 %"
+    v = _number(value, name, "must be a fraction in [0, 1]", fix)
+    if not 0.0 <= v <= 1.0:  # also refuses NaN
+        raise ValueError(f"{name}: must be a fraction in [0, 1], got {show(value)}; {fix}")
+    return v

@@ -12,7 +12,7 @@ from tactilab.core import attach, package_version
 _EXPORTS = {
     "Record": "base",
     "DisplayDescription": "display",
-    "Stimulus": "experiment",
+    "Stimulus": "stimulus",
     "Task": "experiment",
     "Protocol": "experiment",
     "ConstantStimuliConfig": "experiment_procedures",
@@ -44,6 +44,8 @@ _EXPORTS = {
     "SquareWaveGrating": "surface",
     "IsolatedDefect": "surface",
     "HeightMap": "surface",
+    "random_rough_surface": "surface",
+    "read_height_map": "height_map",
     "to_si": "units",
     "parse_hypothesis": "hypothesis",
 }

@@ -14,7 +14,9 @@ display) is an immutable pydantic v2 model built on :class:`Record`:
 
 Field types are built with :func:`finite`, :func:`positive`, :func:`non_negative`,
 :func:`in_range` and :func:`float_array`; each takes an optional ``reason`` that the error
-message quotes, e.g. ``positive("sensors sit inside the skin")``.
+message quotes, e.g. ``positive("sensors sit inside the skin")``. What counts as positive is
+the ground floor's rule (:func:`tactilab.core.rules.positive`); these validators add the record's
+wording (the field, its unit, the reason).
 """
 
 from __future__ import annotations
@@ -35,6 +37,8 @@ from pydantic import (
     ValidationInfo,
     WithJsonSchema,
 )
+
+from tactilab.core import rules
 
 from .unit_keys import convert_units
 
@@ -100,17 +104,18 @@ def finite(reason: str = "") -> AfterValidator:
 
 
 def positive(reason: str = "", fix: str = "") -> AfterValidator:
-    """A validator: the float must be finite and > 0."""
+    """A validator: the float must be finite and > 0 (:func:`tactilab.core.rules.positive`)."""
 
     def check(value: float, info: ValidationInfo) -> float:
         name = _field(info)
-        _check_finite(value, name, fix)
-        if not value > 0:
+        try:
+            return rules.positive(value, name, unit_of(name) or "1")
+        except ValueError:  # the rule failed: say which half, in the record's words
+            _check_finite(value, name, fix)
             raise ValueError(
                 f"{name} must be > 0{_reason(reason)}, got {value!r}; "
                 + (fix or f"give a positive number{_in_unit(name)}")
-            )
-        return value
+            ) from None
 
     return AfterValidator(check)
 

@@ -32,9 +32,9 @@ from typing import Any, ClassVar, Literal
 
 from pydantic import Field, model_validator
 
-from .experiment import Stimulus
 from .experiment_procedures import PARAMETERS, ProcedureConfigBase, _grid, register_procedure_config
 from .hypothesis import parse_hypothesis
+from .stimulus import Stimulus
 
 #: stimulus fields a candidate list may name, with their dimension ("text" for the waveform)
 MAX_CANDIDATES = 1000  # the design's table is candidates x models x grid points

@@ -19,18 +19,20 @@ from typing import Any, Literal
 
 from pydantic import Field, SerializeAsAny, ValidationError, field_validator, model_validator
 
+from tactilab.core import rules
+
+from . import design_config  # noqa: F401 - registers the built-in adaptive design's [procedure] table
 from .base import format_validation_error
 from .experiment_procedures import (  # noqa: F401 - the configs are part of this module's API
     LIKELIHOOD_FAMILIES, MAX_PLANNED_TRIALS, PARAMETERS, PROCEDURE_CONFIGS, TASKS, ConstantStimuliConfig,
-    Frequency, Length, ProcedureConfigBase, PsiConfig, Speed, StaircaseConfig, StaircaseTrack, Time, _finite,
-    _Model, _positive, check_label, check_name, check_subject, procedure_config, register_procedure_config)
+    Frequency, Length, ProcedureConfigBase, PsiConfig, Speed, StaircaseConfig, StaircaseTrack, Time,
+    _Model, check_label, check_name, check_subject, procedure_config, register_procedure_config)
+from .stimulus import MAX_FRAME_RATE_HZ, PITCH_RANGE_M, Stimulus  # noqa: F401 - part of this module's API
 
 #: Caps on what a protocol file may hold (a protocol is a page of text, not a data dump).
 MAX_PROTOCOL_BYTES = 1_000_000
 MAX_TEXT_CHARS = 2000
 MAX_PROMPT_CHARS = 300
-#: The pitches a stimulus may have, m (the drive's strain gain overflows far outside; usual: 1 um to 200 mm).
-PITCH_RANGE_M = (1e-7, 100.0)
 
 
 def _check_text(value: str | None, name: str, cap: int) -> None:
@@ -43,54 +45,6 @@ def _check_text(value: str | None, name: str, cap: int) -> None:
     if bad:
         raise ValueError(f"{name}: only printable characters (and line breaks), got {', '.join(bad[:5])}; "
                          "remove control and escape characters")
-
-
-class Stimulus(_Model):
-    """A virtual surface H(x) scanned at a speed, and how the display's tractors render it.
-
-    Each tractor at position x_n follows H(x_n + V t) (a travelling wave, docs/theory.md 4a).
-    """
-
-    surface: Literal["sinusoid", "square"] = "sinusoid"
-    amplitude_m: Length = Field(description="virtual surface height amplitude A, m (>= 0)")
-    pitch_m: Length = Field(description="virtual surface period p, m (> 0)")
-    speed_m_per_s: Speed = Field(description="scanning speed V, m/s (sign = direction)")
-    duration_s: Time = Field(0.5, description="stimulus duration, s (> 0, <= 60)")
-    ramp_s: Time = Field(0.02, description="raised-cosine onset/offset ramp, s (>= 0)")
-    phase_rad: float = Field(0.0, description="phase of H at x = 0, t = 0, rad")
-    frame_rate_hz: Frequency = Field(1000.0, description="drive frame rate, Hz (> 0)")
-
-    @model_validator(mode="after")
-    def _check(self) -> Stimulus:
-        _finite(self.amplitude_m, "amplitude_m")
-        if self.amplitude_m < 0:
-            raise ValueError(f"amplitude_m: must be >= 0 m, got {self.amplitude_m!r}; give e.g. '20um'")
-        _positive(self.pitch_m, "pitch_m", "m")
-        if not PITCH_RANGE_M[0] <= self.pitch_m <= PITCH_RANGE_M[1]:
-            raise ValueError(f"pitch_m: must lie in [{PITCH_RANGE_M[0]:g}, {PITCH_RANGE_M[1]:g}] m (a grating "
-                             f"pitch), got {self.pitch_m!r} m; check its unit, e.g. '2mm'")
-        _finite(self.speed_m_per_s, "speed_m_per_s")
-        _finite(self.phase_rad, "phase_rad")
-        _positive(self.duration_s, "duration_s", "s")
-        if self.duration_s > 60:
-            raise ValueError(f"duration_s: must be <= 60 s, got {self.duration_s!r}; split long stimuli")
-        _finite(self.ramp_s, "ramp_s")
-        if self.ramp_s < 0 or 2 * self.ramp_s > self.duration_s:
-            raise ValueError(
-                f"ramp_s: must lie in [0, duration_s / 2] = [0, {self.duration_s / 2!r}] s, got "
-                f"{self.ramp_s!r}; shorten the ramp or lengthen the stimulus"
-            )
-        _positive(self.frame_rate_hz, "frame_rate_hz", "Hz")
-        if self.frame_rate_hz * self.duration_s < 2:
-            raise ValueError(
-                f"frame_rate_hz: {self.frame_rate_hz!r} Hz gives fewer than 2 frames in "
-                f"{self.duration_s!r} s; raise the frame rate (default 1 kHz)"
-            )
-        return self
-
-    def with_level(self, parameter: str, level: float) -> Stimulus:
-        """Return a copy with ``parameter`` set to ``level`` (SI), validated."""
-        return Stimulus.model_validate({**self.model_dump(), parameter: level})
 
 
 class Task(_Model):
@@ -117,7 +71,7 @@ class Task(_Model):
     @model_validator(mode="after")
     def _check(self) -> Task:
         _check_text(self.prompt, "prompt", MAX_PROMPT_CHARS)
-        _finite(self.interval_gap_s, "interval_gap_s")
+        rules.finite(self.interval_gap_s, "interval_gap_s", "s")
         if self.interval_gap_s < 0:
             raise ValueError(f"interval_gap_s: must be >= 0 s, got {self.interval_gap_s!r}")
         if not 0 <= self.catch_rate < 1:
@@ -211,7 +165,7 @@ class Protocol(_Model):
     def _check(self) -> Protocol:
         check_label(self.name, "name")
         _check_text(self.description, "description", MAX_TEXT_CHARS)
-        _finite(self.iti_s, "iti_s")
+        rules.finite(self.iti_s, "iti_s", "s")
         if not 0 <= self.iti_s <= 60:
             raise ValueError(f"iti_s: must lie in [0, 60] s, got {self.iti_s!r}")
         proc, kind = self.procedure, self.task.kind
@@ -343,7 +297,3 @@ def _first_error(exc: ValueError) -> str:
         msg = str(first.get("msg", "")).removeprefix("Value error, ")
         return f"{loc}: {msg}" if loc else msg
     return str(exc)
-
-
-# the built-in adaptive design registers its [procedure] table (it imports this module: keep last)
-from . import design_config  # noqa: E402,F401

@@ -18,6 +18,9 @@ from typing import Annotated, Any, ClassVar, Literal
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationInfo, model_validator
 
+from tactilab.core import rules
+from tactilab.core.patterns import safe_pattern
+
 from .units import to_si
 
 # The stimulus parameters a procedure may vary, with the dimension of their values.
@@ -29,7 +32,7 @@ PARAMETERS: dict[str, str] = {
 }
 TASKS = ("2afc", "2ifc", "yes_no", "same_different", "magnitude_estimation")
 LIKELIHOOD_FAMILIES = ("weibull", "logistic", "normal_cdf", "gumbel")
-_LABEL = re.compile(r"^[A-Za-z0-9]{1,32}$")
+_LABEL = re.compile(r"[A-Za-z0-9]{1,32}")  # fullmatch: "$" would let a final newline through
 #: A registered name (likelihood family, custom likelihood, procedure method): never a path.
 NAME_RULE = re.compile(r"^[a-z][a-z0-9_]{0,63}$")
 
@@ -45,26 +48,13 @@ def _quantity(dimension: str):
     return BeforeValidator(convert)
 
 
-def _finite(value: float, name: str) -> float:
-    if not math.isfinite(value):
-        raise ValueError(f"{name}: must be finite, got {value!r}; give a number")
-    return value
-
-
-def _positive(value: float, name: str, unit: str) -> float:
-    _finite(value, name)
-    if value <= 0:
-        raise ValueError(f"{name}: must be > 0 {unit}, got {value!r}; give a positive value")
-    return value
-
-
 def check_label(value: str, name: str) -> str:
     """Return ``value`` if it is a BIDS label (1-32 letters or digits); ``name`` is quoted in the error.
 
     Subject and session labels go into file names and exports, so a real name (with a space)
     is refused: pseudonymous codes only.
     """
-    if not _LABEL.match(value):
+    if not isinstance(value, str) or not _LABEL.fullmatch(value):
         raise ValueError(
             f"{name}: must be 1-32 letters or digits (a BIDS label; a pseudonymous code, never "
             f"a name), got {value!r}; use e.g. 'S01'"
@@ -101,10 +91,7 @@ def check_subject(value: str, name: str = "subject", pattern: str | None = None)
     """
     check_label(value, name)
     if pattern is not None:
-        try:
-            matched = re.fullmatch(pattern, value) is not None
-        except re.error as exc:
-            raise ValueError(f"subject pattern: {pattern!r} is not a valid regular expression ({exc})") from None
+        matched = safe_pattern(pattern, "subject pattern").fullmatch(value) is not None  # no slow backtracking
         if not matched:
             raise ValueError(f"{name}: {value!r} does not match the lab's subject pattern {pattern!r}; use a code of "
                              "that form")
@@ -183,7 +170,7 @@ def check_name(value: Any, name: str, what: str) -> str:
     Import paths (``"package.module:function"``), file paths and anything else are refused:
     protocol and session files are data and never name code.
     """
-    if not isinstance(value, str) or not NAME_RULE.match(value):
+    if not isinstance(value, str) or not NAME_RULE.fullmatch(value):
         raise ValueError(
             f"{name}: must be the name of a registered {what} (1-64 lower-case letters, digits or "
             f"'_', starting with a letter), got {value!r}; a protocol names registered code, it never "
@@ -274,7 +261,7 @@ class StaircaseTrack(_Model):
     @model_validator(mode="after")
     def _check(self) -> StaircaseTrack:
         for name in ("start", "min_level", "max_level"):
-            _finite(getattr(self, name), name)
+            rules.finite(getattr(self, name), name)
         if not self.step_sizes or any(not math.isfinite(s) or s <= 0 for s in self.step_sizes):
             raise ValueError(f"step_sizes: need at least one finite step > 0, got {self.step_sizes!r}")
         if not self.min_level <= self.start <= self.max_level or self.min_level >= self.max_level:

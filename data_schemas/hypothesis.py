@@ -26,16 +26,16 @@ import math
 from decimal import Decimal
 from typing import NamedTuple
 
+from tactilab.core.rules import COMPONENT_ALIASES, COMPONENTS
+
 from .units import to_si
 
-#: linear readouts: Voigt strain components and the volumetric strain
-LINEAR_COMPONENTS = ("xx", "yy", "zz", "yz", "zx", "xy", "volumetric")
+#: linear readouts: Voigt strain components (the one order, from tactilab.core.rules) and the volumetric strain
+LINEAR_COMPONENTS = (*COMPONENTS, "volumetric")
 #: nonlinear strain invariants
 NONLINEAR_COMPONENTS = ("max_shear", "von_mises", "octahedral", "deviatoric_norm")
 #: every readout name, canonical spelling
 RECEPTOR_COMPONENTS = LINEAR_COMPONENTS + NONLINEAR_COMPONENTS
-#: accepted alternative spellings of the shear components
-COMPONENT_ALIASES = {"xz": "zx", "zy": "yz", "yx": "xy"}
 SHEAR_CONVENTIONS = ("tensor", "engineering")
 
 

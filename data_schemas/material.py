@@ -10,7 +10,16 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from .base import Record, in_range, positive
+from pydantic import AfterValidator
+
+from tactilab.core import rules
+
+from .base import Record, positive
+
+
+def _poisson_ratio(nu: float) -> float:
+    """nu in (-1, 0.5]: the ground floor's rule (:func:`tactilab.core.rules.poisson_ratio`), the solver's too."""
+    return rules.poisson_ratio(nu, "poisson_ratio")
 
 
 class SkinMaterial(Record):
@@ -28,9 +37,7 @@ class SkinMaterial(Record):
 
     young_modulus_pa: Annotated[float, positive(
         "a stiffness", "give Young's modulus E in Pa, e.g. 1e6 for 1 MPa")]
-    poisson_ratio: Annotated[float, in_range(
-        -1.0, 0.5, low_open=True, reason="thermodynamic bounds of an isotropic solid",
-        fix="give nu in (-1, 0.5]; use 0.5 for incompressible skin")] = 0.5
+    poisson_ratio: Annotated[float, AfterValidator(_poisson_ratio)] = 0.5
     name: str = ""
 
     @property

@@ -17,6 +17,8 @@ import numpy as np
 import pandas as pd
 from pydantic import field_validator, model_validator
 
+from tactilab.core.rules import COMPONENT_ALIASES
+
 from .base import Record, finite, float_array, positive
 from .sensors import QUANTITY_UNITS, SensorArray, check_components
 from .units import to_si
@@ -253,12 +255,13 @@ class Recording(Record):
                 f"time {times[bad]!r} s; resample the data or pass the right sampling_rate_hz"
             )
         found_s = tuple(str(s) for s in pd.unique(df["sensor"].astype(str)))
-        found_c = check_components(tuple(pd.unique(df["component"].astype(str))), "component column")
+        component = df["component"].astype(str).replace(COMPONENT_ALIASES)  # 'xz' is 'zx', as everywhere
+        found_c = check_components(tuple(pd.unique(component)), "component column")
         sensors = _order(sensor_ids if sensor_ids is not None else attrs.get("sensor_ids"), found_s, "sensor")
-        components = _order(components if components is not None else attrs.get("components"),
-                            found_c, "component")
+        given_c = components if components is not None else attrs.get("components")
+        components = _order(None if given_c is None else check_components(given_c, "components"), found_c, "component")
         index_s = pd.Index(sensors).get_indexer(df["sensor"].astype(str))
-        index_c = pd.Index(components).get_indexer(df["component"].astype(str))
+        index_c = pd.Index(components).get_indexer(component)
         shape = (int(index_t.max()) + 1, len(sensors), len(components))
         flat = np.ravel_multi_index((index_t, index_s, index_c), shape)
         counts = np.bincount(flat, minlength=int(np.prod(shape)))

@@ -17,6 +17,7 @@ from collections.abc import Mapping
 import numpy as np
 import xarray as xr
 
+from .netcdf_files import check_self_contained
 from .recording import Recording
 
 #: File formats :func:`write_recording` writes
@@ -126,14 +127,16 @@ def read_recording(path) -> Recording:
     OSError
         If the file does not exist.
     ValueError
-        An unsupported suffix, a netCDF file without ``values``, or Parquet without pyarrow.
+        An unsupported suffix, a netCDF file without ``values`` or with data stored outside
+        itself (external storage, a virtual dataset, an external link), or Parquet without
+        pyarrow.
     """
     path = pathlib.Path(path)
     if not path.exists():
         raise OSError(f"path: file {str(path)!r} not found; give the recording.nc, .parquet or .json "
                       "written with write_recording or Recording.save")
     if path.suffix == ".json":
-        return Recording.load(path)
+        return _validated(path, lambda: Recording.load(path))
     if path.suffix == ".parquet":
         if importlib.util.find_spec("pyarrow") is None:
             raise ValueError(f"path: reading {path} needs the optional package pyarrow (pip install pyarrow); "
@@ -143,16 +146,49 @@ def read_recording(path) -> Recording:
         df = pd.read_parquet(path)
         # pandas keeps DataFrame.attrs in the Parquet metadata; tuples come back as lists
         order = {k: tuple(df.attrs[k]) for k in ("sensor_ids", "components") if k in df.attrs}
-        return Recording.from_dataframe(df, **order)
+        return _validated(path, lambda: Recording.from_dataframe(df, **order))
     if path.suffix != ".nc":
         raise ValueError(f"path: unsupported file type {path.suffix!r} ({path}); use .nc, .parquet or .json")
+    check_self_contained(path)  # no external storage, virtual dataset or external link
     with xr.open_dataset(path, engine="h5netcdf") as ds:
         if "values" not in ds:
             raise ValueError(f"path: {path} has no 'values' variable (time, sensor, component); "
                              "write it with write_recording")
-        return Recording(values=ds["values"].values, sampling_rate_hz=float(ds.attrs["sampling_rate_hz"]),
-                         sensor_ids=tuple(str(s) for s in ds["sensor"].values),
-                         components=tuple(str(c) for c in ds["component"].values),
-                         quantity=str(ds.attrs.get("quantity", "stress")), unit=str(ds.attrs.get("unit", "Pa")),
-                         start_time_s=float(ds.attrs.get("start_time_s", 0.0)),
-                         description=str(ds.attrs.get("description", "")))
+        dims = tuple(ds["values"].dims)
+        if dims != ("time", "sensor", "component"):
+            raise ValueError(f"path: {path} holds 'values' with dimensions {dims}, not (time, sensor, component); "
+                             "write it with write_recording")
+        if "sampling_rate_hz" not in ds.attrs:
+            raise ValueError(f"path: {path} lacks the attribute sampling_rate_hz (samples per second); "
+                             "write it with write_recording")
+        fields = dict(values=ds["values"].values, sampling_rate_hz=_number(ds.attrs["sampling_rate_hz"]),
+                      sensor_ids=tuple(str(s) for s in ds["sensor"].values),
+                      components=tuple(str(c) for c in ds["component"].values),
+                      quantity=str(ds.attrs.get("quantity", "stress")), unit=str(ds.attrs.get("unit", "Pa")),
+                      start_time_s=_number(ds.attrs.get("start_time_s", 0.0)),
+                      description=str(ds.attrs.get("description", "")))
+    return _validated(path, lambda: Recording(**fields))
+
+
+def _number(value):
+    """A scalar attribute as a float when it is one (else as is: the record's rule names it)."""
+    try:
+        return float(np.asarray(value).item())
+    except (TypeError, ValueError):
+        return value
+
+
+def _validated(path, build) -> Recording:
+    """``build()``, with a record's validation errors turned into ONE line naming the file."""
+    from pydantic import ValidationError
+
+    try:
+        return build()
+    except ValidationError as exc:
+        parts = []
+        for err in exc.errors()[:3]:
+            loc = ".".join(str(x) for x in err.get("loc", ()))
+            msg = str(err.get("msg", "")).removeprefix("Value error, ")
+            parts.append(f"{loc}: {msg}" if loc else msg)
+        raise ValueError(f"path: {path} is not a valid recording ({'; '.join(parts)}); fix the file or write it "
+                         "with write_recording") from None

@@ -17,19 +17,26 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import ValidationError, field_validator, model_validator
 
-from .base import Record, at_least, finite, float_array, format_validation_error, non_negative, positive
+from tactilab.core import rules
+from tactilab.core.rules import COMPONENTS  # noqa: F401 - the one Voigt order, re-exported for records
 
-COMPONENTS: tuple[str, ...] = ("xx", "yy", "zz", "yz", "zx", "xy")
-"""Tensor component names in Voigt order."""
+from .base import Record, at_least, finite, float_array, format_validation_error, non_negative, positive
 
 QUANTITY_UNITS: dict[str, str] = {"stress": "Pa", "strain": "strain"}
 """The unit of each measured quantity (stress in Pa, strain dimensionless)."""
 
-_ALIASES = {"xz": "zx", "zy": "yz", "yx": "xy"}
-
 
 def check_components(components, field: str = "components") -> tuple[str, ...]:
-    """Validate component names: non-empty, from ``COMPONENTS``, no repeats.
+    """Validate component names: a non-empty list from ``COMPONENTS``, no repeats; aliases accepted.
+
+    The rule is :func:`tactilab.core.rules.components`, the solver's: ``xz``, ``zy`` and ``yx``
+    name the same tensor entries as ``zx``, ``yz`` and ``xy`` (the tensors are symmetric) and
+    come back under those names. A record field is a list, so a bare string is refused.
+
+    Returns
+    -------
+    tuple of str
+        Canonical names, in the order given.
 
     Raises
     ------
@@ -41,23 +48,7 @@ def check_components(components, field: str = "components") -> tuple[str, ...]:
             f"{field} must be a list of component names, got the string {components!r}; "
             f"write e.g. [{components!r}]"
         )
-    names = tuple(components)
-    if not names:
-        raise ValueError(f"{field} must not be empty; give at least one of {', '.join(COMPONENTS)}")
-    for name in names:
-        if name in _ALIASES:
-            raise ValueError(
-                f"{field} contains {name!r}, which is not a component name; use {_ALIASES[name]!r} "
-                f"(the tensors are symmetric; names are {', '.join(COMPONENTS)})"
-            )
-        if name not in COMPONENTS:
-            raise ValueError(
-                f"{field} contains unknown component {name!r}; use names from {', '.join(COMPONENTS)}"
-            )
-    repeated = sorted({n for n in names if names.count(n) > 1})
-    if repeated:
-        raise ValueError(f"{field} lists {repeated} more than once, got {list(names)}; give each component once")
-    return names
+    return rules.components(components, field)
 
 
 def voigt_indices(components) -> np.ndarray:

@@ -11,10 +11,9 @@ from __future__ import annotations
 import pathlib
 from typing import Iterator
 
-from tactilab.data_schemas.display import DisplayDescription
-from tactilab.data_schemas.experiment import Protocol
-from tactilab.experiments import SimulatedDisplay, SimulatedObserver, TransductionModel, new_session, power_analysis
-from tactilab.experiments.modelling import compare_sessions, fit_conditions, plot_comparison
+from tactilab.data_schemas import DisplayDescription, Protocol
+from tactilab.experiments import (SimulatedDisplay, SimulatedObserver, TransductionModel, compare_sessions,
+                                  fit_conditions, new_session, plot_comparison, power_analysis)
 
 TRUTH, RIVAL = "zx@1mm", "zx@3mm"
 THRESHOLD_STRAIN, LAPSE = 1e-4, 0.02

@@ -13,11 +13,10 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from tactilab.data_schemas.display import DisplayDescription
+from tactilab.data_schemas import DisplayDescription
 
-from tactilab.forward.synthesis import matching_line_load, optimal_half_spacing
-from tactilab.forward.tractor_display import display_patch_strain_3d, render_virtual_surface
-from tactilab.forward.tractors import sliding_sinusoid_strain
+from tactilab.forward import (display_patch_strain_3d, matching_line_load, optimal_half_spacing,
+                              render_virtual_surface, sliding_sinusoid_strain)
 
 DEPTH = 1.25e-3  # m, receptor depth of the demo
 AMPLITUDE = 50e-6  # m, virtual grating amplitude

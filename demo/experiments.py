@@ -14,10 +14,7 @@ from __future__ import annotations
 import pathlib
 from collections.abc import Iterator
 
-
-from tactilab.data_schemas.display import DisplayDescription
-from tactilab.data_schemas.experiment import Protocol
-
+from tactilab.data_schemas import DisplayDescription, Protocol
 from tactilab.experiments import (SessionLog, SimulatedDisplay, SimulatedObserver, export_session, new_session,
                                   true_threshold_2ifc)
 

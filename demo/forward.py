@@ -13,10 +13,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from tactilab.forward.contact import HertzContact, interfacial_traction
-from tactilab.forward.halfspace import HalfSpace
-from tactilab.forward.halfspace import SurfaceLoad
-from tactilab.forward.plots import plot_field
+from tactilab.forward import HalfSpace, HertzContact, SurfaceLoad, interfacial_traction, plot_field
 
 DEPTHS_M = (1.0e-3, 2.0e-3)  # receptor depths (Merkel ~1 mm, Ruffini/Meissner deeper)
 

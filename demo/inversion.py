@@ -14,16 +14,13 @@ E_SKIN, NU, DEPTH, DX, N = 1e6, 0.5, 1e-3, 50e-6, 1024
 
 def _profile_operator():
     """Plane strain: rigid surface height H(x) sliding frictionless on the skin -> sigma_zz at depth."""
-    from tactilab.inversion.operators import rigid_surface_height_operator
+    from tactilab.inversion import rigid_surface_height_operator
 
     return rigid_surface_height_operator(N, DX, DEPTH, E_SKIN, NU)
 
 
 def _profile_section(out: pathlib.Path, rng) -> Iterator[str]:
-    from tactilab.inversion.criteria import plot_criteria
-    from tactilab.inversion.gaussian import StationaryPrior, gaussian_posterior
-    from tactilab.inversion.linear import invert_linear
-    from tactilab.inversion.plots import plot_profile
+    from tactilab.inversion import StationaryPrior, gaussian_posterior, invert_linear, plot_criteria, plot_profile
 
     op = _profile_operator()
     x = (np.arange(N) - N // 2) * DX
@@ -73,9 +70,7 @@ def defect_demo_scene():
     """The defect section's scene: the example 'fingertip_defect' (a 0.5 mm bump) scanned at
     20 mm/s for 0.6 s (250 Hz) under 3 x 3 sensors 1 mm apart reading zz and zx (SI units).
     Also used by tests/test_inversion_defect_footprint.py and benchmarks/bench_defect_coverage.py."""
-    from tactilab.data_schemas.files import load_example
-    from tactilab.data_schemas.scene import Scan
-    from tactilab.data_schemas.sensors import SensorArray
+    from tactilab.data_schemas import Scan, SensorArray, load_example
 
     base = load_example("fingertip_defect")
     sensors = SensorArray(positions_m=np.array([[x, y] for y in (-1e-3, 0.0, 1e-3) for x in (-1e-3, 0.0, 1e-3)]),
@@ -85,11 +80,10 @@ def defect_demo_scene():
 
 
 def _defect_section(out: pathlib.Path, rng, progress: bool) -> Iterator[str]:
-    from tactilab.data_schemas.recording_io import read_recording
-    from tactilab.forward.scene_simulation import simulate_scene
+    from tactilab.data_schemas import read_recording
+    from tactilab.forward import simulate_scene
 
-    from tactilab.inversion.plots import plot_corner
-    from tactilab.inversion.scene_inversion import invert_defect_position
+    from tactilab.inversion import invert_defect_position, plot_corner
 
     scene = defect_demo_scene()
     t = time.perf_counter()

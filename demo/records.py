@@ -12,8 +12,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from tactilab.data_schemas.files import list_examples, load_example
-from tactilab.data_schemas.scene import Scene
+from tactilab.data_schemas import Scene, list_examples, load_example
 
 
 def _plot_scene(scene: Scene, path: pathlib.Path) -> None:

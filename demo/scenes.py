@@ -16,20 +16,10 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from tactilab.data_schemas.material import SkinMaterial
-from tactilab.data_schemas.scene import Contact, Scan, Scene
-from tactilab.data_schemas.sensors import SensorArray
-from tactilab.data_schemas.surface import IsolatedDefect
-
-from tactilab.forward.contact import HertzContact
-from tactilab.forward.exploration import kernel_identification, shape_invariance, texture_spectrum
-from tactilab.forward.finger import BiomimeticFinger, Fingerprint
-from tactilab.forward.finger_plots import plot_fingerprint_spectra, plot_wiener_kernels
-from tactilab.forward.halfspace import HalfSpace
-from tactilab.forward.halfspace import SurfaceLoad
-from tactilab.forward.scanning import scene_finger
-from tactilab.forward.scene_simulation import simulate_scene
-from tactilab.forward.surfaces import RecordFeature
+from tactilab.data_schemas import Contact, IsolatedDefect, Scan, Scene, SensorArray, SkinMaterial
+from tactilab.forward import (BiomimeticFinger, Fingerprint, HalfSpace, HertzContact, RecordFeature, SurfaceLoad,
+                              kernel_identification, plot_fingerprint_spectra, plot_wiener_kernels, scene_finger,
+                              shape_invariance, simulate_scene, texture_spectrum)
 
 
 def demo_scene() -> Scene:

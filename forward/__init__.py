@@ -1,10 +1,12 @@
 """tactilab.forward: skin mechanics, from surface tractions to strain and stress at receptor depth.
 
 The elastic half-space solver (:class:`HalfSpace`, :class:`SurfaceLoad`, the operator and the
-kernels) lives in :mod:`tactilab.forward.halfspace`; touch scenes (contacts, surfaces, the
-biomimetic finger), tractor displays and tactile synthesis are built on it. Import from here::
+kernels) lives in :mod:`tactilab.forward.halfspace`; the contact engine (:func:`solve_contact`,
+the frictional contact of the skin with a rigid surface, and the Hertz closed forms) in
+:mod:`tactilab.forward.contact`; touch scenes (contacts, surfaces, the biomimetic finger),
+tractor displays and tactile synthesis are built on them. Import from here::
 
-    from tactilab.forward import HalfSpace, SurfaceLoad, HertzContact
+    from tactilab.forward import HalfSpace, SurfaceLoad, HertzContact, solve_contact
 """
 
 from tactilab.core import attach, package_version
@@ -34,6 +36,11 @@ _EXPORTS = {
     "invariants": "halfspace",
     "ReceptorHypothesis": "receptors",
     # contacts and surfaces
+    "solve_contact": "contact",
+    "ContactSolution": "contact",
+    "ContactCompliance": "contact",
+    "solve_tangential": "contact",
+    "TangentialSolution": "contact",
     "HertzContact": "contact",
     "interfacial_traction": "contact",
     "stick_radius": "contact",
@@ -46,6 +53,10 @@ _EXPORTS = {
     "RecordFeature": "surfaces",
     "RandomSquareWaveGrating": "surfaces",
     "rigid_surface_pressure": "surfaces",
+    "random_rough_surface": "surfaces",
+    "write_contact": "contact_files",
+    "plot_contact_pressure": "contact_files",
+    "plot_stick_slip": "contact_files",
     # the biomimetic finger and scans
     "BiomimeticFinger": "finger",
     "Fingerprint": "finger",
@@ -59,6 +70,10 @@ _EXPORTS = {
     "wiener_kernel": "exploration",
     "linear_kernel": "exploration",
     "shape_invariance": "exploration",
+    "kernel_identification": "exploration",
+    "texture_spectrum": "exploration",
+    "plot_fingerprint_spectra": "finger_plots",
+    "plot_wiener_kernels": "finger_plots",
     # tractors, displays and synthesis
     "sliding_sinusoid_strain": "tractors",
     "tractor_row_strain": "tractors",
@@ -67,6 +82,7 @@ _EXPORTS = {
     "travelling_wave_drive": "tractor_display",
     "display_row_strain": "tractor_display",
     "render_virtual_surface": "tractor_display",
+    "display_patch_strain_3d": "tractor_display",
     "display_scene_outputs": "display_scene",
     "optimal_half_spacing": "synthesis",
     "matching_line_load": "synthesis",

@@ -25,7 +25,7 @@ import numpy as np
 from .halfspace import output_weights
 from .scanning import MAX_OUTPUT_VALUES
 from .tractor_display import travelling_wave_drive
-from .halfspace import validation as check
+from tactilab.core import rules as check
 from .tractors import array_phi_psi, sliding_sinusoid_strain, tractor_stress_kernel
 
 
@@ -105,5 +105,5 @@ def display_scene_outputs(scene) -> tuple[np.ndarray, np.ndarray, dict]:
     if getattr(surf, "kind", "") == "sinusoidal_grating" and sensors.quantity == "strain":
         real = sliding_sinusoid_strain(xs, depth, surf.amplitude_m, surf.period_m, scan.speed_m_per_s,
                                        t + scan.start_position_m / scan.speed_m_per_s, nu)
-        info["real"] = real[..., [("xx", "yy", "zz", "yz", "zx", "xy").index(c) for c in sensors.components]]
+        info["real"] = real[..., [check.COMPONENTS.index(c) for c in sensors.components]]
     return values, q, info

@@ -31,7 +31,7 @@ import numpy as np
 
 from tactilab.data_schemas.sensors import SensorArray
 
-from .contact import HertzContact, _stuck_shape, interfacial_traction
+from .contact import HertzContact, stuck_shape, interfacial_traction
 from .halfspace import output_weights
 from .halfspace import COMPONENTS, point_green
 
@@ -193,7 +193,7 @@ class BiomimeticFinger:
             p = self.contact.pressure(x, y)
             q = (1.0 - self.adhesion) * self.friction * p
             if self.adhesion > 0 and self.friction > 0:
-                q = q + self.adhesion * self.tangential_force * _stuck_shape(
+                q = q + self.adhesion * self.tangential_force * stuck_shape(
                     self.contact, x, y, x * x + y * y, cell)
         q = self.friction_direction * q
         if self.fingerprint is not None:

@@ -26,6 +26,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
+from tactilab.core.rules import COMPONENTS
 from tactilab.data_schemas.hypothesis import (
     LINEAR_COMPONENTS,
     SHEAR_CONVENTIONS,
@@ -36,7 +37,8 @@ from tactilab.data_schemas.hypothesis import (
     parse_hypothesis,
 )
 
-VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
+#: Voigt order of the strain components (the one order, tactilab.core.rules.COMPONENTS)
+VOIGT = COMPONENTS
 _SHEAR = ("yz", "zx", "xy")
 _PAIRS = {"xx": (0, 0), "yy": (1, 1), "zz": (2, 2), "yz": (1, 2), "zx": (2, 0), "xy": (0, 1)}
 
@@ -48,7 +50,7 @@ class ReceptorHypothesis:
     Parameters
     ----------
     components : tuple of str
-        Linear: ``"xx", "yy", "zz", "yz", "zx", "xy"`` (aliases ``"xz"``, ``"zy"``, ``"yx"``
+        Linear: the Voigt names ``COMPONENTS`` (xx, yy, zz, yz, zx, xy; aliases ``"xz"``, ``"zy"``, ``"yx"``
         accepted and stored canonically) and ``"volumetric"`` (``tr eps``); nonlinear:
         ``"max_shear"``, ``"von_mises"``, ``"octahedral"``, ``"deviatoric_norm"``.
     depths : tuple of float

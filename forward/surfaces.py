@@ -32,21 +32,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tactilab.data_schemas import surface as _surface_records
+
 from .halfspace import pressure_from_deflection
-
-
-def _pos(value, name: str, unit: str = "m") -> float:
-    value = float(value)
-    if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{name}: must be finite and > 0 {unit}, got {value!r}; give it in SI ({unit})")
-    return value
-
-
-def _finite(value, name: str, unit: str = "m") -> float:
-    value = float(value)
-    if not math.isfinite(value):
-        raise ValueError(f"{name}: must be finite ({unit}), got {value!r}")
-    return value
+from tactilab.core import rules as check
 
 
 def _xy(x, y):
@@ -87,8 +76,8 @@ class RandomSquareWaveGrating(Feature):
     start: float = 0.0
 
     def __post_init__(self):
-        _pos(self.bit_length, "bit_length")
-        _finite(self.amplitude, "amplitude")
+        check.positive(self.bit_length, "bit_length")
+        check.finite(self.amplitude, "amplitude", "m")
         bits = np.asarray(self.bits, dtype=float)
         if bits.ndim != 1 or bits.size < 2 or not np.all(np.abs(bits) == 1):
             raise ValueError(f"bits: need a 1-D array of at least 2 values, each +1 or -1, got shape "
@@ -194,9 +183,9 @@ class Surface:
     x_start: float = 0.0
 
     def __post_init__(self):
-        _pos(self.length, "length")
-        _pos(self.width, "width")
-        _finite(self.x_start, "x_start")
+        check.positive(self.length, "length", "m")
+        check.positive(self.width, "width")
+        check.finite(self.x_start, "x_start", "m")
         feats = []
         for i, f in enumerate(self.features):
             try:
@@ -236,7 +225,7 @@ class Surface:
 
         ``reference_height`` (m, > 0) is the height that doubles the local interfacial stress.
         """
-        h_ref = _pos(reference_height, "reference_height")
+        h_ref = check.positive(reference_height, "reference_height")
         return np.clip(1.0 + self.height(x, y) / h_ref, 0.0, None)
 
 
@@ -256,7 +245,7 @@ def rigid_surface_pressure(heights, spacing, young_modulus: float, poisson_ratio
     young_modulus : float
         E in Pa.
     poisson_ratio : float
-        nu in [0, 0.5].
+        nu in (-1, 0.5]; 0.5 (incompressible) is exact.
 
     Returns
     -------
@@ -265,16 +254,22 @@ def rigid_surface_pressure(heights, spacing, young_modulus: float, poisson_ratio
     h = np.asarray(heights, dtype=float)
     if h.ndim not in (1, 2) or not np.all(np.isfinite(h)):
         raise ValueError(f"heights: need a finite array of shape (nx,) or (ny, nx) in m, got shape {h.shape}")
-    E = _pos(young_modulus, "young_modulus", "Pa")
-    nu = float(poisson_ratio)
-    if not 0.0 <= nu <= 0.5:
-        raise ValueError(f"poisson_ratio: must lie in [0, 0.5], got {poisson_ratio!r}")
-    sp = np.atleast_1d(np.asarray(spacing, dtype=float))
-    sp = np.repeat(sp, h.ndim) if sp.size == 1 else sp
-    if sp.size != h.ndim:
-        raise ValueError(f"spacing: need {h.ndim} value(s) in m for heights of shape {h.shape}, got {spacing!r}")
-    for v in sp:
-        _pos(v, "spacing")
+    E = check.young_modulus(young_modulus, "young_modulus")
+    nu = check.poisson_ratio(poisson_ratio, "poisson_ratio")
+    sp = check.spacing(spacing, h.ndim)
     # the spectral module owns the transfer function (and its rho = 0 and Nyquist rules)
-    return pressure_from_deflection(h, tuple(float(v) for v in sp) if h.ndim == 2 else float(sp[0]),
-                                    E, nu).p
+    return pressure_from_deflection(h, sp if h.ndim == 2 else sp[0], E, nu).p
+
+
+def random_rough_surface(shape, spacing, *, rms_height: float | None = None, rms_slope: float | None = None,
+                         hurst: float = 0.8, long_cutoff: float | None = None,
+                         short_cutoff: float | None = None, rng: np.random.Generator) -> np.ndarray:
+    """A periodic, self-affine random surface (heights in m, shape ``shape``) with an exact spectrum and rms.
+
+    The same function as :func:`tactilab.data_schemas.random_rough_surface` (defined there, where the
+    scenes' surface records use it), offered here beside the contact solver that presses on it; see
+    that docstring for the spectrum, the rms conventions and the errors raised.
+    """
+    return _surface_records.random_rough_surface(shape, spacing, rms_height=rms_height, rms_slope=rms_slope,
+                                                 hurst=hurst, long_cutoff=long_cutoff,
+                                                 short_cutoff=short_cutoff, rng=rng)

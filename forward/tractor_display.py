@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .halfspace import positive
-from .halfspace import validation as check
+from tactilab.core import rules as check
 from .tractors import tractor_row_strain
 
 

@@ -23,24 +23,17 @@ with ``w = u + iZ`` (``u`` the horizontal distance from the tractor),
 from __future__ import annotations
 
 import math
+
 import numpy as np
 from numpy.typing import ArrayLike
 
+# the input rules live on the ground floor, which loads no solver: ``tactilab --help`` loads this
+# module (through the display code) and must not load the solver
+from tactilab.core import rules as check
+from tactilab.core.rules import COMPONENTS
 
-class _DeferredRules:
-    """The solver's input rules (``tactilab.forward.halfspace.validation``), imported on first
-    use: this module is loaded by ``tactilab --help`` (through the display code), which must not
-    load the solver."""
-
-    def __getattr__(self, name: str):
-        from .halfspace import validation
-
-        return getattr(validation, name)
-
-
-check = _DeferredRules()
-
-VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
+#: Voigt order of the stress components (the one order, tactilab.core.rules.COMPONENTS)
+VOIGT = COMPONENTS
 SHEAR_INDICES = (3, 4, 5)
 
 

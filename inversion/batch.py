@@ -25,7 +25,7 @@ import numpy as np
 from tactilab.core.batch import batch_client, result_path, run_batch, write_netcdf_atomic
 from tactilab.data_schemas.recording import Recording
 
-from .scene_inversion import defect_profile, invert_defect_position
+from .scene_inversion import defect_problem, defect_profile, invert_defect_position
 
 __all__ = ["invert_many", "recording_keys"]
 
@@ -95,12 +95,13 @@ def _invert_recording(item, rng: np.random.Generator, *, scene, options: dict):
     from tactilab.data_schemas.recording_io import read_recording
 
     rec = item if isinstance(item, Recording) else read_recording(item)
-    res, info = invert_defect_position(scene, rec, rng, sample=options["sample"], max_data=options["max_data"],
+    problem = defect_problem(scene, rec, max_data=options["max_data"])  # once, for the position and the profile
+    res, info = invert_defect_position(scene, rec, rng, sample=options["sample"], problem=problem,
                                        **options["sampler"])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)
         post, crit, x = defect_profile(scene, rec, n_grid=options["n_grid"], criterion=options["criterion"],
-                                       max_data=options["max_data"])
+                                       problem=problem)
     draws = res.tree["posterior"].to_dataset()
     names = [v for v in draws.data_vars]
     flat = {n: draws[n].values.ravel() for n in names}

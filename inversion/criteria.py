@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
+from tactilab.core import rules
+
 CRITERIA = ("gcv", "lcurve", "discrepancy", "evidence")
 
 def _dot(a: np.ndarray, b: np.ndarray) -> float:
@@ -293,8 +295,8 @@ def choose_lambda(
     unknown = [c for c in criteria if c not in CRITERIA]
     if unknown or not criteria:
         raise ValueError(f"criteria: unknown or empty {criteria!r}; use a subset of {', '.join(CRITERIA)}")
-    if noise_std is not None and not (np.isfinite(noise_std) and noise_std > 0):
-        raise ValueError(f"noise_std: must be finite and > 0 (data units), got {noise_std!r}; or pass None to estimate it")
+    if noise_std is not None:
+        rules.positive(noise_std, "noise_std", "data units", "or pass None to estimate it")
     scale = form.data_scale
     noise_s = None if noise_std is None else noise_std / scale  # in the form's scaled units
     if noise_s is not None and 0 < noise_s < 1e-100:

@@ -24,9 +24,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, aslinearoperator, cg
 
+from tactilab.core import rules
+
 from .gaussian_dense import _dense_posterior
 from .linear_common import DENSE_MAX, check_data
 from .operators import FourierDiagonal, angular_wavenumbers
+from .paths import choose_path
 from .penalties import penalty_symbol
 
 KINDS = ("matern32", "matern52", "squared_exponential", "white")
@@ -57,10 +60,8 @@ class StationaryPrior:
     mean: float = 0.0
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.variance) and self.variance > 0):
-            raise ValueError(f"variance: prior variance must be finite and > 0, got {self.variance!r}")
-        if not (np.isfinite(self.correlation_length) and self.correlation_length > 0):
-            raise ValueError(f"correlation_length: must be finite and > 0 m, got {self.correlation_length!r}")
+        rules.positive(self.variance, "variance", "model units squared", "give the pointwise prior variance")
+        rules.positive(self.correlation_length, "correlation_length", "m")
         if self.kind not in KINDS:
             raise ValueError(f"kind: unknown prior kind {self.kind!r}; use one of {', '.join(KINDS)}")
         if not np.isfinite(self.mean):
@@ -214,6 +215,7 @@ class GaussianPosterior:
         out = {"k_max": k_max, "wavelength_min": 2 * np.pi / k_max if k_max > 0 else np.inf,
                "fraction": float(resolved.mean()), "k_c_estimate": None}
         if depth is not None:
+            depth = rules.depth(depth)
             snr = np.sqrt(self._prior_pointwise_var()) * self._gain() / self.noise_std
             out["k_c_estimate"] = float(np.log(snr) / depth) if snr > 1 else 0.0
         return out
@@ -364,6 +366,8 @@ def gaussian_posterior(
     noise_std : float
         Noise standard deviation, data units, > 0.
     method : {"auto", "fft", "dense", "iterative"}
+        Path, chosen as for :func:`~tactilab.inversion.invert_linear` by
+        :func:`~tactilab.inversion.paths.choose_path` (a circulant forward operator takes the fft path).
     spacing : float or tuple, optional
         Grid spacing in m (default: the operator's, else 1).
     rng : numpy.random.Generator, optional
@@ -375,22 +379,15 @@ def gaussian_posterior(
     -------
     GaussianPosterior
     """
-    if not (np.isfinite(noise_std) and noise_std > 0):
-        raise ValueError(f"noise_std: must be finite and > 0 (data units), got {noise_std!r}")
-    if method not in ("auto", "fft", "dense", "iterative"):
-        raise ValueError(f"method: unknown path {method!r}; use auto, fft, dense or iterative")
+    rules.positive(noise_std, "noise_std", "data units", "give the noise standard deviation of the data")
+    operator, method = choose_path(operator, method)  # the same path as invert_linear for this operator
     is_matrix = isinstance(operator, np.ndarray)
     dims = (operator.shape[1],) if is_matrix else tuple(getattr(operator, "dims", (operator.shape[1],)))
     spacing = spacing if spacing is not None else getattr(operator, "spacing", 1.0)
     d = check_data(data, operator.shape[0], shape=getattr(operator, "dimsd", None))
     lam_full = _prior_spectrum(prior, dims, spacing)
     m0 = prior.mean if isinstance(prior, StationaryPrior) else 0.0
-    if method == "auto":
-        method = "fft" if isinstance(operator, FourierDiagonal) else (
-            "dense" if is_matrix or operator.shape[1] <= DENSE_MAX else "iterative")
     if method == "fft":
-        if not isinstance(operator, FourierDiagonal):
-            raise ValueError("method: 'fft' needs a FourierDiagonal operator; use 'dense' or 'iterative'")
         out = _fft_posterior(operator, d, lam_full, m0, noise_std)
     elif method == "dense":
         a = operator if is_matrix else aslinearoperator(operator).matmat(np.eye(operator.shape[1]))

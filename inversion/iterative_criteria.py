@@ -37,6 +37,8 @@ from scipy.optimize import brentq, minimize_scalar
 import scipy.linalg as sla
 from scipy.sparse.linalg import LinearOperator, cg, splu, spsolve_triangular
 
+from tactilab.core import rules
+
 from .criteria import CRITERIA, CriteriaResult, spread_warning
 from .penalties import penalty_matrix, penalty_symbol
 
@@ -341,9 +343,8 @@ def choose_lambda_iterative(crit: IterativeCriteria, noise_std: float | None = N
     unknown = [c for c in criteria if c not in CRITERIA]
     if unknown or not criteria:
         raise ValueError(f"criteria: unknown or empty {criteria!r}; use a subset of {', '.join(CRITERIA)}")
-    if noise_std is not None and not (np.isfinite(noise_std) and noise_std > 0):
-        raise ValueError(f"noise_std: must be finite and > 0 (data units), got {noise_std!r}; "
-                         "or pass None to estimate it")
+    if noise_std is not None:
+        rules.positive(noise_std, "noise_std", "data units", "or pass None to estimate it")
     s = crit.s
     need_ev = "evidence" in criteria or ("discrepancy" in criteria and noise_std is None)
     pos = s.l2[s.l2 > 0]

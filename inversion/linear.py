@@ -17,22 +17,25 @@ in a registry, :data:`METHODS`, and says which it used in the result:
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 import scipy.linalg as sla
 from scipy.sparse.linalg import aslinearoperator
 
+from tactilab.core import rules
+
 from .criteria import CRITERIA, CriteriaResult, SpectralForm, choose_lambda
 from .iterative_criteria import IterativeCriteria, NormalSolver, choose_lambda_iterative
-from .linear_common import DENSE_MAX, LinearInversionResult, check_data
-from .operators import FourierDiagonal, as_fourier_diagonal, model_layout
+from .linear_common import LinearInversionResult, check_data
+from .operators import FourierDiagonal, model_layout
+from .paths import choose_path
 from .penalties import PENALTIES, check_penalty, penalty_matrix, penalty_symbol
 from .tv import invert_tv
 
-PATHS = ("fft", "dense", "iterative")
-
-__all__ = ["invert_linear", "LinearInversionResult", "METHODS", "fft_form", "dense_form", "check_data"]
+__all__ = ["invert_linear", "LinearInversionResult", "Factorisation", "METHODS", "fft_form", "dense_form",
+           "check_data"]
 
 
 def _data_scale(data: np.ndarray) -> float:
@@ -112,21 +115,43 @@ def _solve_iterative(op, data, penalty, lam, aux):
 METHODS: dict[str, Callable] = {"fft": _solve_fft, "dense": _solve_dense, "iterative": _solve_iterative}
 
 
-def _pick_path(op, method: str) -> str:
-    if method != "auto":
-        if method not in PATHS:
-            raise ValueError(f"method: unknown path {method!r}; use 'auto' or one of {', '.join(PATHS)}")
-        if method == "fft" and not isinstance(op, FourierDiagonal):
-            raise ValueError(
-                "method: 'fft' needs a FourierDiagonal operator (one sensor per node of a periodic grid); "
-                "use method='iterative' or 'dense' for this operator"
-            )
-        return method
-    if isinstance(op, FourierDiagonal):
-        return "fft"
-    if isinstance(op, np.ndarray) or op.shape[1] <= DENSE_MAX:
-        return "dense"
-    return "iterative"
+@dataclass(frozen=True)
+class Factorisation:
+    """What :func:`invert_linear` factorised, returned for reuse: :meth:`solve` gives the model at
+    another ``lam`` for the cost of a back-substitution (fft: one inverse FFT; dense: products with
+    the kept SVD factors; iterative: one CG solve with the kept preconditioner).
+
+    Attributes
+    ----------
+    path : str
+        ``"fft"``, ``"dense"`` or ``"iterative"``.
+    penalty : str
+        The Tikhonov penalty.
+    model_shape : tuple of int
+        Shape of the models :meth:`solve` returns.
+    parts : tuple
+        fft: ``(D, H, |L|^2)`` on the rfft half grid; dense: ``(R, s, V^T, U^T d)`` with
+        ``R^T R = L^T L + eps I`` and ``A R^-1 = U diag(s) V^T``; iterative: the normal-equations
+        solver (preconditioner and probes) and the data scale.
+    """
+
+    path: str
+    penalty: str
+    model_shape: tuple
+    parts: tuple = field(repr=False)
+    operator: object = field(repr=False)
+    data: np.ndarray = field(repr=False)
+
+    def solve(self, lam: float) -> np.ndarray:
+        """The Tikhonov model at ``lam`` (finite, > 0), in the operator's model units, shape ``model_shape``."""
+        if not (np.isfinite(lam) and lam > 0):
+            raise ValueError(f"lam: regularisation strength must be finite and > 0, got {lam!r}")
+        if self.path == "iterative":
+            solver, scale = self.parts
+            x, _, _ = _solve_iterative(self.operator, self.data, self.penalty, float(lam), (solver, None))
+            return (x * scale).reshape(self.model_shape)
+        model, _, _ = METHODS[self.path](self.operator, self.data, self.penalty, float(lam), self.parts)
+        return np.asarray(model).reshape(self.model_shape)
 
 
 def invert_linear(
@@ -184,8 +209,8 @@ def invert_linear(
     Returns
     -------
     LinearInversionResult
+        With its :class:`Factorisation` (Tikhonov penalties) for re-solving at another lam.
     """
-    operator = as_fourier_diagonal(operator)  # a circulant forward operator takes the fft path
     if penalty == "tv":
         if model_layout(operator)[1] > 1:
             raise ValueError(f"penalty: 'tv' acts on one load component, the operator has {len(operator.loads)} "
@@ -200,12 +225,14 @@ def invert_linear(
         raise ValueError(f"criterion: unknown {criterion!r}; use one of {', '.join(CRITERIA)}")
     if lam is not None and not (np.isfinite(lam) and lam > 0):
         raise ValueError(f"lam: regularisation strength must be finite and > 0, got {lam!r}; or None to choose it")
-    path = _pick_path(operator, method)
+    operator, path = choose_path(operator, method)
     keep = isinstance(operator, FourierDiagonal) or (isinstance(operator, np.ndarray) and path == "dense")
     op = operator if keep else aslinearoperator(operator)
     d = check_data(data, operator.shape[0], shape=getattr(operator, "dimsd", None))
     dims, n_fields = model_layout(operator)  # grid shape; loads stacked load-major
     model_shape = dims if n_fields == 1 else (n_fields, *dims)
+    if spacing is not None:
+        rules.spacing(spacing, len(dims))
     spacing = spacing if spacing is not None else getattr(operator, "spacing", 1.0)
     crit = None
     penalises_nothing = ValueError(f"penalty: {penalty!r} penalises nothing on a model grid of shape {dims} "
@@ -233,6 +260,7 @@ def invert_linear(
         model, iters, ok = METHODS[path](op, d, penalty, lam_used, aux)
         model = np.asarray(model).reshape(model_shape)
         resid = form.residual_norm(lam_used)
+        kept = Factorisation(path, penalty, model_shape, tuple(aux), op, d)
     else:
         rng = rng if rng is not None else np.random.default_rng(0)
         tol = 1e-8 if tol is None else tol
@@ -259,8 +287,10 @@ def invert_linear(
         x, iters, ok = _solve_iterative(op, d_s, penalty, lam_used, (solver, x0))
         resid = scale * float(np.linalg.norm(op.matvec(x) - d_s))
         model = (x * scale).reshape(model_shape)
+        kept = Factorisation(path, penalty, model_shape, (solver, scale), op, d_s)
     msg = (f"path={path}, penalty={penalty}, lam={lam_used:.4g} ({source}), residual={resid:.4g}"
            + (f", {iters} CG iterations{'' if ok else ' (NOT converged)'}" if path == "iterative" else "")
            + (f"; criteria: {crit.estimator}" if crit is not None and crit.errors else ""))
     return LinearInversionResult(model=model, method=path, penalty=penalty, lam=lam_used, lam_source=source,
-                                 criteria=crit, residual_norm=resid, iterations=iters, converged=ok, message=msg)
+                                 criteria=crit, residual_norm=resid, iterations=iters, converged=ok, message=msg,
+                                 factorisation=kept)

@@ -44,6 +44,10 @@ class LinearInversionResult:
         False when an iterative solver hit its iteration limit.
     message : str
         Human-readable account of what was done.
+    factorisation : Factorisation or None
+        What the Tikhonov paths factorised, kept for reuse (``factorisation.solve(lam)`` re-solves
+        at another lam without refactorising; see :class:`tactilab.inversion.linear.Factorisation`);
+        None for total variation.
     """
 
     model: np.ndarray
@@ -56,6 +60,7 @@ class LinearInversionResult:
     iterations: int
     converged: bool
     message: str
+    factorisation: object = None
 
     def __repr__(self) -> str:
         """Method, penalty, lambda, model shape and residual; never the arrays."""

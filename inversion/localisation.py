@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from tactilab.core import rules
+
 from .mcmc import sample_scene_posterior
 from .scene_params import NONLINEAR, DefectScanModel, Normal, Uniform
 
@@ -36,8 +38,7 @@ def cramer_rao(model: DefectScanModel, params: dict, area: float, noise_std: flo
     dict
         ``sd_x0``, ``sd_y0`` (m), ``fisher`` (3 x 3, order x0, y0, area).
     """
-    if not (np.isfinite(noise_std) and noise_std > 0):
-        raise ValueError(f"noise_std: must be > 0 Pa, got {noise_std!r}")
+    rules.positive(noise_std, "noise_std", "Pa", "give the sensors' noise standard deviation")
     if not (np.isfinite(area) and area != 0):
         raise ValueError(f"area: defect area must be finite and non-zero (m^2), got {area!r}")
     missing = [k for k in NONLINEAR if k not in params]

@@ -25,8 +25,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import ks_2samp
 
+from tactilab.core import rules
+
 from .sampler import sample_posterior
-from .scene_params import NONLINEAR, Normal, check_prior
+from .scene_params import NONLINEAR, POSITIVE, Normal, check_prior
 
 __all__ = ["sample_scene_posterior", "MCMCResult", "DefectPosterior"]
 
@@ -164,7 +166,9 @@ class DefectPosterior:
 
     def _design(self, theta):
         params = self.params(theta)
-        return np.concatenate([self.model.design({q: v[i:i + 256] for q, v in params.items()})
+        # the model's unchecked design where it has one: theta lies in the priors' support, checked once
+        design = getattr(self.model, "_design", self.model.design)
+        return np.concatenate([design({q: v[i:i + 256] for q, v in params.items()})
                                for i in range(0, theta.shape[0], 256)])
 
     def log_prior(self, theta):
@@ -267,13 +271,18 @@ def sample_scene_posterior(
     if not np.all(np.isfinite(d)):
         i = int(np.flatnonzero(~np.isfinite(d))[0])
         raise ValueError(f"data: must be finite, found {d[i]} at flat index {i}; drop or interpolate bad samples")
-    if not (np.isfinite(noise_std) and noise_std > 0):
-        raise ValueError(f"noise_std: must be finite and > 0 Pa, got {noise_std!r}")
+    rules.positive(noise_std, "noise_std", "data units (Pa or strain)", "give the sensors' noise standard deviation")
     missing = [k for k in NONLINEAR if k not in priors]
     extra = [k for k in priors if k not in NONLINEAR]
     if missing or extra:
         raise ValueError(f"priors: need exactly the keys {NONLINEAR}; missing {missing}, unknown {extra}")
     priors = {k: check_prior(k, v) for k, v in priors.items()}
+    for q in POSITIVE:  # checked once here: the likelihood's inner loop runs the unchecked kernels
+        p = priors[q]
+        positive = p > 0 if isinstance(p, float) else (p.support[0] >= 0 and p.logpdf(0.0) == -np.inf)
+        if not positive:
+            raise ValueError(f"priors: {q} must be > 0 (SI units), but {p!r} allows values <= 0; give a positive "
+                             "value, or a LogNormal, a LogUniform or a Uniform with low > 0")
     if not isinstance(amplitude_prior, Normal):
         raise ValueError(f"amplitude_prior: must be a Normal prior (integrated out exactly), got {amplitude_prior!r}")
     defect = DefectPosterior(model, d, float(noise_std), priors, amplitude_prior)

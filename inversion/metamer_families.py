@@ -26,18 +26,9 @@ import numpy as np
 from scipy.sparse.linalg import LinearOperator, aslinearoperator
 
 from tactilab.forward import ReceptorHypothesis, sliding_sinusoid_strain, tractor_row_strain
+from tactilab.core import rules
 
-VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
-
-
-def _positive(value, name: str, unit: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a number in {unit}, got {value!r}") from None
-    if not np.isfinite(v) or v <= 0:
-        raise ValueError(f"{name}: must be finite and > 0 {unit}, got {value!r}")
-    return v
+VOIGT = rules.COMPONENTS  # the one Voigt order
 
 
 def _check_hypothesis(hypothesis) -> ReceptorHypothesis:
@@ -111,7 +102,7 @@ class FamilyStimulus:
         """TENSOR Voigt strain, shape (n_depths, n_receptors, 6), at depths (m)."""
         depths = np.atleast_1d(np.asarray(depths, dtype=float))
         for d in depths:
-            _positive(d, "depths", "m")
+            rules.positive(d, "depths", "m", "give depths below the surface as positive metres")
         return self.family.strain(self.params, depths, receptors)
 
     def readout(self, hypothesis, receptors=None) -> np.ndarray:
@@ -168,11 +159,11 @@ class SinusoidFamily(_DenseFamily):
     param_units = ("m",)
 
     def __init__(self, pitch: float, phase: float = 0.0, nu: float = 0.5):
-        self.pitch = _positive(pitch, "pitch", "m")
+        self.pitch = rules.positive(pitch, "pitch", "m")
         self.phase = float(phase)
         if not np.isfinite(self.phase):
             raise ValueError(f"phase: must be finite (rad), got {phase!r}")
-        self.nu = float(nu)
+        self.nu = rules.poisson_ratio(nu)
 
     def with_phase(self, phase: float) -> SinusoidFamily:
         """The same grating at another spatial phase (rad): one frame of a travelling scan."""
@@ -205,12 +196,12 @@ class TractorFamily(_DenseFamily):
         if tx.size == 0 or not np.isfinite(tx).all():
             raise ValueError(f"tractor_x: give finite tractor centres in m (at least one), got {tractor_x!r}")
         self.tractor_x = tx
-        self.young_modulus = _positive(young_modulus, "young_modulus", "Pa")
-        self.nu = float(nu)
+        self.young_modulus = rules.young_modulus(young_modulus)
+        self.nu = rules.poisson_ratio(nu)
         self.footprint = float(footprint)
         if not np.isfinite(self.footprint) or self.footprint < 0:
             raise ValueError(f"footprint: must be finite and >= 0 m, got {footprint!r}")
-        self.limit = None if limit is None else _positive(limit, "limit", "N/m")
+        self.limit = None if limit is None else rules.positive(limit, "limit", "N/m")
         self.n_params = tx.size
         self.param_units = ("N/m",) * tx.size
         self.bounds = None if self.limit is None else (np.full(tx.size, -self.limit), np.full(tx.size, self.limit))

@@ -18,8 +18,9 @@ from scipy.sparse.linalg import LinearOperator
 
 from tactilab.forward import ReceptorHypothesis
 from tactilab.forward.halfspace import HalfSpace, LoadToSensor, SurfaceLoad
+from tactilab.core import rules
 
-from .metamer_families import VOIGT, FamilyStimulus, _check_hypothesis, _positive, require_linear
+from .metamer_families import VOIGT, FamilyStimulus, _check_hypothesis, require_linear
 
 
 class GridLoadFamily:
@@ -48,7 +49,7 @@ class GridLoadFamily:
                  periodic: bool = True):
         if young_modulus is None:
             raise ValueError("young_modulus: required, in Pa (skin is ~1e5-4e6 Pa), e.g. young_modulus=1.54e6")
-        self.halfspace = HalfSpace(E=_positive(young_modulus, "young_modulus", "Pa"), nu=nu)
+        self.halfspace = HalfSpace(E=rules.young_modulus(young_modulus), nu=rules.poisson_ratio(nu))
         self.young_modulus, self.nu = self.halfspace.E, self.halfspace.nu
         self.periodic = bool(periodic)
         probe = LoadToSensor(self.halfspace, shape, spacing, depth=1.0, components=("xx",), loads=loads,

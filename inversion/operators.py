@@ -19,6 +19,7 @@ import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
 from tactilab.forward.halfspace import angular_wavenumbers, transfer
+from tactilab.core import rules
 from tactilab.forward.halfspace import dottest as _solver_dottest
 
 __all__ = [
@@ -46,17 +47,15 @@ def normal_pressure_to_szz_multiplier(n: int, dx: float, depth: float) -> np.nda
     dx : float
         Grid spacing in m.
     depth : float
-        Sensor depth Z in m, >= 0.
+        Sensor depth Z in m, > 0.
 
     Returns
     -------
     ndarray, shape (n,)
         Real multiplier in ``fftfreq`` order (dimensionless: Pa of stress per Pa of pressure).
     """
-    if not (np.isfinite(depth) and depth >= 0):
-        raise ValueError(f"depth: sensor depth must be finite and >= 0 m, got {depth!r}")
-    if not (np.isfinite(dx) and dx > 0):
-        raise ValueError(f"dx: grid spacing must be finite and > 0 m, got {dx!r}")
+    depth = rules.depth(depth)
+    dx = rules.spacing(dx, 1, "dx")[0]
     (k,) = angular_wavenumbers((int(n),), dx)
     s = np.abs(k) * depth
     return -(1.0 + s) * np.exp(-s)
@@ -80,12 +79,13 @@ def halfspace_fourier_operator(shape, spacing, depth: float, nu: float = 0.5, lo
     depth : float
         Sensor depth in m.
     nu : float
-        Poisson's ratio.
+        Poisson's ratio in (-1, 0.5].
     load : {"p", "qx", "qy"}
         Load component (Pa) the model holds.
     component : str
         Stress component (Voigt name) the sensors measure, Pa.
     """
+    nu = rules.poisson_ratio(nu)
     shape = tuple(int(v) for v in shape)
     ks = angular_wavenumbers(shape, spacing)
     if len(shape) == 1:
@@ -114,11 +114,10 @@ def rigid_surface_height_operator(n: int, spacing: float, depth: float, young_mo
     nothing, so heights are relative. This is the operator of the inversion demo's height profile;
     it does not describe a finite (Hertz) finger contact.
     """
-    for name, value in (("spacing", spacing), ("depth", depth), ("young_modulus", young_modulus)):
-        if not (np.isfinite(value) and value > 0):
-            raise ValueError(f"{name}: must be finite and > 0 (SI units), got {value!r}; e.g. depth=1e-3 m")
-    if not (0.0 <= poisson_ratio <= 0.5):
-        raise ValueError(f"poisson_ratio: must lie in [0, 0.5], got {poisson_ratio!r}; skin is about 0.5")
+    spacing = rules.spacing(spacing, 1)[0]
+    depth = rules.depth(depth)
+    young_modulus = rules.young_modulus(young_modulus)
+    poisson_ratio = rules.poisson_ratio(poisson_ratio, "poisson_ratio")
     (k,) = angular_wavenumbers((int(n),), spacing)
     p_to_szz = halfspace_fourier_operator((int(n),), spacing, depth, poisson_ratio).multiplier
     return FourierDiagonal(p_to_szz * young_modulus * np.abs(k) / (2 * (1 - poisson_ratio**2)), spacing)
@@ -215,6 +214,7 @@ class FourierDiagonal(LinearOperator):
             )
         if not np.all(np.isfinite(full)):
             raise ValueError("multiplier: transfer function must be finite (no NaN or inf); check the depth and grid")
+        rules.spacing(spacing, full.ndim)
         if not _is_hermitian(full):
             raise ValueError(
                 "multiplier: must be Hermitian, H(-k) = conj(H(k)), so that real loads give real data; "

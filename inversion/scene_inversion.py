@@ -88,6 +88,21 @@ def defect_problem(scene, recording: Recording, max_data: int = 1500, max_sensor
     return model, signal[::stride][:, keep, :].ravel(), info
 
 
+def _prepared(problem, scene, recording, max_data, footprint):
+    """The caller's prepared ``(model, data, info)``, or :func:`defect_problem` run now."""
+    if problem is None:
+        return defect_problem(scene, recording, max_data=max_data, footprint=footprint)
+    try:
+        model, data, info = problem
+    except (TypeError, ValueError):
+        raise ValueError(f"problem: expected the (model, data, info) that defect_problem returns, got "
+                         f"{type(problem).__name__}; pass defect_problem(scene, recording) or None") from None
+    if np.shape(data) != (model.n_data,):
+        raise ValueError(f"problem: data holds {np.size(data)} values but the model predicts {model.n_data}; "
+                         "pass the unchanged result of defect_problem(scene, recording)")
+    return model, data, info
+
+
 def _fixed(scene) -> dict:
     return dict(friction=float(scene.contact.friction_coefficient), depth=float(scene.sensors.depth_m),
                 young_modulus=float(scene.material.young_modulus_pa), normal_force=float(scene.contact.normal_force_n))
@@ -103,7 +118,7 @@ EXTRA = ("friction", "depth", "young_modulus", "normal_force")
 
 def invert_defect_position(scene, recording: Recording, rng: np.random.Generator, *, sample=(),
                            max_data: int = 1500, progress: bool = False, footprint: bool = True,
-                           **sampler_options) -> tuple[MCMCResult, dict]:
+                           problem: tuple | None = None, **sampler_options) -> tuple[MCMCResult, dict]:
     """Posterior of the defect position (x0, y0) and optionally other scene parameters, by emcee.
 
     Priors: x0 uniform over the scanned range (contact centre path widened by the contact
@@ -119,13 +134,17 @@ def invert_defect_position(scene, recording: Recording, rng: np.random.Generator
     :func:`defect_problem`): a point model of the example 0.5 mm bump under a 3 mm deep sensor
     array puts x0 about 4 um off (one posterior sd; its 95 % intervals then cover the truth
     in 150 of 200 noise draws, docs/inversion.md); the finite model removes that bias.
+
+    ``problem``: the ``(model, data, info)`` of :func:`defect_problem` when the caller has prepared
+    it already (``tactilab invert`` prepares it once for the position and the profile); then
+    ``max_data`` and ``footprint`` are those it was prepared with.
     """
     sample = tuple(sample)
     unknown = [q for q in sample if q not in EXTRA]
     if unknown:
         raise ValueError(f"sample: unknown parameter(s) {unknown}; choose from {', '.join(EXTRA)} "
                          "(x0 and y0 are always sampled)")
-    model, data, info = defect_problem(scene, recording, max_data=max_data, footprint=footprint)
+    model, data, info = _prepared(problem, scene, recording, max_data, footprint)
     a = info["contact_radius"]
     u = model.scan_positions
     fixed = _fixed(scene)
@@ -139,8 +158,12 @@ def invert_defect_position(scene, recording: Recording, rng: np.random.Generator
 
 
 def defect_profile(scene, recording: Recording, *, n_grid: int = 200, criterion: str = "evidence",
-                   max_data: int = 1500) -> tuple[GaussianPosterior, CriteriaResult, np.ndarray]:
+                   max_data: int = 1500, problem: tuple | None = None
+                   ) -> tuple[GaussianPosterior, CriteriaResult, np.ndarray]:
     """Load-density profile s(x) along the scan line with its Gaussian credible band.
+
+    ``problem``: the ``(model, data, info)`` of :func:`defect_problem` when already prepared (as in
+    :func:`invert_defect_position`); else it is prepared here with ``max_data``.
 
     Returns
     -------
@@ -151,7 +174,7 @@ def defect_profile(scene, recording: Recording, *, n_grid: int = 200, criterion:
     x : ndarray, shape (n_grid,)
         World x of the profile nodes, m.
     """
-    model, data, info = defect_problem(scene, recording, max_data=max_data)
+    model, data, info = _prepared(problem, scene, recording, max_data, True)
     u = model.scan_positions
     a = info["contact_radius"]
     x = np.linspace(u.min() - a, u.max() + a, int(n_grid))

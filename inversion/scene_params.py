@@ -1,4 +1,4 @@
-"""Priors for scene parameters and the defect-localisation model (docs/theory.md section 4b).
+"""The defect-localisation model and the check of its scene-parameter priors (docs/theory.md section 4b).
 
 A small isolated defect at world ``(x0, y0)`` under a Hertz fingertip contact that scans along
 +x adds a concentrated load ``S_d (q_x, 0, p)`` (``S_d`` in m^2, the defect's effective area, times
@@ -28,93 +28,18 @@ Gaussian prior. The nonlinear parameters are ``x0, y0`` (m), ``friction`` (mu_d)
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from tactilab.forward.halfspace import output_weights, point_green
+from tactilab.forward.halfspace import output_weights, point_geometry, point_unit
+from tactilab.core import rules
+
+from .priors import PRIORS, LogNormal, Normal, Uniform
 
 NONLINEAR = ("x0", "y0", "friction", "depth", "young_modulus", "normal_force")
+#: the nonlinear parameters that must be > 0 (m, Pa, N); x0, y0 and friction may take any sign
+POSITIVE = ("depth", "young_modulus", "normal_force")
 
 __all__ = ["Uniform", "Normal", "LogNormal", "DefectScanModel", "NONLINEAR", "check_prior", "defect_footprint"]
-
-
-@dataclass(frozen=True)
-class Uniform:
-    """Uniform prior on ``[low, high]`` (parameter units)."""
-
-    low: float
-    high: float
-
-    def __post_init__(self):
-        if not (np.isfinite(self.low) and np.isfinite(self.high) and self.high > self.low):
-            raise ValueError(f"Uniform: need finite low < high, got low={self.low!r}, high={self.high!r}")
-
-    def logpdf(self, x):
-        x = np.asarray(x, dtype=float)
-        inside = (x >= self.low) & (x <= self.high)
-        return np.where(inside, -np.log(self.high - self.low), -np.inf)
-
-    def sample(self, rng, size):
-        return rng.uniform(self.low, self.high, size)
-
-    @property
-    def std(self) -> float:
-        return (self.high - self.low) / np.sqrt(12.0)
-
-
-@dataclass(frozen=True)
-class Normal:
-    """Normal prior ``N(mean, sd^2)`` (parameter units)."""
-
-    mean: float
-    sd: float
-
-    def __post_init__(self):
-        if not (np.isfinite(self.mean) and np.isfinite(self.sd) and self.sd > 0):
-            raise ValueError(f"Normal: need a finite mean and sd > 0, got mean={self.mean!r}, sd={self.sd!r}")
-
-    def logpdf(self, x):
-        z = (np.asarray(x, dtype=float) - self.mean) / self.sd
-        return -0.5 * z * z - np.log(self.sd * np.sqrt(2 * np.pi))
-
-    def sample(self, rng, size):
-        return rng.normal(self.mean, self.sd, size)
-
-    @property
-    def std(self) -> float:
-        return self.sd
-
-
-@dataclass(frozen=True)
-class LogNormal:
-    """Log-normal prior: ``log(x) ~ N(log(median), sigma_log^2)``, for positive parameters."""
-
-    median: float
-    sigma_log: float
-
-    def __post_init__(self):
-        if not (np.isfinite(self.median) and self.median > 0 and np.isfinite(self.sigma_log) and self.sigma_log > 0):
-            raise ValueError(f"LogNormal: need median > 0 and sigma_log > 0, got {self.median!r}, {self.sigma_log!r}")
-
-    def logpdf(self, x):
-        x = np.asarray(x, dtype=float)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            lx = np.log(np.where(x > 0, x, 1.0))
-            z = (lx - np.log(self.median)) / self.sigma_log
-            val = -0.5 * z * z - lx - np.log(self.sigma_log * np.sqrt(2 * np.pi))
-        return np.where(x > 0, val, -np.inf)
-
-    def sample(self, rng, size):
-        return self.median * np.exp(self.sigma_log * rng.standard_normal(size))
-
-    @property
-    def std(self) -> float:
-        s2 = self.sigma_log**2
-        return float(self.median * np.sqrt((np.exp(s2) - 1) * np.exp(s2)))
-
-
-PRIORS = (Uniform, Normal, LogNormal)
 
 
 def check_prior(name: str, value):
@@ -123,7 +48,8 @@ def check_prior(name: str, value):
         return value
     if isinstance(value, (int, float, np.floating)) and np.isfinite(value):
         return float(value)
-    raise ValueError(f"{name}: expected a prior (Uniform, Normal, LogNormal) or a finite fixed value, got {value!r}")
+    raise ValueError(f"{name}: expected a prior ({', '.join(p.__name__ for p in PRIORS)}) or a finite fixed value, "
+                     f"got {value!r}")
 
 
 def _check_footprint(footprint) -> tuple[np.ndarray, np.ndarray]:
@@ -188,11 +114,12 @@ class DefectScanModel:
     sensors : array_like, shape (n_sensors, 2)
         Finger-frame sensor positions (x, y), m.
     components : sequence of str
-        Components observed (Voigt names, e.g. ``("zz",)`` or ``("zx", "zz")``).
+        Components observed (Voigt names, e.g. ``("zz",)`` or ``("zx", "zz")``; the aliases ``xz``,
+        ``zy``, ``yx`` are accepted, None means all six: the project's component rule).
     finger_radius : float
         Fingertip radius of curvature, m.
     poisson_ratio : float
-        Skin nu in [0, 0.5].
+        Skin nu in (-1, 0.5].
     quantity : {"stress", "strain"}
         What the sensors record: stress (Pa) or TENSOR strain (dimensionless, eps_ij; engineering
         shear is 2 eps_ij). Strain is the stress at the sensor through the compliance rows of
@@ -217,14 +144,9 @@ class DefectScanModel:
         s = np.asarray(sensors, dtype=float)
         if s.ndim != 2 or s.shape[1] != 2 or s.shape[0] < 1 or not np.all(np.isfinite(s)):
             raise ValueError(f"sensors: expected finite (x, y) positions in m with shape (n_sensors, 2), got shape {s.shape}")
-        comps = tuple(components)
-        valid = ("xx", "yy", "zz", "yz", "zx", "xy")
-        if not comps or any(c not in valid for c in comps):
-            raise ValueError(f"components: expected Voigt names from {valid}, got {components!r}")
-        if not (np.isfinite(finger_radius) and finger_radius > 0):
-            raise ValueError(f"finger_radius: must be > 0 m, got {finger_radius!r}")
-        if not (0.0 <= poisson_ratio <= 0.5):
-            raise ValueError(f"poisson_ratio: must lie in [0, 0.5], got {poisson_ratio!r}")
+        comps = rules.components(components)
+        finger_radius = rules.positive(finger_radius, "finger_radius", "m", "give the fingertip radius in m")
+        poisson_ratio = rules.poisson_ratio(poisson_ratio, "poisson_ratio")
         if quantity not in ("stress", "strain"):
             raise ValueError(f"quantity: must be 'stress' (Pa) or 'strain' (tensor strain), got {quantity!r}")
         self.quantity = quantity
@@ -246,17 +168,38 @@ class DefectScanModel:
         return (self.scan_positions.size, self.sensors.shape[0], len(self.components))
 
     def design(self, params: dict) -> np.ndarray:
-        """Signal per unit defect area, vectorised over walkers.
+        """Signal per unit defect area, vectorised over walkers (checked: use it from outside).
 
         Parameters
         ----------
         params : dict
-            Every name of ``NONLINEAR`` -> ndarray shape (n_walkers,) (or scalar).
+            Every name of ``NONLINEAR`` -> ndarray shape (n_walkers,) (or scalar), SI units;
+            finite, with depth (m), young_modulus (Pa) and normal_force (N) > 0.
 
         Returns
         -------
         ndarray, shape (n_walkers, n_data), Pa per m^2
         """
+        missing = [k for k in NONLINEAR if k not in params]
+        if missing:
+            raise ValueError(f"params: missing {missing}; give every name of {NONLINEAR} (SI units)")
+        for k in NONLINEAR:
+            v = np.asarray(params[k], dtype=float)
+            if v.ndim > 1 or not np.all(np.isfinite(v)) or (k in POSITIVE and np.any(v <= 0)):
+                rule = "finite and > 0" if k in POSITIVE else "finite"
+                raise ValueError(f"params[{k!r}]: must be a scalar or a 1-D array (one value per walker), {rule}, "
+                                 f"got {params[k]!r}")
+        try:
+            np.broadcast_shapes(*(np.shape(np.atleast_1d(params[k])) for k in NONLINEAR))
+        except ValueError:
+            raise ValueError(f"params: the arrays must have one length (walkers) or be scalars, got lengths "
+                             f"{ {k: np.size(params[k]) for k in NONLINEAR} }") from None
+        return self._design(params)
+
+    def _design(self, params: dict) -> np.ndarray:
+        """:meth:`design` without its checks: the likelihood's inner loop, whose parameters lie in
+        the priors' support (checked once, by :func:`~tactilab.inversion.mcmc.sample_scene_posterior`).
+        The Green's functions share one geometry per call (the unchecked solver formulas)."""
         p = {k: np.atleast_1d(np.asarray(params[k], dtype=float)) for k in NONLINEAR}
         w = np.broadcast_shapes(*(v.shape for v in p.values()))[0]
         p = {k: np.broadcast_to(v, (w,))[:, None, None] for k, v in p.items()}
@@ -276,12 +219,12 @@ class DefectScanModel:
         dx = self.sensors[None, None, :, 0] - xd
         dy = self.sensors[None, None, :, 1] - yd
         z = np.broadcast_to(p["depth"], dx.shape)
-        voigt = ("xx", "yy", "zz", "yz", "zx", "xy")
+        geometry = point_geometry(dx, dy, z)  # depth > 0, so R > 0
         needed = [j for j in range(6) if np.any(self._weights[:, j] != 0.0)]
         stress = {}
         for j in needed:
-            gz = point_green(voigt[j], "z", dx, dy, z, nu)
-            gx = point_green(voigt[j], "x", dx, dy, z, nu)
+            gz = point_unit(rules.COMPONENTS[j], "z", *geometry, nu)
+            gx = point_unit(rules.COMPONENTS[j], "x", *geometry, nu)
             stress[j] = pressure * (gz + p["friction"] * gx)
         out = [sum(self._weights[c, j] * stress[j] for j in needed if self._weights[c, j] != 0.0)
                for c in range(len(self.components))]

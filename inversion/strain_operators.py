@@ -17,10 +17,11 @@ from __future__ import annotations
 import numpy as np
 
 from tactilab.forward.halfspace import compliance_matrix
+from tactilab.core import rules
 
 from .operators import FourierDiagonal, angular_wavenumbers, halfspace_fourier_operator
 
-VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
+VOIGT = rules.COMPONENTS  # the one Voigt order
 
 __all__ = ["halfspace_strain_operator", "rigid_surface_height_strain_operator"]
 
@@ -56,7 +57,7 @@ def halfspace_strain_operator(shape, spacing, depth: float, young_modulus: float
     young_modulus : float
         E in Pa, > 0.
     nu : float
-        Poisson's ratio.
+        Poisson's ratio in (-1, 0.5].
     load : {"p", "qx", "qy"}
         Load component the model holds (Pa).
     component : str
@@ -67,6 +68,7 @@ def halfspace_strain_operator(shape, spacing, depth: float, young_modulus: float
     FourierDiagonal
         Strain per Pa of load.
     """
+    young_modulus, nu = rules.young_modulus(young_modulus), rules.poisson_ratio(nu)
     return FourierDiagonal(_strain_multiplier(shape, spacing, depth, young_modulus, nu, load, component), spacing)
 
 
@@ -93,7 +95,7 @@ def rigid_surface_height_strain_operator(n: int, spacing: float, depth: float, y
     young_modulus : float
         E in Pa, > 0 (it cancels, but the pressure-strain pair is built through it).
     poisson_ratio : float
-        nu in [0, 0.5].
+        nu in (-1, 0.5].
     component : str
         Tensor strain component (Voigt name).
 
@@ -102,11 +104,10 @@ def rigid_surface_height_strain_operator(n: int, spacing: float, depth: float, y
     FourierDiagonal
         Strain (dimensionless) per m of height.
     """
-    for name, value in (("spacing", spacing), ("depth", depth), ("young_modulus", young_modulus)):
-        if not (np.isfinite(value) and value > 0):
-            raise ValueError(f"{name}: must be finite and > 0 (SI units), got {value!r}; e.g. depth=1e-3 m")
-    if not (0.0 <= poisson_ratio <= 0.5):
-        raise ValueError(f"poisson_ratio: must lie in [0, 0.5], got {poisson_ratio!r}; skin is about 0.5")
+    spacing = rules.spacing(spacing, 1)[0]
+    depth = rules.depth(depth)
+    young_modulus = rules.young_modulus(young_modulus)
+    poisson_ratio = rules.poisson_ratio(poisson_ratio, "poisson_ratio")
     (k,) = angular_wavenumbers((int(n),), spacing)
     p_to_strain = _strain_multiplier((int(n),), spacing, depth, young_modulus, poisson_ratio, "p", component)
     return FourierDiagonal(p_to_strain * young_modulus * np.abs(k) / (2 * (1 - poisson_ratio**2)), spacing)

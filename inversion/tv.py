@@ -26,8 +26,9 @@ import scipy.linalg as sla
 from scipy.optimize import brentq
 from scipy.sparse.linalg import LinearOperator, aslinearoperator, cg
 
-from .linear_common import DENSE_MAX, LinearInversionResult, check_data
+from .linear_common import LinearInversionResult, check_data
 from .operators import FourierDiagonal
+from .paths import choose_path
 from .penalties import penalty_matrix, penalty_symbol
 
 __all__ = ["invert_tv", "admm_tv"]
@@ -132,14 +133,8 @@ def invert_tv(operator, data, *, lam=None, noise_std=None, method="auto", spacin
     (default 1e-4).
     """
     del rng  # ADMM is deterministic
+    operator, method = choose_path(operator, method)
     is_matrix = isinstance(operator, np.ndarray)
-    if method == "auto":
-        method = "fft" if isinstance(operator, FourierDiagonal) else (
-            "dense" if is_matrix or operator.shape[1] <= DENSE_MAX else "iterative")
-    if method not in ("fft", "dense", "iterative"):
-        raise ValueError(f"method: unknown path {method!r}; use auto, fft, dense or iterative")
-    if method == "fft" and not isinstance(operator, FourierDiagonal):
-        raise ValueError("method: 'fft' needs a FourierDiagonal operator; use 'dense' or 'iterative'")
     if is_matrix and method == "iterative":
         operator, is_matrix = aslinearoperator(operator), False
     op = operator if isinstance(operator, (FourierDiagonal, np.ndarray)) else aslinearoperator(operator)

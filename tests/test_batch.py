@@ -105,6 +105,7 @@ def test_serial_results_errors_and_resume(tmp_path):
     assert "3 skipped" in again.summary() and "errors.tsv" in again.summary()
 
 
+@pytest.mark.slow
 def test_same_bits_on_any_worker_count_order_and_chunking(tmp_path, client):
     keys = [f"k{i}" for i in range(9)]
     serial = run_batch(draw, {k: k for k in keys}, seed=11, out_dir=tmp_path / "s", workers=0, progress=False)
@@ -129,6 +130,7 @@ def test_worker_killed_mid_batch_then_rerun_recomputes_nothing(tmp_path, client)
     assert (again.n_run, again.n_skipped) == (0, 8) and log.read_text().split() == calls
 
 
+@pytest.mark.slow
 def test_client_killed_mid_batch_then_rerun_finishes_without_recomputing(tmp_path, client):
     log, out = tmp_path / "calls.log", tmp_path / "o"
     items = {f"k{i:02d}": f"k{i:02d}" for i in range(16)}
@@ -245,6 +247,7 @@ def test_serial_batch_recovers_positions_and_records_the_corrupt_file(serial, re
     assert _same(on_disk, tree)
 
 
+@pytest.mark.slow
 def test_same_bits_for_0_1_and_2_workers(serial, recs, tmp_path, client):
     out0, tree0 = serial
     lines = []

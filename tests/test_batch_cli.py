@@ -60,6 +60,7 @@ def sessions(tmp_path_factory):
             enumerate([("S01", 1), ("S02", 1), ("S01", 2)], start=1)]
 
 
+@pytest.mark.slow
 def test_experiment_compare_per_subject_serial_and_on_a_scheduler(sessions, tmp_path, capsys, client):
     argv = ["experiment", "compare", *sessions, "--model", "zx@1mm", "--model", "zx@3mm", "--seed", "2", "--json"]
     assert main([*argv, "--workers", "0", "--out", str(tmp_path / "w0")]) == 0
@@ -156,7 +157,7 @@ def test_metamer_scan_serial_and_on_a_scheduler(tmp_path, capsys, client):
     assert main([*argv[:-1], "--out", str(tmp_path / "w0")]) == 0
     assert "0 point(s) run, 8 skipped" in capsys.readouterr().out
     assert main([*argv, "--scan-pitch=-2mm", "--out", str(tmp_path)]) == 2
-    assert "--scan-pitch: must be > 0" in capsys.readouterr().err
+    assert "--scan-pitch: must be finite and > 0 m" in capsys.readouterr().err
 
 
 def test_experiment_fit_json(sessions, tmp_path, capsys):

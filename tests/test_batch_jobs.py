@@ -121,6 +121,7 @@ def test_compare_many_equals_direct_fits_and_records_the_broken_subject(serial_f
     assert on_disk.equals(table)
 
 
+@pytest.mark.slow
 def test_compare_many_same_bits_for_0_1_and_2_workers_and_resume(serial_fits, subjects, tmp_path, client, client1):
     out0, table0 = serial_fits
     keys = [f"{s}/{m}" for s in ("S01", "S02") for m in MODELS]
@@ -172,6 +173,7 @@ X = np.linspace(-5e-3, 5e-3, 41)
 SCAN = dict(amplitude=20e-6, young_modulus=1.54e6, receptors=X, scan_frames=3, progress=False)
 
 
+@pytest.mark.slow
 def test_metamer_scan_points_equal_direct_pairs_same_bits_on_workers_and_resume(tmp_path, client, client1):
     pitches, phases = [2e-3, 5e-3], [0.0, 1.0]
     s0 = metamer_scan(pitches, phases, DISPLAYS, HYP, out_dir=tmp_path / "w0", workers=0, **SCAN)
@@ -296,6 +298,7 @@ def test_a_lost_task_is_submitted_again_and_nothing_is_computed_twice(tmp_path, 
     assert np.array_equal(read_result(tmp_path / "o", "k0")["v"].values, task_rng(2, "k0").standard_normal(2))
 
 
+@pytest.mark.slow
 def test_a_task_lost_every_time_records_its_items_as_failed(tmp_path, client, monkeypatch):
     items = {f"k{i}": f"k{i}" for i in range(4)}
     _cancelling(client, monkeypatch, lambda i: i in (0, 2, 3))  # the first task's three submissions

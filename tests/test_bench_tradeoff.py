@@ -94,6 +94,7 @@ def test_mcmc_model_log_density_is_the_exact_gaussian_up_to_a_constant(bench):
     np.testing.assert_allclose(target - exact, (target - exact)[0], atol=1e-8 * np.ptp(exact))
 
 
+@pytest.mark.slow
 def test_quick_mcmc_run_matches_the_exact_posterior(bench):
     """The --quick configuration's MCMC run (1000 steps, 64 walkers x 4 ensembles, autocorrelation
     time about 70 steps there): posterior mean within 1 % and pointwise std within 10 % (relative

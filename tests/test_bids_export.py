@@ -79,6 +79,7 @@ def test_the_validator_pin_is_installed():
     assert version.stdout.strip() == _install_line().rsplit("@", 1)[1]
 
 
+@pytest.mark.slow
 def test_export_is_bids_valid_and_fails_validation_when_broken(sessions, tmp_path, capsys):
     out = tmp_path / "dataset"
     for path in sessions:  # two subjects into one dataset

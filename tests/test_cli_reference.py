@@ -16,11 +16,12 @@ from tactilab.cli.main import build_parser
 from tactilab.cli.main import main as cli_main
 
 ROOT = Path(__file__).resolve().parents[1]
-RULES = {"length", "lengths", "pressure", "time", "frequency", "hypothesis", "surface", "dimensionless",
+RULES = {"length", "lengths", "pressure", "force", "forces", "time", "frequency", "hypothesis", "surface", "dimensionless",
          "fraction", "angles", "count", "counts", "seed", "path", "choice", "text", "flag"}
 #: rule -> a wrong value, and what the one-line error must say besides the option's name
 PROBES = {
     "length": ("2", "has no unit"), "lengths": ("2", "has no unit"), "pressure": ("2", "has no unit"),
+    "force": ("2", "has no unit"), "forces": ("2", "has no unit"),
     "time": ("2", "has no unit"), "frequency": ("2", "has no unit"),
     "surface": ("sinusoid:A=2,p=4mm", "has no unit"),
     "count": ("3mm", ""), "counts": ("3mm", ""), "seed": ("3mm", ""),
@@ -95,6 +96,7 @@ def bases(tmp_path_factory):
     return {
         "tactilab stress": ["stress", str(folder / "missing.npz"), "--depth", "1mm"],
         "tactilab simulate": ["simulate", str(folder / "missing.toml")],
+        "tactilab contact": ["contact", "sphere:R=10mm", "--grid", "16", "--out", str(folder / "contact")],
         "tactilab synthesis": ["synthesis", "--depth", "1mm"],
         "tactilab invert": ["invert", str(folder / "missing.nc"), "--scene", str(folder / "missing.toml")],
         "tactilab metamer": ["metamer", "--target", "sinusoid:A=0.5mm,p=4mm"],

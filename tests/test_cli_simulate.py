@@ -9,6 +9,7 @@ import pytest
 import xarray as xr
 
 from tactilab.cli.main import main
+from tactilab.core import COMPONENTS
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -143,7 +144,7 @@ def test_simulate_display_scene_matches_tractor_display_module(tmp_path, capsys)
                                        sens.positions_m[:, 0], sens.depth_m, gain, scene.material.young_modulus_pa,
                                        lead=s.start_position_m + scene.surface.period_m / 4)
     np.testing.assert_allclose(loads, q)
-    idx = [("xx", "yy", "zz", "yz", "zx", "xy").index(c) for c in sens.components]
+    idx = [COMPONENTS.index(c) for c in sens.components]
     np.testing.assert_allclose(values, strain[..., idx], atol=1e-9 * np.abs(strain).max())
     with pytest.raises(ValueError, match="scene.display: the scene has no display"):
         display_scene_outputs(scene.model_copy(update={"display": None}))

@@ -31,18 +31,18 @@ def test_several_depths_print_a_scaling_fit(capsys):
 
 
 @pytest.mark.parametrize("argv, match", [
-    (["--depth", "0mm"], "--depth: must be > 0"),
+    (["--depth", "0mm"], "--depth: every depth must be finite and > 0 m"),
     (["--depth", "1kPa"], "--depth: unit 'kPa' measures pressure"),
     (["--depth", ","], "--depth: give at least one length"),
-    (["--depth", "1mm", "--width=-2mm"], "--width: must be > 0"),
+    (["--depth", "1mm", "--width=-2mm"], "--width: must be finite and > 0 m, got -0.002; give a positive value with a unit"),
     (["--depth", "1mm", "--pairs", "0"], "--pairs: the number of tractor pairs must be >= 1"),
     (["--depth", "1mm", "--pairs", "five"], "--pairs: expected integers"),
     (["--depth", "1mm", "--pairs", "3,5"], "--pairs: give one number of pairs"),
     (["--depth", "1mm", "--amplitude", "50um"], "--young-modulus: needed with --amplitude"),
-    (["--depth", "1mm", "--young-modulus", "0kPa"], "--young-modulus: must be > 0"),
-    (["--depth", "1mm", "--young-modulus", "1kPa", "--traction-limit=-1kPa"], "--traction-limit: must be > 0"),
-    (["--depth", "1mm", "--footprint", "0mm"], "--footprint: must be > 0"),
-    (["--depth", "1mm", "--sensitivity-widths", "0mm"], "--sensitivity-widths: must be > 0"),
+    (["--depth", "1mm", "--young-modulus", "0kPa"], "--young-modulus: Young's modulus must be finite and > 0 Pa"),
+    (["--depth", "1mm", "--young-modulus", "1kPa", "--traction-limit=-1kPa"], "--traction-limit: must be finite and > 0 Pa"),
+    (["--depth", "1mm", "--footprint", "0mm"], "--footprint: must be finite and > 0 m"),
+    (["--depth", "1mm", "--sensitivity-widths", "0mm"], "--sensitivity-widths: must be finite and > 0 m"),
 ])
 def test_bad_options_raise_value_error_naming_the_option(argv, match):
     args = build_parser().parse_args(["synthesis", *argv])

@@ -207,7 +207,7 @@ def test_file_level_errors(tmp_path):
         Scene.load(listed)
     with pytest.raises(ValueError, match=r"SkinMaterial: young_modulus: unknown unit 'kpa'"):
         SkinMaterial.from_json('{"young_modulus": "3kpa"}', where="SkinMaterial")
-    with pytest.raises(ValueError, match=r"SkinMaterial: poisson_ratio must lie in \(-1, 0.5\]"):
+    with pytest.raises(ValueError, match=r"SkinMaterial: poisson_ratio: Poisson's ratio must lie in \(-1, 0.5\]"):
         SkinMaterial.from_json('{"young_modulus_pa": 3, "poisson_ratio": 0.7}')
     with pytest.raises(ValueError, match=r"here: a SkinMaterial must be a table, got list"):
         record_from_dict(SkinMaterial, [1], "here")

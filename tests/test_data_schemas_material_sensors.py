@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tactilab.core import rules
 from tactilab.data_schemas.base import unit_of
 from tactilab.data_schemas.material import SkinMaterial
 from tactilab.data_schemas.sensors import (
@@ -39,9 +40,9 @@ def test_material_incompressible_limit_is_allowed_exactly_and_default():
         (dict(young_modulus_pa=-1e6), r"young_modulus_pa must be > 0 .*got -1000000.0"),
         (dict(young_modulus_pa=float("nan")), r"young_modulus_pa must be finite, got nan"),
         (dict(young_modulus_pa=float("inf")), r"young_modulus_pa must be finite, got inf"),
-        (dict(young_modulus_pa=1e6, poisson_ratio=0.5000001), r"poisson_ratio must lie in \(-1, 0.5\] .*got 0.5000001; give nu"),
-        (dict(young_modulus_pa=1e6, poisson_ratio=-1.0), r"poisson_ratio must lie in \(-1, 0.5\] .*got -1.0"),
-        (dict(young_modulus_pa=1e6, poisson_ratio=float("nan")), r"poisson_ratio must be finite, got nan"),
+        (dict(young_modulus_pa=1e6, poisson_ratio=0.5000001), r"poisson_ratio: Poisson's ratio must lie in \(-1, 0.5\] .*got 0.5000001; skin is close to 0.5"),
+        (dict(young_modulus_pa=1e6, poisson_ratio=-1.0), r"poisson_ratio: Poisson's ratio must lie in \(-1, 0.5\] .*got -1.0"),
+        (dict(young_modulus_pa=1e6, poisson_ratio=float("nan")), r"poisson_ratio: Poisson's ratio must lie in \(-1, 0.5\] .*got nan"),
         (dict(young_modulus_pa=1e6, shear=3), r"shear"),
     ],
 )
@@ -52,7 +53,7 @@ def test_material_rules(fields, pattern):
 
 # ----- components ---------------------------------------------------------------------------
 def test_voigt_order_indices_and_engineering_factors():
-    assert COMPONENTS == ("xx", "yy", "zz", "yz", "zx", "xy")
+    assert COMPONENTS is rules.COMPONENTS  # the one order (tests/test_core.py pins it)
     np.testing.assert_array_equal(voigt_indices(["zx", "xx"]), [4, 0])
     np.testing.assert_array_equal(engineering_factors(["xx", "zx", "zz", "xy", "yz", "yy"]),
                                   [1, 2, 1, 2, 2, 1])
@@ -62,12 +63,10 @@ def test_voigt_order_indices_and_engineering_factors():
     ("components", "pattern"),
     [
         ("zz", r"components must be a list of component names, got the string 'zz'; write e.g. \['zz'\]"),
-        ([], r"components must not be empty; give at least one of xx, yy"),
-        (["xz"], r"components contains 'xz', which is not a component name; use 'zx'"),
-        (["zy"], r"use 'yz'"),
-        (["yx"], r"use 'xy'"),
-        (["zz", "pressure"], r"components contains unknown component 'pressure'; use names from xx, yy, zz"),
-        (["zz", "zx", "zz"], r"components lists \['zz'\] more than once"),
+        ([], r"components: empty selection; pick names from \('xx', 'yy'"),
+        (["zz", "pressure"], r"components: unknown component 'pressure'; valid names are \('xx', 'yy', 'zz'"),
+        (["zz", "zx", "zz"], r"components: names repeat in \('zz', 'zx', 'zz'\)"),
+        (["zx", "xz"], r"components: names repeat .*aliases count as their Voigt name"),
     ],
 )
 def test_component_rules(components, pattern):
@@ -75,6 +74,19 @@ def test_component_rules(components, pattern):
         check_components(components)
     with pytest.raises(ValueError, match=pattern):
         SensorArray(positions_m=[[0, 0]], depth_m=1e-3, components=components)
+
+
+@pytest.mark.parametrize(("alias", "name"), [("xz", "zx"), ("zy", "yz"), ("yx", "xy")])
+def test_sensor_records_accept_the_shear_aliases_like_the_solver(alias, name):
+    """Relaxation of issue 22: sensor records used to refuse 'xz'; the solver and the hypothesis
+    grammar accepted it. One rule now (tactilab.core.rules.components): the alias names the same
+    tensor entry and comes back as its Voigt name."""
+    from tactilab.forward.halfspace import validation
+
+    assert check_components(["zz", alias]) == ("zz", name) == validation.components(["zz", alias])
+    sensors = SensorArray(positions_m=[[0, 0]], depth_m=1e-3, components=["zz", alias])
+    assert sensors.components == ("zz", name)
+    np.testing.assert_array_equal(sensors.voigt_indices, [2, COMPONENTS.index(name)])
 
 
 # ----- sensor arrays ------------------------------------------------------------------------

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import re
 
+import pytest
+
 from tactilab.demo.experiments import run_demo
 from tactilab.experiments.session.recording import SessionLog
 
 
+@pytest.mark.slow
 def test_demo_runs_a_recorded_exported_and_plotted_session(tmp_path):
     lines = list(run_demo(tmp_path, progress=False))
     out = tmp_path / "experiment"

@@ -269,13 +269,13 @@ def test_a_runner_that_lost_ownership_stops_before_the_next_stimulus(tmp_path):
 
 
 def test_a_closed_session_is_one_self_contained_file(tmp_path):
-    """No -wal, -shm, .lock or .partial is left, and the file is in rollback-journal mode (header
-    bytes 18-19 = 1, not WAL's 2): readable from read-only media without a -shm file."""
+    """No -wal, -shm, .lock or .partial is left; the file stays in WAL mode (header bytes 18-19 =
+    2: no journal-mode switch on open or close) and is readable from read-only media as immutable."""
     runner, recorder, _, path = _runner(tmp_path)
     runner.run()
-    recorder.close()
+    assert recorder.close() is True
     assert [p.name for p in tmp_path.iterdir()] == ["s.sqlite"]
-    assert path.read_bytes()[18:20] == b"\x01\x01"
+    assert path.read_bytes()[18:20] == b"\x02\x02"
     with contextlib.closing(sqlite3.connect(f"file:{path}?immutable=1", uri=True)) as frozen:  # read-only medium
         assert frozen.execute("SELECT count(*) FROM trials").fetchone()[0] == 8
     status = session_status(path)

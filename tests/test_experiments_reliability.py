@@ -129,6 +129,7 @@ def _comparable(trial):
             [s.model_dump() for s in trial.stimuli], trial.seed)
 
 
+@pytest.mark.slow
 def test_kill_minus_9_at_random_points_loses_nothing_and_resumes_exactly(fast_dir, seed):
     """>= 20 sessions, each killed 1-3 times at random delays; compare with uninterrupted runs."""
     rng = np.random.default_rng(seed)
@@ -173,6 +174,7 @@ def test_kill_minus_9_at_random_points_loses_nothing_and_resumes_exactly(fast_di
     assert repeated_seen > 0, "no interrupted trial was ever repeated: the kills missed every trial"
 
 
+@pytest.mark.slow
 def test_cli_run_killed_then_resumed(tmp_path):
     """The real command line, killed with SIGKILL mid-session, resumes to the same trials.
 

@@ -133,8 +133,8 @@ def test_observer_is_reproducible_per_trial_and_times_responses_from_onset():
 
 
 @pytest.mark.parametrize("kwargs,match", [
-    ({"threshold_strain": 0.0}, "threshold_strain: must be finite and > 0 1, got 0.0"),
-    ({"exponent": math.nan}, "exponent: must be finite and > 0 1, got nan"),
+    ({"threshold_strain": 0.0}, "threshold_strain: must be finite and > 0, got 0.0"),
+    ({"exponent": math.nan}, "exponent: must be finite and > 0, got nan"),
     ({"depth_m": -1.0}, "depth_m: every depth must be finite and > 0 m"),
     ({"criterion": math.inf}, "criterion: must be finite"),
 ])

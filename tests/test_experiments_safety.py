@@ -125,13 +125,32 @@ def _play_with(action):
 
 
 def test_sigint_zeroes_then_raises_keyboard_interrupt_and_restores_handler():
-    before = signal.getsignal(signal.SIGINT)
-    safe, inner, events = _play_with(lambda d: os.kill(os.getpid(), signal.SIGINT))
-    with pytest.raises(KeyboardInterrupt):
-        safe.play()
-    assert inner.zeroed == 1 and [e["kind"] for e in events] == ["zero_on_sigint"]
-    assert events[0]["tractor"] is None and events[0]["applied"] == 0.0
-    assert signal.getsignal(signal.SIGINT) is before
+    # Python's own Ctrl-C handler, as an interactive run has it: a suite started with nohup or '&'
+    # inherits SIGINT ignored, and the test must not depend on how it was started
+    outer = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        safe, inner, events = _play_with(lambda d: os.kill(os.getpid(), signal.SIGINT))
+        with pytest.raises(KeyboardInterrupt):
+            safe.play()
+        assert inner.zeroed == 1 and [e["kind"] for e in events] == ["zero_on_sigint"]
+        assert events[0]["tractor"] is None and events[0]["applied"] == 0.0
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGINT, outer)
+
+
+def test_sigint_while_ignored_still_zeroes_and_stops_playback():
+    """Started with SIGINT ignored (nohup, '&'), Ctrl-C still stops the drive and zeroes the display;
+    the ignored signal raises nothing, so play() says what happened."""
+    outer = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        safe, inner, events = _play_with(lambda d: os.kill(os.getpid(), signal.SIGINT))
+        with pytest.raises(PlaybackInterrupted, match="playback stopped by SIGINT; display 'VirtualBrailleRow' zeroed"):
+            safe.play()
+        assert inner.zeroed == 1 and [e["kind"] for e in events] == ["zero_on_sigint"]
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, outer)
 
 
 def test_sigterm_zeroes_and_hands_the_signal_to_the_previous_handler():

@@ -75,7 +75,7 @@ def test_linear_staircase_steps_take_units():
 
 
 @pytest.mark.parametrize("path,value,match", [
-    ("stimulus.pitch_m", "-2mm", "pitch_m: must be > 0 m"),
+    ("stimulus.pitch_m", "-2mm", "pitch_m: must be finite and > 0 m"),
     ("stimulus.pitch_m", "2kPa", "unit 'kPa' measures pressure, but a length is expected"),
     ("stimulus.pitch_m", "2 furlongs", "unknown unit 'furlongs'"),
     ("stimulus.amplitude_m", "-1um", "amplitude_m: must be >= 0 m"),
@@ -117,7 +117,7 @@ def test_invalid_protocols_are_rejected_with_field_rule_value_and_fix(path, valu
 
 def test_every_level_a_procedure_can_choose_must_give_a_valid_stimulus():
     data = with_("procedure", {"method": "constant_stimuli", "parameter": "pitch_m", "levels": ["0mm", "2mm"]})
-    with pytest.raises(ValueError, match="procedure: level 0.0 of pitch_m gives an invalid stimulus .*pitch_m: must be > 0"):
+    with pytest.raises(ValueError, match="procedure: level 0.0 of pitch_m gives an invalid stimulus .*pitch_m: must be finite and > 0"):
         Protocol.model_validate(data)
     data = with_("procedure", {"method": "constant_stimuli", "parameter": "duration_s", "levels": ["1ms", "50ms"]})
     with pytest.raises(ValueError, match="level 0.001 of duration_s .*ramp_s: must lie in"):

@@ -41,6 +41,7 @@ def _entries(record):
         return []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGHUP, signal.SIGQUIT])
 def test_sighup_and_sigquit_mid_stimulus_zero_the_display_and_log_the_stop(tmp_path, signum):
     record = tmp_path / "emu.jsonl"

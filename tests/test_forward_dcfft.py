@@ -206,7 +206,7 @@ def test_dcfft_bad_input_raises():
         dcfft_stress(load, [[1e-3, 2e-3]])
     with pytest.raises(ValueError, match="depths: expected one depth or a 1-D sequence"):
         dcfft_stress(load, ["deep"])
-    with pytest.raises(ValueError, match="components: unknown stress component 'qq'"):
+    with pytest.raises(ValueError, match="components: unknown component 'qq'"):
         dcfft_stress(load, [1e-3], components=("zz", "qq"))
     with pytest.raises(ValueError, match="nu: Poisson's ratio must lie"):
         dcfft_stress(load, [1e-3], nu=-1.0)

@@ -47,7 +47,7 @@ def test_spectral_table_rejects_unknown_component():
     """The coefficient table is looked up by Voigt name; a wrong name must not fall through silently."""
     g = _cached_geometry((4, 4), (1e-3, 1e-3), "float64")
     assert len(_table_uncached(g, 0.5, "zz")) == 4
-    with pytest.raises(ValueError, match="components: unknown stress component 'xz'"):
+    with pytest.raises(ValueError, match="components: unknown component 'xz'"):
         _table_uncached(g, 0.5, "xz")
 
 

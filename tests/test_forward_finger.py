@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tactilab.core import COMPONENTS
 from tactilab.data_schemas.recording import Recording
 from tactilab.data_schemas.sensors import SensorArray
 from tactilab.data_schemas.surface import IsolatedDefect
@@ -65,7 +66,7 @@ def test_scan_equals_receptive_field_for_a_small_defect():
 
 
 def test_strain_sensors_follow_hooke():
-    fs = _finger(components=("xx", "yy", "zz", "yz", "zx", "xy"))
+    fs = _finger(components=COMPONENTS)
     fe = _finger(components=("zz", "zx"), quantity="strain")
     u = np.linspace(-3e-3, 3e-3, 7)
     s = fs.receptive_field(u, 0.0, 0.0)

@@ -175,7 +175,7 @@ def test_bad_input_names_the_argument():
         HS.stress(load, -1e-3)
     with pytest.raises(ValueError, match="depth: expected one depth or a non-empty 1-D"):
         HS.stress(load, [])
-    with pytest.raises(ValueError, match="components: unknown stress component"):
+    with pytest.raises(ValueError, match="components: unknown component"):
         HS.stress(load, 1e-3, components=("zz", "qq"))
     with pytest.raises(ValueError, match="components: names repeat"):
         HS.stress(load, 1e-3, components=("zz", "zz"))

@@ -351,7 +351,7 @@ def test_bad_input_raises():
         line_load_stress(0.0, 0.0, fz=1)
     with pytest.raises(ValueError, match="fz: force must be finite"):
         point_load_stress(1e-3, 0, 1e-3, fz=np.inf)
-    with pytest.raises(ValueError, match="component: unknown stress component 'xq'"):
+    with pytest.raises(ValueError, match="component: unknown component 'xq'"):
         point_green("xq", "z", 1e-3, 0, 1e-3)
     assert point_green("xz", "x", 1e-3, 2e-4, 1e-3) == point_green("zx", "x", 1e-3, 2e-4, 1e-3)  # an alias
     with pytest.raises(ValueError, match="components: empty selection"):

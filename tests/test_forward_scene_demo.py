@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import re
 
+import pytest
 import xarray as xr
 
 from tactilab.demo.scenes import run_demo
 
 
+@pytest.mark.slow
 def test_scene_demo_writes_report(tmp_path):
     lines = list(run_demo(tmp_path, progress=False))
     out = tmp_path / "finger_scan"

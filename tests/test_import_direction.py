@@ -73,32 +73,37 @@ def test_checker_catches_a_backward_import():
     assert imported_parts("from .x import y", "forward", ()) == set()
 
 
-def door_breaches(source: str, in_forward: bool) -> set[str]:
-    """Imports of the solver's inner modules (``forward/halfspace/*``) from outside the solver."""
+#: the rooms of tactilab.forward that have their own door
+ROOMS = ("halfspace", "contact")
+
+
+def door_breaches(source: str, in_forward: bool, room: str = "halfspace") -> set[str]:
+    """Imports of a room's inner modules (``forward/<room>/*``) from outside the room."""
     found = set()
     for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.ImportFrom):
-            if node.level == 1 and in_forward and (node.module or "").startswith("halfspace."):
+            if node.level == 1 and in_forward and (node.module or "").startswith(f"{room}."):
                 found.add(f".{node.module}")
-            elif node.level == 0 and (node.module or "").startswith("tactilab.forward.halfspace."):
+            elif node.level == 0 and (node.module or "").startswith(f"tactilab.forward.{room}."):
                 found.add(node.module)
         elif isinstance(node, ast.Import):
-            found |= {a.name for a in node.names if a.name.startswith("tactilab.forward.halfspace.")}
+            found |= {a.name for a in node.names if a.name.startswith(f"tactilab.forward.{room}.")}
     return found
 
 
-def _library_modules_outside_the_solver():
-    for part in LAYER:
-        for path in sorted((ROOT / part).rglob("*.py")):
-            if (ROOT / "forward" / "halfspace") not in path.parents:
-                yield part, path
+def _library_modules_outside_a_room():
+    for room in ROOMS:
+        for part in LAYER:
+            for path in sorted((ROOT / part).rglob("*.py")):
+                if (ROOT / "forward" / room) not in path.parents:
+                    yield room, part, path
 
 
-@pytest.mark.parametrize("part,path", list(_library_modules_outside_the_solver()), ids=lambda v: str(v))
-def test_the_solver_has_one_door(part, path):
-    breaches = door_breaches(path.read_text(), part == "forward")
+@pytest.mark.parametrize("room,part,path", list(_library_modules_outside_a_room()), ids=lambda v: str(v))
+def test_each_room_has_one_door(room, part, path):
+    breaches = door_breaches(path.read_text(), part == "forward", room)
     assert not breaches, (
-        f"{path}: import the solver from tactilab.forward.halfspace (its door), not {sorted(breaches)}"
+        f"{path}: import from tactilab.forward.{room} (its door), not {sorted(breaches)}"
     )
 
 
@@ -107,3 +112,33 @@ def test_door_checker_catches_a_breach():
     assert door_breaches("from tactilab.forward.halfspace.spectral import transfer", False) == {
         "tactilab.forward.halfspace.spectral"}
     assert door_breaches("from .halfspace import HalfSpace", True) == set()
+    assert door_breaches("from .contact.hertz import HertzContact", True, "contact") == {".contact.hertz"}
+
+
+FACES = {"tactilab.core", "tactilab.data_schemas", "tactilab.forward", "tactilab.inversion", "tactilab.experiments",
+         "tactilab.demo"}
+
+
+def deep_imports(source: str) -> set[str]:
+    """Imports of tactilab modules other than the part faces (``from tactilab.forward import X`` is fine)."""
+    found = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("tactilab."):
+            if node.module not in FACES:
+                found.add(node.module)
+        elif isinstance(node, ast.Import):
+            found |= {a.name for a in node.names if a.name.startswith("tactilab.") and a.name not in FACES}
+    return found
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "demo").glob("*.py")), ids=lambda p: p.name)
+def test_the_demo_imports_only_from_faces(path):
+    """The demo is what users copy: it imports what they can import, from the faces."""
+    deep = deep_imports(path.read_text())
+    assert not deep, f"{path}: import from the faces, not {sorted(deep)} (add a missing name to its face's _EXPORTS)"
+
+
+def test_deep_import_checker():
+    assert deep_imports("from tactilab.forward.tractors import pair_phi_psi") == {"tactilab.forward.tractors"}
+    assert deep_imports("import tactilab.inversion.mcmc") == {"tactilab.inversion.mcmc"}
+    assert deep_imports("from tactilab.forward import HalfSpace\nfrom .sections import x") == set()

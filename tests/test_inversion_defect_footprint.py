@@ -106,6 +106,7 @@ def _grid_posterior(model, data, scene):
     return mean, float(np.sqrt(px @ (xs - mean) ** 2)), lo, hi
 
 
+@pytest.mark.slow
 def test_intervals_cover_the_truth_on_the_demo_scene(scene, clean):
     """20 noise draws of the demo's scan (on the 20 um contact grid, whose own error is below 0.5 um):
     the exact 95 % interval of x0 holds the truth in at least 18 and the mean z = (mean - truth) / sd
@@ -122,6 +123,7 @@ def test_intervals_cover_the_truth_on_the_demo_scene(scene, clean):
     assert covered >= 18 and abs(np.mean(z)) < 0.5
 
 
+@pytest.mark.slow
 def test_invert_defect_position_covers_the_truth(scene, clean):
     """emcee (short chains) on two noise draws: the 95 % interval holds the truth and the posterior
     agrees with the exact grid posterior (mean within 0.2 sd, sd within 10 %); the recording is the

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import pathlib
 
+import pytest
 
+
+@pytest.mark.slow
 def test_run_demo(tmp_path: pathlib.Path):
     from tactilab.demo.inversion import run_demo
 

@@ -68,6 +68,7 @@ def test_slq_matches_slogdet(rng):
     assert abs(est.mean() - exact) < 3 * se and se < 0.1 * exact
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("penalty", ["identity", "gradient"])
 def test_chosen_lambdas_agree_with_dense_path(penalty, tmp_path):
     """Each criterion's lam within a factor 2 of the dense path's (discrepancy: 1%), 10x warning kept."""

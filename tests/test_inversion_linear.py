@@ -374,7 +374,7 @@ def test_rigid_surface_height_operator_closed_form(rng):
     np.testing.assert_allclose(op.matvec(h0 * np.cos(k * x)), expected, atol=1e-10 * np.abs(expected).max())
     assert abs(op.matvec(np.ones(n))).max() < 1e-9  # a uniform height loads nothing
     assert dottest(op, rng) < 1e-10
-    with pytest.raises(ValueError, match="depth: must be finite and > 0"):
+    with pytest.raises(ValueError, match="depth: every depth must be finite and > 0 m"):
         rigid_surface_height_operator(n, dx, -1.0, e, nu)
-    with pytest.raises(ValueError, match="poisson_ratio: must lie in"):
+    with pytest.raises(ValueError, match=r"poisson_ratio: Poisson's ratio must lie in \(-1, 0.5\]"):
         rigid_surface_height_operator(n, dx, depth, e, 0.7)

@@ -24,6 +24,7 @@ def test_crb_tightens_with_sensors_and_components(tmp_path):
     assert (tmp_path / "loc.png").stat().st_size > 1000
 
 
+@pytest.mark.slow
 def test_crb_scales_with_noise_and_matches_posterior(rng):
     model = DefectScanModel(np.linspace(-6e-3, 6e-3, 21), square_sensors(2), ("zz",))
     a = cramer_rao(model, DEFAULT_SCENE, 5e-8, 10.0)

@@ -53,6 +53,7 @@ def test_marginal_likelihood_equals_multivariate_normal(rng):
     assert cmean[0] == pytest.approx((g[0] @ data / 25.0 + amp.mean / amp.sd**2) / prec)
 
 
+@pytest.mark.slow
 def test_recovery_over_seeds_at_nominal_rate(seed):
     """90% central intervals of x0 and y0 contain the truth in about 90% of 8 synthetic data sets."""
     model = small_model()
@@ -165,6 +166,49 @@ def test_validation(rng):
         DefectScanModel([0.0], [[0.0, 0.0]], poisson_ratio=0.7)
 
 
+def test_checked_design_is_the_unchecked_one_with_its_checks(rng):
+    """design() checks its parameters once and calls _design(), the likelihood's unchecked inner
+    loop (one geometry for all Green's functions): the same numbers, bit for bit, as point_green."""
+    from tactilab.forward.halfspace import point_green
+
+    model = DefectScanModel(np.linspace(-3e-3, 3e-3, 5), np.array([[0.0, 0.0], [1e-3, 5e-4]]), ("zx", "zz"))
+    walkers = {k: np.full(4, v) for k, v in TRUTH.items()}
+    walkers["x0"] = rng.uniform(-2e-3, 2e-3, 4)
+    g = model.design(walkers)
+    np.testing.assert_array_equal(g, model._design(walkers))
+    # the Green's functions through the checked public kernel, as before the split
+    for w in range(4):
+        xd = walkers["x0"][w] - model.scan_positions[:, None]
+        dx, dy = model.sensors[None, :, 0] - xd, model.sensors[None, :, 1] - walkers["y0"][w]
+        from tactilab.forward.contact import HertzContact
+
+        p = HertzContact(normal_force=0.8, finger_radius=0.01, young_modulus=1e6, poisson_ratio=0.5).pressure(
+            xd, walkers["y0"][w])
+        for c, comp in enumerate(("zx", "zz")):
+            want = p * (point_green(comp, "z", dx, dy, TRUTH["depth"]) + TRUTH["friction"] * point_green(
+                comp, "x", dx, dy, TRUTH["depth"]))
+            np.testing.assert_allclose(g[w].reshape(model.data_shape)[..., c], want, rtol=1e-12,
+                                       atol=1e-12 * np.abs(want).max())
+    with pytest.raises(ValueError, match=r"params: missing \['normal_force'\]"):
+        model.design({k: v for k, v in TRUTH.items() if k != "normal_force"})
+    with pytest.raises(ValueError, match=r"params\['depth'\]: must be a scalar or a 1-D array .*finite and > 0"):
+        model.design(dict(TRUTH, depth=-1e-3))
+    with pytest.raises(ValueError, match=r"params\['x0'\]: must be a scalar or a 1-D array .*finite, got"):
+        model.design(dict(TRUTH, x0=np.nan))
+    with pytest.raises(ValueError, match="params: the arrays must have one length"):
+        model.design(dict(TRUTH, x0=np.zeros(3), y0=np.zeros(2)))
+
+
+def test_positive_parameters_need_positive_priors(rng):
+    """The inner loop skips the kernels' checks, so a prior that allows depth <= 0 is refused up front."""
+    model = small_model()
+    data = model.simulate(TRUTH, AREA).ravel()
+    priors = dict(TRUTH, x0=Uniform(-4e-3, 4e-3), y0=Uniform(-2e-3, 2e-3))
+    for bad in (dict(depth=Normal(2e-3, 1e-4)), dict(depth=Uniform(0.0, 3e-3)), dict(normal_force=-0.8)):
+        with pytest.raises(ValueError, match="priors: (depth|normal_force) must be > 0 .*allows values <= 0"):
+            sample_scene_posterior(model, data, 1.0, dict(priors, **bad), Normal(0.0, 1e-7), rng=rng)
+
+
 def test_priors_logpdf_and_moments(rng):
     for prior in (Uniform(-1.0, 3.0), Normal(1.0, 2.0), LogNormal(2.0, 0.3)):
         x = prior.sample(rng, 200_000)
@@ -195,6 +239,7 @@ def test_separated_modes_caught_across_ensembles():
     assert "y0" not in res.flat_parameters
 
 
+@pytest.mark.slow
 def test_defect_posterior_works_with_arviz_loo(rng):
     """Sensors the defect's signal never reaches give identical log-likelihood terms in every draw
     ("All tail values are the same" in PSIS): they are dropped and said so; loo then runs."""

@@ -118,6 +118,7 @@ def test_models_and_target_pickle(rng):
     np.testing.assert_array_equal(again.log_likelihood(full), defect.log_likelihood(full))
 
 
+@pytest.mark.slow
 def test_pool_is_used_and_gives_the_serial_result(seed):
     model = toy(np.random.default_rng(seed), vectorized=False)
     opts = dict(FAST, max_steps=100, check_every=100)
@@ -134,6 +135,7 @@ def test_pool_is_used_and_gives_the_serial_result(seed):
     np.testing.assert_array_equal(draws(parallel), draws(short))
 
 
+@pytest.mark.slow
 def test_hdf_backend_checkpoints_and_resumes(rng, tmp_path):
     model = toy(rng)
     path = tmp_path / "chains.h5"
@@ -264,6 +266,7 @@ class CorrelatedGaussian:
         return cov @ self.x.T @ self.observed / self.noise_std**2, cov
 
 
+@pytest.mark.slow
 def test_correlated_gaussian_map_start_and_moments(rng):
     model = CorrelatedGaussian(rng)
     mean, cov = model.exact()
@@ -308,3 +311,21 @@ def test_thin_with_fewer_draws_than_walkers():
     s_all, w_all = _thin(5, 4, 1000)  # everything fits: every state, step by step over the walkers
     np.testing.assert_array_equal(s_all, np.repeat(np.arange(5), 4))
     np.testing.assert_array_equal(w_all, np.tile(np.arange(4), 5))
+
+
+def test_one_emcee_driver_in_the_library():
+    """Only the sampler module drives emcee; every other MCMC (defect scenes, transduction and
+    psychometric fits) goes through sample_posterior."""
+    import ast
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    drivers = []
+    for part in ("core", "data_schemas", "forward", "inversion", "experiments", "demo", "cli"):
+        for path in sorted((root / part).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text())):
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else (
+                    [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
+                if any(n == "emcee" or n.startswith("emcee.") for n in names):
+                    drivers.append(str(path.relative_to(root)))
+    assert drivers == ["inversion/sampler.py"]

@@ -46,6 +46,7 @@ def test_defect_problem_removes_baseline_and_keeps_order(rng):
     assert info["noise_std"] == 20.0 and info["truth"] == (0.0, 0.0)
 
 
+@pytest.mark.slow
 def test_position_and_profile_recovered(rng, tmp_path):
     scene = small_scene()
     rec, _ = synthetic_recording(scene, rng)
@@ -95,9 +96,32 @@ def test_mismatched_recordings_fail(rng, tmp_path):
         defect_problem(no_contact, rec)
 
 
-def test_cli_invert_end_to_end(rng, tmp_path, capsys):
+def test_a_prepared_problem_is_used_as_given(rng):
+    scene = small_scene()
+    rec, _ = synthetic_recording(scene, rng)
+    problem = defect_problem(scene, rec)
+    post, crit, x = defect_profile(scene, rec, problem=problem)
+    again, _, _ = defect_profile(scene, rec)
+    np.testing.assert_array_equal(post.mean, again.mean)
+    with pytest.raises(ValueError, match=r"problem: expected the \(model, data, info\) that defect_problem returns"):
+        defect_profile(scene, rec, problem=problem[:2])
+    with pytest.raises(ValueError, match="problem: data holds 3 values but the model predicts"):
+        invert_defect_position(scene, rec, rng, problem=(problem[0], problem[1][:3], problem[2]))
+
+
+@pytest.mark.slow
+def test_cli_invert_end_to_end(rng, tmp_path, capsys, monkeypatch):
+    import tactilab.inversion.scene_inversion as scene_inversion
     from tactilab.cli.main import main
 
+    prepared = []
+    real_problem = scene_inversion.defect_problem
+
+    def counting_problem(*args, **kwargs):
+        prepared.append(1)
+        return real_problem(*args, **kwargs)
+
+    monkeypatch.setattr(scene_inversion, "defect_problem", counting_problem)
     scene = small_scene()
     rec, _ = synthetic_recording(scene, rng)
     rec_path = rec.save(tmp_path / "rec.json")
@@ -110,6 +134,7 @@ def test_cli_invert_end_to_end(rng, tmp_path, capsys):
         status = main(["invert", str(rec_path), "--scene", str(scene_path), "--out", str(out), "--max-steps", "400",
                        "--quiet", "--sample", "friction"])
     assert status == 0
+    assert len(prepared) == 1  # the defect problem is prepared once, for the position and the profile
     for name in ("posterior.nc", "corner.png", "profile.png", "criteria.png"):
         assert (out / name).stat().st_size > 1000
     text = capsys.readouterr().out
@@ -120,6 +145,7 @@ def test_cli_invert_end_to_end(rng, tmp_path, capsys):
     assert "--max-data" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_extra_parameters_sampled_and_validated(rng):
     scene = small_scene()
     rec, _ = synthetic_recording(scene, rng)

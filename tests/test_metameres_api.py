@@ -241,7 +241,7 @@ SINE = SinusoidFamily(4e-3).stimulus([1e-5])
     (lambda: GridLoadFamily((8,), 1e-4, young_modulus=E, periodic=False).modes("xx@1mm"),
      "modes: the grid load family is not periodic"),
     (lambda: TractorFamily([], E), "tractor_x: give finite tractor centres"),
-    (lambda: TractorFamily([0.0], -1.0), "young_modulus: must be finite and > 0 Pa"),
+    (lambda: TractorFamily([0.0], -1.0), "young_modulus: Young's modulus must be finite and > 0 Pa"),
     (lambda: TractorFamily([0.0], E, footprint=-1.0), "footprint: must be finite and >= 0 m"),
     (lambda: TractorFamily([0.0], E, limit=0.0), "limit: must be finite and > 0 N/m"),
     (lambda: SinusoidFamily(0.0), "pitch: must be finite and > 0 m"),

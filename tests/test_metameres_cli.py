@@ -55,11 +55,11 @@ def test_display_from_a_json_description(tmp_path, capsys):
     (["--target", "sinusoid:A=1kPa,p=4mm"], "--target A: unit 'kPa' measures pressure"),
     (["--target", "sinusoid:A=1mm,p=4mm", "--display", "nope"], "--display: must be one of wh2008"),
     (["--target", "sinusoid:A=1mm,p=4mm", "--hypothesis", "xx@1mm:gamma"], "hypothesis: unknown shear convention"),
-    (["--target", "sinusoid:A=1mm,p=4mm", "--noise", "0"], "--noise: must be > 0"),
+    (["--target", "sinusoid:A=1mm,p=4mm", "--noise", "0"], "--noise: must be finite and > 0, got 0.0; give a positive value"),
     (["--target", "sinusoid:A=1mm,p=4mm", "--young-modulus", "1mm"], "--young-modulus: unit 'mm' measures length"),
     (["--target", "sinusoid:A=1mm,p=4mm", "--receptors", "1"], "--receptors: must be >= 2"),
     (["--target", "sinusoid:A=1mm,p=4mm", "--scan", "x"], "--scan: expected an integer >= 1"),
-    (["--target", "sinusoid:A=1mm,p=4mm", "--window=-1mm"], "--window: must be > 0"),
+    (["--target", "sinusoid:A=1mm,p=4mm", "--window=-1mm"], "--window: must be finite and > 0 m"),
 ])
 def test_bad_options_are_one_line(argv, match, capsys, tmp_path):
     assert main(["metamer", *argv, "--out", str(tmp_path)]) == 2

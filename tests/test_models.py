@@ -163,6 +163,7 @@ def test_power_identical_predictions_and_a_distinguishable_pair():
     assert pair.p_select(int(pair.trials_for(4.0))) == pytest.approx(0.5, abs=1e-3)
 
 
+@pytest.mark.slow
 def test_power_simulated_agrees_with_asymptotic():
     design = [(GRATING.model_copy(update={"amplitude_m": a, "pitch_m": p}), 40)
               for a in (0.5e-6, 1e-6, 2e-6) for p in (2e-3, 6e-3)]

@@ -36,7 +36,7 @@ def fit_zx(frame):
     return fit_transduction(TransductionModel("zx@1mm"), frame, rng=1, method="emcee", sampler_options=FAST)
 
 
-@pytest.mark.parametrize("method", ["grid", "emcee"])
+@pytest.mark.parametrize("method", ["grid", pytest.param("emcee", marks=pytest.mark.slow)])
 def test_recovery_and_per_trial_terms(frame, fit_zx, method):
     fit = fit_zx if method == "emcee" else fit_transduction(TransductionModel("zx@1mm"), frame)
     assert fit.converged and fit.task == "2ifc" and fit.diagnostics["method"] == method
@@ -57,6 +57,7 @@ def test_recovery_and_per_trial_terms(frame, fit_zx, method):
     np.testing.assert_allclose(lp, lik.log_prior(theta) + lik.total_log_likelihood(theta), rtol=1e-10)
 
 
+@pytest.mark.slow
 def test_identical_models_and_the_grating_tie(frame, fit_zx):
     """xx and zx at one depth read the same peak of every sinusoidal grating (bitwise the same
     statistics), so they predict identical responses and their fits differ by Monte Carlo noise only.

@@ -76,6 +76,7 @@ def test_recovery_with_many_trials():
     assert 0.05 < fit.gof_p < 1.0  # the true model fits: no evidence against it
 
 
+@pytest.mark.slow
 def test_interval_coverage_over_200_seeded_repeats():
     """The 95 % intervals of threshold and width cover the truth in 90 % to 98 % of 200 repeats."""
     x = np.linspace(1.0, 3.0, 6)
@@ -112,6 +113,27 @@ def test_emcee_agrees_with_the_grid():
         assert abs(e.params[name].ci95[0] - g.params[name].ci95[0]) < 0.1 * spread
         assert abs(e.params[name].ci95[1] - g.params[name].ci95[1]) < 0.1 * spread
     assert e.tree["posterior"]["threshold"].shape[1] > 10000
+
+
+def test_emcee_runs_on_the_projects_one_sampler(monkeypatch):
+    """method="emcee" samples through tactilab.inversion.sample_posterior (the one MCMC engine)."""
+    import tactilab.inversion as inv
+
+    calls = []
+    real = inv.sample_posterior
+
+    def spy(model, rng, **options):  # a short run: too short to converge, so the fit warns
+        calls.append(tuple(model.param_names))
+        return real(model, rng, **{**options, "max_steps": 100, "check_every": 100})
+
+    monkeypatch.setattr(inv, "sample_posterior", spy)
+    x = np.linspace(1.0, 3.0, 6)
+    with pytest.warns(UserWarning, match="emcee: did NOT converge after 100 steps"):
+        fit_psychometric(x, n_correct=_counts(4, x, np.full(6, 40)), n_trials=np.full(6, 40), method="emcee", rng=4)
+    assert calls == [("lapse", "threshold", "width")]
+    with pytest.raises(ValueError, match="method: 'emcee' needs at least one free parameter"):
+        fit_psychometric(x, n_correct=_counts(4, x, np.full(6, 40)), n_trials=np.full(6, 40), method="emcee",
+                         fixed={"threshold": 2.0, "width": 1.0, "lapse": 0.02}, rng=4)
 
 
 def test_interval_ends_match_a_finer_grid(monkeypatch):

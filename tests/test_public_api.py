@@ -134,6 +134,7 @@ def test_docs_code_imports_only_from_faces(path):
         assert not _deep_imports(code), f"{path.name} block {i + 1} imports deep modules: {_deep_imports(code)}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", DOCS_WITH_CODE, ids=lambda p: p.name)
 def test_docs_code_runs(path, tmp_path, monkeypatch):
     """A docs file's python blocks, in order, in one fresh namespace, in an empty working folder

@@ -7,10 +7,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from tactilab.data_schemas import parse_hypothesis
+from tactilab.core import COMPONENTS as VOIGT
 from tactilab.data_schemas.hypothesis import RECEPTOR_COMPONENTS, format_depth
 from tactilab.forward import ReceptorHypothesis, invariants
-
-VOIGT = ("xx", "yy", "zz", "yz", "zx", "xy")
 
 
 def test_parse_examples_in_si():

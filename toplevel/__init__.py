@@ -12,10 +12,17 @@ The parts, each with its own face (import from these)::
 
 This package is regular (it has this file) so that a folder named ``tactilab`` in the current
 directory, such as a fresh clone, does not take the installed package's place. It loads no part
-until one is imported.
+until one is imported, and reads ``__version__`` from the installed metadata on first use (so that
+``tactilab --help`` does not pay for it).
 """
 
-from tactilab.core.version import package_version
-
-__version__ = package_version()
 __all__ = ["__version__"]
+
+
+def __getattr__(name: str) -> str:
+    """``__version__``, from the distribution's metadata (:func:`tactilab.core.package_version`)."""
+    if name == "__version__":
+        from tactilab.core.version import package_version
+
+        return package_version()
+    raise AttributeError(f"module 'tactilab' has no attribute {name!r}")

@@ -30,6 +30,7 @@ _EXPORTS = {
     "DisplayFault": "display_faults",
     "MAX_UNACKED_FRACTION": "display_faults",
     "display_fault": "display_faults",
+    "foreign_reason": "display_faults",
     "check_frame_rate": "display_limits",
     "check_frames": "display_limits",
     "limit_violations": "display_limits",

@@ -35,6 +35,7 @@ from typing import Literal
 import numpy as np
 
 from tactilab.core import rules
+from tactilab.core.memory import check_memory
 
 from .display_limits import check_frames, limit_violations, resolve_command
 from .display_strain import strain_gain_line_load
@@ -93,6 +94,10 @@ class PlaybackReport:
     skipped : int
         Frames not sent because their time had passed by more than half a period (the host never
         sends a burst of late frames).
+    foreign : int
+        Frames the device applied that this host did not send, since its previous look at the
+        device's ``frames_applied`` counter (another process drove the display); 0 for a display
+        without such a counter.
     """
 
     frames_sent: int
@@ -108,6 +113,7 @@ class PlaybackReport:
     rejected: int = 0
     stale: int = 0
     skipped: int = 0
+    foreign: int = 0
 
     @property
     def unacknowledged(self) -> int:
@@ -201,6 +207,17 @@ class Display(abc.ABC):
     def zero(self) -> None:
         """Set every output to zero now (the safe state)."""
         self._zero()
+
+    def audit(self) -> int:
+        """Zero the outputs and count the frames the device applied that this host did not send
+        since its previous look (from the device's ``frames_applied`` counter).
+
+        The runner asks after each response, before the trial is scored: a display that another
+        process drove between stimuli, or while the subject answered, faults the trial. A display
+        without such a counter (a simulation) answers 0.
+        """
+        self.zero()
+        return 0
 
     @property
     def stop_requested(self) -> bool:
@@ -367,6 +384,10 @@ def render_drive(description, *, amplitude_m: float, pitch_m: float, speed_m_per
         raise ValueError(f"gain: must be finite, got {gain!r}; give a number or None for the default")
 
     n_frames = max(2, int(round(duration * rate)))
+    # the memory rule, before any frame exists (a few arrays of this size are alive at once)
+    check_memory(4 * 8 * n_frames * int(description.n_tractors), "frame_rate_hz",
+                 f"the drive ({n_frames} frames x {description.n_tractors} tractors)",
+                 f"lower the frame rate (got {rate!r} Hz) or the duration (got {duration!r} s)")
     t = np.arange(n_frames) / rate
     command = resolve_command(description, command)
     x_columns = np.asarray(description.tractor_x_m, dtype=float)

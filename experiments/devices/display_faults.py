@@ -25,14 +25,18 @@ def display_fault(report: PlaybackReport) -> dict[str, Any] | None:
     Returns
     -------
     dict or None
-        ``reason`` (text), ``alarm`` (True for ``stale`` acknowledgements), and the counts
-        ``frames_sent``, ``stale``, ``rejected`` (non-``applied`` acknowledgements) and
-        ``unacknowledged``.
+        ``reason`` (text), ``alarm`` (True for ``stale`` acknowledgements and foreign frames),
+        and the counts ``frames_sent``, ``stale``, ``rejected`` (non-``applied``
+        acknowledgements), ``unacknowledged`` and ``foreign`` (frames the device applied that this
+        host did not send).
     """
     counts = {"frames_sent": report.frames_sent, "stale": report.stale, "rejected": report.rejected,
-              "unacknowledged": report.unacknowledged, "skipped": report.skipped, "stopped": report.stopped}
+              "unacknowledged": report.unacknowledged, "skipped": report.skipped, "stopped": report.stopped,
+              "foreign": report.foreign}
     allowed = int(MAX_UNACKED_FRACTION * report.frames_sent)
-    if report.stale:
+    if report.foreign:
+        reason = foreign_reason(report.foreign)
+    elif report.stale:
         reason = (f"ALARM: {report.stale} of {report.frames_sent} frames were acknowledged 'stale': the "
                   "device had applied newer sequence numbers, so another sender is driving it")
     elif report.rejected:
@@ -46,4 +50,10 @@ def display_fault(report: PlaybackReport) -> dict[str, Any] | None:
                      "could not keep the frame rate)" if report.skipped else ""))
     else:
         return None
-    return {"reason": reason, "alarm": bool(report.stale), **counts}
+    return {"reason": reason, "alarm": bool(report.stale or report.foreign), **counts}
+
+
+def foreign_reason(n: int) -> str:
+    """Why frames another process made the device apply fault the trial."""
+    return (f"ALARM: the device applied {n} frames this host did not send (its frames_applied counter moved "
+            "between this host's frames): another process drove the display")

@@ -18,9 +18,10 @@ It returns a bare display; the runner adds the safety layer.
 from __future__ import annotations
 
 from collections.abc import Callable
-from importlib import metadata
 from pathlib import Path
 
+from tactilab.core import rules
+from tactilab.core.plugins import installed_entry_point
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import check_name
 
@@ -74,9 +75,9 @@ def registered_devices() -> list[str]:
 
 def _opener(name: str) -> Opener:
     if name not in _DEVICES:
-        for entry in metadata.entry_points(group=ENTRY_POINT_GROUP, name=name):
+        entry = installed_entry_point(ENTRY_POINT_GROUP, name)  # never a *.dist-info in the current folder
+        if entry is not None:
             register_device(name, entry.load())
-            break
     if name not in _DEVICES:
         raise ValueError(
             f"spec: device {name!r} is not registered (known: {registered_devices()}); register it with "
@@ -105,8 +106,9 @@ def open_display(spec: str, description: DisplayDescription, *, realtime: bool =
     Raises
     ------
     ValueError
-        If ``spec`` is not a string, its name breaks the naming rule or is not registered, or
-        the opener refuses the target.
+        If ``spec`` is not a string, its name breaks the naming rule or is not registered,
+        ``max_skipped_fraction`` is not a fraction in [0, 1] (NaN included), or the opener
+        refuses the target.
     TypeError
         If the registered opener returns something other than a :class:`Display`.
     """
@@ -114,6 +116,7 @@ def open_display(spec: str, description: DisplayDescription, *, realtime: bool =
         raise ValueError(f"spec: must be a display spec such as 'simulated' or 'udp://HOST:PORT', got {spec!r}")
     name = spec.split("://", 1)[0]
     check_name(name, "spec", "device")
+    max_skipped_fraction = rules.fraction(max_skipped_fraction, "max_skipped_fraction")  # every kind: never ignored
     display = _opener(name)(spec, description, realtime=realtime, max_skipped_fraction=max_skipped_fraction)
     if not isinstance(display, Display):
         raise TypeError(f"opener: the opener registered for {name!r} returned {type(display).__name__}, not a "

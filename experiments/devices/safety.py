@@ -269,6 +269,10 @@ class SafeDisplay(Display):
     def _zero(self) -> None:
         self.display.zero()
 
+    def audit(self) -> int:
+        """The wrapped display's :meth:`~tactilab.experiments.devices.Display.audit`."""
+        return self.display.audit()
+
     def close(self) -> None:
         """Close the wrapped display."""
         self.display.close()

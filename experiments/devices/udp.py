@@ -126,6 +126,12 @@ class UdpDisplay(Display):
         self.last_ack: Message | None = None
         #: The device's watchdog time from its last ARMED, s (None before the first ARM).
         self.device_watchdog_s: float | None = None
+        # the device's frames_applied at this host's last look, and the frames sent since: any
+        # other increase is frames another process made the device apply (FRAME's ACKs carry it)
+        self._applied_base: int | None = None
+        self._own_sent = 0
+        #: frames the device applied that this host did not send, over this display's life
+        self.foreign_frames = 0
 
     @classmethod
     def from_url(cls, url: str, description, **kwargs) -> UdpDisplay:
@@ -229,13 +235,27 @@ class UdpDisplay(Display):
                                f"{self.description.display_id!r} has {self.description.n_tractors}; check the "
                                "device's configuration or give its display description")
 
-    def _close_session(self) -> None:
-        """ZERO (acknowledged: the outputs are zero) and DISARM (best effort) the open session."""
+    def _look(self, counter: int) -> int:
+        """Compare the device's ``frames_applied`` with the frames this host sent since its last
+        look; return (and count) the excess: frames another process made the device apply."""
+        foreign = 0
+        if self._applied_base is not None:
+            foreign = max(0, (counter - self._applied_base) % 2**32 - self._own_sent)
+        self._applied_base, self._own_sent = counter, 0
+        self.foreign_frames += foreign
+        return foreign
+
+    def _close_session(self) -> int:
+        """ZERO (acknowledged: the outputs are zero) and DISARM (best effort) the open session;
+        returns the foreign frames the ZERO's acknowledgement reveals (see :meth:`audit`)."""
+        foreign = 0
         try:
             answer = self._exchange("ZERO", lambda: self._sealed(ZERO))
             if answer.status != STATUS_CODE["zeroed"] and answer.status not in (STATUS_CODE["disarmed"],):
                 raise DisplayError(f"{self.url}: the device refused ZERO ({STATUS.get(answer.status)}); its "
                                    "watchdog zeroes it when frames stop; see docs/udp-frame-format.md")
+            if answer.authentic:  # the counter of a tagged answer only: nobody else can fake it
+                foreign = self._look(answer.frames_applied)
             try:
                 self._exchange("DISARM", lambda: self._sealed(DISARM))
             except DisplayError:
@@ -245,11 +265,18 @@ class UdpDisplay(Display):
                 self._abandon()
             raise
         self._session = None
+        return foreign
 
     def _zero(self) -> None:
+        self.audit()
+
+    def audit(self) -> int:
+        """ARM, ZERO, DISARM; return the frames the device applied that this host did not send
+        since its previous look (the ZERO's acknowledgement carries the device's
+        ``frames_applied``; the first look only sets the baseline)."""
         if self._session is None:
             self._arm()  # ARM zeroes the outputs
-        self._close_session()
+        return self._close_session()
 
     def _play(self, frames: np.ndarray, frame_rate_hz: float) -> PlaybackReport:
         self._arm()  # the device answers, is at rest and pins this socket for the session
@@ -324,6 +351,7 @@ class UdpDisplay(Display):
                     values = (last + np.clip(values.astype(float) - last, -step, step)).astype("<f4")
                 self._sock.send(encode(FRAME, self._next_seq(), time.perf_counter_ns(), values, key=key,
                                        nonce=nonce))
+                self._own_sent += 1
                 sent_ns[sent], frame_of[sent] = time.perf_counter_ns(), k
                 last = values
                 sent += 1
@@ -342,7 +370,7 @@ class UdpDisplay(Display):
             if self._session is not None:
                 self._abandon()  # ZERO and DISARM, no wait: the caller may be unwinding a signal
             raise
-        self._close_session()
+        foreign = self._close_session()
         times = sent_ns[:sent]
         acked = ack_ns[:sent] > 0
         rtt_s = (ack_ns[:sent][acked] - times[acked]) / 1e9
@@ -360,4 +388,5 @@ class UdpDisplay(Display):
             rejected=int(np.count_nonzero((status[:sent] >= 0) & (status[:sent] != STATUS_CODE["applied"]))),
             stale=int(np.count_nonzero(status[:sent] == STATUS_CODE["stale"])),
             skipped=skipped,
+            foreign=foreign,
         )

@@ -292,30 +292,76 @@ def grid_posterior(u, k, n, core, kind, fixed, custom, threshold_pc, width_alpha
     return GridPosterior(u, k, n, core, kind, dict(fixed), custom, threshold_pc, width_alpha).fit()
 
 
-def sample_emcee(post: GridPosterior, rng, n_walkers: int = 32, n_steps: int = 1500, burn: int = 500):
-    """emcee draws of the same posterior (walkers start in a small ball around the MAP)."""
-    import emcee
+class _PosteriorModel:
+    """The grid's posterior as a model of :func:`tactilab.inversion.sample_posterior` (vectorised):
+    the free parameters inside the grid's bounds, psignifit's priors, one likelihood term per block."""
 
-    free = post.free
-    lo = np.array([post.bounds[ax][0] for ax in free])
-    hi = np.array([post.bounds[ax][1] for ax in free])
+    vectorized = True
 
-    def log_prob(v):
-        v = np.atleast_2d(v)
-        q = {ax: np.full(len(v), post.map[ax]) for ax in AXES}
-        q.update({ax: v[:, i] for i, ax in enumerate(free)})
-        inside = np.all((v >= lo) & (v <= hi), axis=1)
-        return np.where(inside, post.log_post(*(q[ax] for ax in AXES)), -np.inf)
+    def __init__(self, post: GridPosterior):
+        self.post = post
+        self.param_names = tuple(post.free)
+        self.lo = np.array([post.bounds[ax][0] for ax in post.free])
+        self.hi = np.array([post.bounds[ax][1] for ax in post.free])
+        # the sd of each marginal (the sampler's scale for its MAP polish and start ball)
+        self.scale = np.array([max(np.diff(post.quantiles(ax, [0.16, 0.84]))[0], 1e-6) for ax in post.free])
+        self.observed = post.k
+        # priors of the fixed parameters are constant: evaluated once (a tied guess follows the lapse)
+        self.varying = [ax for ax in AXES if ax in post.free or (post.tied and ax == "guess")]
+        with np.errstate(divide="ignore"):
+            self.fixed_log_prior = float(sum(_log(post.priors[ax](post.map[ax])) for ax in AXES
+                                             if ax not in self.varying))
 
-    spread = np.array([max(np.diff(post.quantiles(ax, [0.16, 0.84]))[0], 1e-6) for ax in free])
-    x0 = np.array([post.map[ax] for ax in free])
-    start = np.clip(x0 + 0.1 * spread * rng.standard_normal((n_walkers, len(free))), lo, hi)
-    sampler = emcee.EnsembleSampler(n_walkers, len(free), log_prob, vectorize=True)
-    sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
-    sampler.run_mcmc(start, n_steps)
-    chain = sampler.get_chain(discard=burn, flat=True)
-    out = {ax: np.full(len(chain), post.map[ax]) for ax in AXES}
-    out.update({ax: chain[:, i] for i, ax in enumerate(free)})
+    def _params(self, theta):
+        """Parameter values: the free ones per walker (W,), the fixed ones as scalars."""
+        theta = np.atleast_2d(theta)
+        q = {ax: self.post.map[ax] for ax in AXES}
+        q.update({ax: theta[:, i] for i, ax in enumerate(self.param_names)})
+        if self.post.tied:
+            q["guess"] = q["lapse"]
+        return q, theta
+
+    def log_prior(self, theta):
+        q, theta = self._params(theta)
+        inside = np.all((theta >= self.lo) & (theta <= self.hi), axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lp = self.fixed_log_prior + sum(_log(self.post.priors[ax](q[ax])) for ax in self.varying)
+        return np.where(inside & ~np.isnan(lp), lp, -np.inf)
+
+    def log_likelihood(self, theta):
+        """Binomial (or beta-binomial) term of every block, shape (W, n_blocks)."""
+        q, theta = self._params(theta)
+        eta = np.asarray(q["eta"], dtype=float)[..., None] ** 2
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            eta_p = np.where(eta > 1e-9, 1 / np.maximum(eta, 1e-300) - 1, np.inf)
+            psi = np.broadcast_to(self.post.psi(q), (theta.shape[0], self.post.k.size))
+            ll = self.post._ll(psi, self.post.k, self.post.n, eta, eta_p, bool(np.any(eta > 1e-9)))
+        return np.where(np.isnan(ll), -np.inf, ll)
+
+
+def sample_emcee(post: GridPosterior, rng, max_steps: int = 5000, max_draws: int = 32000):
+    """Draws of the same posterior by the project's MCMC engine, :func:`tactilab.inversion.sample_posterior`:
+    four emcee ensembles started at the grid's MAP, run until R-hat, ESS and the autocorrelation
+    checks pass (or ``max_steps``; then a UserWarning says which checks failed)."""
+    from tactilab.inversion import sample_posterior
+
+    if not post.free:
+        raise ValueError("method: 'emcee' needs at least one free parameter, but every one is fixed; "
+                         "use method='grid'")
+    model = _PosteriorModel(post)
+    start = np.array([post.map[ax] for ax in post.free])
+    # tau_factor 20: the kept chain spans 20 autocorrelation times (the fixed run this replaced kept
+    # about 21); R-hat and ESS >= 400 are checked as for every posterior
+    tree = sample_posterior(model, rng, start=start, max_steps=max_steps, check_every=500, tau_factor=20.0,
+                            max_draws=max_draws, info_tol=None)
+    if not tree.attrs["converged"]:
+        import warnings
+
+        warnings.warn(f"emcee: {tree.attrs['message']}", UserWarning, stacklevel=3)
+    posterior = tree["posterior"]
+    n_draws = posterior[post.free[0]].values.size
+    out = {ax: np.full(n_draws, post.map[ax]) for ax in AXES}
+    out.update({ax: posterior[ax].values.ravel() for ax in post.free})
     if post.tied:
         out["guess"] = out["lapse"].copy()
     return out

@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 from scipy.special import ndtr, ndtri
 
+from tactilab.inversion import Beta1, LogNormal, LogUniform
+
 TASKS = ("2ifc", "yes_no")
 
 
@@ -200,53 +202,6 @@ class TransductionLikelihood:
         return out
 
 
-class LogUniform:
-    """Log-uniform density on [lo, hi] (scipy.stats-like ``logpdf`` and ``rvs``, vectorised)."""
-
-    def __init__(self, lo, hi):
-        self.lo, self.hi = float(lo), float(hi)
-        self._c = -math.log(math.log(self.hi / self.lo))
-
-    def logpdf(self, x):
-        x = np.asarray(x, dtype=float)
-        ok = (x >= self.lo) & (x <= self.hi)
-        return np.where(ok, self._c - np.log(np.where(ok, x, 1.0)), -np.inf)
-
-    def rvs(self, size, random_state):
-        return np.exp(random_state.uniform(math.log(self.lo), math.log(self.hi), size))
-
-
-class LogNormal:
-    """Lognormal density with median 1 and log-sd ``s``."""
-
-    def __init__(self, s):
-        self.s = float(s)
-
-    def logpdf(self, x):
-        x = np.asarray(x, dtype=float)
-        ok = x > 0
-        lx = np.log(np.where(ok, x, 1.0))
-        return np.where(ok, -lx - 0.5 * (lx / self.s) ** 2 - math.log(self.s * math.sqrt(2 * math.pi)), -np.inf)
-
-    def rvs(self, size, random_state):
-        return np.exp(self.s * random_state.standard_normal(size))
-
-
-class Beta1:
-    """Beta(1, b) density scaled to [0, scale]: (b / scale) (1 - x / scale)^(b - 1)."""
-
-    def __init__(self, b, scale):
-        self.b, self.scale = float(b), float(scale)
-
-    def logpdf(self, x):
-        u = np.asarray(x, dtype=float) / self.scale
-        ok = (u >= 0) & (u < 1)
-        return np.where(ok, math.log(self.b / self.scale) + (self.b - 1) * np.log1p(-np.where(ok, u, 0.0)), -np.inf)
-
-    def rvs(self, size, random_state):
-        return self.scale * (1 - random_state.random(size) ** (1 / self.b))
-
-
 def default_priors(data: dict, overrides: dict | None):
     """Log-uniform threshold over 1/100 to 100x the data's statistics, lognormal exponent
     (median 1, sd of log 0.5), Beta(1, 10) lapse on [0, 0.5], uniform false-alarm rate."""
@@ -255,7 +210,7 @@ def default_priors(data: dict, overrides: dict | None):
     if pos.size == 0:
         raise ValueError("trials: every stimulus has statistic 0 under this model (it reads nothing the stimuli "
                          "change); pick another hypothesis or check the stimuli")
-    priors = {"threshold_strain": LogUniform(pos.min() / 100, pos.max() * 100), "exponent": LogNormal(0.5),
+    priors = {"threshold_strain": LogUniform(pos.min() / 100, pos.max() * 100), "exponent": LogNormal(1.0, 0.5),
               "lapse": Beta1(10.0, 0.5), "false_alarm": Beta1(1.0, 1.0)}
     for name, dist in (overrides or {}).items():
         if name not in priors or not callable(getattr(dist, "logpdf", None)):

@@ -36,13 +36,15 @@ _CHUNK = 4_000_000  # grid values per evaluation block (bounded memory)
 
 
 def _support(dist, log: bool):
-    """(lo, hi) of a prior on the grid's axis (log of the parameter where ``log``)."""
-    from ._transduction_data import Beta1, LogNormal, LogUniform
+    """(lo, hi) of a prior on the grid's axis (log of the parameter where ``log``): the support of a
+    bounded prior, +-6 log-sd around a lognormal's median, else the 1e-7 and 1 - 1e-7 quantiles of a
+    scipy.stats frozen distribution."""
+    from tactilab.inversion import Beta1, LogNormal, LogUniform
 
     if isinstance(dist, LogUniform):
-        lo, hi = dist.lo, dist.hi
+        lo, hi = dist.low, dist.high
     elif isinstance(dist, LogNormal):
-        lo, hi = math.exp(-6 * dist.s), math.exp(6 * dist.s)
+        lo, hi = dist.median * math.exp(-6 * dist.sigma_log), dist.median * math.exp(6 * dist.sigma_log)
     elif isinstance(dist, Beta1):
         lo, hi = 0.0, dist.scale
     else:  # a scipy.stats frozen distribution

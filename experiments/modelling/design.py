@@ -48,10 +48,11 @@ import numpy as np
 
 from tactilab.data_schemas.design_config import ModelDiscriminationConfig
 from tactilab.data_schemas.experiment import Stimulus
+from tactilab.inversion import Beta1, LogNormal
 
 from ..procedures import PlannedStimulus, Procedure, register_procedure
 from ._design_math import _entropy, information_gain, metameric_groups
-from ._transduction_data import Beta1, LogNormal, p_correct_table
+from ._transduction_data import p_correct_table
 from .models import TransductionModel
 
 __all__ = ["ModelDiscrimination", "ModelDiscriminationConfig", "UTILITIES", "information_gain", "metameric_groups",
@@ -204,7 +205,8 @@ class ModelDiscrimination(Procedure):
         axes = [rel, expo, np.array(_LAPSES)]
         mesh = np.meshgrid(*axes, indexing="ij")
         grid = np.stack([m.ravel() for m in mesh], axis=1)  # (G, P): threshold_strain, exponent, lapse[, fa]
-        dists = {"exponent": priors.get("exponent", LogNormal(0.5)), "lapse": priors.get("lapse", Beta1(10.0, 0.5))}
+        dists = {"exponent": priors.get("exponent", LogNormal(1.0, 0.5)),
+                 "lapse": priors.get("lapse", Beta1(10.0, 0.5))}
         # log-spaced axes: a density is weighted by x (d x = x d log x); lapse values as point masses
         log_w = np.asarray(dists["exponent"].logpdf(grid[:, 1]), float) + np.log(grid[:, 1])
         log_w = log_w + np.asarray(dists["lapse"].logpdf(grid[:, 2]), float)

@@ -6,7 +6,8 @@ F(threshold) = ``threshold_pc`` and ``width`` the distance between F = alpha and
 with ``C = ppf(1 - alpha) - ppf(alpha)`` for the standard core of each name in :data:`SIGMOIDS`;
 ``weibull`` is ``gumbel`` on natural-log levels. The default priors and the two-pass adaptive
 grid are psignifit 4's (docs/model_comparison.md lists them); ``method="emcee"`` samples the
-same posterior instead. Levels may be in any unit; every threshold and interval comes back in it.
+same posterior instead, with the project's one MCMC engine (``tactilab.inversion.sample_posterior``).
+Levels may be in any unit; every threshold and interval comes back in it.
 """
 
 from __future__ import annotations

@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
-from importlib import metadata
 from typing import Any
 
+from tactilab.core.plugins import installed_entry_point
 from tactilab.data_schemas.experiment import check_name, register_procedure_config
 
 __all__ = ["register_likelihood", "register_procedure", "get_likelihood", "registered_likelihoods",
@@ -99,9 +99,9 @@ def get_likelihood(name: str) -> Likelihood:
     """
     check_name(name, "likelihood", "likelihood")
     if name not in _LIKELIHOODS:
-        for entry in metadata.entry_points(group=ENTRY_POINT_GROUP, name=name):
+        entry = installed_entry_point(ENTRY_POINT_GROUP, name)  # never a *.dist-info in the current folder
+        if entry is not None:
             register_likelihood(name, entry.load())
-            break
     if name not in _LIKELIHOODS:
         raise UnregisteredError(
             f"likelihood: {name!r} is not registered in this process; register it from Python "

@@ -19,12 +19,14 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
 from tactilab.core import package_version
+from tactilab.core.outputs import output_path, write_atomic
 from tactilab.data_schemas.experiment_records import INTERVAL_FIELDS, TrialRecord, trials_to_dataframe
 
 #: the BIDS version the files follow
@@ -132,14 +134,17 @@ def write_dataset(meta: dict[str, Any], trials: list[TrialRecord], out: Path, *,
     """
     task = meta["protocol"]["name"]
     subject, session = meta["subject"], meta["session"]
-    folder = out / f"sub-{subject}" / f"ses-{session}" / "beh"
+    folder = output_path(out, f"sub-{subject}", f"ses-{session}", "beh", option="out")
     stem = f"sub-{subject}_ses-{session}_task-{task}"
-    tsv, sidecar = folder / f"{stem}_beh.tsv", folder / f"{stem}_beh.json"
-    if not overwrite and (tsv.exists() or sidecar.exists()):
+    tsv = output_path(out, f"sub-{subject}", f"ses-{session}", "beh", f"{stem}_beh.tsv", option="out")
+    sidecar = output_path(out, f"sub-{subject}", f"ses-{session}", "beh", f"{stem}_beh.json", option="out")
+    if not overwrite and (os.path.lexists(tsv) or os.path.lexists(sidecar)):
         raise ValueError(f"out: {tsv} already exists; export to another folder, or add --force to replace it")
     folder.mkdir(parents=True, exist_ok=True)
     written = [tsv, sidecar]
-    beh_table(trials).to_csv(tsv, sep="\t", index=False, na_rep="n/a", quoting=csv.QUOTE_NONE)
+    table = beh_table(trials)
+    write_atomic(tsv, lambda p: table.to_csv(p, sep="\t", index=False, na_rep="n/a", quoting=csv.QUOTE_NONE),
+                 option="out")
     labels = _labels(meta)
     description = {
         "TaskName": task,
@@ -154,10 +159,10 @@ def write_dataset(meta: dict[str, Any], trials: list[TrialRecord], out: Path, *,
         "Protocol": meta["protocol"],
         **describe_columns(trials, labels),
     }
-    sidecar.write_text(json.dumps(description, indent=2))
-    dataset = out / "dataset_description.json"
-    if not dataset.exists():
-        dataset.write_text(json.dumps({
+    write_atomic(sidecar, lambda p: p.write_text(json.dumps(description, indent=2)), option="out")
+    dataset = output_path(out, "dataset_description.json", option="out")
+    if not os.path.lexists(dataset):
+        _write_new(dataset, json.dumps({
             "Name": f"tactilab psychophysics: task {task}",
             "BIDSVersion": BIDS_VERSION,
             "DatasetType": "raw",
@@ -166,15 +171,20 @@ def write_dataset(meta: dict[str, Any], trials: list[TrialRecord], out: Path, *,
         }, indent=2))
         written.append(dataset)
     written += _participants(out, f"sub-{subject}")
-    readme = out / "README"
-    if not readme.exists():
-        readme.write_text(
+    readme = output_path(out, "README", option="out")
+    if not os.path.lexists(readme):
+        _write_new(readme,
             "Psychophysics sessions recorded and exported by tactilab (tactile displays).\n\n"
             "One *_beh.tsv per session, one row per completed trial; its *_beh.json sidecar describes\n"
             "every column. A dimensional column carries its SI unit in its name (rt_s, interval1_amplitude_m)\n"
             "and in the sidecar's Units. Participant ids are pseudonymous codes.\n")
         written.append(readme)
     return written
+
+
+def _write_new(path: Path, text: str) -> None:
+    """Write a dataset-level file whole (through a temporary file; never through a symlink)."""
+    write_atomic(path, lambda p: p.write_text(text), option="out")
 
 
 def _labels(meta: dict[str, Any]) -> list[str]:
@@ -185,9 +195,10 @@ def _labels(meta: dict[str, Any]) -> list[str]:
 
 def _participants(out: Path, participant: str) -> list[Path]:
     """Add ``participant`` to participants.tsv (created with its .json when missing)."""
-    tsv, sidecar = out / "participants.tsv", out / "participants.json"
+    tsv = output_path(out, "participants.tsv", option="out")
+    sidecar = output_path(out, "participants.json", option="out")
     written = []
-    if tsv.exists():
+    if os.path.lexists(tsv):
         table = pd.read_csv(tsv, sep="\t", dtype=str, keep_default_na=False)
         if "participant_id" not in table.columns:
             raise ValueError(f"out: {tsv} has no participant_id column; export to a new folder")
@@ -196,10 +207,10 @@ def _participants(out: Path, participant: str) -> list[Path]:
     if participant not in set(table["participant_id"]):
         row = {c: "n/a" for c in table.columns} | {"participant_id": participant}
         table = pd.concat([table, pd.DataFrame([row])], ignore_index=True).sort_values("participant_id")
-        table.to_csv(tsv, sep="\t", index=False, na_rep="n/a")
+        write_atomic(tsv, lambda p: table.to_csv(p, sep="\t", index=False, na_rep="n/a"), option="out")
         written.append(tsv)
-    if not sidecar.exists():
-        sidecar.write_text(json.dumps({"participant_id": {
+    if not os.path.lexists(sidecar):
+        _write_new(sidecar, json.dumps({"participant_id": {
             "Description": "Pseudonymous participant code (letters and digits; never a name or a birth date)"}},
             indent=2))
         written.append(sidecar)

@@ -13,10 +13,12 @@ SQLite trial records use the same column names, a dimensional one with its SI un
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pandas as pd
 
+from tactilab.core.outputs import output_path, write_atomic
 from tactilab.data_schemas.experiment_records import (
     TEXT_COLUMNS, Session, TrialRecord, trials_from_dataframe, trials_to_dataframe)
 
@@ -78,8 +80,10 @@ def export_session(path: str | Path, out: str | Path, format: str = "bids", *, o
     Raises
     ------
     ValueError
-        If ``format`` is unknown, Parquet is asked for without pyarrow installed, or a file to
-        write exists and ``overwrite`` is False.
+        If ``format`` is unknown, Parquet is asked for without pyarrow installed, a file to
+        write exists and ``overwrite`` is False, a file to write is a symlink (dangling or not),
+        or a path would resolve outside ``out``. Files are written whole (a temporary file and
+        ``os.replace``); the session's subject and session labels are re-validated on reading.
     """
     if format not in FORMATS:
         raise ValueError(f"format: must be one of {FORMATS}, got {format!r}")
@@ -103,14 +107,15 @@ def export_session(path: str | Path, out: str | Path, format: str = "bids", *, o
         return write_dataset(meta, trials, out, overwrite=overwrite)
     stem = f"sub-{meta['subject']}_ses-{meta['session']}_task-{meta['protocol']['name']}"
     suffix = {"json": "session.json", "csv": "trials.csv", "parquet": "trials.parquet"}[format]
-    target = out / f"{stem}_{suffix}"
-    if target.exists() and not overwrite:
+    target = output_path(out, f"{stem}_{suffix}")  # inside `out`, and no symlink
+    if os.path.lexists(target) and not overwrite:
         raise ValueError(f"out: {target} already exists; export to another folder, or add --force to replace it")
     out.mkdir(parents=True, exist_ok=True)
     if format == "json":
-        target.write_text(session_record(path).model_dump_json(indent=1))
+        text = session_record(path).model_dump_json(indent=1)
+        write_atomic(target, lambda p: p.write_text(text), option="out")
     elif format == "csv":
-        trials_to_dataframe(trials).to_csv(target, index=False)
+        write_atomic(target, lambda p: trials_to_dataframe(trials).to_csv(p, index=False), option="out")
     else:
-        trials_to_dataframe(trials).to_parquet(target, index=False)
+        write_atomic(target, lambda p: trials_to_dataframe(trials).to_parquet(p, index=False), option="out")
     return [target]

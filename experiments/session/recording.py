@@ -19,23 +19,36 @@ released by the kernel even when the process is killed (no lock file to delete o
 and records itself in the ``owner`` table (a random token, its pid and host, a heartbeat). Every
 commit checks, inside its own transaction, that the token is still its own and moves the
 heartbeat; a runner that finds another owner stops (:class:`SessionTakenOverError`) before the
-next stimulus. When a runner closes the session it checkpoints the log into the database and
-leaves WAL mode, so a finished or stopped session is ONE self-contained file (no ``-wal`` or
-``-shm``), readable from read-only media.
+next stimulus.
+
+Journal: a session stays in WAL mode for its whole life (no journal-mode switch on open, so a
+kill while ``resume`` opens the file leaves no rollback journal). Closing checkpoints the log
+into the database and removes ``-wal`` and ``-shm``, so a finished or stopped session is ONE
+self-contained file; a close that cannot (a reader holding a read transaction, a kill inside
+the close) is reported with a :class:`NotSelfContainedWarning`, never silently. Readers finish
+such a file: :class:`SessionLog` opens the session read-write with ``query_only`` when its folder
+is writable, so a hot journal (left by a killed older version) is rolled back and the last
+reader's close checkpoints the log; from a read-only folder it reads a self-contained file as
+immutable and refuses one that is not with the command that finishes it
+(:func:`file_state` says which).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import socket
 import sqlite3
 import time
 import uuid
+import warnings
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from tactilab.core.outputs import printable
+from tactilab.data_schemas.experiment_procedures import check_label
 from tactilab.data_schemas.experiment_records import TrialRecord
 
 #: Metadata every session has and every reader (status, export, resume) relies on.
@@ -54,6 +67,72 @@ CREATE TABLE IF NOT EXISTS owner (
 EVENT_KINDS = ("session_started", "session_resumed", "trial_planned", "stimulus_presented",
                "response", "trial_complete", "safety_intervention", "session_stopped",
                "session_failed", "session_complete", "display_fault")
+
+
+#: the tables a session file holds (``sqlite_sequence`` is SQLite's own, for AUTOINCREMENT)
+TABLES = ("meta", "events", "trials", "owner", "sqlite_sequence")
+
+
+def check_schema(connection: sqlite3.Connection, path: Path) -> None:
+    """Refuse a session file that holds anything but its tables and their automatic indexes.
+
+    A trigger or a view is SQL that runs when the runner writes or a reader reads (a trigger
+    could rewrite a scored trial on resume), so such a file is refused before any statement
+    touches its tables.
+
+    Raises
+    ------
+    ValueError
+        Naming the first foreign object (its type and name) and the fix.
+    """
+    rows = connection.execute("SELECT type, name, tbl_name FROM sqlite_master").fetchall()
+    for kind, name, table in rows:
+        expected = (kind == "table" and name in TABLES) or (
+            kind == "index" and str(name).startswith("sqlite_autoindex_") and table in TABLES)
+        if not expected:
+            raise ValueError(
+                f"session: {printable(str(path))} holds a {printable(str(kind))} {printable(str(name))[:80]!r}, "
+                f"which no tactilab session has (only the tables {', '.join(TABLES[:4])}): it is not a tactilab "
+                "session, or it was edited; give the .sqlite file that `experiment run` printed, or restore it "
+                "from a copy")
+
+
+class NotSelfContainedWarning(UserWarning):
+    """A session's close could not fold its log into the ``.sqlite`` file (it stays safe)."""
+
+
+def _sidecar(path: Path, suffix: str) -> Path:
+    return path.with_name(path.name + suffix)
+
+
+def _has_content(path: Path) -> bool:
+    try:
+        return path.stat().st_size > 0
+    except OSError:
+        return False
+
+
+def folder_writable(folder: Path) -> bool:
+    """Whether a session's folder accepts new files (the -wal and -shm a WAL reader needs)."""
+    return os.access(folder, os.W_OK | os.X_OK)
+
+
+def file_state(path: str | Path) -> dict[str, Any]:
+    """Whether a session is one self-contained file, and if not, what holds the rest.
+
+    Returns
+    -------
+    dict
+        ``self_contained`` (bool: no ``-wal`` with content and no hot ``-journal``),
+        ``wal_bytes`` (size of ``<file>-wal``, 0 when absent), ``hot_journal`` (bool) and
+        ``folder_writable`` (bool).
+    """
+    path = Path(path)
+    wal = _sidecar(path, "-wal")
+    wal_bytes = wal.stat().st_size if _has_content(wal) else 0
+    hot = _has_content(_sidecar(path, "-journal"))
+    return {"self_contained": wal_bytes == 0 and not hot, "wal_bytes": wal_bytes, "hot_journal": hot,
+            "folder_writable": folder_writable(path.parent)}
 
 
 class RecordingError(OSError):
@@ -105,12 +184,12 @@ class _FileLock:
 def _owner_text(path: Path) -> str:
     """``pid N on HOST since T, heartbeat H`` from the session's owner row (best effort)."""
     try:
-        connection = sqlite3.connect(f"file:{path}?mode=ro", uri=True, timeout=0.5)
+        connection = sqlite3.connect(_reader_uri(path), uri=True, timeout=0.5)
         try:
             row = connection.execute("SELECT pid, host, since_utc, heartbeat_utc FROM owner").fetchone()
         finally:
             connection.close()
-    except sqlite3.Error:
+    except (sqlite3.Error, ValueError):
         row = None
     if row is None:
         return "another process"
@@ -140,7 +219,15 @@ class Recorder:
     def _connect(path: Path, lock: _FileLock) -> sqlite3.Connection:
         try:
             connection = sqlite3.connect(path, isolation_level=None, timeout=5.0)
-            mode = connection.execute("PRAGMA journal_mode=WAL").fetchone()[0]
+            try:
+                check_schema(connection, path)  # before any statement writes: no trigger ever fires
+            except ValueError:
+                connection.close()
+                lock.release()
+                raise
+            mode = connection.execute("PRAGMA journal_mode").fetchone()[0]
+            if mode.lower() != "wal":  # a session closed by an older version (rollback journal at rest)
+                mode = connection.execute("PRAGMA journal_mode=WAL").fetchone()[0]
             connection.execute("PRAGMA synchronous=FULL")
             connection.executescript(SCHEMA)
         except sqlite3.Error as exc:
@@ -269,24 +356,48 @@ class Recorder:
         return self.log_events(events, extra=[("INSERT INTO trials VALUES (?, ?)",
                                                (record.trial_index, record.model_dump_json()))])
 
-    def close(self) -> None:
-        """Checkpoint the log into the database file, leave WAL mode, close, release the lock.
+    def close(self) -> bool:
+        """Checkpoint the log into the database file, close, release the lock.
 
-        The session is then one self-contained file (no ``-wal``/``-shm``), readable from
-        read-only media; a resume switches it back to WAL. If a reader holds the file open the
-        switch is skipped (the data are safe either way).
+        The session stays in WAL mode; once the log is checkpointed and this was the last
+        connection, SQLite removes ``-wal`` and ``-shm`` and the session is one self-contained
+        file. When that fails (a reader holds a read transaction, the disk fails) the data are
+        still safe, and the failure is reported with a :class:`NotSelfContainedWarning` naming
+        the command that finishes the file (``tactilab experiment status``).
+
+        Returns
+        -------
+        bool
+            Whether the session is now one self-contained file.
         """
+        problem = None
         try:
-            for _ in range(10):  # a reader (status, export) may hold the file for a moment
+            with contextlib.suppress(sqlite3.Error):  # a held reader: give up in ~0.4 s, not 10 x 5 s
+                self.connection.execute("PRAGMA busy_timeout = 20")
+            for _ in range(10):  # a reader (status, export) may hold a read transaction for a moment
                 try:
-                    self.connection.execute("PRAGMA wal_checkpoint(TRUNCATE)")
-                    self.connection.execute("PRAGMA journal_mode=DELETE")
+                    busy = self.connection.execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchone()[0]
+                except sqlite3.Error as exc:
+                    problem, busy = " ".join(str(exc).split()), 1
+                if not busy:
+                    problem = None
                     break
-                except sqlite3.Error:
-                    time.sleep(0.02)
-            self.connection.close()
+                problem = problem or "a reader held the log"
+                time.sleep(0.02)
+            try:
+                self.connection.close()
+            except sqlite3.Error as exc:
+                problem = " ".join(str(exc).split())
         finally:
             self._lock.release()
+        state = file_state(self.path)
+        if not state["self_contained"]:
+            warnings.warn(
+                f"session: {self.path} is not yet one self-contained file ({problem or 'the log was not folded in'}; "
+                f"{state['wal_bytes']} bytes in {self.path.name}-wal); its data are safe; run `tactilab experiment "
+                f"status {self.path}` once no other process reads it to finish it, and copy it only then",
+                NotSelfContainedWarning, stacklevel=2)
+        return state["self_contained"]
 
 
 def _json_default(value: Any) -> Any:
@@ -308,15 +419,43 @@ def _fsync_folder(folder: Path) -> None:
         os.close(fd)
 
 
+def _reader_uri(path: Path) -> str:
+    """How a reader opens ``path``: read-write (queries only) from a writable folder, so that it
+    rolls back a hot journal and, as the last connection, folds a leftover log into the file;
+    immutable from a read-only folder when the file is self-contained.
+
+    Raises
+    ------
+    ValueError
+        From a read-only folder, when a hot journal or a log holds part of the session.
+    """
+    state = file_state(path)
+    if state["folder_writable"]:
+        return f"file:{path}?mode=rw"
+    if state["hot_journal"]:
+        raise ValueError(
+            f"session: {path} has a hot journal ({path.name}-journal, left by a killed process) in a read-only "
+            f"folder; its data are intact: copy the .sqlite and its -journal to a writable folder and run "
+            f"`tactilab experiment status COPY` (a read-write open recovers it)")
+    if state["wal_bytes"]:
+        raise ValueError(
+            f"session: {path} is not self-contained ({state['wal_bytes']} bytes of its log are in "
+            f"{path.name}-wal) and its folder is read-only; copy the .sqlite with its -wal and -shm to a "
+            f"writable folder and run `tactilab experiment status COPY` to fold the log in")
+    return f"file:{path}?immutable=1"
+
+
 class SessionLog:
-    """Read-only view of a session file (safe while a runner writes: WAL readers do not block)."""
+    """Query-only view of a session file (safe while a runner writes: WAL readers do not block)."""
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         if not self.path.is_file():
             raise FileNotFoundError(f"session: no session file {self.path}; give the .sqlite file that `experiment run` printed")
         try:
-            self.connection = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True)
+            self.connection = sqlite3.connect(_reader_uri(self.path), uri=True)
+            check_schema(self.connection, self.path)
+            self.connection.execute("PRAGMA query_only=1")  # reads only, whatever the file holds
             self.connection.execute("SELECT count(*) FROM events").fetchone()
         except sqlite3.Error as exc:
             raise ValueError(f"session: {self.path} is not a tactilab session database ({exc}); give the .sqlite "
@@ -350,6 +489,16 @@ class SessionLog:
         if missing:  # status, export and resume all read these: one line here, never a KeyError there
             raise ValueError(f"session: {self.path} lacks the metadata {missing}; it is not a complete tactilab "
                              "session (was it edited or cut short while being created?); restore it from a copy")
+        # re-validated on every read: these become file names (exports) and printed lines (status)
+        protocol = meta["protocol"]
+        labels = {"subject": meta["subject"], "session": meta["session"],
+                  "protocol.name": protocol.get("name") if isinstance(protocol, dict) else None}
+        for key, value in labels.items():
+            try:
+                check_label(value, key)
+            except ValueError as exc:
+                raise ValueError(f"session: {printable(str(self.path))} holds an invalid {exc}; the file was edited, "
+                                 "restore it from a copy") from None
         return meta
 
     def events(self, kind: str | None = None) -> list[dict[str, Any]]:

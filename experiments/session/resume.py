@@ -20,9 +20,10 @@ from tactilab.data_schemas.experiment_records import TrialRecord
 
 from ..devices import Display, description_differences, description_record
 from ..procedures import Procedure, make_procedure, outcome_of, replay
-from .recording import Recorder, SessionLog
+from .recording import Recorder, SessionLog, file_state
 from .responses import ResponseSource
-from .runner import Runner, RunResult, trial_generators
+from .runner import Runner, RunResult, stopped, trial_generators
+from .signals import signals_held, stop_signals
 
 
 @dataclass
@@ -165,30 +166,43 @@ def resume_session(path: str | Path, display: Display, responses: ResponseSource
     ValueError
         If the session is already complete, or its log does not match its protocol.
     """
-    recorder = Recorder.open(path)
-    try:
-        log = SessionLog(path)
+    recorder = state = None
+    with stop_signals():  # a stop while the file is opened or replayed is a clean stop too
         try:
-            state = replay_log(log)
+            with signals_held():  # opened and locked whole; a stop that came meanwhile is delivered after
+                recorder = Recorder.open(path)
+            log = SessionLog(path)
+            try:
+                state = replay_log(log)
+            finally:
+                log.close()
+            if any(e["kind"] == "session_complete" for e in state.events):
+                raise ValueError(f"session: {path} is complete; nothing to resume (export it instead)")
+            check_same_display(state.meta, display, path)
+            recorded = state.meta.get("responses_config")
+            if responses.name == state.meta.get("responses") and recorded and dict(responses.config) != recorded:
+                raise ValueError(
+                    f"responses: the session was recorded with {responses.name} responses configured as "
+                    f"{recorded}, got {dict(responses.config)}; resume with the same configuration"
+                )
+            display.zero()  # the device answers and is at rest; the host's look at its frames_applied starts here
+            recorder.log("session_resumed", payload={
+                "completed": len(state.trials), "repeating": sorted(state.attempts)})
+            runner = Runner(state.protocol, recorder, display, responses, subject=state.meta["subject"],
+                            session=state.meta["session"], procedure=state.procedure,
+                            realtime=realtime, progress=progress)
+            return runner.run(state.attempts)
+        except KeyboardInterrupt as exc:
+            if recorder is None:
+                raise
+            if state is None:  # stopped while replaying: the completed trials are counted, not replayed
+                stopped(recorder, exc, None)
+                return RunResult(recorder.path, "interrupted", session_header(path).n_completed, {})
+            return stopped(recorder, exc, state.procedure)
         finally:
-            log.close()
-        if any(e["kind"] == "session_complete" for e in state.events):
-            raise ValueError(f"session: {path} is complete; nothing to resume (export it instead)")
-        check_same_display(state.meta, display, path)
-        recorded = state.meta.get("responses_config")
-        if responses.name == state.meta.get("responses") and recorded and dict(responses.config) != recorded:
-            raise ValueError(
-                f"responses: the session was recorded with {responses.name} responses configured as "
-                f"{recorded}, got {dict(responses.config)}; resume with the same configuration"
-            )
-        recorder.log("session_resumed", payload={
-            "completed": len(state.trials), "repeating": sorted(state.attempts)})
-        runner = Runner(state.protocol, recorder, display, responses, subject=state.meta["subject"],
-                        session=state.meta["session"], procedure=state.procedure,
-                        realtime=realtime, progress=progress)
-        return runner.run(state.attempts)
-    finally:
-        recorder.close()
+            if recorder is not None:
+                with signals_held():
+                    recorder.close()
 
 
 def check_same_display(meta: dict[str, Any], display: Display, path: str | Path) -> None:
@@ -217,7 +231,15 @@ def check_same_display(meta: dict[str, Any], display: Display, path: str | Path)
 
 
 def session_status(path: str | Path) -> dict[str, Any]:
-    """Summary of a session: who, what, how far, the current estimate, and whether it is running."""
+    """Summary of a session: who, what, how far, the current estimate, whether it is running, and
+    whether it is one self-contained file (``self_contained``; reading it from a writable folder
+    folds a leftover log into it, see :func:`~.recording.file_state`)."""
+    status = _status(path)
+    status["self_contained"] = file_state(path)["self_contained"]  # after the reader closed
+    return status
+
+
+def _status(path: str | Path) -> dict[str, Any]:
     log = SessionLog(path)
     try:
         state = replay_log(log)

@@ -29,8 +29,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import signal
-import threading
 import time
 import uuid
 from dataclasses import dataclass
@@ -44,11 +42,12 @@ from tactilab.core import package_version  # defined once in core
 from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
 from tactilab.data_schemas.experiment_records import TrialRecord
 
-from ..devices import (STOP_SIGNALS, Display, DisplayError, DisplayFault, SafeDisplay, check_frame_rate,
-                       description_record, display_fault, render_drive)
+from ..devices import (Display, DisplayError, DisplayFault, SafeDisplay, check_frame_rate,
+                       description_record, display_fault, foreign_reason, render_drive)
 from ..procedures import PlannedLevel, Procedure, make_procedure, plan_trial, score
 from .recording import Recorder, RecordingError, utc_now
 from .responses import ResponseSource
+from .signals import signals_held, stop_signals
 
 
 def trial_generators(seed: int, trial_index: int) -> tuple[np.random.Generator, np.random.Generator]:
@@ -126,7 +125,8 @@ class Runner:
         ``attempts`` maps an interrupted trial's index to ``(attempt, repeated)`` (from resume).
         """
         attempts = attempts or {}
-        previous_handlers = _stop_signals_as_interrupt()
+        stops = contextlib.ExitStack()
+        stops.enter_context(stop_signals())
         if self.progress:
             from tqdm.auto import tqdm
 
@@ -161,8 +161,7 @@ class Runner:
             raise
         finally:
             bar.close()
-            for sig, previous in previous_handlers.items():
-                signal.signal(sig, signal.SIG_DFL if previous is None else previous)
+            stops.close()
 
     def _stop(self, kind: str | None, reason: str) -> None:
         """Zero the display, then log why the run stopped (when the log itself still works)."""
@@ -222,6 +221,16 @@ class Runner:
                 )
             reports.append(report)
         response = self.responses.collect(plan)
+        # before scoring: did anything else drive the display during this trial (between its
+        # stimuli, or while the subject answered)? Its frames_applied counter says so
+        foreign = self.display.audit()
+        if foreign:
+            self.recorder.log("display_fault", index, attempt, {
+                "reason": foreign_reason(foreign), "alarm": True, "foreign": foreign, "interval": None})
+            raise DisplayFault(
+                f"display fault in trial {index}: {foreign_reason(foreign)}. The display is zeroed and the "
+                f"trial was not scored; find the other process, then resume {self.recorder.path} (the trial "
+                "is repeated)")
         correct, outcome = score(self.protocol, plan, response.label)
         response_payload = {"response": response.label, "rt_s": response.rt_s,
                             "monotonic_ns": response.monotonic_ns}
@@ -243,18 +252,6 @@ class Runner:
         self.recorder.complete_trial(record, {"outcome": outcome, "correct": correct}, response_payload)
         self._current = (None, None)
         return record
-
-
-def _stop_signals_as_interrupt() -> dict:
-    """While a session runs, SIGTERM, SIGHUP, SIGQUIT and SIGUSR1 stop it like Ctrl-C: display
-    zeroed, stop logged (with the signal's name), lock released. Returns the previous handlers."""
-    if threading.current_thread() is not threading.main_thread():
-        return {}
-
-    def handler(signum, frame):
-        raise KeyboardInterrupt(signal.Signals(signum).name)
-
-    return {sig: signal.signal(sig, handler) for sig in STOP_SIGNALS if sig != signal.SIGINT}
 
 
 class _NoBar:
@@ -341,18 +338,31 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
         If another runner holds it.
     RecordingError
         If a write fails; the run stops before the next stimulus.
+    KeyboardInterrupt
+        On Ctrl-C or a stop signal (SIGTERM, SIGHUP, SIGQUIT, SIGUSR1: handled from this call's
+        first instruction) before the session file exists; once it exists a stop is logged and
+        the result is ``interrupted``.
     """
+    with stop_signals():  # from the first instruction: a stop during start-up is a clean stop
+        return _new_session(protocol, path, display, responses, subject=subject, session=session,
+                            subject_pattern=subject_pattern, realtime=realtime, progress=progress,
+                            on_created=on_created, clipped=clipped)
+
+
+def _new_session(protocol: Protocol, path: str | Path, display: Display, responses: ResponseSource, *,
+                 subject: str, session: str, subject_pattern: str | None, realtime: bool, progress: bool,
+                 on_created: Callable[[Path], None] | None, clipped: str) -> RunResult:
     check_subject(subject, "subject", subject_pattern)
     check_label(session, "session")
     # before any file exists: the device answers (a ZERO round trip: it is there and at rest)
     # and the first stimulus renders, so no empty or failed session litters the folder
     display.zero()
-    render_drive(display.description, **protocol.stimulus.model_dump())
     rates = sorted({s.frame_rate_hz for s in protocol.planned_stimuli()})
-    try:  # every stimulus the protocol plans can be played (a candidate may set its own frame rate)
-        check_frame_rate(rates[-1], display.description)
+    try:  # every stimulus the protocol plans can be played (a candidate may set its own frame rate);
+        check_frame_rate(rates[-1], display.description)  # checked BEFORE anything is rendered
     except ValueError as exc:
         raise ValueError(f"protocol: a planned stimulus's {exc} (frame rates planned: {rates} Hz)") from None
+    render_drive(display.description, **protocol.stimulus.model_dump())
     from .display_check import check_display_limits
 
     check_display_limits(protocol, display.description, clipped)
@@ -366,13 +376,32 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
             "likelihood": getattr(protocol.procedure, "likelihood", None)}
     # built before the file exists: an unregistered method or likelihood leaves no session behind
     procedure = make_procedure(protocol.procedure, protocol.task.guess_rate)
-    recorder = Recorder.create(path, meta)
+    recorder = None
     try:
-        recorder.log("session_started", payload={"pid": os.getpid()})
+        with signals_held():  # the file is created and locked whole
+            recorder = Recorder.create(path, meta)
+            recorder.log("session_started", payload={"pid": os.getpid()})
         if on_created is not None:
             on_created(Path(path))
         runner = Runner(protocol, recorder, display, responses, subject=subject, session=session,
                         procedure=procedure, realtime=realtime, progress=progress)
         return runner.run()
+    except KeyboardInterrupt as exc:
+        if recorder is None:
+            raise  # nothing was written: the caller reports the stop
+        return stopped(recorder, exc, procedure)
     finally:
-        recorder.close()
+        if recorder is not None:
+            with signals_held():
+                recorder.close()
+
+
+def stopped(recorder: Recorder, exc: KeyboardInterrupt, procedure: Procedure | None) -> RunResult:
+    """Log a stop that came before the runner took over (while opening or replaying the session)."""
+    reason = f"interrupted ({exc.args[0] if exc.args else 'Ctrl-C'}) before the first stimulus"
+    with signals_held():
+        with contextlib.suppress(RecordingError):  # the stop is reported by the result either way
+            recorder.log("session_stopped", payload={"reason": reason})
+    if procedure is None:
+        return RunResult(recorder.path, "interrupted", 0, {})
+    return RunResult(recorder.path, "interrupted", procedure.n_done, procedure.estimate())

@@ -298,7 +298,9 @@ def dcfft_kernel_spectrum(shape: Sequence[int], spacing: Sequence[float], depth:
         The rfftn spectra of the kernels on the zero-padded grid (see :func:`dcfft_convolve`).
     """
     shape = tuple(int(n) for n in shape)
-    spacing = tuple(float(h) for h in spacing)
+    spacing = check.spacing(spacing, len(shape))
+    depth = check.depth(depth)
+    nu = check.poisson_ratio(nu)
     dtype = check.float_dtype(dtype)
     weights = np.atleast_2d(np.asarray(weights, dtype=float))
     padded = padded_shape(shape)

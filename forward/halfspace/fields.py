@@ -54,7 +54,7 @@ def output_weights(quantity: str, components: Sequence[str], young_modulus: floa
     ``quantity`` is ``"stress"`` (rows of the identity, Pa -> Pa) or ``"strain"`` (rows of
     :func:`compliance_matrix`, Pa -> tensor strain); ``young_modulus`` in Pa.
     """
-    idx = [VOIGT.index(c) for c in components]
+    idx = [VOIGT.index(c) for c in check.components(components)]
     if quantity == "stress":
         return np.eye(6)[idx]
     if quantity == "strain":

@@ -3,7 +3,7 @@
 Conventions (docs/theory.md section 1): x, y on the surface, z = depth into the skin (z > 0 inside).
 A force ``(fx, fy, fz)`` is applied TO the skin surface: ``fz > 0`` pushes into the skin,
 ``fx``, ``fy`` act along +x, +y. Stress is in Pa, tension positive, Voigt order
-``COMPONENTS = ("xx", "yy", "zz", "yz", "zx", "xy")`` (tensor components, not engineering shear).
+``COMPONENTS`` (xx, yy, zz, yz, zx, xy, from tactilab.core.rules; tensor components, not engineering shear).
 
 Point forces (N, 3-D): Boussinesq (normal) and Cerruti (tangential), Johnson, *Contact Mechanics*
 (1985), eqs. 3.18 and 3.19, rewritten in direction cosines ``l, m, n = x/R, y/R, z/R`` so that

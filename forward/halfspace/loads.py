@@ -34,6 +34,10 @@ class SurfaceLoad:
     periodic : bool
         True when the grid is one period of an infinitely repeating load (a grating);
         False (default) when the load is zero outside the grid (an isolated contact).
+    error_estimate : float
+        Known error of the tractions themselves, relative to their peak (default 0: the values
+        are exact). A solved contact sets it (``ContactSolution.load()``); every field computed
+        from the load adds it, scaled to the field's peak, to its own error estimate.
 
     Raises
     ------
@@ -47,6 +51,7 @@ class SurfaceLoad:
     qy: np.ndarray | None = None
     spacing: float | tuple[float, float] = 1e-4
     periodic: bool = False
+    error_estimate: float = 0.0
     _arrays: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -84,6 +89,11 @@ class SurfaceLoad:
         object.__setattr__(self, "spacing", check.spacing(self.spacing, len(shape)))
         if not isinstance(self.periodic, (bool, np.bool_)):
             raise ValueError(f"periodic: must be True or False, got {self.periodic!r}")
+        err = self.error_estimate
+        if isinstance(err, (bool, np.bool_)) or not isinstance(err, (int, float, np.floating, np.integer)) \
+                or not np.isfinite(err) or err < 0:
+            raise ValueError(f"error_estimate: must be a finite relative error >= 0, got {err!r}; use 0 for exact tractions")
+        object.__setattr__(self, "error_estimate", float(err))
         object.__setattr__(self, "_arrays", arrays)
 
     @property
@@ -148,12 +158,13 @@ class SurfaceLoad:
             raise ValueError("load: varies in y, so it has no exact plane-strain (1-D) form; keep the 2-D load")
         if self.ndim == 1:
             return self
-        return SurfaceLoad(**{k: v[0] for k, v in self._arrays.items()}, spacing=self.dx, periodic=self.periodic)
+        return SurfaceLoad(**{k: v[0] for k, v in self._arrays.items()}, spacing=self.dx, periodic=self.periodic,
+                           error_estimate=self.error_estimate)
 
     def scaled(self, factor: float) -> "SurfaceLoad":
         """The same load multiplied by ``factor``."""
         return SurfaceLoad(**{k: v * factor for k, v in self._arrays.items()}, spacing=self.spacing,
-                           periodic=self.periodic)
+                           periodic=self.periodic, error_estimate=self.error_estimate)
 
     @property
     def total_force(self) -> np.ndarray:

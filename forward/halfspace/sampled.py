@@ -17,13 +17,13 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
 
 from .continuous import ContinuousLoad, coarse_grid, refined_grid, sampling_error, spectral_sampling_error
 from .fields import output_weights
-from .methods import AccuracyWarning, Method, user_stacklevel
+from .methods import AccuracyWarning, user_stacklevel
+from .solve import check_points, package, solve
 
 #: largest grid (nodes) the automatic refinement of a continuous load may choose
 MAX_NODES = 1 << 20
@@ -31,27 +31,11 @@ MAX_NODES = 1 << 20
 MAX_ROUNDS = 3
 
 
-@dataclass(frozen=True)
-class Solution:
-    """One solve on a nodal load (internal to the facade)."""
-
-    values: np.ndarray
-    chosen: Method
-    reason: str
-    candidates: dict
-    err: float
-    quantity: str
-    reduced: bool
-    dtype: str
-
-
-def _levels(hs, load: ContinuousLoad, shape, spacing, depths, comps, points, method, tol, quantity, invariants):
+def _levels(E, nu, load: ContinuousLoad, shape, spacing, depths, comps, points, method, tol, quantity, invariants):
     """The solve on (shape, spacing) and the outputs at 2h and 4h (same points, or shared nodes)."""
-    from .facade import _check_points
-
     fine = load.sample(shape, spacing)
-    pts = _check_points(points, fine)
-    sol = hs._solve(fine, depths, comps, pts, method, tol, quantity, invariants)
+    pts = check_points(points, fine)
+    sol = solve(E, nu, fine, depths, comps, pts, method, tol, quantity, invariants)
     levels, shapes = [sol.values], [fine.shape]
     grid = (fine.shape, fine.spacing)
     for _ in range(2):
@@ -62,16 +46,16 @@ def _levels(hs, load: ContinuousLoad, shape, spacing, depths, comps, points, met
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", AccuracyWarning)
             try:
-                v = hs._solve(coarse, depths, comps, pts, type(sol.chosen), tol, quantity, invariants).values
+                v = solve(E, nu, coarse, depths, comps, pts, type(sol.chosen), tol, quantity, invariants).values
             except ValueError:  # the fine grid's method cannot run on the coarse one (off-grid sensors)
-                v = hs._solve(coarse, depths, comps, pts, "auto", tol, quantity, invariants).values
+                v = solve(E, nu, coarse, depths, comps, pts, "auto", tol, quantity, invariants).values
         levels.append(v)
         shapes.append(coarse.shape)
     richardson, order = sampling_error(levels, None if pts is not None else shapes)
     if richardson <= sol.err:  # the method's estimate dominates: the spectral one could lower the total < 2x
         return fine, pts, sol, richardson, order, richardson, math.nan
-    weights = output_weights(sol.quantity, comps, hs.E, hs.nu)
-    spectral = spectral_sampling_error(load, fine, depths, hs.nu, weights, band_limited=sol.chosen.name == "spectral",
+    weights = output_weights(sol.quantity, comps, E, nu)
+    spectral = spectral_sampling_error(load, fine, depths, nu, weights, band_limited=sol.chosen.name == "spectral",
                                        peak=float(np.abs(sol.values).max()))
     return fine, pts, sol, min(richardson, spectral), order, richardson, spectral
 
@@ -85,8 +69,11 @@ def _needed_halvings(total: float, target: float, order: float) -> int | None:
     return max(1, math.ceil(math.log2(total / target) / p))
 
 
-def continuous_field(hs, load: ContinuousLoad, depths, points, comps, method, tol, quantity, invariants):
+def continuous_field(E: float, nu: float, load: ContinuousLoad, depths, points, comps, method, tol, quantity,
+                     invariants):
     """:meth:`HalfSpace.stress` / ``strain`` for a continuous load (see the module docstring).
+
+    ``E`` (Pa) and ``nu`` are the half-space's; depths and components come checked.
 
     With ``method="auto"`` the grid is refined by the number of halvings predicted at the observed
     order, and the estimate recomputed on the new grid, for at most :data:`MAX_ROUNDS` rounds and
@@ -98,7 +85,7 @@ def continuous_field(hs, load: ContinuousLoad, depths, points, comps, method, to
     while True:
         with warnings.catch_warnings(record=True) as caught:  # only the final grid's warnings reach the user
             warnings.simplefilter("always", AccuracyWarning)
-            fine, pts, sol, sampling, order, richardson, spectral = _levels(hs, load, shape, spacing, depths, comps, points, method, tol,
+            fine, pts, sol, sampling, order, richardson, spectral = _levels(E, nu, load, shape, spacing, depths, comps, points, method, tol,
                                                       quantity, invariants)
         total = sol.err + sampling
         # refining the grid shrinks the sampling error and the nodal methods' kernel-sampling error
@@ -116,8 +103,8 @@ def continuous_field(hs, load: ContinuousLoad, depths, points, comps, method, to
         _warn_sampling(sol, sampling, total, tol, shape, spacing, load, k)
     extra = {"sampling_order": order, "sampling_richardson": richardson, "sampling_spectral": spectral, "grid_refinements": refinements,
              "sampled_spacing_m": tuple(float(h) for h in fine.spacing)}
-    return hs._package(fine, sol, depths, comps, pts, invariants, error_covers="method+sampling",
-                       sampling_estimate=sampling, extra=extra)
+    return package(E, nu, fine, sol, depths, comps, pts, invariants, error_covers="method+sampling",
+                   sampling_estimate=sampling, extra=extra)
 
 
 def _warn_sampling(sol, sampling, total, tol, shape, spacing, load, k) -> None:

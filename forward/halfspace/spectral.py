@@ -66,12 +66,7 @@ def angular_wavenumbers(shape: Sequence[int], spacing, half: bool = False) -> tu
     if len(shape) not in (1, 2) or min(shape) < 1:
         raise ValueError(f"shape: expected a 1-D (nx,) or 2-D (ny, nx) grid of positive sizes, got {shape}; "
                          "give (nx,) or (ny, nx)")
-    steps = np.atleast_1d(np.asarray(spacing, dtype=float))
-    if steps.size == 1:
-        steps = np.repeat(steps, len(shape))
-    if steps.size != len(shape) or not np.all(np.isfinite(steps)) or np.any(steps <= 0):
-        raise ValueError(f"spacing: expected {len(shape)} finite grid spacing(s) > 0 m, x first, got {spacing!r}; "
-                         "give dx or (dx, dy) in m")
+    steps = check.spacing(spacing, len(shape))
     nx = shape[-1]
     xi = 2 * np.pi * (sfft.rfftfreq(nx, steps[0]) if half else sfft.fftfreq(nx, steps[0]))
     if len(shape) == 1:
@@ -171,7 +166,7 @@ def _table_uncached(g: _Geometry, nu: float, component: str):
         return [(0, "qx", "re", -1.0), (1, "p", "im", c), (1, "qx", "re", c2), (1, "qy", "re", cs)]
     if component == "yz":
         return [(0, "qy", "re", -1.0), (1, "p", "im", s), (1, "qx", "re", cs), (1, "qy", "re", s2)]
-    raise ValueError(f"components: unknown stress component {component!r}; use one of {VOIGT}")
+    raise ValueError(f"components: unknown component {component!r}; use one of {VOIGT}")
 
 
 def _real_coefficients(g: _Geometry, nu: float, spectra: dict, row: np.ndarray) -> dict:

@@ -34,8 +34,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .halfspace import ContinuousLoad, SurfaceLoad, positive
-from .halfspace import validation as check
+from tactilab.core import rules as check
+from tactilab.core.rules import positive
+
+from ..halfspace import ContinuousLoad, SurfaceLoad
 
 CONDITIONS = ("frictionless", "sliding", "partial", "stuck")
 
@@ -229,7 +231,7 @@ def interfacial_traction(contact: HertzContact, x, y=None, *, friction: float = 
     a = contact.contact_radius
     rho2 = contact._rho2(x, y)
     if condition == "stuck":
-        return p, Q * _stuck_shape(contact, x, y, rho2, cell)
+        return p, Q * stuck_shape(contact, x, y, rho2, cell)
     if math.isinf(mu):
         raise ValueError("friction: condition='partial' needs a finite friction coefficient, got inf; "
                          "use condition='stuck' for mu -> infinity")
@@ -241,7 +243,7 @@ def interfacial_traction(contact: HertzContact, x, y=None, *, friction: float = 
     return p, math.copysign(1.0, Q) * q
 
 
-def _stuck_shape(contact: HertzContact, x, y, rho2, cell) -> np.ndarray:
+def stuck_shape(contact: HertzContact, x, y, rho2, cell) -> np.ndarray:
     """Mindlin no-slip traction per unit Q (1/m^2 or 1/m), cell-averaged when ``cell`` is given."""
     a = contact.contact_radius
     if cell is None:

@@ -1,0 +1,243 @@
+"""Surface compliance on a grid: the operators that map surface tractions to surface displacements.
+
+:class:`ContactCompliance` is the contact solvers' one view of the skin::
+
+    C = ContactCompliance(skin, shape, spacing, periodic)
+    uz = C.normal(p)                      # m, from p (Pa): one rfft + one irfft
+    ux, uy = C.tangential(qx, qy)         # m, from qx, qy (Pa); uy (and qy) None in plane strain
+    uz_q = C.normal_from_tangential(qx, qy)   # the (1 - 2 nu) coupling: uz from tangential tractions
+    ux_p, uy_p = C.tangential_from_normal(p)  # and (ux, uy) from p
+    uz, ux, uy = C.apply(p, qx, qy)       # all of it
+    C.self_compliance                     # (Czz, Cxx, Cyy) at zero offset, m/Pa (a Jacobi scale)
+    p_approx = C.stiffness(uz)            # Pa, the periodic inverse of normal (a preconditioner)
+
+Arrays have the grid's ``shape``: ``(nx,)`` (plane strain) or ``(ny, nx)`` (x last); node ``j``
+sits at ``x_j = (j - nx // 2) dx`` as in :class:`~tactilab.forward.halfspace.SurfaceLoad`.
+Conventions (docs/theory.md section 1): tractions act on the skin, ``p`` pushes into it, ``uz`` is
+positive into the skin, ``qx, ux`` along +x. The full operator on ``(p, qx, qy)`` is symmetric
+(Betti's reciprocity): its normal and tangential blocks are symmetric and
+``normal_from_tangential`` is the adjoint of ``tangential_from_normal`` (a dot test checks it).
+
+Two operators, chosen by ``periodic``:
+
+- periodic (the grid is one period): the skin's ``surface_compliance(kx, ky)`` sampled at the
+  grid's wavenumbers multiplies the DFT of the traction (the traction's trigonometric
+  interpolant, loaded on the half-space). The ``k = 0`` mode is 0: a uniform traction gives no
+  displacement, so displacements are defined up to a rigid shift, which the solver absorbs in the
+  approach. At an even grid size the Nyquist entries of the odd-in-k terms (the cross terms and
+  the ``xy`` term) are 0, so the operator stays real and symmetric.
+- isolated (the traction is zero outside the grid): exact aperiodic convolution of the nodal
+  tractions, each spread uniformly over its pixel, with the real-space influence coefficients of
+  the skin's ``surface_influence`` (the exact pixel integrals of Boussinesq and Cerruti: Love's
+  closed form for the normal entry), by FFT on a grid zero-padded to twice the size (DC-FFT). In
+  plane strain the displacement of a line load is defined up to a constant: it is taken as zero
+  at a distance of one grid length ``nx dx`` from the load.
+
+Each block's spectrum is computed on first use and kept (complex128, ``prod(padded)/2`` entries).
+FFTs are ``scipy.fft`` with ``workers=1``, float64.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import fft as sfft
+
+from tactilab.core import rules as check
+
+#: index of each displacement / traction component in the compliance matrices
+_ROW = {"uz": 0, "ux": 1, "uy": 2}
+_COL = {"p": 0, "qx": 1, "qy": 2}
+#: rows of the kernel evaluated at a time (bounds the temporaries of a large grid)
+_BAND = 128
+
+
+class ContactCompliance:
+    """Surface compliance of a skin on a regular grid, periodic or isolated (see the module docstring).
+
+    Parameters
+    ----------
+    skin : object
+        Provides ``surface_compliance(kx, ky)`` (periodic grids) and, for isolated grids,
+        ``surface_influence(x, y, spacing, reference_length, entry=(row, column))``, as
+        :class:`HalfSpace` does.
+    shape : tuple of int
+        ``(nx,)`` (plane strain) or ``(ny, nx)``.
+    spacing : float or tuple of float
+        ``dx`` or ``(dx, dy)`` in m, x first.
+    periodic : bool
+        True: the grid is one period; False: the traction is zero outside the grid.
+    """
+
+    def __init__(self, skin, shape, spacing, periodic: bool):
+        shape = tuple(int(n) for n in np.atleast_1d(shape))
+        if len(shape) not in (1, 2) or min(shape) < 1:
+            raise ValueError(f"shape: expected (nx,) or (ny, nx) with at least one node per axis, got {shape}")
+        if not isinstance(periodic, (bool, np.bool_)):
+            raise ValueError(f"periodic: must be True or False, got {periodic!r}")
+        need = "surface_compliance" if periodic else "surface_influence"
+        if not callable(getattr(skin, need, None)):
+            raise ValueError(f"skin: {'a periodic' if periodic else 'an isolated'} contact needs a skin with "
+                             f"{need}(...), got {type(skin).__name__}; use HalfSpace(E, nu)")
+        self.skin = skin
+        self.shape = shape
+        self.ndim = len(shape)
+        self.spacing = check.spacing(spacing, self.ndim)
+        self.periodic = bool(periodic)
+        self.fft_shape = shape if periodic else tuple(2 * n for n in shape)
+        self._axes = tuple(range(-self.ndim, 0))
+        self._spectra: dict = {}  # (row, col) -> block spectrum; "stiffness" -> the preconditioner
+
+    def __repr__(self) -> str:
+        kind = "periodic" if self.periodic else "isolated"
+        return f"ContactCompliance({self.skin!r}, shape={self.shape}, spacing={self.spacing}, {kind})"
+
+    @property
+    def n_components(self) -> int:
+        """2 in plane strain (p, qx), 3 in 3-D (p, qx, qy)."""
+        return 2 if self.ndim == 1 else 3
+
+    # -- the kernel -------------------------------------------------------------------------
+    def _block(self, key: tuple[int, int]) -> np.ndarray:
+        """One entry of the compliance on the FFT grid: spectral symbol (periodic) or real-space
+        influence coefficients (isolated), evaluated in bands of rows to bound the temporaries."""
+        i, j = key
+        odd = i != j  # the cross terms and xy are odd in k
+        if self.periodic:
+            kx = 2 * np.pi * sfft.rfftfreq(self.shape[-1], self.spacing[0])
+            if self.ndim == 1:
+                m = np.array(np.asarray(self.skin.surface_compliance(kx, None))[..., i, j], dtype=complex)
+                if odd and self.shape[0] % 2 == 0:
+                    m[-1] = 0.0
+                return m
+            ky = 2 * np.pi * sfft.fftfreq(self.shape[0], self.spacing[1])
+            m = np.empty((len(ky), len(kx)), dtype=complex)
+            for lo in range(0, len(ky), _BAND):
+                band = self.skin.surface_compliance(kx[None, :], ky[lo:lo + _BAND, None])
+                m[lo:lo + _BAND] = np.asarray(band)[..., i, j]
+            if odd and self.shape[-1] % 2 == 0:
+                m[:, -1] = 0.0
+            if odd and self.shape[0] % 2 == 0:
+                m[self.shape[0] // 2] = 0.0
+            return m
+        offsets = []
+        for n, h in zip(self.shape, self.spacing[::-1] if self.ndim == 2 else self.spacing):
+            idx = np.arange(2 * n)
+            offsets.append(np.where(idx < n, idx, idx - 2 * n) * h)  # wrapped: index n is never read
+        if self.ndim == 1:
+            length = self.shape[0] * self.spacing[0]
+            return np.asarray(self.skin.surface_influence(offsets[0], None, self.spacing, length, entry=key),
+                              dtype=float)
+        m = np.empty((len(offsets[0]), len(offsets[1])))
+        for lo in range(0, len(offsets[0]), _BAND):
+            m[lo:lo + _BAND] = self.skin.surface_influence(offsets[1][None, :], offsets[0][lo:lo + _BAND, None],
+                                                           self.spacing, entry=key)
+        return m
+
+    def spectrum(self, row: str, col: str) -> np.ndarray:
+        """Cached rfft spectrum of one block (``row`` in uz, ux, uy; ``col`` in p, qx, qy)."""
+        key = (_ROW[row], _COL[col])
+        if max(key) >= self.n_components:
+            raise ValueError(f"{row}/{col}: a plane-strain grid has only uz, ux and p, qx")
+        if key not in self._spectra:
+            m = self._block(key)
+            self._spectra[key] = m if self.periodic else sfft.rfftn(m, axes=self._axes, workers=1)
+        return self._spectra[key]
+
+    @property
+    def self_compliance(self) -> tuple[float, ...]:
+        """Displacement at a node per unit traction at that node, ``(Czz, Cxx[, Cyy])`` in m/Pa."""
+        out = []
+        for name, col in (("uz", "p"), ("ux", "qx"), ("uy", "qy"))[: self.n_components]:
+            s = self.spectrum(name, col)
+            out.append(float(sfft.irfftn(s, s=self.fft_shape, axes=self._axes, workers=1).flat[0]))
+        return tuple(out)
+
+    def stiffness(self, gap) -> np.ndarray:
+        """The periodic surface stiffness of the grid applied to ``gap`` (m -> Pa): the inverse of the
+        periodic normal compliance on the unpadded grid (``E* |k| / 2`` for a half-space; at ``k = 0``
+        the value of the grid's longest wave).
+
+        Exactly the inverse of :meth:`normal` on zero-mean fields of a periodic grid; for an isolated
+        grid an approximate inverse (the solvers' preconditioner), at the cost of an unpadded FFT pair.
+        """
+        if "stiffness" not in self._spectra:
+            kx = 2 * np.pi * sfft.rfftfreq(self.shape[-1], self.spacing[0])
+            if self.ndim == 1:
+                c = np.real(np.asarray(self.skin.surface_compliance(kx, None))[..., 0, 0])
+            else:
+                ky = 2 * np.pi * sfft.fftfreq(self.shape[0], self.spacing[1])
+                c = np.real(np.asarray(self.skin.surface_compliance(kx[None, :], ky[:, None]))[..., 0, 0])
+            with np.errstate(divide="ignore"):
+                stiff = np.where(c > 0, 1.0 / np.where(c > 0, c, 1.0), 0.0)
+            # k = 0: the stiffness of the longest wave on the grid, so that a uniform gap still moves
+            # the pressure (an isolated contact under a given approach); force control removes the mean
+            stiff.flat[0] = stiff[stiff > 0].min() if (stiff > 0).any() else 0.0
+            self._spectra["stiffness"] = stiff
+        spectrum = sfft.rfftn(self._check(gap, "gap"), axes=self._axes, workers=1)
+        spectrum *= self._spectra["stiffness"]
+        return sfft.irfftn(spectrum, s=self.shape, axes=self._axes, workers=1)
+
+    # -- products ---------------------------------------------------------------------------
+    def _check(self, value, name: str) -> np.ndarray:
+        arr = np.asarray(value, dtype=float)
+        if arr.shape != self.shape:
+            raise ValueError(f"{name}: expected shape {self.shape} (the grid), got {arr.shape}")
+        return arr
+
+    def rfft(self, value) -> np.ndarray:
+        """The (zero-padded) rfft of a grid array: the input of :meth:`product`."""
+        return sfft.rfftn(value, s=self.fft_shape, axes=self._axes, workers=1)
+
+    def product(self, spectra: dict[str, np.ndarray], row: str) -> np.ndarray:
+        """Displacement ``row`` (m, grid shape) from traction spectra ``{"p": rfft(p), ...}``."""
+        total = None
+        for col, s in spectra.items():
+            term = self.spectrum(row, col) * s
+            total = term if total is None else total + term
+        out = sfft.irfftn(total, s=self.fft_shape, axes=self._axes, workers=1)
+        return out if self.periodic else out[tuple(slice(0, n) for n in self.shape)]
+
+    def normal(self, p) -> np.ndarray:
+        """``uz`` (m, positive into the skin) from the pressure ``p`` (Pa)."""
+        spectrum = self.rfft(self._check(p, "p"))
+        spectrum *= self.spectrum("uz", "p")  # in place: the solvers call this every iteration
+        out = sfft.irfftn(spectrum, s=self.fft_shape, axes=self._axes, workers=1)
+        return out if self.periodic else out[tuple(slice(0, n) for n in self.shape)]
+
+    def tangential(self, qx, qy=None) -> tuple[np.ndarray, np.ndarray | None]:
+        """``(ux, uy)`` in m from the tangential tractions (Pa); ``uy`` is None in plane strain."""
+        spectra = self._tangential_spectra(qx, qy)
+        uy = self.product(spectra, "uy") if self.ndim == 2 else None
+        return self.product(spectra, "ux"), uy
+
+    def normal_from_tangential(self, qx, qy=None) -> np.ndarray:
+        """``uz`` (m) produced by the tangential tractions alone (0 at nu = 1/2)."""
+        return self.product(self._tangential_spectra(qx, qy), "uz")
+
+    def tangential_from_normal(self, p) -> tuple[np.ndarray, np.ndarray | None]:
+        """``(ux, uy)`` in m produced by the pressure alone (0 at nu = 1/2); ``uy`` None in plane strain."""
+        spectra = {"p": self.rfft(self._check(p, "p"))}
+        uy = self.product(spectra, "uy") if self.ndim == 2 else None
+        return self.product(spectra, "ux"), uy
+
+    def apply(self, p, qx=None, qy=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """``(uz, ux, uy)`` in m from ``(p, qx, qy)`` in Pa (None means zero); ``uy`` None in plane strain."""
+        spectra = {"p": self.rfft(self._check(p, "p"))}
+        if qx is not None or qy is not None:
+            spectra.update(self._tangential_spectra(qx, qy))
+        uz = self.product(spectra, "uz")
+        ux = self.product(spectra, "ux")
+        uy = self.product(spectra, "uy") if self.ndim == 2 else None
+        return uz, ux, uy
+
+    def _tangential_spectra(self, qx, qy) -> dict[str, np.ndarray]:
+        if self.ndim == 1 and qy is not None:
+            raise ValueError("qy: a plane-strain grid has no y traction; give qx only")
+        spectra = {}
+        if qx is not None:
+            spectra["qx"] = self.rfft(self._check(qx, "qx"))
+        if qy is not None:
+            spectra["qy"] = self.rfft(self._check(qy, "qy"))
+        if not spectra:
+            spectra["qx"] = self.rfft(np.zeros(self.shape))
+        return spectra

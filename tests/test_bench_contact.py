@@ -1,0 +1,34 @@
+"""benchmarks/bench_contact.py runs (tiny grids, no peer) and prints its tables."""
+
+import importlib.util
+import pathlib
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def _bench():
+    spec = importlib.util.spec_from_file_location("bench_contact", ROOT / "benchmarks" / "bench_contact.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")  # tiny grids resolve the contacts coarsely (AccuracyWarning)
+def test_bench_contact_sections_run(capsys):
+    bench = _bench()
+    assert bench.main(["--quick", "--sections", "a", "b", "c", "d", "--sizes", "16", "32", "--frames", "2", "--no-peer",
+                       "--tol", "1e-6"]) == 0
+    out = capsys.readouterr().out
+    assert "(a) normal contact" in out and "Tamaas skipped (--no-peer)" in out
+    assert "memory at 32^2" in out and "(b) partial slip" in out and "(c) sliding fingertip" in out and "(d) time and iterations" in out
+    rows = [line.split() for line in out.splitlines() if line.strip().startswith(("16 ", "32 "))]
+    assert len(rows) == 4  # two sizes in (a) and in (d)
+
+
+def test_fft_floor_is_positive_and_pads_isolated_grids():
+    bench = _bench()
+    assert bench.fft_floor((16, 16), True, repeats=1) > 0
+    h, pbar = bench.rough_cell(16)
+    assert h.shape == (16, 16) and pbar == pytest.approx(0.05 * bench.E_STAR * bench.SLOPE)
