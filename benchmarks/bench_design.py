@@ -1,7 +1,7 @@
 """Benchmark: adaptive model discrimination against the method of constant stimuli.
 
 Run: ``python benchmarks/bench_design.py [--observers 50] [--max-trials 5000] [--calibration 200]
-[--tables 1234] [--seed-offset 0] [--adaptive-only]`` (``--seed-offset N`` shifts the observers'
+[--tables 1234] [--seed-offset 0] [--adaptive-only] [--per-observer 20 100]`` (``--seed-offset N`` shifts the observers'
 seeds of tables 1 and 4 by N: a development set apart from the reported one; ``--adaptive-only``
 runs only table 1's adaptive rows).
 
@@ -42,6 +42,8 @@ accuracy: the posterior log-odds of the true model after the same 200 constant-s
 with the default grid and with a grid twice as fine in threshold and exponent. Table 4:
 calibration of the stopping rule: adaptive runs stopping at 0.9 and 0.99 on fresh observers,
 the wrong count against its expectation under a calibrated posterior (the sum of 1 - P(winner)).
+Table 5 (``--tables 5``): the same per observer: each of ``--per-observer`` observers (scenario
+(a)) answers many sessions anew; the spread of their wrong shares.
 """
 
 from __future__ import annotations
@@ -87,14 +89,17 @@ ODDS, MODEL = 'adaptive, utility="odds"', 'adaptive, "model" (default)'
 
 
 def _run(models, candidates, truth, seed, design_kind, max_trials, allocation=None, fine=None, n_grid=(25, 9),
-         stop=0.99, utility="odds"):
+         stop=0.99, utility="odds", response_seed=None):
     """One simulated session. ``design_kind``: adaptive, constant, allocation (fixed weights) or
     bound (the best allocation for this observer's true parameters, computed here).
-    Returns (trials, winner, true name, P(winner) at the end, allocation rate or None)."""
+    ``response_seed``: the responses from their own generator (the same observer, ``seed``, answering
+    anew). Returns (trials, winner, true name, P(winner) at the end, allocation rate or None)."""
     rng = np.random.default_rng(seed)
     d = ModelDiscrimination(models, candidates, rng=seed, max_trials=max_trials, n_grid=n_grid, stop_probability=stop,
                             utility=utility)
     p, theta = _observer(d, truth, rng)
+    if response_seed is not None:
+        rng = np.random.default_rng(response_seed)
     rate = None
     if design_kind == "bound":
         allocation, rate, _, _ = best_allocation([(truth, theta)], d, fine, d.candidates)
@@ -289,6 +294,34 @@ def table_calibration(n_observers, max_trials, seed_offset=0):
                   f"{expected:16.1f} ({expected / n_observers:4.1%}) {undecided:9d} {time.perf_counter() - t0:7.1f}")
 
 
+def table_per_observer(n_observers, n_repeats, max_trials, seed_offset=0):
+    """The stopping rule's calibration per observer: each observer (true model and parameters
+    fixed) answers ``n_repeats`` sessions anew; the share of decided sessions ending on the wrong
+    model, per observer. Calibration holds on average over observers drawn from the prior, not
+    for each one."""
+    from scipy.stats import binom
+
+    print(f"\nTable 5 -- the stopping rule per observer: {n_observers} observers x {n_repeats} sessions each "
+          f"(observer seeds {7000 + seed_offset}+), scenario (a)")
+    print(f"{'stop at':>7s} {'mean wrong':>10s} {'median':>7s} {'max':>6s} {'observers above 1 - stop':>25s} "
+          f"{'signif. (p < 0.01)':>18s} {'wall s':>7s}")
+    hyps, cands = SCENARIOS["(a) zx@1mm vs zx@2mm"]
+    models = [TransductionModel(h) for h in hyps]
+    for stop in (0.9, 0.99):
+        t0, rates, significant = time.perf_counter(), [], 0
+        for k in range(n_observers):
+            seed = seed_offset + 7000 + k
+            rows = [_run(models, cands, k % 2, seed, "adaptive", max_trials, stop=stop,
+                         response_seed=seed * 10_000 + r) for r in range(n_repeats)]
+            decided = [r for r in rows if r[1] is not None]
+            wrong = sum(r[1] != r[2] for r in decided)
+            rates.append(wrong / max(len(decided), 1))
+            significant += int(binom.sf(wrong - 1, len(decided), 1 - stop) < 0.01)  # P(>= wrong | 1 - stop)
+        rates = np.array(rates)
+        print(f"{stop:7.2f} {rates.mean():10.1%} {np.median(rates):7.1%} {rates.max():6.1%} "
+              f"{int(np.sum(rates > 1 - stop)):12d} of {n_observers:<8d} {significant:12d} {time.perf_counter() - t0:11.1f}")
+
+
 def table_selection():
     print("\nTable 2 -- selection time per trial, 200 candidates (2 models, grid 28 x 9 x 4 per model)")
     cands = _grid(("sinusoid",), np.geomspace(2e-6, 6e-5, 20), np.geomspace(0.8e-3, 8e-3, 10))
@@ -341,6 +374,8 @@ def main():
     parser.add_argument("--observers", type=int, default=50)
     parser.add_argument("--max-trials", type=int, default=5000)
     parser.add_argument("--calibration", type=int, default=200, help="observers per scenario in table 4 (0: skip)")
+    parser.add_argument("--per-observer", type=int, nargs=2, default=[20, 100], metavar=("OBSERVERS", "SESSIONS"),
+                        help="table 5: observers and sessions per observer")
     parser.add_argument("--tables", default="1234", help="which tables to print, e.g. 14")
     parser.add_argument("--adaptive-only", action="store_true",
                         help="table 1: only the adaptive rows (both utilities), no allocations (fast)")
@@ -357,6 +392,8 @@ def main():
         table_grid_accuracy()
     if "4" in args.tables and args.calibration:
         table_calibration(args.calibration, args.max_trials, seed_offset=args.seed_offset)
+    if "5" in args.tables:
+        table_per_observer(*args.per_observer, args.max_trials, seed_offset=args.seed_offset)
 
 
 if __name__ == "__main__":

@@ -1,6 +1,13 @@
 """Benchmark: transduction-model fits (likelihood per unique stimulus) and the statistics behind them.
 
-Run: ``python benchmarks/bench_models.py [--trials 700 7000 70000]``
+Run: ``python benchmarks/bench_models.py [--trials 700 7000 70000] [--compare-trials 40 400 2000 7000]
+[--emcee-up-to 400] [--tables 0 1 2 3]``
+
+Table 0 -- ``compare``: CPU time of fitting two and four transduction models to the same
+simulated trials and comparing them (``fit_transduction`` per model, then ``compare_models``),
+by quadrature (``method="grid"``, the default) and by emcee (the reference, run only up to
+``--emcee-up-to`` trials), and the largest |elpd(grid) - elpd(emcee)| over the models with
+the emcee fits' largest Monte Carlo standard error beside it.
 
 Table 1 -- ``fit_transduction`` of simulated 2IFC trials (20 unique stimuli: 5 amplitudes x 4
 pitches, an observer reading zx@1mm): wall time of the statistics (once per unique stimulus),
@@ -23,6 +30,7 @@ import time
 import numpy as np
 
 from tactilab.data_schemas.experiment import Stimulus
+from tactilab.experiments.modelling import compare_models
 from tactilab.experiments.modelling.models import TransductionModel, fit_transduction
 from tactilab.experiments.modelling._transduction_data import TransductionLikelihood, conditions, default_priors
 
@@ -45,14 +53,56 @@ def _frame(n_trials, rng):
     return pd.DataFrame(rows)
 
 
+MODELS = ("zx@1mm", "zx@3mm", "xx@2mm", "zx@2mm")
+
+
+def _compare(frame, names, method):
+    """CPU seconds of fitting every model (fresh statistics caches) and comparing; the table."""
+    c0 = time.process_time()
+    options = {"rng": 0, "method": "emcee"} if method == "emcee" else {}
+    fits = {h: fit_transduction(TransductionModel(h), frame, **options) for h in names}
+    table = compare_models(fits)
+    return time.process_time() - c0, table
+
+
+def table_compare(sizes, emcee_up_to) -> None:
+    print("Table 0: compare (fit every model + PSIS-LOO comparison), CPU seconds of this process")
+    head = (f"{'trials':>7s} {'models':>6s} {'grid CPU':>9s} {'emcee CPU':>10s} {'max |d elpd|':>13s} "
+            f"{'emcee mcse':>11s}  grid verdicts")
+    print(head + "\n" + "-" * len(head))
+    for n in sizes:
+        frame = _frame(n, np.random.default_rng(n))
+        for k in (2, 4):
+            t_grid, grid = _compare(frame, MODELS[:k], "grid")
+            if n <= emcee_up_to:
+                t_em, em = _compare(frame, MODELS[:k], "emcee")
+                diff = max(abs(grid.loc[h, "elpd"] - em.loc[h, "elpd"]) for h in MODELS[:k])
+                extra = f"{t_em:8.2f} s {diff:13.3f} {em['mcse'].max():11.3f}"
+            else:
+                extra = f"{'-':>10s} {'-':>13s} {'-':>11s}"
+            print(f"{n:7d} {k:6d} {t_grid:7.2f} s {extra}  " + ", ".join(f"{h}: {v}" for h, v in grid["verdict"].items()))
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, nargs="+", default=[700, 7000, 70000])
+    parser.add_argument("--compare-trials", type=int, nargs="+", default=[40, 400, 2000, 7000])
+    parser.add_argument("--emcee-up-to", type=int, default=400, help="run the emcee reference up to this many trials")
+    parser.add_argument("--tables", type=int, nargs="+", default=[0, 1, 2, 3])
     args = parser.parse_args(argv)
+    if 0 in args.tables:
+        table_compare(args.compare_trials, args.emcee_up_to)
+    if 1 in args.tables:
+        table_fits(args.trials)
+    if 2 in args.tables or 3 in args.tables:
+        table_costs(args.tables)
+
+
+def table_fits(sizes) -> None:
     print("Table 1: fit_transduction (zx@1mm, 2IFC, 20 unique stimuli)")
     head = f"{'trials':>7s} {'statistics':>11s} {'fit total':>10s} {'fit CPU':>9s} {'steps':>6s} {'converged':>9s} {'draws':>6s} {'per-trial ll':>13s}"
     print(head + "\n" + "-" * len(head))
-    for n in args.trials:
+    for n in sizes:
         frame = _frame(n, np.random.default_rng(n))
         model = TransductionModel("zx@1mm")
         t0 = time.perf_counter()
@@ -60,11 +110,14 @@ def main(argv=None) -> None:
         t_stat = time.perf_counter() - t0
         model = TransductionModel("zx@1mm")  # fresh cache: the fit pays for the statistics too
         t0, c0 = time.perf_counter(), time.process_time()
-        fit = fit_transduction(model, frame, rng=0)
+        fit = fit_transduction(model, frame, rng=0, method="emcee")
         t_fit, c_fit = time.perf_counter() - t0, time.process_time() - c0
         ll = fit.tree["log_likelihood"]["correct"]
         print(f"{n:7d} {t_stat:9.2f} s {t_fit:8.2f} s {c_fit:7.2f} s {int(fit.diagnostics['n_steps']):6d} {str(fit.converged):>9s} "
               f"{ll.shape[0] * ll.shape[1]:6d} {ll.nbytes / 2**20:10.1f} MB")
+
+
+def table_costs(tables) -> None:
     frame = _frame(7000, np.random.default_rng(1))
     model = TransductionModel("zx@1mm")
     data = conditions(model, frame)

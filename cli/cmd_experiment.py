@@ -37,6 +37,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run.add_argument("--session", dest="session_label", default=None,
                      help="session label (letters/digits); default: the next free number, 01, 02, ...")
     _observer_args(run)
+    run.add_argument("--clipped", default="refuse", choices=("refuse", "allow"),
+                     help="a planned stimulus (level, staircase bound, design candidate) the display would limit "
+                          "(amplitude, slew, duty): 'refuse' the protocol before the session starts (default; the "
+                          "error names the stimulus and the limit) or 'allow' the safety layer to limit it")
     _summary_args(run)
 
     resume = sub.add_parser("resume", help="continue a killed or stopped session exactly (repeats the interrupted trial)")
@@ -83,13 +87,9 @@ def _device_args(p: argparse.ArgumentParser, resume: bool = False) -> None:
 
 
 def _observer_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--observer-threshold", default=None,
-                   help="simulated observer: RMS deviatoric strain at 1 mm depth felt at d' = 1 (strain, "
-                        "dimensionless; default 2e-3, or on resume the session's own observer)")
-    p.add_argument("--observer-strain", default=None,
-                   help="simulated observer feels 'surface' (the ideal virtual surface's strain at 1 mm depth) "
-                        "or 'display' (the simulated display's strain after the safety limits); default "
-                        "surface, or on resume the session's own")
+    from .experiment_observer import add_observer_args
+
+    add_observer_args(p)  # --observer, --observer-statistic, --observer-threshold, --observer-strain
 
 
 def _summary_args(p: argparse.ArgumentParser) -> None:
@@ -222,7 +222,9 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace) -> int:
     from tactilab.data_schemas.experiment import Protocol, check_label, check_subject
     from tactilab.experiments.devices import description_from_spec, open_display
-    from tactilab.experiments.session import make_responses, next_session_path
+    from tactilab.experiments.session import next_session_path
+
+    from .experiment_observer import observer_responses
 
     if args.action in ("run", "resume"):
         _check_export(args.export)
@@ -244,8 +246,7 @@ def _run(args: argparse.Namespace) -> int:
                                    max_skipped_fraction=args.max_skipped)
         try:
             with _flags(_RESPONSES):
-                responses = make_responses(args.responses, protocol, display,
-                                           threshold=args.observer_threshold, strain=args.observer_strain)
+                responses = observer_responses(args.responses, protocol, display, args)
         except BaseException:
             display.close()
             raise
@@ -260,7 +261,7 @@ def _run(args: argparse.Namespace) -> int:
             with report.collecting_warnings():
                 result = new_session(protocol, path, display, responses, subject=args.subject, session=label,
                                      subject_pattern=args.subject_pattern, realtime=not args.no_wait,
-                                     progress=not args.quiet, on_created=created)
+                                     progress=not args.quiet, on_created=created, clipped=args.clipped)
             ended = True
         finally:
             _zero_and_close(display, responses, ended)
@@ -286,8 +287,7 @@ def _run(args: argparse.Namespace) -> int:
         recorded = state.meta.get("responses_config") if kind == state.meta["responses"] else None
         try:
             with _flags(_RESPONSES):
-                responses = make_responses(kind, state.protocol, display, threshold=args.observer_threshold,
-                                           strain=args.observer_strain, recorded=recorded)
+                responses = observer_responses(kind, state.protocol, display, args, recorded)
         except BaseException:
             display.close()
             raise

@@ -22,7 +22,10 @@ def add_subcommands(sub) -> None:
     fit = sub.add_parser("fit", help="psychometric fit per condition (psignifit-4 priors): threshold with its "
                                      "95 %% interval in um / mm / mm/s / ms, and a PNG per condition")
     fit.add_argument("sessions", nargs="+", type=Path, metavar="SESSION", help="session .sqlite file(s), one task")
-    fit.add_argument("--sigmoid", default="norm", help="norm, logistic, gumbel, rgumbel, tdist or weibull (default norm)")
+    fit.add_argument("--sigmoid", default="auto",
+                     help="auto (default: weibull on log levels for amplitude, pitch and duration, norm for a signed "
+                          "speed), weibull or lognorm (log levels), or norm, logistic, gumbel, rgumbel, tdist (linear "
+                          "levels: signed quantities only)")
     fit.add_argument("--out", type=Path, default=None, help="folder for the PNGs (default: the first session's folder)")
     fit.add_argument("--seed", type=int, default=0, help="seed for posterior draws (default 0)")
     fit.add_argument("--json", action="store_true", help=_JSON_HELP)
@@ -35,9 +38,18 @@ def add_subcommands(sub) -> None:
                      help="receptor hypothesis components@depths[:shear], depths with units, e.g. zx@1mm or "
                           "xx,zx@1.25mm; give two or more")
     cmp.add_argument("--statistic", default="peak", help="'peak' (largest |readout|) or 'rms' (default peak)")
-    cmp.add_argument("--seed", type=int, default=0, help="seed for the samplers (default 0)")
-    cmp.add_argument("--max-steps", type=int, default=20000,
-                     help="emcee step limit per ensemble (steps; default 20000); stops earlier once converged")
+    cmp.add_argument("--source", default="surface", choices=("surface", "display"),
+                     help="strain the models read: 'surface' (the ideal virtual surface, default) or 'display' (what "
+                          "the sessions' display renders, from the display description they recorded; all sessions "
+                          "on one display; not with --workers or --scheduler)")
+    cmp.add_argument("--method", default="grid", choices=("grid", "emcee"),
+                     help="'grid' (quadrature on an adaptive grid: seconds, the same table for every seed) or "
+                          "'emcee' (the samplers, the reference; slower, seed-dependent within Monte Carlo error); "
+                          "default grid")
+    cmp.add_argument("--seed", type=int, default=0, help="seed for --method emcee (default 0); the grid uses none")
+    cmp.add_argument("--max-steps", type=int, default=None,
+                     help="--method emcee only: step limit per ensemble (steps; default 20000); stops earlier once "
+                          "converged")
     cmp.add_argument("--out", type=Path, default=None,
                      help="folder for the PNG (default: the first session's folder); with --workers or --scheduler "
                           "the batch folder (default: <first session's folder>/compare-batch; the same folder resumes)")
@@ -108,26 +120,43 @@ def run_fit(args: argparse.Namespace) -> int:
     return 0
 
 
+def _text(value) -> str:
+    return str(getattr(value, "values", value))
+
+
 def _compare_row(row, converged) -> dict:
+    sep = float(row["separation"])
     return dict(elpd=float(row["elpd"]), elpd_diff=float(row["elpd_diff"]), dse=float(row["dse"]), z=float(row["z"]),
-                pareto_k_max=float(row["pareto_k_max"]), converged=bool(converged), verdict=str(getattr(row["verdict"], "values", row["verdict"])))
+                pareto_k_max=float(row["pareto_k_max"]), converged=bool(converged),
+                separation=None if math.isnan(sep) else sep, verdict=_text(row["verdict"]), reason=_text(row["reason"]))
 
 
-def _sampler(args: argparse.Namespace) -> dict:
-    if args.max_steps < 1:
-        raise ValueError(f"--max-steps: must be >= 1 step, got {args.max_steps}; e.g. 20000")
-    return {"max_steps": args.max_steps}
+def _sampler(args: argparse.Namespace) -> dict | None:
+    if args.method != "emcee":
+        if args.max_steps is not None:
+            raise ValueError(f"--max-steps: only for --method emcee (the grid has no steps), got {args.max_steps}; "
+                             "drop it or add --method emcee")
+        return None
+    steps = 20000 if args.max_steps is None else args.max_steps
+    if steps < 1:
+        raise ValueError(f"--max-steps: must be >= 1 step, got {steps}; e.g. 20000")
+    return {"max_steps": steps}
 
 
 def run_compare(args: argparse.Namespace) -> int:
     for text in args.model:
         check_hypothesis(text, "--model")
     if wants_batch(args):
+        if args.source != "surface":
+            raise ValueError("--source: 'display' is for a pooled comparison; drop --workers/--scheduler or use "
+                             "--source surface")
         return _run_compare_batch(args)
     from tactilab.experiments.modelling import compare_sessions, plot_comparison
 
+    display = _recorded_display(args.sessions) if args.source == "display" else None
     table, fits = compare_sessions(args.sessions, args.model, statistic=args.statistic, rng=args.seed,
-                                   sampler_options=_sampler(args))
+                                   method=args.method, sampler_options=_sampler(args), source=args.source,
+                                   display=display)
     out = _out(args)
     path = out / "compare.png"
     plot_comparison(table, fits, path)
@@ -135,12 +164,36 @@ def run_compare(args: argparse.Namespace) -> int:
         print(json.dumps({"command": "experiment compare", "models": {
             name: _compare_row(row, fits[name].converged) for name, row in table.iterrows()}, "png": str(path)}))
         return 0
-    print(f"{'model':24s} {'elpd':>10s} {'elpd_diff':>10s} {'dse':>8s} {'z':>7s} {'k max':>6s} {'converged':>9s}  verdict")
+    print(f"{'model':24s} {'elpd':>10s} {'elpd_diff':>10s} {'dse':>8s} {'z':>7s} {'separ.':>7s} {'k max':>6s} "
+          f"{'converged':>9s}  verdict")
     for name, row in table.iterrows():
         print(f"{name:24s} {row['elpd']:10.2f} {row['elpd_diff']:10.2f} {row['dse']:8.2f} {row['z']:7.2f} "
-              f"{row['pareto_k_max']:6.2f} {str(fits[name].converged):>9s}  {row['verdict']}")
+              f"{row['separation']:7.2f} {row['pareto_k_max']:6.2f} {str(fits[name].converged):>9s}  {row['verdict']}")
+    _print_reasons(table["verdict"], table["reason"], table.index, "")
     print(f"wrote {path}")
     return 0
+
+
+def _recorded_display(sessions):
+    """A SimulatedDisplay of the display description the sessions recorded (all the same one)."""
+    from tactilab.data_schemas.display import DisplayDescription
+    from tactilab.experiments.devices import SimulatedDisplay
+    from tactilab.experiments.session import session_header
+
+    metas = [session_header(path).meta for path in sessions]
+    shas = {m.get("display_sha256") for m in metas}
+    if len(shas) != 1 or metas[0].get("display_description") is None:
+        raise ValueError(f"--source: 'display' needs sessions recorded on one display with its description; got "
+                         f"{len(shas)} display description(s) {sorted(map(str, shas))}; compare them per display "
+                         "or use --source surface")
+    return SimulatedDisplay(DisplayDescription.model_validate(metas[0]["display_description"]), realtime=False)
+
+
+def _print_reasons(verdicts, reasons, names, indent: str) -> None:
+    """The reason under the table for every row without a plain verdict (not identifiable, no verdict)."""
+    for name, verdict, reason in zip(names, verdicts, reasons):
+        if str(verdict).startswith(("not identifiable", "no verdict")) and reason:
+            print(f"{indent}{name}: {verdict}: {reason}")
 
 
 def _run_compare_batch(args: argparse.Namespace) -> int:
@@ -152,7 +205,7 @@ def _run_compare_batch(args: argparse.Namespace) -> int:
     subjects = sessions_by_subject(args.sessions)
     out = make_out(args.out if args.out is not None else Path(args.sessions[0]).parent / "compare-batch")
     table = compare_many(subjects, args.model, seed=args.seed, out_dir=out, statistic=args.statistic,
-                         sampler_options=_sampler(args),
+                         method=args.method, sampler_options=_sampler(args),
                          progress=not args.json, echo=(lambda _: None) if args.json else print, **batch_where(args))
     a = table.attrs
     if args.json:
@@ -164,12 +217,15 @@ def _run_compare_batch(args: argparse.Namespace) -> int:
         return 1 if a["n_failed"] else 0
     for s in table["subject"].values:
         print(f"subject {s}")
-        print(f"  {'model':22s} {'elpd':>10s} {'elpd_diff':>10s} {'dse':>8s} {'z':>7s} {'k max':>6s} {'converged':>9s}  verdict")
+        print(f"  {'model':22s} {'elpd':>10s} {'elpd_diff':>10s} {'dse':>8s} {'z':>7s} {'separ.':>7s} {'k max':>6s} "
+              f"{'converged':>9s}  verdict")
         for m in table["model"].values:
             row = table.sel(subject=s, model=m)
             print(f"  {m:22s} {float(row['elpd']):10.2f} {float(row['elpd_diff']):10.2f} {float(row['dse']):8.2f} "
-                  f"{float(row['z']):7.2f} {float(row['pareto_k_max']):6.2f} {str(bool(row['converged'])):>9s}  "
-                  f"{row['verdict'].values}")
+                  f"{float(row['z']):7.2f} {float(row['separation']):7.2f} {float(row['pareto_k_max']):6.2f} "
+                  f"{str(bool(row['converged'])):>9s}  {row['verdict'].values}")
+        sub = table.sel(subject=s)
+        _print_reasons([_text(v) for v in sub["verdict"]], [_text(v) for v in sub["reason"]], sub["model"].values, "  ")
     print(f"batch: {a['n_run']} fit(s) run, {a['n_skipped']} skipped (done before), {a['n_failed']} failed; "
           f"files: {out / 'results'} (one DataTree per subject and model), {out / 'compare_many.nc'} (the table)"
           + (f", {out / 'errors.tsv'}" if a["n_failed"] else ""))

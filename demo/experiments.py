@@ -24,8 +24,8 @@ DEMO_PROTOCOL = {
     "task": {"kind": "2ifc", "interval_gap_s": "400ms"},
     "stimulus": {"amplitude_m": "20um", "pitch_m": "2mm", "speed_m_per_s": "40mm/s", "duration_s": "300ms"},
     "procedure": {"method": "staircase", "parameter": "amplitude_m", "tracks": [
-        {"start": "8um", "step_sizes": [0.3, 0.15], "min_level": "0.2um", "max_level": "50um", "max_trials": 20},
-        {"start": "1um", "step_sizes": [0.3, 0.15], "min_level": "0.2um", "max_level": "50um", "max_trials": 20}]},
+        {"start": "8um", "step_sizes": [0.3, 0.15], "min_level": "0.2um", "max_level": "12um", "max_trials": 20},
+        {"start": "1um", "step_sizes": [0.3, 0.15], "min_level": "0.2um", "max_level": "12um", "max_trials": 20}]},
 }
 
 

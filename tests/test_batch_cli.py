@@ -18,6 +18,7 @@ from tactilab.core import batch as B
 from tactilab.core import task_rng
 from tactilab.data_schemas import DisplayDescription, Protocol
 from tactilab.experiments import SimulatedDisplay, TransductionModel, new_session, power_analysis
+from tactilab.experiments.modelling import VERDICTS
 from tactilab.experiments.modelling.analysis import read_design
 from tactilab.experiments.modelling.batch import sessions_by_subject
 from tactilab.experiments.session.responses import SimulatedObserver
@@ -61,12 +62,13 @@ def sessions(tmp_path_factory):
 
 @pytest.mark.slow
 def test_experiment_compare_per_subject_serial_and_on_a_scheduler(sessions, tmp_path, capsys, client):
-    argv = ["experiment", "compare", *sessions, "--model", "zx@1mm", "--model", "zx@3mm", "--max-steps", "60",
-            "--seed", "2", "--json"]
+    argv = ["experiment", "compare", *sessions, "--model", "zx@1mm", "--model", "zx@3mm", "--seed", "2", "--json"]
     assert main([*argv, "--workers", "0", "--out", str(tmp_path / "w0")]) == 0
     serial = _json(capsys)
     assert set(serial["subjects"]) == {"S01", "S02"} and serial["n_run"] == 4 and serial["n_failed"] == 0
-    assert [serial["subjects"]["S01"][m]["verdict"] for m in ("zx@1mm", "zx@3mm")].count("best") == 1
+    verdicts = [serial["subjects"]["S01"][m]["verdict"] for m in ("zx@1mm", "zx@3mm")]
+    assert verdicts == ["not identifiable on this design"] * 2  # one pitch: the depth only rescales the threshold
+    assert all(serial["subjects"]["S01"][m]["reason"] for m in ("zx@1mm", "zx@3mm"))
     assert main([*argv, "--scheduler", client.scheduler.address, "--out", str(tmp_path / "remote")]) == 0
     remote = _json(capsys)
     assert remote["subjects"] == serial["subjects"]  # the same numbers, bit for bit (JSON floats round-trip)
@@ -88,10 +90,16 @@ def test_sessions_by_subject_groups_by_the_recorded_subject(sessions, tmp_path):
 
 
 def test_experiment_compare_pooled_json_and_errors(sessions, tmp_path, capsys):
-    argv = ["experiment", "compare", sessions[0], "--model", "zx@1mm", "--model", "zx@3mm", "--max-steps", "60"]
+    argv = ["experiment", "compare", sessions[0], "--model", "zx@1mm", "--model", "zx@3mm", "--method", "emcee",
+            "--max-steps", "60"]
     assert main([*argv, "--out", str(tmp_path), "--json"]) == 0
     summary = _json(capsys)
     assert set(summary["models"]) == {"zx@1mm", "zx@3mm"} and summary["png"].endswith("compare.png")
+    for row in summary["models"].values():  # 60 steps do not converge: no verdict, and what to do
+        assert row["converged"] or row["verdict"] == "no verdict: fit not converged"
+        assert row["converged"] or "--max-steps" in row["reason"]
+    assert main([*argv[:5], "--max-steps", "60"]) == 2
+    assert "--max-steps: only for --method emcee" in capsys.readouterr().err
     assert main([*argv[:5], "--workers", "0", "--out", str(tmp_path / "b")]) == 2
     assert "--model: give two or more different hypotheses" in capsys.readouterr().err
     assert main([*argv, "--max-steps", "0"]) == 2

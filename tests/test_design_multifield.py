@@ -45,7 +45,6 @@ amplitude_m = ["3um", "6um"]
 surface = ["sinusoid", "square"]
 speed_m_per_s = ["20mm/s"]
 """
-FAST = {"tau_factor": 10.0, "check_every": 200}  # shorter chains; the convergence checks still run
 
 
 def _interval(stimuli):
@@ -68,8 +67,7 @@ def test_planned_stimulus_fields_replace_the_protocol_stimulus():
     assert plan.level == 0.005 and plan.track == 3
 
 
-@pytest.mark.slow
-def test_protocol_file_with_several_varied_fields_runs_through_the_cli(tmp_path, capsys, monkeypatch):
+def test_protocol_file_with_several_varied_fields_runs_through_the_cli(tmp_path, capsys):
     path = tmp_path / "design.toml"
     path.write_text(PROTOCOL)
     argv = ["experiment", "run", str(path), "--subject", "S01", "--responses", "simulated", "--no-wait", "--quiet",
@@ -89,19 +87,13 @@ def test_protocol_file_with_several_varied_fields_runs_through_the_cli(tmp_path,
     shown = [_interval(s) for s in frame["stimuli"]]
     assert len({s["surface"] for s in shown}) == 2  # the design used both waveforms (they separate xx from zx)
 
-    # compare works on the design session as on any other (shorter chains for the test)
-    import tactilab.experiments.modelling.analysis as analysis
-
-    original = analysis.compare_sessions
-
-    def fast(*args, sampler_options=None, **kwargs):
-        return original(*args, sampler_options={**(sampler_options or {}), **FAST}, **kwargs)
-
-    monkeypatch.setattr(analysis, "compare_sessions", fast)
+    # compare works on the design session as on any other; 16 trials all near ceiling cannot separate the
+    # models, so the table says so instead of naming a best model
     assert main(["experiment", "compare", str(session), "--model", "xx@1mm", "--model", "zx@1mm",
                  "--out", str(tmp_path / "figs")]) == 0
     out = capsys.readouterr().out
-    assert "xx@1mm" in out and "zx@1mm" in out and "best" in out
+    assert "xx@1mm" in out and "zx@1mm" in out
+    assert "best" in out or "not identifiable on this design: " in out
     assert (tmp_path / "figs" / "compare.png").stat().st_size > 10_000
 
 

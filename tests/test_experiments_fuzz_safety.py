@@ -95,7 +95,8 @@ def test_fuzzed_valid_protocols_stay_within_the_limits_on_the_wire(protocol, emu
     # against this session's own count of skipped frames
     n_before = len(read_record(record)["streams"])
     try:
-        result = new_session(protocol, path, display, SimulatedObserver(protocol), subject="F1", realtime=False)
+        result = new_session(protocol, path, display, SimulatedObserver(protocol), subject="F1", realtime=False,
+                             clipped="allow")  # the safety layer is what this test fuzzes
     finally:
         display.close()
     assert result.status == "complete"
@@ -129,7 +130,8 @@ def test_an_absurd_amplitude_is_limited_and_every_intervention_logged(emulator, 
     before = read_record(record)["n_frames"]
     display = UdpDisplay(DESCRIPTION, port=port, max_skipped_fraction=1.0)  # a loaded CI box may skip
     try:
-        new_session(protocol, tmp_path / "s.sqlite", display, SimulatedObserver(protocol), subject="F2", realtime=False)
+        new_session(protocol, tmp_path / "s.sqlite", display, SimulatedObserver(protocol), subject="F2", realtime=False,
+                    clipped="allow")
     finally:
         display.close()
     frames = np.vstack([s["values"] for s in read_record(record)["streams"]])[before:]

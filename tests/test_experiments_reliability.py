@@ -193,7 +193,7 @@ def test_cli_run_killed_then_resumed(tmp_path):
     cmd = [sys.executable, "-m", "tactilab.cli", "experiment"]
     session = tmp_path / "sessions" / "sub-S07_ses-01_task-kill.sqlite"
     proc = subprocess.Popen(cmd + ["run", str(toml), "--subject", "S07", "--responses", "simulated",
-                                   "--quiet", "--out", str(tmp_path / "sessions")],
+                                   "--quiet", "--out", str(tmp_path / "sessions"), "--clipped", "allow"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:  # kill once at least 3 trials are durable
@@ -208,6 +208,9 @@ def test_cli_run_killed_then_resumed(tmp_path):
     assert out.returncode == 0, out.stderr
     assert "complete after 8 trials" in out.stdout
     reference = tmp_path / "ref.sqlite"
-    new_session(protocol, reference, *_components(protocol), subject="S07", realtime=False)
+    display = SimulatedDisplay(DisplayDescription.braille_row(), realtime=False)
+    # the CLI's observer feels what the simulated display renders (its default --observer-strain)
+    new_session(protocol, reference, display, SimulatedObserver(protocol, display=display), subject="S07",
+                realtime=False, clipped="allow")
     assert [_comparable(t) for t in SessionLog(session).trials()] == \
         [_comparable(t) for t in SessionLog(reference).trials()]

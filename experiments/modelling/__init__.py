@@ -1,7 +1,8 @@
 """tactilab.experiments.modelling: models of the observer, fitted to recorded sessions.
 
 Psychometric-function fits as psignifit 4 does them (:mod:`.psychometric`), transduction models
-(which strain does touch read?) fitted and compared by PSIS-LOO (:mod:`.models`), power to tell
+(which strain does touch read?) fitted by quadrature or emcee (:mod:`.models`) and compared by
+PSIS-LOO (:mod:`.comparison`) where the design can tell them apart (:mod:`.identifiability`), power to tell
 two models apart (:mod:`.model_power`), the adaptive design that tells them apart trial by trial
 (:mod:`.design`, registered as the ``model_discrimination`` procedure), per-condition fits and
 model comparisons of session files (:mod:`.analysis`), the session summary with its fits
@@ -27,12 +28,17 @@ _EXPORTS = {
     "sigmoid_core": "psychometric",
     "TransductionFit": "models",
     "TransductionModel": "models",
-    "compare_models": "models",
-    "elpd_mcse": "models",
+    "compare_models": "comparison",
+    "elpd_mcse": "comparison",
+    "VERDICTS": "comparison",
+    "Separation": "identifiability",
+    "separation": "identifiability",
     "fit_transduction": "models",
     "PowerResult": "model_power",
     "power_analysis": "model_power",
     "ModelDiscrimination": "design",
+    "HypothesisObserver": "observer",
+    "hypothesis_observer": "observer",
     "ConditionFit": "analysis",
     "compare_sessions": "analysis",
     "condition_table": "analysis",

@@ -90,6 +90,7 @@ def conditions(model, trials, task=None):
     """Group trials by condition. Returns a dict of arrays (statistics computed once per stimulus)."""
     rows, kind = _records(trials, task)
     keys, idx, correct = {}, np.empty(len(rows), dtype=np.int64), np.empty(len(rows), dtype=bool)
+    pitch, amplitude = np.empty(len(rows)), np.empty(len(rows))  # of the target interval, m
     for i, (stim, target, ok) in enumerate(rows):
         if kind == "2ifc":
             if len(stim) != 2:
@@ -97,13 +98,16 @@ def conditions(model, trials, task=None):
             t = int(target) - 1 if target in ("1", "2") else int(np.argmax([s.amplitude_m for s in stim]))
             key = (model.statistic_of(stim[t]), model.statistic_of(stim[1 - t]))
         else:
+            t = 0
             key = (model.statistic_of(stim[0]), 1.0 if target == "yes" else 0.0)
+        pitch[i], amplitude[i] = stim[t].pitch_m, stim[t].amplitude_m
         idx[i] = keys.setdefault(key, len(keys))
         correct[i] = ok
     table = np.array(list(keys), dtype=float).reshape(-1, 2)
     n = np.bincount(idx, minlength=len(keys)).astype(float)
     k = np.bincount(idx, weights=correct, minlength=len(keys))
-    return dict(kind=kind, s1=table[:, 0], s2=table[:, 1], n=n, k=k, idx=idx, correct=correct)
+    return dict(kind=kind, s1=table[:, 0], s2=table[:, 1], n=n, k=k, idx=idx, correct=correct, pitch_m=pitch,
+                amplitude_m=amplitude)
 
 
 def p_correct_table(kind, s1, s2, theta):
@@ -222,7 +226,10 @@ def map_estimate(lik: TransductionLikelihood, start):
 
     def neg(v):
         v = np.asarray(v)[None, :]
-        val = float(lik.log_prior(v)[0] + lik.total_log_likelihood(v)[0])
+        prior = float(lik.log_prior(v)[0])
+        if not math.isfinite(prior):  # outside the support: no likelihood (its logs would be of negatives)
+            return 1e300
+        val = prior + float(lik.total_log_likelihood(v)[0])
         return -val if math.isfinite(val) else 1e300
 
     res = minimize(neg, np.asarray(start, dtype=float), method="Nelder-Mead",

@@ -20,7 +20,10 @@ import numpy as np
 from tactilab.data_schemas.experiment import Stimulus
 
 from ..session import DISPLAY_UNITS
-from .psychometric import PsychometricFit, fit_psychometric
+from .psychometric import PsychometricFit, fit_psychometric, sigmoid_core
+
+#: varied parameters that cannot be <= 0 (data_schemas Stimulus): fitted on log levels
+POSITIVE = ("amplitude_m", "pitch_m", "duration_s")
 
 _LABEL_FIELDS = {"pitch_m": ("pitch", 1e3, "mm"), "speed_m_per_s": ("speed", 1e3, "mm/s"),
                  "amplitude_m": ("amplitude", 1e6, "um"), "duration_s": ("duration", 1e3, "ms")}
@@ -63,15 +66,32 @@ def _test_stimulus(trial, kind):
     return trial.stimuli[-1]
 
 
-def fit_conditions(paths, *, sigmoid: str = "norm", rng=None) -> list[ConditionFit]:
+def sigmoid_for(parameter: str, sigmoid: str = "auto") -> str:
+    """The sigmoid a condition varying ``parameter`` is fitted with: ``auto`` gives ``weibull`` (log
+    levels, as psignifit users fit positive quantities) for a positive quantity (:data:`POSITIVE`)
+    and ``norm`` for a signed one (a speed); a linear-level sigmoid on a positive quantity is
+    refused, since its interval can reach impossible values below 0."""
+    if sigmoid == "auto":
+        return "weibull" if parameter in POSITIVE else "norm"
+    if parameter in POSITIVE and not sigmoid_core(sigmoid).log_levels:
+        raise ValueError(f"sigmoid: {sigmoid!r} fits {parameter} on linear levels, where its interval can reach "
+                         "below 0 (impossible for a positive quantity); use 'auto' or 'weibull' (log levels) or "
+                         "'lognorm'")
+    return sigmoid
+
+
+def fit_conditions(paths, *, sigmoid: str = "auto", rng=None) -> list[ConditionFit]:
     """One :func:`fit_psychometric` per condition of the sessions (2IFC/2AFC: proportion correct;
     yes/no: proportion "yes" on signal trials).
+
+    ``sigmoid="auto"`` (default): ``weibull`` on log levels for a positive quantity (amplitude,
+    pitch, duration), ``norm`` for a signed one (speed); see :func:`sigmoid_for`.
 
     Raises
     ------
     ValueError
-        For a missing file, mixed tasks, a task without correct answers, or a condition with
-        fewer than two levels.
+        For a missing file, mixed tasks, a task without correct answers, a condition with
+        fewer than two levels, or a linear-level sigmoid on a positive quantity.
     """
     rows, kind = _session_rows(paths)
     if kind not in ("2ifc", "2afc", "yes_no"):
@@ -97,13 +117,13 @@ def fit_conditions(paths, *, sigmoid: str = "norm", rng=None) -> list[ConditionF
         if np.unique(levels).size < 2:
             raise ValueError(f"session: condition '{label}' has trials at one {name} only; a fit needs >= 2 levels")
         fit = fit_psychometric(levels, correct, experiment="yes_no" if kind == "yes_no" else "2afc",
-                               sigmoid=sigmoid, rng=gen)
+                               sigmoid=sigmoid_for(parameter, sigmoid), rng=gen)
         out.append(ConditionFit(label, parameter, unit, scale, len(items), fit,
                                 tuple(float(v) for v in np.unique(levels))))
     return out
 
 
-def fit_summary(paths, *, sigmoid: str = "norm", rng=0) -> list[str]:
+def fit_summary(paths, *, sigmoid: str = "auto", rng=0) -> list[str]:
     """One line per condition for a run summary or ``experiment status``: the fitted threshold and
     its 95 % interval in display units, e.g. ``amplitude threshold 0.295 um (95 % interval 0.159 to
     0.424 um; psychometric fit of 100 trials; sinusoid, pitch 2 mm, ...)``.
@@ -117,7 +137,7 @@ def fit_summary(paths, *, sigmoid: str = "norm", rng=0) -> list[str]:
     return lines
 
 
-def condition_table(paths, *, sigmoid: str = "norm", rng=0) -> list[dict]:
+def condition_table(paths, *, sigmoid: str = "auto", rng=0) -> list[dict]:
     """Per condition, SI values for ``experiment status --json``: keys carry the varied
     parameter's SI unit (``threshold_m``, ``threshold_ci95_m``, ``levels_m`` for an amplitude;
     ``_m_per_s`` for a speed, ``_s`` for a duration).
@@ -138,19 +158,30 @@ def condition_table(paths, *, sigmoid: str = "norm", rng=0) -> list[dict]:
     return rows
 
 
-def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, n_ensembles: int = 4,
-                     sampler_options=None):
-    """Fit one TransductionModel per hypothesis string to the sessions; returns (table, fits)."""
-    from .models import TransductionModel, compare_models, fit_transduction
+def compare_sessions(paths, hypotheses, *, statistic: str = "peak", rng=None, method: str = "grid",
+                     n_ensembles: int = 4, sampler_options=None, source: str = "surface", display=None):
+    """Fit one TransductionModel per hypothesis string to the sessions; returns (table, fits).
+
+    ``method="grid"`` (default): quadrature, the same table for every ``rng``; ``"emcee"``:
+    the samplers (``rng``, ``n_ensembles``, ``sampler_options``). ``source="display"`` with a
+    ``display`` (a SimulatedDisplay of the sessions' display description) fits the strain the
+    display renders instead of the ideal surface's. The table is
+    :func:`~.comparison.compare_models`' (verdicts only where the design can tell models apart).
+    """
+    from .comparison import compare_models
+    from .models import TransductionModel, fit_transduction
 
     if len(hypotheses) < 2:
         raise ValueError("model: give at least two hypotheses to compare, e.g. --model zx@1mm --model xx@1mm")
     if len(set(hypotheses)) != len(hypotheses):
         raise ValueError(f"model: each hypothesis once, got {list(hypotheses)}")
+    if method != "emcee" and sampler_options:
+        raise ValueError(f"sampler_options: only for method='emcee', got {dict(sampler_options)}; drop them or pass "
+                         "method='emcee'")
     gen = np.random.default_rng(rng)
-    models = {h: TransductionModel(h, statistic=statistic) for h in hypotheses}
-    fits = {h: fit_transduction(m, list(paths), rng=gen, n_ensembles=n_ensembles, sampler_options=sampler_options)
-            for h, m in models.items()}
+    models = {h: TransductionModel(h, statistic=statistic, source=source, display=display) for h in hypotheses}
+    options = dict(rng=gen, n_ensembles=n_ensembles, sampler_options=sampler_options) if method == "emcee" else {}
+    fits = {h: fit_transduction(m, list(paths), method=method, **options) for h, m in models.items()}
     return compare_models(fits), fits
 
 
@@ -188,10 +219,12 @@ def plot_comparison(table, fits, path) -> None:
     ax, bx = fig.subplots(1, 2)
     names = list(table.index)
     ax.errorbar(range(len(names)), table["elpd"], yerr=table["se"], fmt="o", capsize=4)
-    ax.set_xticks(range(len(names)), [f"{n}\n{v}" for n, v in zip(names, table["verdict"])], fontsize=8)
+    ax.set_xticks(range(len(names)), [f"{n}\n" + str(v).replace(": ", ":\n").replace(" on this", "\non this")
+                                      for n, v in zip(names, table["verdict"])], fontsize=7)
     for i, (_, row) in enumerate(table.iterrows()):
         if i:
-            ax.annotate(f"diff {row['elpd_diff']:.1f} +- {row['dse']:.1f} (z {row['z']:.2f})", (i, row["elpd"]),
+            ax.annotate(f"diff {row['elpd_diff']:.1f} +- {row['dse']:.1f} (z {row['z']:.2f}; "
+                        f"separation {row['separation']:.2g})", (i, row["elpd"]),
                         textcoords="offset points", xytext=(6, 6), fontsize=7)
     ax.set_ylabel("ELPD (PSIS-LOO, +- se), nats")
     ax.set_title("model comparison (higher is better)", fontsize=9)

@@ -164,7 +164,8 @@ def design_sweep(depths, widths, pairs_list, *, out_dir, seed: int = 0, client=N
 
 # ----------------------------------------------------------------------------- model fits per subject
 #: variables of the gathered comparison table (arviz_stats.compare's columns and compare_models' additions)
-COMPARE_COLUMNS = ("rank", "elpd", "p", "elpd_diff", "weight", "se", "dse", "mcse", "mcse_diff", "z", "pareto_k_max")
+COMPARE_COLUMNS = ("rank", "elpd", "p", "elpd_diff", "weight", "se", "dse", "mcse", "mcse_diff", "z", "pareto_k_max",
+                   "separation")
 
 
 def sessions_by_subject(paths) -> dict[str, list[str]]:
@@ -216,7 +217,7 @@ def _compare_subject(paths: dict[str, str]):
 
     import xarray as xr
 
-    from .models import compare_models
+    from .comparison import compare_models
 
     trees = {m: xr.open_datatree(p, engine="h5netcdf").load() for m, p in paths.items()}
     summaries = {m: t["summary"].to_dataset() for m, t in trees.items()}
@@ -230,7 +231,7 @@ def _compare_subject(paths: dict[str, str]):
 
 
 def compare_many(subjects: Mapping, models: Sequence, *, seed: int, out_dir, statistic: str = "peak",
-                 n_ensembles: int = 4, sampler_options: Mapping | None = None, client=None,
+                 method: str = "grid", n_ensembles: int = 4, sampler_options: Mapping | None = None, client=None,
                  workers: int | None = None, scheduler: str | None = None, per_task: int = 1, progress: bool = True,
                  echo: Callable[[str], None] = print):
     """Fit every transduction model to every subject's trials and compare the models per subject.
@@ -256,19 +257,21 @@ def compare_many(subjects: Mapping, models: Sequence, *, seed: int, out_dir, sta
         Output folder (resumable): ``results/``, ``errors.tsv``, ``compare_many.nc``.
     statistic : {"peak", "rms"}
         Statistic of models given as strings.
-    n_ensembles, sampler_options
-        As in :func:`~.models.fit_transduction`.
+    method, n_ensembles, sampler_options
+        As in :func:`~.models.fit_transduction` (``grid``: the same fits for every seed;
+        ``n_ensembles`` and ``sampler_options`` for ``emcee`` only).
     client, workers, scheduler, per_task, progress
         See :func:`tactilab.core.batch.run_batch`.
 
     Returns
     -------
     xarray.Dataset
-        Over (subject, model): ``rank`` (0 = best; -1 where not compared), ``elpd``, ``p``,
+        Over (subject, model): ``rank`` (0 = the leader; -1 where not compared), ``elpd``, ``p``,
         ``elpd_diff``, ``weight``, ``se``, ``dse``, ``mcse``, ``mcse_diff``, ``z``, ``pareto_k_max`` (nats, NaN where not
-        compared), ``verdict`` (``best``, ``worse``, ``weakly worse``, ``indistinguishable``;
-        ``failed`` for a fit that failed, ``not compared`` when fewer than two fits of a subject
-        finished), ``converged``; over (subject, model, parameter): ``map``, ``mean``, ``median``,
+        compared), ``separation`` (expected separation from the leader on the subject's trials, in
+        standard errors), ``verdict`` (:data:`~.comparison.VERDICTS`; ``failed`` for a fit that
+        failed, ``not compared`` when fewer than two fits of a subject finished), ``reason``,
+        ``converged``; over (subject, model, parameter): ``map``, ``mean``, ``median``,
         ``lower``, ``upper`` (95 %). Attrs: ``seed``, ``n_run``, ``n_skipped``, ``n_failed``,
         ``failed`` (keys, ``;``-separated), ``warnings`` (PSIS warnings, ``|``-separated).
     """
@@ -287,7 +290,13 @@ def compare_many(subjects: Mapping, models: Sequence, *, seed: int, out_dir, sta
             raise ValueError(f"subjects: a subject code must be non-empty without '/', got {s!r}; e.g. 'S01'")
     items = {f"{s}/{m}": {"subject": s, "model": m, "trials": _trials(t)} for s, t in zip(subs, subjects.values())
              for m in names}
-    options = dict(n_ensembles=int(n_ensembles), sampler_options=dict(sampler_options or {}, progress=False))
+    if method not in ("grid", "emcee"):
+        raise ValueError(f"method: must be 'grid' or 'emcee', got {method!r}")
+    options = dict(method="grid") if method == "grid" else dict(
+        method="emcee", n_ensembles=int(n_ensembles), sampler_options=dict(sampler_options or {}, progress=False))
+    if method == "grid" and sampler_options:
+        raise ValueError(f"sampler_options: only for method='emcee', got {dict(sampler_options)}; drop them or pass "
+                         "method='emcee'")
     shared = dict(models=dict(zip(names, built)), options=options)
     with batch_client(workers, scheduler, client=client, echo=echo) as cl:
         rep = run_batch(_fit_point, items, seed=seed, out_dir=out_dir, client=cl, workers=0 if cl is None else None,
@@ -316,6 +325,7 @@ def _gather_comparison(subs, names, parts, attrs, out_dir):
     data = {c: np.full(shape, np.nan) for c in COMPARE_COLUMNS}
     data["rank"] = np.full(shape, -1, dtype=np.int64)
     verdict = np.full(shape, "failed", dtype=object)
+    reason = np.full(shape, "", dtype=object)
     converged = np.zeros(shape, dtype=bool)
     params = sorted({p for _, summaries, _, _ in parts for s in summaries.values() for p in s["parameter"].values},
                     key=["threshold_strain", "exponent", "lapse", "false_alarm"].index)
@@ -336,8 +346,10 @@ def _gather_comparison(subs, names, parts, attrs, out_dir):
                 for c in COMPARE_COLUMNS:
                     data[c][i, j] = row[c]
                 verdict[i, j] = row["verdict"]
+                reason[i, j] = row["reason"]
     dims = ("subject", "model")
     ds = xr.Dataset({**{c: (dims, v) for c, v in data.items()}, "verdict": (dims, verdict.astype(str)),
+                     "reason": (dims, reason.astype(str)),
                      "converged": (dims, converged),
                      **{k: (dims + ("parameter",), v) for k, v in stats.items()}},
                     coords={"subject": subs, "model": names, "parameter": params},

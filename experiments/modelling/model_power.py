@@ -141,6 +141,51 @@ def _simulate(sim, n):
     return np.array(out)
 
 
+def project(task: str, p, rival_s1, rival_s2, w):
+    """KL projection of the truth's P(correct) ``p`` (per condition) onto a rival over a design.
+
+    Parameters
+    ----------
+    task : {"2ifc", "yes_no"}
+    p : ndarray, shape (n,)
+        The truth's P(correct) per condition.
+    rival_s1, rival_s2 : ndarray, shape (n,)
+        The rival's statistics per condition (target and other interval; yes/no: 1 for signal).
+    w : ndarray, shape (n,)
+        Share of the trials per condition (sums to 1).
+
+    Returns
+    -------
+    (mu, sigma, rival_theta, u)
+        Mean and standard deviation of one trial's log-likelihood ratio (nats), the rival's
+        pseudo-true parameters (threshold_strain, exponent, lapse[, false_alarm]) and the same in
+        the optimiser's free coordinates.
+    """
+    pos = rival_s1[rival_s1 > 0]
+    typical = float(np.median(pos)) if pos.size else 1.0
+
+    def objective(u):
+        q = np.clip(p_correct_table(task, rival_s1, rival_s2, _from_free(u, task)[None])[0], 1e-300, 1 - 1e-16)
+        return float(np.sum(w * _bernoulli_kl(p, q)))
+
+    best = None
+    for scale in (0.3, 1.0, 3.0):
+        for b0 in (0.7, 1.5):
+            u0 = np.array([math.log(typical * scale), math.log(b0), -3.0] + ([-1.5] if task == "yes_no" else []))
+            res = minimize(objective, u0, method="Nelder-Mead", options=dict(xatol=1e-9, fatol=1e-14, maxiter=8000))
+            if best is None or res.fun < best.fun:
+                best = res
+    rival_theta = _from_free(best.x, task)
+    q = np.clip(p_correct_table(task, rival_s1, rival_s2, rival_theta[None])[0], 1e-300, 1 - 1e-16)
+    kl = _bernoulli_kl(p, q)
+    mu = float(np.sum(w * kl))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        l1 = np.where(p > 0, np.log(p / q), 0.0)
+        l0 = np.where(p < 1, np.log((1 - p) / (1 - q)), 0.0)
+    second = np.sum(w * (p * l1 ** 2 + (1 - p) * l0 ** 2))
+    return mu, float(math.sqrt(max(second - mu ** 2, 0.0))), rival_theta, best.x
+
+
 def power_analysis(true_model, true_params: dict, rival, design, *, task: str = "2ifc", method: str = "asymptotic",
                    n_repeats: int = 200, rng=None) -> PowerResult:
     """Power of telling ``true_model`` (at ``true_params``) from ``rival`` with a design.
@@ -182,33 +227,12 @@ def power_analysis(true_model, true_params: dict, rival, design, *, task: str = 
 
     true_s, rival_s = stats_of(true_model), stats_of(rival)
     p = p_correct_table(task, *true_s, theta[None])[0]
-
-    def objective(u):
-        q = np.clip(p_correct_table(task, *rival_s, _from_free(u, task)[None])[0], 1e-300, 1 - 1e-16)
-        return float(np.sum(w * _bernoulli_kl(p, q)))
-
-    pos = rival_s[0][rival_s[0] > 0]
-    if pos.size == 0:
+    if not np.any(rival_s[0] > 0):
         raise ValueError("rival: every design stimulus has statistic 0 under the rival; it predicts chance only")
-    best = None
-    for scale in (0.3, 1.0, 3.0):
-        for b0 in (0.7, 1.5):
-            u0 = np.array([math.log(float(np.median(pos)) * scale), math.log(b0), -3.0] + ([-1.5] if task == "yes_no" else []))
-            res = minimize(objective, u0, method="Nelder-Mead", options=dict(xatol=1e-9, fatol=1e-14, maxiter=8000))
-            if best is None or res.fun < best.fun:
-                best = res
-    rival_theta = _from_free(best.x, task)
-    q = np.clip(p_correct_table(task, *rival_s, rival_theta[None])[0], 1e-300, 1 - 1e-16)
-    kl = _bernoulli_kl(p, q)
-    mu = float(np.sum(w * kl))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        l1 = np.where(p > 0, np.log(p / q), 0.0)
-        l0 = np.where(p < 1, np.log((1 - p) / (1 - q)), 0.0)
-    second = np.sum(w * (p * l1 ** 2 + (1 - p) * l0 ** 2))
-    sigma = float(math.sqrt(max(second - mu ** 2, 0.0)))
+    mu, sigma, rival_theta, best_u = project(task, p, rival_s[0], rival_s[1], w)
     sim = {}
     if method == "simulate":
         sim = dict(task=task, w=w, p=p, true_s=true_s, rival_s=rival_s, n_repeats=int(n_repeats),
-                   true_u=_to_free(theta, task), rival_u=best.x,
+                   true_u=_to_free(theta, task), rival_u=best_u,
                    rng=np.random.default_rng(rng), z={})
     return PowerResult(mu, sigma, dict(zip(names, map(float, rival_theta))), method, task, sim)

@@ -31,11 +31,12 @@ from tactilab.forward.receptors import ReceptorHypothesis
 from tactilab.forward.tractors import sliding_sinusoid_strain
 
 from ._transduction_data import TransductionLikelihood, conditions, default_priors, map_estimate, p_correct_table
+from ._transduction_grid import GridFit
 from .model_power import PowerResult, power_analysis
 from .psychometric import ParamSummary, fit_psychometric
 
-__all__ = ["TransductionModel", "TransductionFit", "fit_transduction", "compare_models", "elpd_mcse", "power_analysis",
-           "PowerResult", "ReceptorHypothesis", "fit_psychometric", "ParamSummary"]
+__all__ = ["TransductionModel", "TransductionFit", "fit_transduction", "power_analysis", "PowerResult",
+           "ReceptorHypothesis", "fit_psychometric", "ParamSummary", "METHODS"]
 
 STATISTICS = ("peak", "rms")
 SOURCES = ("surface", "display")
@@ -160,10 +161,13 @@ class TransductionModel:
 class TransductionFit:
     """A fitted transduction model (from :func:`fit_transduction`).
 
-    ``tree``: ``posterior`` (threshold_strain, exponent, lapse[, false_alarm]; one chain per
-    ensemble), ``log_likelihood`` (``correct`` over dim ``trial``), ``observed_data``
-    (``correct``), ``sample_stats`` (``lp``); ``params``: a :class:`ParamSummary` each;
-    ``converged`` and ``diagnostics`` from the sampler (R-hat between ensembles, ESS, tau);
+    ``tree``: ``posterior`` (threshold_strain, exponent, lapse[, false_alarm]; emcee: one chain
+    per ensemble; grid: one chain of deterministic draws), ``log_likelihood`` (``correct`` over
+    dim ``trial``), ``observed_data`` (``correct``), ``sample_stats`` (``lp``), ``constant_data``
+    (per-trial statistics and target pitch and amplitude); ``params``: a :class:`ParamSummary`
+    each (grid: mean and quantiles of the quadrature's marginals); ``converged`` and
+    ``diagnostics`` from the sampler (R-hat between ensembles, ESS, tau) or the grid (mass at
+    the box's edges, largest cell mass, passes, ``elpd_quadrature``);
     ``conditions``: the per-condition statistics and counts the likelihood used.
     """
 
@@ -176,8 +180,11 @@ class TransductionFit:
     conditions: dict
 
 
+METHODS = ("grid", "emcee")
+
+
 def fit_transduction(model: TransductionModel, trials, *, task: str | None = None, priors: Mapping | None = None,
-                     rng, n_ensembles: int = 4, method: str = "emcee",
+                     rng=None, n_ensembles: int = 4, method: str = "grid",
                      sampler_options: Mapping | None = None) -> TransductionFit:
     """Fit threshold_strain, exponent, lapse (and false_alarm for yes/no) of a model to trials.
 
@@ -192,41 +199,72 @@ def fit_transduction(model: TransductionModel, trials, *, task: str | None = Non
         Replaces defaults (log-uniform threshold over 1/100 to 100x the data's statistics,
         lognormal exponent with median 1 and log-sd 0.5, Beta(1, 10) lapse on [0, 0.5],
         uniform false-alarm rate).
-    rng : numpy.random.Generator or int
+    rng : numpy.random.Generator, int or None
+        For ``method="emcee"`` (required there); the grid uses no random numbers.
     n_ensembles : int
-        Independent emcee ensembles (>= 4); convergence is judged by R-hat across them.
-    method : {"emcee"}
+        emcee only: independent ensembles (>= 4); convergence is judged by R-hat across them.
+    method : {"grid", "emcee"}
+        ``grid`` (default): quadrature on an adaptive grid (``_transduction_grid``), deterministic
+        draws and the same answer for every seed; converged when the grid holds and resolves the
+        posterior. ``emcee``: ensembles of ``tactilab.inversion.sample_posterior`` (the reference).
     sampler_options : mapping, optional
-        Passed on to ``tactilab.inversion.sample_posterior`` (e.g. ``max_steps``, ``tau_factor``,
-        ``pool``); the defaults keep its convergence rules.
+        emcee only: passed on to ``sample_posterior`` (e.g. ``max_steps``, ``tau_factor``, ``pool``).
     """
-    if method != "emcee":
-        raise ValueError(f"method: only 'emcee' is supported, got {method!r}")
+    if method not in METHODS:
+        raise ValueError(f"method: must be one of {METHODS}, got {method!r}")
     if not isinstance(model, TransductionModel):
         raise ValueError(f"model: expected a TransductionModel, got {type(model).__name__}")
-    from tactilab.inversion import sample_posterior
-
-    gen = np.random.default_rng(rng)
+    if method == "grid" and sampler_options:
+        raise ValueError(f"sampler_options: only for method='emcee' (the grid has no sampler), got "
+                         f"{dict(sampler_options)}; drop them or pass method='emcee'")
+    if method == "emcee" and rng is None:
+        raise ValueError("rng: method='emcee' needs a seed or numpy Generator, e.g. rng=0")
     data = conditions(model, trials, task)
     lik = TransductionLikelihood(data, default_priors(data, priors))
     n_trials = data["idx"].size
     # the per-trial log-likelihood is kept in bounded memory: <= 8e6 values (64 MB); below 400 draws
     # (over 20 000 trials) PSIS-LOO's Pareto k (compare_models' pareto_k_max) says whether that suffices
     max_draws = int(np.clip(8_000_000 // n_trials, 100, 4000))
+    if method == "grid":
+        return _fit_grid(model, lik, data, max_draws)
+    from tactilab.inversion import sample_posterior
+
     options = {"max_draws": max_draws, "info_tol": None, **dict(sampler_options or {})}
-    raw = sample_posterior(lik, gen, n_ensembles=n_ensembles, **options)
-    tree = _rename(raw, lik)
-    post = tree["posterior"]
+    raw = sample_posterior(lik, np.random.default_rng(rng), n_ensembles=n_ensembles, **options)
     best = max(_maps(raw), key=lambda v: float(lik.log_prior(v[None])[0] + lik.total_log_likelihood(v[None])[0]))
     best, _ = map_estimate(lik, best)
+    attrs = {**raw.attrs, "method": "emcee"}
+    tree = _tree({name: raw["posterior"][name].values for name in lik.param_names},
+                 raw["log_likelihood"]["obs"].values, raw["sample_stats"]["lp"].values, lik, data, best, attrs)
+    post = tree["posterior"]
     params = {}
     for j, name in enumerate(lik.param_names):
         x = post[name].values.ravel()
         q = np.quantile(x, [0.5, 0.025, 0.975, 0.16, 0.84])
         params[name] = ParamSummary(float(best[j]), float(x.mean()), float(q[0]), (float(q[1]), float(q[2])),
                                     (float(q[3]), float(q[4])))
-    attrs = dict(raw.attrs)
     return TransductionFit(model, tree, params, bool(attrs.get("converged", 0)), attrs, data["kind"], data)
+
+
+def _fit_grid(model, lik, data, n_draws):
+    grid = GridFit(lik).run()
+    start = grid.natural(np.array([x[i] for x, i in zip(grid.grid, np.unravel_index(np.argmax(grid.logp),
+                                                                                      grid.mass.shape))]))
+    best, _ = map_estimate(lik, start)
+    theta = grid.draws(n_draws)
+    ll = lik.log_likelihood(theta)
+    lp = lik.log_prior(theta) + lik.total_log_likelihood(theta)
+    elpd_i, lppd_i = grid.loo_quadrature()
+    attrs = {**grid.diagnostics, "method": "grid", "elpd_quadrature": float(elpd_i.sum()),
+             "lppd_quadrature": float(lppd_i.sum())}
+    tree = _tree({name: theta[None, :, j] for j, name in enumerate(lik.param_names)}, ll[None], lp[None], lik, data,
+                 best, attrs, elpd_i)
+    params = {}
+    for j, name in enumerate(lik.param_names):
+        q = grid.quantiles(j, [0.5, 0.025, 0.975, 0.16, 0.84])
+        params[name] = ParamSummary(float(best[j]), grid.mean(j), float(q[0]), (float(q[1]), float(q[2])),
+                                    (float(q[3]), float(q[4])))
+    return TransductionFit(model, tree, params, bool(attrs["converged"]), attrs, data["kind"], data)
 
 
 def _maps(raw):
@@ -236,84 +274,26 @@ def _maps(raw):
     return [np.array([m[n] for n in names]) for m in json.loads(raw.attrs["map_estimates"])]
 
 
-def _rename(raw, lik):
-    """The sampler's tree with the per-trial terms as ``correct`` over dim ``trial``."""
+def _tree(post, ll, lp, lik, data, best, attrs, elpd_i=None):
+    """The fit's DataTree: ``posterior``, ``log_likelihood`` (``correct`` over dim ``trial``),
+    ``observed_data``, ``sample_stats`` (``lp``) and ``constant_data`` (per trial: the model's
+    statistic of the target and of the other interval, the target's pitch_m and amplitude_m, which
+    the identifiability check of :func:`compare_models` reads; for the grid also
+    ``elpd_loo_quadrature``, the exact leave-one-out elpd per trial); root attrs: the method's
+    diagnostics, ``task`` and ``map_estimate`` (JSON)."""
+    import json
+
     import arviz_base as azb
 
-    post = {name: raw["posterior"][name].values for name in lik.param_names}
-    ll = raw["log_likelihood"]["obs"].values
-    attrs = {**raw.attrs, "task": lik.kind}
+    idx = data["idx"]
+    constant = {"statistic_target": data["s1"][idx], "statistic_other": data["s2"][idx],
+                "pitch_m": data["pitch_m"], "amplitude_m": data["amplitude_m"]}
+    if elpd_i is not None:
+        constant["elpd_loo_quadrature"] = elpd_i
+    root = {k: v for k, v in attrs.items() if isinstance(v, (str, int, float, bool, np.integer, np.floating))}
+    root = {k: (int(v) if isinstance(v, (bool, np.bool_)) else v) for k, v in root.items()}
+    root.update(task=lik.kind, map_estimate=json.dumps(dict(zip(lik.param_names, map(float, best)))))
     return azb.from_dict({"posterior": post, "log_likelihood": {"correct": ll},
-                          "observed_data": {"correct": lik.observed},
-                          "sample_stats": {"lp": raw["sample_stats"]["lp"].values}},
-                         dims={"correct": ["trial"]}, attrs={"/": attrs})
-
-
-def elpd_mcse(tree, var_name: str = "correct") -> float:
-    """Monte Carlo standard error of a fit's PSIS-LOO elpd (nats), from its chains.
-
-    First order (delta method) in the importance ratios r_is = 1 / p(y_i | theta_s):
-    elpd_loo = -sum_i log(mean_s r_is), so its Monte Carlo error is that of the posterior mean
-    of the scalar g(theta_s) = sum_i r_is / mean_s(r_is): ``sd(g) / sqrt(ESS(g))``, with the
-    effective sample size of g over the chains (``arviz_stats.ess``, method "mean"). The sum
-    over trials is taken per draw, so errors that every trial shares (a chain's whole
-    posterior slightly off) are counted, unlike in ``dse``. ``tree["log_likelihood"][var_name]``
-    has shape (chain, draw, trial).
-    """
-    import arviz_stats as azs
-
-    ll = np.asarray(tree["log_likelihood"][var_name].values, float)
-    ll = ll.reshape(ll.shape[0], ll.shape[1], -1)
-    log_r = -ll - (-ll).max(axis=(0, 1))  # scaled per trial: r / max r, no overflow
-    r = np.exp(log_r)
-    g = (r / r.mean(axis=(0, 1))).sum(axis=-1)  # (chain, draw)
-    if np.ptp(g) == 0:
-        return 0.0
-    return float(np.std(g, ddof=1) / np.sqrt(azs.ess(g, method="mean")))
-
-
-def compare_models(fits: Mapping, *, var_name: str = "correct", reference: str | None = None):
-    """PSIS-LOO comparison (arviz_stats), best first, with z, the largest Pareto k and a verdict.
-
-    Returns a pandas DataFrame indexed by model name: arviz's columns (``elpd``, ``elpd_diff``
-    (negative for a worse model), ``dse``, ``se``, ``p``, ``weight``, ...) unrounded, plus
-    ``mcse`` (Monte Carlo standard error of the model's elpd, :func:`elpd_mcse`), ``mcse_diff``
-    (of its elpd_diff: the two fits' errors combined as independent; 0 for the reference row),
-    ``z = |elpd_diff| / sqrt(dse**2 + mcse_diff**2)`` (the difference over its standard error,
-    data and Monte Carlo; for distinct models the Monte Carlo part is negligible, for two
-    models that predict identical responses it is all there is), ``pareto_k_max`` and
-    ``verdict``: ``best`` for the first row, then ``worse`` (z > 4), ``weakly worse``
-    (2 <= z <= 4) or ``indistinguishable`` (z < 2; also when elpd_diff = 0, e.g. the same
-    fit twice).
-    """
-    import arviz_stats as azs
-
-    if not isinstance(fits, Mapping) or len(fits) < 2:
-        raise ValueError("fits: give a mapping of at least two model names to TransductionFit or DataTree")
-    trees = {name: (f.tree if isinstance(f, TransductionFit) else f) for name, f in fits.items()}
-    sizes = {}
-    for name, tree in trees.items():
-        if "log_likelihood" not in getattr(tree, "children", {}) or var_name not in tree["log_likelihood"]:
-            raise ValueError(f"fits: {name!r} has no log_likelihood variable {var_name!r}; fit it with "
-                             "fit_transduction (it stores one term per trial)")
-        sizes[name] = tree["log_likelihood"][var_name].shape[-1]
-    if len(set(sizes.values())) != 1:
-        raise ValueError(f"fits: the models were fitted to different numbers of trials {sizes}; compare fits to "
-                         "the same trials")
-    if reference is not None and reference not in trees:
-        raise ValueError(f"reference: must be one of {sorted(trees)}, got {reference!r}")
-    elpds = {name: azs.loo(tree, pointwise=True, var_name=var_name) for name, tree in trees.items()}
-    table = azs.compare(elpds, reference=reference, round_to="none")
-    mcse = {name: elpd_mcse(tree, var_name) for name, tree in trees.items()}
-    table["mcse"] = [mcse[name] for name in table.index]
-    ref = reference if reference is not None else table.index[0]  # the model elpd_diff is taken against
-    table["mcse_diff"] = [0.0 if name == ref else math.hypot(mcse[ref], mcse[name]) for name in table.index]
-    diff = table["elpd_diff"].to_numpy(float)
-    sigma = np.hypot(table["dse"].to_numpy(float), table["mcse_diff"].to_numpy(float))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(sigma > 0, np.abs(diff) / sigma, np.where(np.abs(diff) < 1e-9, 0.0, np.inf))
-    table["z"] = z
-    table["pareto_k_max"] = [float(np.max(elpds[name].pareto_k)) for name in table.index]
-    table["verdict"] = ["best" if i == 0 else "worse" if v > 4 else "weakly worse" if v >= 2 else "indistinguishable"
-                        for i, v in enumerate(z)]
-    return table
+                          "observed_data": {"correct": lik.observed}, "sample_stats": {"lp": lp},
+                          "constant_data": constant},
+                         dims={"correct": ["trial"], **{k: ["trial"] for k in constant}}, attrs={"/": root})

@@ -46,6 +46,7 @@ SIGMOIDS: dict[str, Sigmoid] = {
                      lambda z: 1 / (math.pi * (1 + z * z))),
 }
 SIGMOIDS["weibull"] = SIGMOIDS["gumbel"]._replace(log_levels=True)
+SIGMOIDS["lognorm"] = SIGMOIDS["norm"]._replace(log_levels=True)  # a cumulative lognormal: norm on log levels
 #: other names accepted for the same cores (protocol files use ``normal_cdf``)
 SIGMOID_ALIASES: dict[str, str] = {"normal_cdf": "norm", "gauss": "norm", "student": "tdist",
                                    "heavytail": "tdist"}

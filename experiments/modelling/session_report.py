@@ -199,7 +199,8 @@ def summary_lines(s: dict[str, Any]) -> list[str]:
         running = format_estimate(s["procedure_estimate_si"], s["parameter"]).replace(" um", " µm")
     except (KeyError, TypeError, ValueError):
         running = "n/a"
-    rows.append(("procedure's estimate", running))
+    if not s["conditions"]:  # the procedure's running value is a rough start value, never shown beside a fit
+        rows.append(("procedure's start value", f"{running} (rough: the procedure's running value, not a fit)"))
     for i, c in enumerate(s["conditions"], 1):
         unit = c["parameter"].split("_", 1)[1]
         lo, hi = c[f"threshold_ci95_{unit}"]

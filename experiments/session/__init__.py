@@ -54,6 +54,9 @@ _EXPORTS = {
     "signals_held": "signals",
     "stop_signals": "signals",
     "make_responses": "factory",
+    "CLIPPED": "display_check",
+    "check_display_limits": "display_check",
+    "clipped_stimuli": "display_check",
     "next_session_path": "factory",
     "responses_from_spec": "factory",
 }

@@ -290,7 +290,8 @@ DISPLAY_UNITS = {"amplitude_m": ("amplitude", 1e6, "um"), "pitch_m": ("pitch", 1
 
 def new_session(protocol: Protocol, path: str | Path, display: Display, responses: ResponseSource, *,
                 subject: str, session: str = "01", subject_pattern: str | None = None, realtime: bool = True,
-                progress: bool = False, on_created: Callable[[Path], None] | None = None) -> RunResult:
+                progress: bool = False, on_created: Callable[[Path], None] | None = None,
+                clipped: str = "refuse") -> RunResult:
     """Create a session file at ``path`` and run the protocol to the end (or to an interruption).
 
     Parameters
@@ -317,6 +318,10 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     on_created : callable, optional
         Called with the session file's path once the file exists (after the start checks), e.g.
         to tell the user where it is.
+    clipped : {"refuse", "allow"}
+        A planned stimulus the display would limit (clip, slew- or duty-limit) refuses the protocol
+        before any file exists (``refuse``, :func:`~.display_check.check_display_limits`), or is
+        limited by the safety layer at run time and recorded as interventions (``allow``).
 
     Returns
     -------
@@ -341,12 +346,12 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     with stop_signals():  # from the first instruction: a stop during start-up is a clean stop
         return _new_session(protocol, path, display, responses, subject=subject, session=session,
                             subject_pattern=subject_pattern, realtime=realtime, progress=progress,
-                            on_created=on_created)
+                            on_created=on_created, clipped=clipped)
 
 
 def _new_session(protocol: Protocol, path: str | Path, display: Display, responses: ResponseSource, *,
                  subject: str, session: str, subject_pattern: str | None, realtime: bool, progress: bool,
-                 on_created: Callable[[Path], None] | None) -> RunResult:
+                 on_created: Callable[[Path], None] | None, clipped: str) -> RunResult:
     check_subject(subject, "subject", subject_pattern)
     check_label(session, "session")
     # before any file exists: the device answers (a ZERO round trip: it is there and at rest)
@@ -358,6 +363,9 @@ def _new_session(protocol: Protocol, path: str | Path, display: Display, respons
     except ValueError as exc:
         raise ValueError(f"protocol: a planned stimulus's {exc} (frame rates planned: {rates} Hz)") from None
     render_drive(display.description, **protocol.stimulus.model_dump())
+    from .display_check import check_display_limits
+
+    check_display_limits(protocol, display.description, clipped)
     description, description_sha256 = description_record(display.description)
     meta = {"session_id": uuid.uuid4().hex, "created_utc": utc_now(),
             "subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
