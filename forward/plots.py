@@ -69,6 +69,9 @@ def plot_field(da: xr.DataArray, path: str | pathlib.Path, title: str = "") -> p
             ax = axes[i, j]
             values = da.isel(depth=i).sel(component=comp).values * factor
             label = f"{comp} ({unit})"
+            convention = str(da.attrs.get("shear_convention", ""))
+            if comp in ("yz", "zx", "xy") and convention:  # shear strain: say which convention
+                label = f"{comp} ({unit}, {'engineering' if convention.startswith('engineering') else 'tensor'} shear)"
             if "y" in da.dims:
                 y_mm = da["y"].values * 1e3
                 lim = np.nanmax(np.abs(values)) or 1.0
