@@ -41,7 +41,7 @@ from .loads import LOAD_COMPONENTS, SurfaceLoad
 from .spectral import pressure_from_deflection
 
 __all__ = ["ContinuousLoad", "TractionField", "DeflectionLoad", "refined_grid", "coarse_grid", "shared_nodes",
-           "sampling_error", "spectral_sampling_error"]
+           "sampling_error", "spectral_sampling_error", "alias_check"]
 
 SAFETY = 2.0
 
@@ -268,8 +268,51 @@ def _coarse_index(coarse_shape, periodic: bool, halvings: int) -> tuple[np.ndarr
     return tuple(out)
 
 
+#: content beyond the grid's Nyquist box, relative to all the load's content, above which the grid aliases
+ALIAS_THRESHOLD = 1e-10
+
+
+def alias_check(load: ContinuousLoad, coarse: SurfaceLoad) -> tuple[float, int, SurfaceLoad]:
+    """Content of the load beyond the grid's Nyquist wavenumbers, seen on one finer sampling.
+
+    The load is sampled once on the grid r times finer (r = 4 in 1-D, 2 in 2-D, as the spectral
+    estimate, which reuses these samples). Content beyond the h grid's Nyquist box is aliased onto
+    a coarse mode by every nested grid (h, 2h, 4h alike), so the Richardson bound cannot see it;
+    any such content above :data:`ALIAS_THRESHOLD` makes the spectral estimate the reported one.
+    The rule: the check sees content up to the fine grid's Nyquist wavenumber (r pi / h); content
+    finer still aliases on the fine grid too and is not seen by any sampling.
+
+    Returns
+    -------
+    fraction : float
+        sum |F_k| beyond the h grid's Nyquist box over sum |F_k| (largest over the components),
+        in [0, 1]; 0 for a zero load.
+    halvings : int
+        Fewest halvings of the spacing whose Nyquist box holds all but :data:`ALIAS_THRESHOLD`
+        of the content (0 when the h grid does; log2(r), the fine grid, when no coarser one does).
+    fine : SurfaceLoad
+        The fine samples.
+    """
+    r = SPECTRAL_REFINEMENT[coarse.ndim]
+    steps = int(round(math.log2(r)))
+    fshape, fspacing = refined_grid(coarse.shape, coarse.spacing, load.periodic, steps)
+    fine = load.sample(fshape, fspacing)
+    fractions = [0.0] * (steps + 1)  # beyond the box of the grid halved j times, j = 0 .. steps
+    for values in fine.components.values():
+        scale = float(np.abs(values).max())
+        if scale == 0.0:
+            continue
+        spectrum = np.abs(np.fft.fftn(values / scale))  # scaled first: no overflow at 1e300 Pa
+        total = float(spectrum.sum())
+        for j in range(steps):
+            inside = _box(fshape, refined_grid(coarse.shape, coarse.spacing, load.periodic, j)[0])
+            fractions[j] = max(fractions[j], float((spectrum * (1.0 - inside)).sum()) / total)
+    halvings = next(j for j, f in enumerate(fractions) if f <= ALIAS_THRESHOLD)
+    return fractions[0], halvings, fine
+
+
 def spectral_sampling_error(load: ContinuousLoad, coarse: SurfaceLoad, depths, nu: float, weights: np.ndarray,
-                            band_limited: bool, peak: float) -> float:
+                            band_limited: bool, peak: float, fine: SurfaceLoad | None = None) -> float:
     """Estimate of the sampling error from the load's content near and beyond the grid scale.
 
     The load is sampled again on a grid r times finer (r = 4 in 1-D, 2 in 2-D; function
@@ -301,6 +344,8 @@ def spectral_sampling_error(load: ContinuousLoad, coarse: SurfaceLoad, depths, n
         True when the method reads the nodes as a trigonometric interpolant.
     peak : float
         max |field| of the h solve, in the output's units.
+    fine : SurfaceLoad or None
+        The load already sampled on the fine grid (:func:`alias_check`); sampled here when None.
 
     Returns
     -------
@@ -312,7 +357,7 @@ def spectral_sampling_error(load: ContinuousLoad, coarse: SurfaceLoad, depths, n
     r = SPECTRAL_REFINEMENT[coarse.ndim]
     halvings = int(round(math.log2(r)))
     fshape, fspacing = refined_grid(coarse.shape, coarse.spacing, load.periodic, halvings)
-    fine = load.sample(fshape, fspacing)
+    fine = load.sample(fshape, fspacing) if fine is None else fine
     index = np.ix_(*_coarse_index(coarse.shape, load.periodic, halvings))
     diffs = {}
     for name, fvals in fine.components.items():
