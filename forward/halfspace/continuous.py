@@ -272,7 +272,7 @@ def _coarse_index(coarse_shape, periodic: bool, halvings: int) -> tuple[np.ndarr
 ALIAS_THRESHOLD = 1e-10
 
 
-def alias_check(load: ContinuousLoad, coarse: SurfaceLoad) -> tuple[float, int, SurfaceLoad]:
+def alias_check(load: ContinuousLoad, coarse: SurfaceLoad) -> tuple[float, int | None, SurfaceLoad]:
     """Content of the load beyond the grid's Nyquist wavenumbers, seen on one finer sampling.
 
     The load is sampled once on the grid r times finer (r = 4 in 1-D, 2 in 2-D, as the spectral
@@ -287,9 +287,11 @@ def alias_check(load: ContinuousLoad, coarse: SurfaceLoad) -> tuple[float, int, 
     fraction : float
         sum |F_k| beyond the h grid's Nyquist box over sum |F_k| (largest over the components),
         in [0, 1]; 0 for a zero load.
-    halvings : int
+    halvings : int or None
         Fewest halvings of the spacing whose Nyquist box holds all but :data:`ALIAS_THRESHOLD`
-        of the content (0 when the h grid does; log2(r), the fine grid, when no coarser one does).
+        of the content (0 when the h grid does); log2(r), the fine grid, when no coarser one does
+        and the fine samples hold nothing beyond 3/4 of their own Nyquist wavenumbers (a margin: a
+        load with content up to the fine grid's edge may have more beyond it); None otherwise.
     fine : SurfaceLoad
         The fine samples.
     """
@@ -297,17 +299,18 @@ def alias_check(load: ContinuousLoad, coarse: SurfaceLoad) -> tuple[float, int, 
     steps = int(round(math.log2(r)))
     fshape, fspacing = refined_grid(coarse.shape, coarse.spacing, load.periodic, steps)
     fine = load.sample(fshape, fspacing)
-    fractions = [0.0] * (steps + 1)  # beyond the box of the grid halved j times, j = 0 .. steps
+    boxes = [refined_grid(coarse.shape, coarse.spacing, load.periodic, j)[0] for j in range(steps)]
+    boxes.append(tuple(0.75 * n for n in fshape))  # the fine grid, with a margin below its Nyquist
+    fractions = [0.0] * (steps + 1)  # content beyond each box, relative to all of it
     for values in fine.components.values():
         scale = float(np.abs(values).max())
         if scale == 0.0:
             continue
         spectrum = np.abs(np.fft.fftn(values / scale))  # scaled first: no overflow at 1e300 Pa
         total = float(spectrum.sum())
-        for j in range(steps):
-            inside = _box(fshape, refined_grid(coarse.shape, coarse.spacing, load.periodic, j)[0])
-            fractions[j] = max(fractions[j], float((spectrum * (1.0 - inside)).sum()) / total)
-    halvings = next(j for j, f in enumerate(fractions) if f <= ALIAS_THRESHOLD)
+        for j, box in enumerate(boxes):
+            fractions[j] = max(fractions[j], float((spectrum * (1.0 - _box(fshape, box))).sum()) / total)
+    halvings = next((j for j, f in enumerate(fractions) if f <= ALIAS_THRESHOLD), None)
     return fractions[0], halvings, fine
 
 

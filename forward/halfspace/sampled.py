@@ -98,9 +98,11 @@ def continuous_field(E: float, nu: float, load: ContinuousLoad, depths, points, 
         # the error (an alias sits alike on every nested grid), the observed order says nothing:
         # those halvings, and the estimate there, decide
         k = _needed_halvings(total, 0.5 * tol, order)
-        if k is not None and alias_k > 0:
-            seen = alias_k < math.log2(SPECTRAL_REFINEMENT[fine.ndim]) or not richardson >= 0.1 * spectral
-            k = alias_k if seen else max(k, alias_k)
+        if k is not None and alias_k != 0:
+            steps = int(round(math.log2(SPECTRAL_REFINEMENT[fine.ndim])))
+            if alias_k is None:  # content up to the fine grid's edge: at least that grid
+                alias_k = steps if not richardson >= 0.1 * spectral else max(k, steps)
+            k = alias_k
         if auto and k is not None and rounds < MAX_ROUNDS:
             new_shape, new_spacing = refined_grid(shape, spacing, load.periodic, k)
             if int(np.prod(new_shape)) <= MAX_NODES:
