@@ -10,7 +10,10 @@ The protocol is small:
   ``periodic``, and samples itself on any grid: ``sample(shape, spacing) -> SurfaceLoad``.
 
 :meth:`HalfSpace.stress` / ``strain`` accept one in place of a ``SurfaceLoad``. The sampling error
-is bounded twice, and the smaller bound is reported (both are upper bounds, so is their minimum):
+is bounded twice, and the smaller bound is reported (both are upper bounds, so is their minimum)
+unless :func:`alias_check` finds content beyond the grid's Nyquist wavenumber: that content
+aliases alike on every nested grid, the Richardson bound cannot see it, and the spectral bound
+alone is reported:
 
 - :func:`sampling_error`, Richardson: solves on the grids of spacing 2h and 4h (nodes shared with
   the fine grid), d1 = |F_h - F_2h| and d2 = |F_2h - F_4h| (max over the shared nodes or sensor

@@ -6,6 +6,10 @@ the grid: the smaller of two bounds, the Richardson bound from solves at spacing
 (:func:`~.continuous.sampling_error`, tight for rough loads) and the spectral bound from the load
 sampled on a finer grid pushed through the depth's transfer (:func:`~.continuous.spectral_sampling_error`,
 tight for smooth loads; skipped when the Richardson bound is already below the method's estimate).
+When that finer sampling shows content beyond the grid's Nyquist wavenumber
+(:func:`~.continuous.alias_check`), which aliases alike on the h, 2h and 4h grids, the Richardson
+bound is not an upper bound: the spectral bound is computed and reported alone, and the halvings
+the check shows to hold the content choose the refinement and the warning's grid.
 Both are in the result's attributes (``sampling_richardson``, ``sampling_spectral``, NaN when
 skipped); ``attrs["error_covers"]`` is ``"method+sampling"``. With ``method="auto"``, when the total exceeds
 ``tol``, the grid is refined (the spacing halved k times, k predicted from the observed convergence
