@@ -16,7 +16,8 @@ Two ways turn heights into loads on the skin:
 
 - :func:`rigid_surface_pressure`: a frictionless rigid surface sliding over the skin in full
   contact prescribes the normal displacement; the pressure is
-  ``P~ = E rho H~ / (2 (1 - nu^2))`` (docs/theory.md section 2), zero-mean and periodic.
+  ``P~ = E rho H~ / (2 (1 - nu^2))`` (docs/theory.md section 2), zero-mean and periodic: a
+  ``SurfaceLoad`` marked ``periodic=True``.
 - :meth:`Surface.modulation`: in the biomimetic-finger model (docs/theory.md 4b) the texture
   modulates the interfacial stress of the fingertip contact multiplicatively,
   ``p_eff = p (1 + h / h_ref)`` (clipped at 0, as the skin cannot be pulled); a +-A square
@@ -34,7 +35,7 @@ import numpy as np
 
 from tactilab.data_schemas import surface as _surface_records
 
-from .halfspace import pressure_from_deflection
+from .halfspace import SurfaceLoad, pressure_from_deflection
 from tactilab.core import rules as check
 
 
@@ -229,7 +230,7 @@ class Surface:
         return np.clip(1.0 + self.height(x, y) / h_ref, 0.0, None)
 
 
-def rigid_surface_pressure(heights, spacing, young_modulus: float, poisson_ratio: float = 0.5) -> np.ndarray:
+def rigid_surface_pressure(heights, spacing, young_modulus: float, poisson_ratio: float = 0.5) -> SurfaceLoad:
     """Pressure (Pa) that a frictionless rigid surface in full contact imposes on the skin.
 
     The surface prescribes the normal displacement ``H`` (m, periodic on the grid); in Fourier
@@ -249,7 +250,10 @@ def rigid_surface_pressure(heights, spacing, young_modulus: float, poisson_ratio
 
     Returns
     -------
-    ndarray, same shape as ``heights``, Pa.
+    SurfaceLoad
+        The periodic load (``periodic=True``: the grid is one period of the surface) whose ``p``
+        (Pa, the shape of ``heights``) is the pressure; pass it to :class:`~tactilab.forward.HalfSpace`
+        as it is (rewrapped as an isolated load it loses its periodic images and the fields are wrong).
     """
     h = np.asarray(heights, dtype=float)
     if h.ndim not in (1, 2) or not np.all(np.isfinite(h)):
@@ -258,7 +262,7 @@ def rigid_surface_pressure(heights, spacing, young_modulus: float, poisson_ratio
     nu = check.poisson_ratio(poisson_ratio, "poisson_ratio")
     sp = check.spacing(spacing, h.ndim)
     # the spectral module owns the transfer function (and its rho = 0 and Nyquist rules)
-    return pressure_from_deflection(h, sp if h.ndim == 2 else sp[0], E, nu).p
+    return pressure_from_deflection(h, sp if h.ndim == 2 else sp[0], E, nu)
 
 
 def random_rough_surface(shape, spacing, *, rms_height: float | None = None, rms_slope: float | None = None,

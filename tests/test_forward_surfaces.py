@@ -21,12 +21,14 @@ def test_rigid_surface_pressure_sinusoid(nu):
     p, A, E, n = 2e-3, 20e-6, 1.5e6, 64
     dx = p / 16
     x = np.arange(n) * dx
-    pres = rigid_surface_pressure(SinusoidalGrating(period_m=p, amplitude_m=A).height_at(x), dx, E, nu)
+    load = rigid_surface_pressure(SinusoidalGrating(period_m=p, amplitude_m=A).height_at(x), dx, E, nu)
+    assert load.periodic and load.spacing == (dx,)  # one period of the grating, not an isolated load
+    pres = load.p
     k = 2 * math.pi / p
     np.testing.assert_allclose(pres, E * k * A / (2 * (1 - nu ** 2)) * np.sin(k * x), atol=1e-9 * E * k * A)
     X, Y = np.meshgrid(x, x)
     oblique = A * np.sin(math.pi * (X + Y) / p)  # period p sqrt(2) along the diagonal: rho = k / sqrt(2)
-    pres2 = rigid_surface_pressure(oblique, (dx, dx), E, nu)
+    pres2 = rigid_surface_pressure(oblique, (dx, dx), E, nu).p
     np.testing.assert_allclose(pres2, E * k / math.sqrt(2) / (2 * (1 - nu ** 2)) * oblique,
                                atol=1e-9 * E * k * A)
 
@@ -37,7 +39,7 @@ def test_rigid_surface_pressure_anisotropic_spacing():
     dx, dy = p / 10, p / 16
     y = np.arange(32) * dy
     H = np.broadcast_to((A * np.sin(2 * math.pi * y / p))[:, None], (32, 20))
-    pres = rigid_surface_pressure(H, (dx, dy), E, 0.5)
+    pres = rigid_surface_pressure(H, (dx, dy), E, 0.5).p
     k = 2 * math.pi / p
     np.testing.assert_allclose(pres, E * k / 1.5 * H, atol=1e-9 * E * k * A)
 
@@ -50,7 +52,7 @@ def test_sliding_sinusoid_strain_matches_physics_4a():
     x = np.arange(n) * dx
     k = 2 * math.pi / p
     for E in (0.5e6, 3e6):
-        P = rigid_surface_pressure(A * np.sin(k * x), dx, E, 0.5)
+        P = rigid_surface_pressure(A * np.sin(k * x), dx, E, 0.5).p
         amp = P.max()  # p(x) = amp sin kx; phase-shifted cos closed forms
         e = math.exp(-k * Z)
         sxx = -amp * (1 - k * Z) * e * np.sin(k * x)

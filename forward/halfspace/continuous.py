@@ -10,7 +10,10 @@ The protocol is small:
   ``periodic``, and samples itself on any grid: ``sample(shape, spacing) -> SurfaceLoad``.
 
 :meth:`HalfSpace.stress` / ``strain`` accept one in place of a ``SurfaceLoad``. The sampling error
-is bounded twice, and the smaller bound is reported (both are upper bounds, so is their minimum):
+is bounded twice, and the smaller bound is reported (both are upper bounds, so is their minimum)
+unless :func:`alias_check` finds content beyond the grid's Nyquist wavenumber: that content
+aliases alike on every nested grid, the Richardson bound cannot see it, and the spectral bound
+alone is reported:
 
 - :func:`sampling_error`, Richardson: solves on the grids of spacing 2h and 4h (nodes shared with
   the fine grid), d1 = |F_h - F_2h| and d2 = |F_2h - F_4h| (max over the shared nodes or sensor
@@ -41,7 +44,7 @@ from .loads import LOAD_COMPONENTS, SurfaceLoad
 from .spectral import pressure_from_deflection
 
 __all__ = ["ContinuousLoad", "TractionField", "DeflectionLoad", "refined_grid", "coarse_grid", "shared_nodes",
-           "sampling_error", "spectral_sampling_error"]
+           "sampling_error", "spectral_sampling_error", "alias_check"]
 
 SAFETY = 2.0
 
@@ -268,8 +271,61 @@ def _coarse_index(coarse_shape, periodic: bool, halvings: int) -> tuple[np.ndarr
     return tuple(out)
 
 
+#: content beyond the grid's Nyquist box, relative to all the load's content, above which the grid aliases
+ALIAS_THRESHOLD = 1e-10
+
+
+def alias_check(load: ContinuousLoad, coarse: SurfaceLoad) -> tuple[float, int | None, SurfaceLoad]:
+    """Content of the load beyond the grid's Nyquist wavenumbers, seen on one finer sampling.
+
+    The load is sampled once on the grid r times finer (r = 4 in 1-D, 2 in 2-D, as the spectral
+    estimate, which reuses these samples). Content beyond the h grid's Nyquist box is aliased onto
+    a coarse mode by every nested grid (h, 2h, 4h alike), so the Richardson bound cannot see it;
+    any such content above :data:`ALIAS_THRESHOLD` makes the spectral estimate the reported one.
+    The rule: the check sees content up to the fine grid's Nyquist wavenumber (r pi / h); content
+    finer still aliases on the fine grid too and is not seen by any sampling.
+
+    Returns
+    -------
+    fraction : float
+        sum |F_k| beyond the h grid's Nyquist box over sum |F_k| (largest over the components),
+        in [0, 1]; 0 for a zero load.
+    halvings : int or None
+        Fewest halvings of the spacing whose Nyquist box holds all but :data:`ALIAS_THRESHOLD`
+        of the content (0 when the h grid does); log2(r), the fine grid, when no coarser one does
+        and the fine samples hold nothing beyond 3/4 of their own Nyquist wavenumbers (a margin: a
+        load with content up to the fine grid's edge may have more beyond it); None otherwise.
+    fine : SurfaceLoad
+        The fine samples.
+    """
+    r = SPECTRAL_REFINEMENT[coarse.ndim]
+    steps = int(round(math.log2(r)))
+    fshape, fspacing = refined_grid(coarse.shape, coarse.spacing, load.periodic, steps)
+    fine = load.sample(fshape, fspacing)
+    boxes = [refined_grid(coarse.shape, coarse.spacing, load.periodic, j)[0] for j in range(steps)]
+    boxes.append(tuple(0.75 * n for n in fshape))  # the fine grid, with a margin below its Nyquist
+    # the real FFT's half spectrum, each column weighted by how often it stands in the full one
+    nx = fshape[-1]
+    half = np.full(nx // 2 + 1, 2.0)
+    half[0] = 1.0
+    if nx % 2 == 0:
+        half[-1] = 1.0
+    fractions = [0.0] * (steps + 1)  # content beyond each box, relative to all of it
+    for values in fine.components.values():
+        scale = float(np.abs(values).max())
+        if scale == 0.0:
+            continue
+        spectrum = np.abs(np.fft.rfftn(values / scale)) * half  # scaled first: no overflow at 1e300 Pa
+        total = float(spectrum.sum())
+        for j, box in enumerate(boxes):
+            beyond = spectrum * (1.0 - _box(fshape, box)[..., : nx // 2 + 1])
+            fractions[j] = max(fractions[j], float(beyond.sum()) / total)
+    halvings = next((j for j, f in enumerate(fractions) if f <= ALIAS_THRESHOLD), None)
+    return fractions[0], halvings, fine
+
+
 def spectral_sampling_error(load: ContinuousLoad, coarse: SurfaceLoad, depths, nu: float, weights: np.ndarray,
-                            band_limited: bool, peak: float) -> float:
+                            band_limited: bool, peak: float, fine: SurfaceLoad | None = None) -> float:
     """Estimate of the sampling error from the load's content near and beyond the grid scale.
 
     The load is sampled again on a grid r times finer (r = 4 in 1-D, 2 in 2-D; function
@@ -301,6 +357,8 @@ def spectral_sampling_error(load: ContinuousLoad, coarse: SurfaceLoad, depths, n
         True when the method reads the nodes as a trigonometric interpolant.
     peak : float
         max |field| of the h solve, in the output's units.
+    fine : SurfaceLoad or None
+        The load already sampled on the fine grid (:func:`alias_check`); sampled here when None.
 
     Returns
     -------
@@ -312,7 +370,7 @@ def spectral_sampling_error(load: ContinuousLoad, coarse: SurfaceLoad, depths, n
     r = SPECTRAL_REFINEMENT[coarse.ndim]
     halvings = int(round(math.log2(r)))
     fshape, fspacing = refined_grid(coarse.shape, coarse.spacing, load.periodic, halvings)
-    fine = load.sample(fshape, fspacing)
+    fine = load.sample(fshape, fspacing) if fine is None else fine
     index = np.ix_(*_coarse_index(coarse.shape, load.periodic, halvings))
     diffs = {}
     for name, fvals in fine.components.items():

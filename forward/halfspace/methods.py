@@ -260,7 +260,11 @@ def load_width(load: SurfaceLoad) -> float:
     ks = angular_wavenumbers(padded, load.spacing)
     k2 = sum(k**2 for k in ks)
     for values in load.components.values():
-        power = np.abs(np.fft.fftn(values, s=padded, axes=tuple(range(load.ndim)))) ** 2
+        scale = float(np.abs(values).max())
+        if scale == 0.0:
+            continue
+        # scaled to a peak of 1 first: squared FFT magnitudes overflow from ~1e150 Pa, underflow below ~1e-160
+        power = np.abs(np.fft.fftn(values / scale, s=padded, axes=tuple(range(load.ndim)))) ** 2
         total = float(power.sum())
         mean_k2 = float((k2 * power).sum()) / total if total > 0 else 0.0
         if mean_k2 > 0:

@@ -6,6 +6,10 @@ the grid: the smaller of two bounds, the Richardson bound from solves at spacing
 (:func:`~.continuous.sampling_error`, tight for rough loads) and the spectral bound from the load
 sampled on a finer grid pushed through the depth's transfer (:func:`~.continuous.spectral_sampling_error`,
 tight for smooth loads; skipped when the Richardson bound is already below the method's estimate).
+When that finer sampling shows content beyond the grid's Nyquist wavenumber
+(:func:`~.continuous.alias_check`), which aliases alike on the h, 2h and 4h grids, the Richardson
+bound is not an upper bound: the spectral bound is computed and reported alone, and the halvings
+the check shows to hold the content choose the refinement and the warning's grid.
 Both are in the result's attributes (``sampling_richardson``, ``sampling_spectral``, NaN when
 skipped); ``attrs["error_covers"]`` is ``"method+sampling"``. With ``method="auto"``, when the total exceeds
 ``tol``, the grid is refined (the spacing halved k times, k predicted from the observed convergence
@@ -20,7 +24,8 @@ import warnings
 
 import numpy as np
 
-from .continuous import ContinuousLoad, coarse_grid, refined_grid, sampling_error, spectral_sampling_error
+from .continuous import (ALIAS_THRESHOLD, SPECTRAL_REFINEMENT, ContinuousLoad, alias_check, coarse_grid, refined_grid, sampling_error,
+                         spectral_sampling_error)
 from .fields import output_weights
 from .methods import AccuracyWarning, user_stacklevel
 from .solve import check_points, package, solve
@@ -52,12 +57,15 @@ def _levels(E, nu, load: ContinuousLoad, shape, spacing, depths, comps, points, 
         levels.append(v)
         shapes.append(coarse.shape)
     richardson, order = sampling_error(levels, None if pts is not None else shapes)
-    if richardson <= sol.err:  # the method's estimate dominates: the spectral one could lower the total < 2x
-        return fine, pts, sol, richardson, order, richardson, math.nan
+    aliased, alias_halvings, finer = alias_check(load, fine)
+    trusted = aliased <= ALIAS_THRESHOLD  # content beyond Nyquist aliases alike on h, 2h, 4h: Richardson blind
+    if trusted and richardson <= sol.err:  # the method's estimate dominates: the spectral one lowers it < 2x
+        return fine, pts, sol, richardson, order, richardson, math.nan, alias_halvings
     weights = output_weights(sol.quantity, comps, E, nu)
     spectral = spectral_sampling_error(load, fine, depths, nu, weights, band_limited=sol.chosen.name == "spectral",
-                                       peak=float(np.abs(sol.values).max()))
-    return fine, pts, sol, min(richardson, spectral), order, richardson, spectral
+                                       peak=float(np.abs(sol.values).max()), fine=finer)
+    sampling = min(richardson, spectral) if trusted else spectral
+    return fine, pts, sol, sampling, order, richardson, spectral, alias_halvings
 
 
 def _needed_halvings(total: float, target: float, order: float) -> int | None:
@@ -85,11 +93,20 @@ def continuous_field(E: float, nu: float, load: ContinuousLoad, depths, points, 
     while True:
         with warnings.catch_warnings(record=True) as caught:  # only the final grid's warnings reach the user
             warnings.simplefilter("always", AccuracyWarning)
-            fine, pts, sol, sampling, order, richardson, spectral = _levels(E, nu, load, shape, spacing, depths, comps, points, method, tol,
-                                                      quantity, invariants)
+            fine, pts, sol, sampling, order, richardson, spectral, alias_k = _levels(
+                E, nu, load, shape, spacing, depths, comps, points, method, tol, quantity, invariants)
         total = sol.err + sampling
-        # refining the grid shrinks the sampling error and the nodal methods' kernel-sampling error
+        # refining the grid shrinks the sampling error and the nodal methods' kernel-sampling error;
+        # a load with content beyond the Nyquist box needs at least the halvings that bring it inside.
+        # Where the finer sampling shows a grid that holds it, or the Richardson bound missed most of
+        # the error (an alias sits alike on every nested grid), the observed order says nothing:
+        # those halvings, and the estimate there, decide
         k = _needed_halvings(total, 0.5 * tol, order)
+        if k is not None and alias_k != 0:
+            steps = int(round(math.log2(SPECTRAL_REFINEMENT[fine.ndim])))
+            if alias_k is None:  # content up to the fine grid's edge: at least that grid
+                alias_k = steps if not richardson >= 0.1 * spectral else max(k, steps)
+            k = alias_k
         if auto and k is not None and rounds < MAX_ROUNDS:
             new_shape, new_spacing = refined_grid(shape, spacing, load.periodic, k)
             if int(np.prod(new_shape)) <= MAX_NODES:
