@@ -37,10 +37,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run.add_argument("--session", dest="session_label", default=None,
                      help="session label (letters/digits); default: the next free number, 01, 02, ...")
     _observer_args(run)
-    run.add_argument("--clipped", default="refuse", choices=("refuse", "allow"),
+    run.add_argument("--clipped", default=None, choices=("refuse", "drop", "allow"),
                      help="a planned stimulus (level, staircase bound, design candidate) the display would limit "
-                          "(amplitude, slew, duty): 'refuse' the protocol before the session starts (default; the "
-                          "error names the stimulus and the limit) or 'allow' the safety layer to limit it")
+                          "(amplitude, slew, duty): 'refuse' the protocol before the session starts (the error "
+                          "names the stimulus and the limit), 'drop' it (levels and design candidates; the count "
+                          "is printed and recorded; a staircase's bounds are refused) or 'allow' the safety layer "
+                          "to limit it; default: the protocol's clipped field (itself 'refuse' by default)")
     _summary_args(run)
 
     resume = sub.add_parser("resume", help="continue a killed or stopped session exactly (repeats the interrupted trial)")

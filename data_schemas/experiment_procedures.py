@@ -207,6 +207,25 @@ class ProcedureConfigBase(_Model):
         return [(f"procedure: level {level!r} of {self.parameter}", {self.parameter: level})
                 for level in self.candidate_levels()]
 
+    def without_planned(self, indices: set[int]) -> ProcedureConfigBase:
+        """This configuration without the planned stimuli at ``indices`` of :meth:`planned_fields`
+        (a protocol's ``clipped = "drop"``). Default: those entries of ``levels`` removed.
+
+        Raises
+        ------
+        ValueError
+            The configuration has no ``levels`` to drop from, or none would be left.
+        """
+        levels = getattr(self, "levels", None)
+        if not isinstance(levels, list):
+            raise ValueError(f"clipped: the {self.method!r} procedure cannot drop planned stimuli (it has no levels "
+                             "list); use clipped = 'refuse' and change its range")
+        kept = [v for i, v in enumerate(levels) if i not in indices]
+        if not kept:
+            raise ValueError(f"clipped: the display would limit all {len(levels)} levels of {self.parameter}; "
+                             "nothing is left to run; lower the levels or pick a display that plays them")
+        return type(self).model_validate({**self.model_dump(), "levels": kept})
+
     def n_planned(self) -> int:
         """The most trials the procedure will run (capped by :data:`MAX_PLANNED_TRIALS`).
 
@@ -303,6 +322,15 @@ class StaircaseConfig(ProcedureConfigBase):
 
     def candidate_levels(self) -> list[float]:
         return [v for t in self.tracks for v in (t.min_level, t.max_level)]
+
+    def without_planned(self, indices: set[int]) -> StaircaseConfig:
+        """Refused: a staircase's planned stimuli are the bounds of its range, which it cannot drop."""
+        i = min(indices, default=0)  # planned_fields lists each track's (min_level, max_level)
+        bound = ("min_level", "max_level")[i % 2]
+        where = f"tracks[{i // 2}].{bound} = {getattr(self.tracks[i // 2], bound)!r}"
+        raise ValueError(f"clipped: a staircase cannot drop its own range ({where} would be limited by the "
+                         "display, and a staircase may command any level between its bounds); bring the "
+                         "track's bounds inside the display's limits")
 
     def n_planned(self) -> int:
         return sum(t.max_trials for t in self.tracks)
