@@ -45,6 +45,7 @@ from tactilab.data_schemas.experiment_records import TrialRecord
 from ..devices import (Display, DisplayError, DisplayFault, SafeDisplay, check_frame_rate,
                        description_record, display_fault, foreign_reason, render_drive)
 from ..procedures import PlannedLevel, Procedure, make_procedure, plan_trial, score
+from .progress import NoBar, progress_bar
 from .recording import Recorder, RecordingError, utc_now
 from .responses import ResponseSource
 from .signals import signals_held, stop_signals
@@ -98,7 +99,8 @@ class Runner:
     realtime : bool
         Wait the inter-trial and inter-interval pauses (False for dry runs and tests).
     progress : bool
-        Show a tqdm bar with the trial count and the current estimate.
+        Show a tqdm bar with the trial count and the current estimate on standard error,
+        unless that is the subject's screen (:mod:`.progress`).
     """
 
     def __init__(self, protocol: Protocol, recorder: Recorder, display: Display,
@@ -127,13 +129,11 @@ class Runner:
         attempts = attempts or {}
         stops = contextlib.ExitStack()
         stops.enter_context(stop_signals())
-        if self.progress:
-            from tqdm.auto import tqdm
-
-            bar = tqdm(total=self.procedure.n_planned, initial=self.procedure.n_done, unit="trial",
-                       desc=f"sub-{self.subject} ses-{self.session}")
-        else:  # no tqdm object at all: even a disabled one starts a monitor thread
-            bar = _NoBar()
+        if self.progress:  # the running estimate is the experimenter's: never on the subject's screen
+            bar = progress_bar(self.responses, total=self.procedure.n_planned, initial=self.procedure.n_done,
+                               desc=f"sub-{self.subject} ses-{self.session}", session_path=self.recorder.path)
+        else:
+            bar = NoBar()
         try:
             while True:
                 index = self.procedure.n_done
@@ -254,17 +254,6 @@ class Runner:
         return record
 
 
-class _NoBar:
-    def update(self, n: int) -> None:
-        pass
-
-    def set_postfix_str(self, text: str) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
-
-
 def format_estimate(estimate: dict[str, Any], parameter: str) -> str:
     """One line for humans: ``amplitude threshold 2.47 um`` (``estimate: n/a`` before there is one).
 
@@ -314,7 +303,7 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     realtime : bool
         Wait in real time between trials and during playback (False: dry runs only).
     progress : bool
-        Show a tqdm bar over trials.
+        Show a tqdm bar over trials (not on the subject's screen, :mod:`.progress`).
     on_created : callable, optional
         Called with the session file's path once the file exists (after the start checks), e.g.
         to tell the user where it is.
