@@ -57,7 +57,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                            "column), CSV, Parquet or JSON (SI units, the unit in each column name)")
     export.add_argument("session", type=Path, help="session .sqlite file")
     export.add_argument("--format", default="bids",
-                        help="bids, csv, parquet (needs pyarrow) or json (the whole session); default bids")
+                        help="bids, csv, parquet (needs pyarrow), json (the whole session) or psychopy (PsychoPy's "
+                             "trial-per-row CSV); default bids")
     export.add_argument("--out", type=Path, default=None,
                         help="output folder; for bids the dataset root, to which the session is added (default: "
                              "<session's folder>/bids); for the others default the session's folder")
