@@ -287,6 +287,14 @@ class Protocol(_Model):
             raise ValueError(f"{path}: not UTF-8 text; give a TOML protocol file") from None
         except RecursionError:
             raise ValueError(f"{path}: nested too deeply to be a protocol; fix the file") from None
+        procedure = data.get("procedure")
+        if isinstance(procedure, dict) and isinstance(procedure.get("conditions"), str):
+            from .conditions import read_conditions
+
+            try:  # the table's rows become part of the protocol (a session records them)
+                data["procedure"] = {**procedure, "conditions": read_conditions(path.parent, procedure["conditions"])}
+            except (ValueError, OSError) as exc:
+                raise ValueError(f"{path} (protocol): {exc}") from None
         try:
             with warnings.catch_warnings(record=True) as caught:  # an error supersedes the warnings
                 protocol = cls.model_validate(data)

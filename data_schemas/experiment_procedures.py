@@ -241,21 +241,62 @@ MAX_PLANNED_TRIALS = 100_000
 
 
 class ConstantStimuliConfig(ProcedureConfigBase):
-    """Method of constant stimuli: every level ``repeats_per_block`` times per block, shuffled."""
+    """Method of constant stimuli: every level ``repeats_per_block`` times per block, shuffled.
+
+    ``conditions`` (instead of ``levels``): rows of stimulus fields in SI, each a condition (a
+    conditions table, :mod:`tactilab.data_schemas.conditions`); ``levels`` is then each row's
+    value of ``parameter``."""
 
     method: Literal["constant_stimuli"]
     parameter: str
     levels: list[float]
+    conditions: list[dict[str, Any]] | None = None
     repeats_per_block: int = Field(5, ge=1, le=1000)
     n_blocks: int = Field(4, ge=1, le=1000)
 
     @model_validator(mode="before")
     @classmethod
     def _units(cls, data: Any) -> Any:
+        if isinstance(data, dict) and data.get("conditions") is not None:
+            data = _condition_levels(data)
         return _convert_levels(data, (), ("levels",))
+
+    def planned_fields(self) -> list[tuple[str, dict[str, Any]]]:
+        if self.conditions is None:
+            return super().planned_fields()
+        return [(f"procedure: condition {i} {row}", dict(row)) for i, row in enumerate(self.conditions)]
+
+    def without_planned(self, indices: set[int]) -> ConstantStimuliConfig:
+        if self.conditions is None:
+            return super().without_planned(indices)
+        kept = [row for i, row in enumerate(self.conditions) if i not in indices]
+        if not kept:
+            raise ValueError(f"clipped: the display would limit all {len(self.conditions)} conditions; nothing is "
+                             "left to run; change the conditions or pick a display that plays them")
+        return type(self).model_validate({**self.model_dump(), "conditions": kept, "levels": None})
 
     def n_planned(self) -> int:
         return len(self.levels) * self.repeats_per_block * self.n_blocks
+
+
+def _condition_levels(data: dict) -> dict:
+    """A conditions table's rows validated to SI, and ``levels`` derived from them."""
+    from .conditions import check_rows
+
+    rows = data["conditions"]
+    if isinstance(rows, str):
+        raise ValueError(f"conditions: the file {rows!r} is read when the protocol is loaded from its file "
+                         "(Protocol.from_toml, `tactilab experiment run`); from Python, pass the rows")
+    rows = check_rows(rows, "conditions")
+    parameter = data.get("parameter")
+    if parameter not in rows[0]:
+        raise ValueError(f"conditions: no column for the varied parameter {parameter!r} (columns: {sorted(rows[0])}); "
+                         "add it, or vary a parameter the table lists")
+    derived = [row[parameter] for row in rows]
+    if data.get("levels") is not None and data["levels"] != derived:
+        raise ValueError("levels: give levels or a conditions table, not both (the table's column of the varied "
+                         "parameter gives the levels)")
+    return {**data, "conditions": rows, "levels": derived}
 
 
 class StaircaseTrack(_Model):
