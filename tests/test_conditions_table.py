@@ -155,3 +155,35 @@ def test_clipped_drop_removes_exactly_the_rows_the_display_would_clip(tmp_path):
     only = "pitch [mm],amplitude [um]\n4,80\n2,90\n"
     with pytest.raises(ValueError, match=r"clipped: the display would limit all 2 conditions; nothing is left to run"):
         drop_clipped(Protocol.from_toml(_write(tmp_path, only)), DisplayDescription.braille_row())
+
+
+def test_a_conditions_session_resumes_equal_to_the_uninterrupted_one(tmp_path):
+    """Its rows live in the recorded protocol: resume rebuilds the same trial order without the file."""
+    from tactilab.experiments import SimulatedDisplay, SimulatedObserver
+    from tactilab.experiments.session import new_session, resume_session, session_dataframe
+
+    class StopAt(SimulatedObserver):
+        stop_at = None
+
+        def collect(self, plan):
+            if plan.trial_index == self.stop_at:
+                raise KeyboardInterrupt("test stop")
+            return super().collect(plan)
+
+    protocol = Protocol.from_toml(_write(tmp_path))
+    frames = []
+    for name, stop_at in (("whole", None), ("cut", 6)):
+        path = tmp_path / f"{name}.sqlite"
+        observer = StopAt(protocol)
+        observer.stop_at = stop_at
+        result = new_session(protocol, path, SimulatedDisplay(DisplayDescription.braille_row(), realtime=False),
+                             observer, subject="S01", realtime=False)
+        if stop_at is not None:
+            assert result.status == "interrupted" and result.n_completed == 6
+            (tmp_path / "conditions.csv").unlink()  # the session does not need the file again
+            result = resume_session(path, SimulatedDisplay(DisplayDescription.braille_row(), realtime=False),
+                                    SimulatedObserver(protocol), realtime=False)
+        assert result.status == "complete" and result.n_completed == 16
+        frames.append(session_dataframe(path))
+    for col in ("level", "block", "correct", "response", "procedure_state", "stimuli"):
+        assert frames[0][col].tolist() == frames[1][col].tolist(), col

@@ -7,6 +7,7 @@ Under ``clipped = "drop"`` exactly those stimuli are left out (the same oracle),
 
 from __future__ import annotations
 
+import json
 import tomllib
 
 import pytest
@@ -175,3 +176,41 @@ def test_cli_drop_prints_the_count_and_the_option_overrides_the_protocol(tmp_pat
     assert main([*args, "--out", str(tmp_path / "b"), "--clipped", "refuse"]) == 2
     assert "exceeds the display's limits" in capsys.readouterr().err
     assert not list((tmp_path / "b").glob("*.sqlite"))
+
+
+class StopAt(SimulatedObserver):
+    """The simulated observer, with Ctrl-C pressed at trial ``stop_at``."""
+
+    stop_at = None
+
+    def collect(self, plan):
+        if plan.trial_index == self.stop_at:
+            raise KeyboardInterrupt("test stop")
+        return super().collect(plan)
+
+
+def test_a_design_with_dropped_candidates_resumes_with_the_same_set(tmp_path):
+    """The recorded protocol lists the dropped candidates: a resumed session runs the same design."""
+    from tactilab.experiments.session import resume_session, session_dataframe
+
+    protocol = Protocol.model_validate(tomllib.loads(LOUD))
+    frames = []
+    for name, stop in (("whole", None), ("cut", 4)):
+        path = tmp_path / f"{name}.sqlite"
+        observer = StopAt(protocol)
+        observer.stop_at = stop
+        with pytest.warns(UserWarning, match=r"clipped='drop': dropped 6 of 18 planned stimuli"):
+            result = new_session(protocol, path, SimulatedDisplay(DisplayDescription.braille_row(), realtime=False),
+                                 observer, subject="S01", realtime=False, clipped="drop")
+        if stop is not None:
+            assert result.status == "interrupted"
+            result = resume_session(path, SimulatedDisplay(DisplayDescription.braille_row(), realtime=False),
+                                    SimulatedObserver(protocol), realtime=False)
+        assert result.status == "complete"
+        log = SessionLog(path)
+        assert len(log.meta()["protocol"]["procedure"]["dropped"]) == 6
+        log.close()
+        frames.append(session_dataframe(path))
+    assert all(s[k]["amplitude_m"] < 80e-6 for s in frames[0]["stimuli"].map(json.loads) for k in range(len(s)))
+    for col in ("level", "correct", "response", "procedure_state", "stimuli"):
+        assert frames[0][col].tolist() == frames[1][col].tolist(), col
