@@ -160,3 +160,29 @@ def check_rows(rows: Any, where: str = "procedure.conditions") -> list[dict[str,
         seen[key] = i
         out.append(clean)
     return out
+
+
+def condition_levels(data: dict) -> dict:
+    """A constant-stimuli ``[procedure]`` table with its ``conditions`` rows validated to SI and
+    ``levels`` derived from them (each row's value of ``parameter``).
+
+    Raises
+    ------
+    ValueError
+        The conditions are a file name (read only by ``Protocol.from_toml``), a row is invalid
+        (:func:`check_rows`), no column is the varied parameter, or ``levels`` is given too.
+    """
+    rows = data["conditions"]
+    if isinstance(rows, str):
+        raise ValueError(f"conditions: the file {rows!r} is read when the protocol is loaded from its file "
+                         "(Protocol.from_toml, `tactilab experiment run`); from Python, pass the rows")
+    rows = check_rows(rows, "conditions")
+    parameter = data.get("parameter")
+    if parameter not in rows[0]:
+        raise ValueError(f"conditions: no column for the varied parameter {parameter!r} (columns: {sorted(rows[0])}); "
+                         "add it, or vary a parameter the table lists")
+    derived = [row[parameter] for row in rows]
+    if data.get("levels") is not None and data["levels"] != derived:
+        raise ValueError("levels: give levels or a conditions table, not both (the table's column of the varied "
+                         "parameter gives the levels)")
+    return {**data, "conditions": rows, "levels": derived}

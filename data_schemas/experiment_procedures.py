@@ -258,7 +258,9 @@ class ConstantStimuliConfig(ProcedureConfigBase):
     @classmethod
     def _units(cls, data: Any) -> Any:
         if isinstance(data, dict) and data.get("conditions") is not None:
-            data = _condition_levels(data)
+            from .conditions import condition_levels
+
+            data = condition_levels(data)
         return _convert_levels(data, (), ("levels",))
 
     def planned_fields(self) -> list[tuple[str, dict[str, Any]]]:
@@ -277,26 +279,6 @@ class ConstantStimuliConfig(ProcedureConfigBase):
 
     def n_planned(self) -> int:
         return len(self.levels) * self.repeats_per_block * self.n_blocks
-
-
-def _condition_levels(data: dict) -> dict:
-    """A conditions table's rows validated to SI, and ``levels`` derived from them."""
-    from .conditions import check_rows
-
-    rows = data["conditions"]
-    if isinstance(rows, str):
-        raise ValueError(f"conditions: the file {rows!r} is read when the protocol is loaded from its file "
-                         "(Protocol.from_toml, `tactilab experiment run`); from Python, pass the rows")
-    rows = check_rows(rows, "conditions")
-    parameter = data.get("parameter")
-    if parameter not in rows[0]:
-        raise ValueError(f"conditions: no column for the varied parameter {parameter!r} (columns: {sorted(rows[0])}); "
-                         "add it, or vary a parameter the table lists")
-    derived = [row[parameter] for row in rows]
-    if data.get("levels") is not None and data["levels"] != derived:
-        raise ValueError("levels: give levels or a conditions table, not both (the table's column of the varied "
-                         "parameter gives the levels)")
-    return {**data, "conditions": rows, "levels": derived}
 
 
 class StaircaseTrack(_Model):
