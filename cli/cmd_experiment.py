@@ -37,10 +37,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run.add_argument("--session", dest="session_label", default=None,
                      help="session label (letters/digits); default: the next free number, 01, 02, ...")
     _observer_args(run)
-    run.add_argument("--clipped", default="refuse", choices=("refuse", "allow"),
+    run.add_argument("--clipped", default=None, choices=("refuse", "drop", "allow"),
                      help="a planned stimulus (level, staircase bound, design candidate) the display would limit "
-                          "(amplitude, slew, duty): 'refuse' the protocol before the session starts (default; the "
-                          "error names the stimulus and the limit) or 'allow' the safety layer to limit it")
+                          "(amplitude, slew, duty): 'refuse' the protocol before the session starts (the error "
+                          "names the stimulus and the limit), 'drop' it (levels and design candidates; the count "
+                          "is printed and recorded; a staircase's bounds are refused) or 'allow' the safety layer "
+                          "to limit it; default: the protocol's clipped field (itself 'refuse' by default)")
     _summary_args(run)
 
     resume = sub.add_parser("resume", help="continue a killed or stopped session exactly (repeats the interrupted trial)")
@@ -55,7 +57,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                            "column), CSV, Parquet or JSON (SI units, the unit in each column name)")
     export.add_argument("session", type=Path, help="session .sqlite file")
     export.add_argument("--format", default="bids",
-                        help="bids, csv, parquet (needs pyarrow) or json (the whole session); default bids")
+                        help="bids, csv, parquet (needs pyarrow), json (the whole session) or psychopy (PsychoPy's "
+                             "trial-per-row CSV); default bids")
     export.add_argument("--out", type=Path, default=None,
                         help="output folder; for bids the dataset root, to which the session is added (default: "
                              "<session's folder>/bids); for the others default the session's folder")
@@ -83,7 +86,9 @@ def _device_args(p: argparse.ArgumentParser, resume: bool = False) -> None:
                         "aborts as a display fault (default 0.01)")
     p.add_argument("--no-wait", action="store_true",
                    help="do not wait in real time (inter-trial pauses, simulated playback): dry runs only")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress bar (the bar, with the running estimate, goes to stderr, never to the "
+                        "subject's terminal)")
 
 
 def _observer_args(p: argparse.ArgumentParser) -> None:
@@ -100,13 +105,21 @@ def _summary_args(p: argparse.ArgumentParser) -> None:
                         "each key); progress and messages go to stderr")
 
 
-def _finish(result, parameter: str, args: argparse.Namespace, warned: list[str]) -> int:
-    """The end of a run or resume: one line, then the summary block with the fitted thresholds (or JSON)."""
+def _finish(result, parameter: str, args: argparse.Namespace, warned: list[str], responses) -> int:
+    """The end of a run or resume: one line, then the summary block with the fitted thresholds (or JSON).
+
+    A session stopped before its end is resumed with the same subject: its running estimate is
+    not printed where the subject sees it (``responses.on_screen``)."""
     from tactilab.experiments.session import format_estimate
 
     info = sys.stderr if args.json else sys.stdout
-    print(f"session {result.path}: {result.status} after {result.n_completed} trials; "
-          f"procedure's running {format_estimate(result.estimate, parameter)}", file=info)
+    hidden = result.status != "complete" and any(responses.on_screen(s) for s in {info, sys.stdout})
+    if hidden:
+        estimate = (f"running estimate and summary not shown on the subject's screen (`tactilab experiment "
+                    f"status {result.path}` shows them)")
+    else:
+        estimate = f"procedure's running {format_estimate(result.estimate, parameter)}"
+    print(f"session {result.path}: {result.status} after {result.n_completed} trials; {estimate}", file=info)
     exported = []
     if args.export is not None and result.status == "complete":
         from tactilab.experiments.session import export_session
@@ -116,7 +129,8 @@ def _finish(result, parameter: str, args: argparse.Namespace, warned: list[str])
             exported = [str(p) for p in export_session(result.path, out, args.export, overwrite=False)]
     elif args.export is not None:
         print(f"--export: not exported, the session is {result.status}; export it once it is complete", file=info)
-    _print_summary(result.path, f"experiment {args.action}", args.json, warned, exported)
+    if not hidden:
+        _print_summary(result.path, f"experiment {args.action}", args.json, warned, exported)
     if result.status == "interrupted":
         print(f"resume with: tactilab experiment resume {result.path}", file=info)
         return 130
@@ -265,7 +279,7 @@ def _run(args: argparse.Namespace) -> int:
             ended = True
         finally:
             _zero_and_close(display, responses, ended)
-        return _finish(result, protocol.procedure.parameter, args, report.warnings)
+        return _finish(result, protocol.procedure.parameter, args, report.warnings, responses)
 
     if args.action == "resume":
         from tactilab.data_schemas.display import DisplayDescription
@@ -304,7 +318,7 @@ def _run(args: argparse.Namespace) -> int:
             ended = True
         finally:
             _zero_and_close(display, responses, ended)
-        return _finish(result, state.protocol.procedure.parameter, args, report.warnings)
+        return _finish(result, state.protocol.procedure.parameter, args, report.warnings, responses)
 
     if args.action == "export":
         import json

@@ -54,6 +54,8 @@ class ModelDiscriminationConfig(ProcedureConfigBase):
     n_grid: int = Field(25, ge=2, le=200, description="threshold grid points (log-spaced)")
     stop_probability: float = Field(0.99, gt=0.5, lt=1.0)
     max_trials: int = Field(500, ge=1, le=10_000)
+    dropped: list[int] = Field(default_factory=list, description="candidates left out (their index in the "
+                               "product of the lists), e.g. those the display would clip (clipped = 'drop')")
 
     @model_validator(mode="before")
     @classmethod
@@ -106,6 +108,10 @@ class ModelDiscriminationConfig(ProcedureConfigBase):
                     f"candidates: candidate {i} {dict(zip(self.candidates, combo))} is not a valid stimulus on its "
                     f"own ({exc.errors()[0]['msg'] if hasattr(exc, 'errors') else exc}; unlisted fields at their "
                     f"defaults: {_DEFAULTS}); change the lists, or list the timing fields together") from None
+        bad = [i for i in self.dropped if not 0 <= i < n]
+        if bad or len(set(self.dropped)) != len(self.dropped) or len(self.dropped) >= n:
+            raise ValueError(f"dropped: must be distinct candidate indices in [0, {n}) leaving at least one "
+                             f"candidate, got {self.dropped!r}; list each candidate to leave out once")
         return self
 
     #: the fix an error about an invalid merged candidate suggests (data_schemas.experiment.Protocol)
@@ -118,17 +124,32 @@ class ModelDiscriminationConfig(ProcedureConfigBase):
         ``PlannedStimulus`` carries them."""
         keys = tuple(dict.fromkeys(("surface", "amplitude_m", "pitch_m", *self.candidates)))
         out = []
-        for i, s in enumerate(self.stimuli()):
+        for i, s in self._kept():
             fields = {k: getattr(s, k) for k in keys}
             shown = ", ".join(f"{k}={v!r}" for k, v in fields.items())
             out.append((f"procedure.candidates[{i}] ({shown}) merged with [stimulus]", fields))
         return out
 
+    def _kept(self) -> list[tuple[int, Stimulus]]:
+        """``(index in the product, stimulus)`` of each candidate not :attr:`dropped`."""
+        keys, dropped = list(self.candidates), set(self.dropped)
+        return [(i, Stimulus.model_validate(dict(zip(keys, combo))))
+                for i, combo in enumerate(itertools.product(*(self.candidates[k] for k in keys))) if i not in dropped]
+
     def stimuli(self) -> list[Stimulus]:
-        """The candidate stimuli (the product of the lists, in the file's order), validated, SI."""
-        keys = list(self.candidates)
-        return [Stimulus.model_validate(dict(zip(keys, combo)))
-                for combo in itertools.product(*(self.candidates[k] for k in keys))]
+        """The candidate stimuli (the product of the lists, in the file's order, less those
+        :attr:`dropped`), validated, SI."""
+        return [s for _, s in self._kept()]
+
+    def without_planned(self, indices: set[int]) -> ModelDiscriminationConfig:
+        """This design without the candidates at ``indices`` of :meth:`planned_fields` (recorded
+        in :attr:`dropped` by their index in the product, so a resumed session rebuilds the same set)."""
+        kept = self._kept()
+        if len(set(indices)) >= len(kept):
+            raise ValueError(f"clipped: the display would limit all {len(kept)} candidates; nothing is left to "
+                             "run; lower the candidates or pick a display that plays them")
+        dropped = sorted({*self.dropped, *(kept[j][0] for j in indices)})
+        return type(self).model_validate({**self.model_dump(), "dropped": dropped})
 
     def candidate_levels(self) -> list[float]:
         return [float(v) for v in self.candidates[self.parameter]]

@@ -29,10 +29,22 @@ from .experiment_procedures import (  # noqa: F401 - the configs are part of thi
     _Model, check_label, check_name, check_subject, procedure_config, register_procedure_config)
 from .stimulus import MAX_FRAME_RATE_HZ, PITCH_RANGE_M, Stimulus  # noqa: F401 - part of this module's API
 
+#: What a session does with a planned stimulus the display would limit (clip, slew- or duty-limit):
+#: refuse the protocol, drop the stimulus (a level, a design candidate), or allow the safety layer to limit it
+CLIPPED = ("refuse", "drop", "allow")
+
 #: Caps on what a protocol file may hold (a protocol is a page of text, not a data dump).
 MAX_PROTOCOL_BYTES = 1_000_000
 MAX_TEXT_CHARS = 2000
 MAX_PROMPT_CHARS = 300
+
+
+def check_clipped(value: Any, name: str) -> str:
+    """Return ``value`` if it is one of :data:`CLIPPED` (a protocol's or a session's ``clipped``)."""
+    if value not in CLIPPED:
+        raise ValueError(f"{name}: must be one of {CLIPPED}, got {value!r}; 'refuse' (the default) names the "
+                         "first stimulus the display would limit, 'drop' leaves such stimuli out and counts them")
+    return value
 
 
 def _check_text(value: str | None, name: str, cap: int) -> None:
@@ -155,6 +167,8 @@ class Protocol(_Model):
     procedure: SerializeAsAny[ProcedureConfigBase] = Field(
         description="validated by the configuration class registered for its `method`")
     iti_s: Time = Field(0.5, description="inter-trial interval, s")
+    clipped: str = Field("refuse", description="a planned stimulus the display would limit: 'refuse' the "
+                         "protocol, 'drop' the stimulus, or 'allow' the safety layer to limit it (see CLIPPED)")
 
     @field_validator("procedure", mode="before")
     @classmethod
@@ -166,6 +180,7 @@ class Protocol(_Model):
         check_label(self.name, "name")
         _check_text(self.description, "description", MAX_TEXT_CHARS)
         rules.finite(self.iti_s, "iti_s", "s")
+        check_clipped(self.clipped, "clipped")
         if not 0 <= self.iti_s <= 60:
             raise ValueError(f"iti_s: must lie in [0, 60] s, got {self.iti_s!r}")
         proc, kind = self.procedure, self.task.kind
@@ -272,6 +287,14 @@ class Protocol(_Model):
             raise ValueError(f"{path}: not UTF-8 text; give a TOML protocol file") from None
         except RecursionError:
             raise ValueError(f"{path}: nested too deeply to be a protocol; fix the file") from None
+        procedure = data.get("procedure")
+        if isinstance(procedure, dict) and isinstance(procedure.get("conditions"), str):
+            from .conditions import read_conditions
+
+            try:  # the table's rows become part of the protocol (a session records them)
+                data["procedure"] = {**procedure, "conditions": read_conditions(path.parent, procedure["conditions"])}
+            except (ValueError, OSError) as exc:
+                raise ValueError(f"{path} (protocol): {exc}") from None
         try:
             with warnings.catch_warnings(record=True) as caught:  # an error supersedes the warnings
                 protocol = cls.model_validate(data)

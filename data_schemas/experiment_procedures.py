@@ -207,6 +207,25 @@ class ProcedureConfigBase(_Model):
         return [(f"procedure: level {level!r} of {self.parameter}", {self.parameter: level})
                 for level in self.candidate_levels()]
 
+    def without_planned(self, indices: set[int]) -> ProcedureConfigBase:
+        """This configuration without the planned stimuli at ``indices`` of :meth:`planned_fields`
+        (a protocol's ``clipped = "drop"``). Default: those entries of ``levels`` removed.
+
+        Raises
+        ------
+        ValueError
+            The configuration has no ``levels`` to drop from, or none would be left.
+        """
+        levels = getattr(self, "levels", None)
+        if not isinstance(levels, list):
+            raise ValueError(f"clipped: the {self.method!r} procedure cannot drop planned stimuli (it has no levels "
+                             "list); use clipped = 'refuse' and change its range")
+        kept = [v for i, v in enumerate(levels) if i not in indices]
+        if not kept:
+            raise ValueError(f"clipped: the display would limit all {len(levels)} levels of {self.parameter}; "
+                             "nothing is left to run; lower the levels or pick a display that plays them")
+        return type(self).model_validate({**self.model_dump(), "levels": kept})
+
     def n_planned(self) -> int:
         """The most trials the procedure will run (capped by :data:`MAX_PLANNED_TRIALS`).
 
@@ -222,18 +241,41 @@ MAX_PLANNED_TRIALS = 100_000
 
 
 class ConstantStimuliConfig(ProcedureConfigBase):
-    """Method of constant stimuli: every level ``repeats_per_block`` times per block, shuffled."""
+    """Method of constant stimuli: every level ``repeats_per_block`` times per block, shuffled.
+
+    ``conditions`` (instead of ``levels``): rows of stimulus fields in SI, each a condition (a
+    conditions table, :mod:`tactilab.data_schemas.conditions`); ``levels`` is then each row's
+    value of ``parameter``."""
 
     method: Literal["constant_stimuli"]
     parameter: str
     levels: list[float]
+    conditions: list[dict[str, Any]] | None = None
     repeats_per_block: int = Field(5, ge=1, le=1000)
     n_blocks: int = Field(4, ge=1, le=1000)
 
     @model_validator(mode="before")
     @classmethod
     def _units(cls, data: Any) -> Any:
+        if isinstance(data, dict) and data.get("conditions") is not None:
+            from .conditions import condition_levels
+
+            data = condition_levels(data)
         return _convert_levels(data, (), ("levels",))
+
+    def planned_fields(self) -> list[tuple[str, dict[str, Any]]]:
+        if self.conditions is None:
+            return super().planned_fields()
+        return [(f"procedure: condition {i} {row}", dict(row)) for i, row in enumerate(self.conditions)]
+
+    def without_planned(self, indices: set[int]) -> ConstantStimuliConfig:
+        if self.conditions is None:
+            return super().without_planned(indices)
+        kept = [row for i, row in enumerate(self.conditions) if i not in indices]
+        if not kept:
+            raise ValueError(f"clipped: the display would limit all {len(self.conditions)} conditions; nothing is "
+                             "left to run; change the conditions or pick a display that plays them")
+        return type(self).model_validate({**self.model_dump(), "conditions": kept, "levels": None})
 
     def n_planned(self) -> int:
         return len(self.levels) * self.repeats_per_block * self.n_blocks
@@ -303,6 +345,15 @@ class StaircaseConfig(ProcedureConfigBase):
 
     def candidate_levels(self) -> list[float]:
         return [v for t in self.tracks for v in (t.min_level, t.max_level)]
+
+    def without_planned(self, indices: set[int]) -> StaircaseConfig:
+        """Refused: a staircase's planned stimuli are the bounds of its range, which it cannot drop."""
+        i = min(indices, default=0)  # planned_fields lists each track's (min_level, max_level)
+        bound = ("min_level", "max_level")[i % 2]
+        where = f"tracks[{i // 2}].{bound} = {getattr(self.tracks[i // 2], bound)!r}"
+        raise ValueError(f"clipped: a staircase cannot drop its own range ({where} would be limited by the "
+                         "display, and a staircase may command any level between its bounds); bring the "
+                         "track's bounds inside the display's limits")
 
     def n_planned(self) -> int:
         return sum(t.max_trials for t in self.tracks)

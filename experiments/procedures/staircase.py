@@ -12,6 +12,7 @@ from tactilab.data_schemas.experiment import ConstantStimuliConfig, StaircaseCon
 
 from .base import PlannedLevel, Procedure
 from .registry import register_procedure
+from .tasks import PlannedStimulus
 
 
 class ConstantStimuli(Procedure):
@@ -38,7 +39,11 @@ class ConstantStimuli(Procedure):
             self._block = self.n_done // (len(self.config.levels) * self.config.repeats_per_block)
             order = np.repeat(np.arange(len(self.config.levels)), self.config.repeats_per_block)
             self._order, self._position = rng.permutation(order).tolist(), 0
-        return PlannedLevel(float(self.config.levels[self._order[self._position]]), 0, self._block)
+        index = self._order[self._position]
+        if self.config.conditions is None:
+            return PlannedLevel(float(self.config.levels[index]), 0, self._block)
+        fields = tuple((k, v) for k, v in self.config.conditions[index].items() if k != self.config.parameter)
+        return PlannedStimulus(float(self.config.levels[index]), 0, self._block, fields)
 
     def _update(self, planned, outcome):
         self._position += 1
@@ -53,7 +58,14 @@ class ConstantStimuli(Procedure):
         return {lv: (c[0], c[1]) for lv, c in counts.items()}
 
     def estimate(self):
-        """Level where the proportion positive crosses halfway from guess to 1 (interpolated)."""
+        """Level where the proportion positive crosses halfway from guess to 1 (interpolated).
+
+        None over a conditions table whose rows differ in more than the varied parameter: one
+        crossing over several conditions means nothing (the per-condition fits report them)."""
+        rows = self.config.conditions
+        if rows is not None and len({tuple(sorted((k, v) for k, v in r.items() if k != self.config.parameter))
+                                     for r in rows}) > 1:
+            return {"threshold": None}
         pts = [(lv, k / n) for lv, (k, n) in sorted(self.proportions().items()) if n]
         target = (1 + self.guess_rate) / 2
         for (x0, p0), (x1, p1) in zip(pts, pts[1:]):

@@ -57,6 +57,8 @@ _EXPORTS = {
     "CLIPPED": "display_check",
     "check_display_limits": "display_check",
     "clipped_stimuli": "display_check",
+    "drop_clipped": "display_check",
+    "plan_for_display": "display_check",
     "next_session_path": "factory",
     "responses_from_spec": "factory",
 }

@@ -7,16 +7,20 @@ layer limits it (:func:`~tactilab.experiments.devices.limit_drive`). A stimulus 
 would clip, slew-limit or duty-limit is not the stimulus the protocol names: an observer would
 feel another one, and a model fitted to the commanded one would be fitted to the wrong stimulus.
 
-``clipped="refuse"`` (the default of a session) refuses the protocol, naming the first such
-stimulus and the limit; ``"allow"`` lets the safety layer limit it at run time (a safety test's
-choice, recorded as interventions).
+``clipped="refuse"`` (the default of a protocol) refuses the protocol, naming the first such
+stimulus and the limit; ``"drop"`` leaves such stimuli out (levels of constant stimuli or psi,
+candidates of an adaptive design; a staircase's bounds are refused, as it may command any level
+between them) and counts them; ``"allow"`` lets the safety layer limit them at run time (a
+safety test's choice, recorded as interventions).
 """
 
 from __future__ import annotations
 
-from ..devices import limit_drive, render_drive
+import warnings
 
-CLIPPED = ("refuse", "allow")
+from tactilab.data_schemas.experiment import CLIPPED, check_clipped  # noqa: F401 - CLIPPED is this part's too
+
+from ..devices import limit_drive, render_drive
 
 
 def _label(stimulus) -> str:
@@ -27,31 +31,60 @@ def _label(stimulus) -> str:
 def clipped_stimuli(protocol, description) -> list[tuple[str, dict]]:
     """``(where, intervention)`` for every planned stimulus the display would limit (first limit
     that acts: kind, limit, unit, requested and applied at the worst sample)."""
-    out = []
-    for where, fields in protocol.procedure.planned_fields():
-        from tactilab.data_schemas.experiment import Stimulus
+    return [(where, hit) for _, where, hit in _limited(protocol, description)]
 
+
+def _limited(protocol, description) -> list[tuple[int, str, dict]]:
+    """``(index in planned_fields, where, intervention)`` for each planned stimulus the display limits."""
+    from tactilab.data_schemas.experiment import Stimulus
+
+    out = []
+    for i, (where, fields) in enumerate(protocol.procedure.planned_fields()):
         stimulus = Stimulus.model_validate({**protocol.stimulus.model_dump(), **fields})
         frames = render_drive(description, **stimulus.model_dump())
         _, interventions = limit_drive(frames, stimulus.frame_rate_hz, description)
         if interventions:
-            out.append((f"{where} ({_label(stimulus)})", interventions[0]))
+            out.append((i, f"{where} ({_label(stimulus)})", interventions[0]))
     return out
+
+
+def drop_clipped(protocol, description):
+    """The protocol without the planned stimuli the display would limit (``clipped="drop"``).
+
+    Returns
+    -------
+    protocol : Protocol
+        The protocol to run: the limited levels (or design candidates) removed, everything else
+        as given.
+    dropped : list of str
+        Each dropped stimulus (where it is planned, the stimulus, the limit that acts), in plan order.
+
+    Raises
+    ------
+    ValueError
+        The procedure cannot drop planned stimuli (a staircase's bounds), or none would be left.
+    """
+    bad = _limited(protocol, description)
+    if not bad:
+        return protocol, []
+    procedure = protocol.procedure.without_planned({i for i, _, _ in bad})
+    kept = type(protocol).model_validate({**protocol.model_dump(), "procedure": procedure.model_dump()})
+    return kept, [f"{where}: {hit['kind']} at {hit['limit']:.4g} {hit['unit']}" for _, where, hit in bad]
 
 
 def check_display_limits(protocol, description, clipped: str = "refuse") -> int:
     """Refuse a protocol whose planned stimuli the display would limit (``clipped="refuse"``).
 
-    Returns the number of planned stimuli the display limits (0 when refused nothing).
+    Returns the number of planned stimuli the display limits (0 when refused nothing; under
+    ``"drop"`` and ``"allow"`` nothing is refused, see :func:`drop_clipped` for dropping them).
 
     Raises
     ------
     ValueError
-        ``clipped`` is not one of :data:`CLIPPED`, or it is ``"refuse"`` and a planned stimulus
+        ``clipped`` is not one of ``CLIPPED`` (refuse, drop, allow), or it is ``"refuse"`` and a planned stimulus
         would be limited: the message names the stimulus, the limit and the count.
     """
-    if clipped not in CLIPPED:
-        raise ValueError(f"clipped: must be one of {CLIPPED}, got {clipped!r}")
+    check_clipped(clipped, "clipped")
     bad = clipped_stimuli(protocol, description)
     if bad and clipped == "refuse":
         where, hit = bad[0]
@@ -59,5 +92,43 @@ def check_display_limits(protocol, description, clipped: str = "refuse") -> int:
             f"protocol: {where} exceeds the display's limits: {hit['kind']} at {hit['limit']:.4g} {hit['unit']} "
             f"(requested {abs(hit['requested']):.4g} {hit['unit']}); {len(bad)} of {len(protocol.procedure.planned_fields())} "
             "planned stimuli would be limited; lower the levels or candidates, or pick a display that plays them "
-            "(clipped='allow' lets the safety layer limit them, a safety test's choice)")
+            "(clipped='drop' leaves them out; clipped='allow' lets the safety layer limit them, a safety test's choice)")
     return len(bad)
+
+
+def plan_for_display(protocol, description, clipped: str | None = None):
+    """The protocol a session runs on this display, and the record of what ``clipped`` did.
+
+    Parameters
+    ----------
+    protocol : Protocol
+        The protocol as loaded.
+    description : DisplayDescription
+        The display's limits.
+    clipped : {"refuse", "drop", "allow"}, optional
+        Overrides the protocol's ``clipped`` (a command-line option does).
+
+    Returns
+    -------
+    protocol : Protocol
+        The protocol to run (under ``"drop"``: without the stimuli the display would limit).
+    record : dict
+        ``policy``, ``n_planned`` (planned stimuli as loaded) and ``dropped`` (one line per
+        dropped stimulus), for the session's metadata. A drop is also warned with its count.
+
+    Raises
+    ------
+    ValueError
+        As :func:`check_display_limits` and :func:`drop_clipped` raise.
+    """
+    clipped = protocol.clipped if clipped is None else clipped
+    n_planned = len(protocol.procedure.planned_fields())
+    check_display_limits(protocol, description, clipped)
+    dropped: list[str] = []
+    if clipped == "drop":
+        protocol, dropped = drop_clipped(protocol, description)
+        if dropped:
+            warnings.warn(f"clipped='drop': dropped {len(dropped)} of {n_planned} planned stimuli the display would "
+                          f"limit (first: {dropped[0]}); the session runs the other {n_planned - len(dropped)}",
+                          UserWarning, stacklevel=4)
+    return protocol, {"policy": clipped, "n_planned": n_planned, "dropped": dropped}

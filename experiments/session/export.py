@@ -1,4 +1,4 @@
-"""Export a session: a BIDS beh dataset, CSV, Parquet, JSON or a DataFrame.
+"""Export a session: a BIDS beh dataset, CSV, Parquet, JSON, PsychoPy's CSV or a DataFrame.
 
 ``--format bids`` writes a BIDS-valid dataset rooted at ``out`` (see :mod:`.bids`):
 ``dataset_description.json``, ``participants.tsv``/``.json``, a README and
@@ -24,7 +24,7 @@ from tactilab.data_schemas.experiment_records import (
 
 from .recording import SessionLog
 
-FORMATS = ("bids", "csv", "parquet", "json")
+FORMATS = ("bids", "csv", "parquet", "json", "psychopy")
 
 def read_trials_csv(path: str | Path) -> list[TrialRecord]:
     """Read back the trials of a ``--format csv`` export (labels kept as text)."""
@@ -70,10 +70,11 @@ def export_session(path: str | Path, out: str | Path, format: str = "bids", *, o
         The session's .sqlite file.
     out : path
         Output folder (created if needed).
-    format : {"bids", "csv", "parquet", "json"}
+    format : {"bids", "csv", "parquet", "json", "psychopy"}
         A BIDS beh dataset rooted at ``out`` (the session is added to it; the TSV and its
-        sidecar are listed first), a CSV of every field, Parquet (needs pyarrow), or the whole
-        :class:`Session` as JSON.
+        sidecar are listed first), a CSV of every field, Parquet (needs pyarrow), the whole
+        :class:`Session` as JSON, or a CSV in PsychoPy's trial-per-row shape
+        (:mod:`.psychopy_export`, ``..._psychopy.csv``).
     overwrite : bool
         Replace the session's files when they exist (the CLI passes ``--force``).
 
@@ -106,7 +107,8 @@ def export_session(path: str | Path, out: str | Path, format: str = "bids", *, o
 
         return write_dataset(meta, trials, out, overwrite=overwrite)
     stem = f"sub-{meta['subject']}_ses-{meta['session']}_task-{meta['protocol']['name']}"
-    suffix = {"json": "session.json", "csv": "trials.csv", "parquet": "trials.parquet"}[format]
+    suffix = {"json": "session.json", "csv": "trials.csv", "parquet": "trials.parquet",
+              "psychopy": "psychopy.csv"}[format]
     target = output_path(out, f"{stem}_{suffix}")  # inside `out`, and no symlink
     if os.path.lexists(target) and not overwrite:
         raise ValueError(f"out: {target} already exists; export to another folder, or add --force to replace it")
@@ -116,6 +118,10 @@ def export_session(path: str | Path, out: str | Path, format: str = "bids", *, o
         write_atomic(target, lambda p: p.write_text(text), option="out")
     elif format == "csv":
         write_atomic(target, lambda p: trials_to_dataframe(trials).to_csv(p, index=False), option="out")
+    elif format == "psychopy":
+        from .psychopy_export import psychopy_frame
+
+        write_atomic(target, lambda p: psychopy_frame(meta, trials).to_csv(p, index=False), option="out")
     else:
         write_atomic(target, lambda p: trials_to_dataframe(trials).to_parquet(p, index=False), option="out")
     return [target]

@@ -9,7 +9,9 @@ and ``response`` with ``trial_complete`` and the trial row. The events are:
 ``session_started``, ``session_resumed``, ``trial_planned``, ``stimulus_presented`` (written
 BEFORE the display is driven), ``response``, ``trial_complete``, ``safety_intervention``,
 ``session_stopped``, ``session_failed``, ``session_complete``, ``display_fault`` (a stimulus that
-did not reach the display as commanded: the trial is not scored and is repeated on resume).
+did not reach the display as commanded: the trial is not scored and is repeated on resume),
+``planned_stimuli_dropped`` (after ``session_started``, under ``clipped = "drop"``: the planned
+stimuli the display would limit, left out of the protocol the session runs).
 
 Table ``trials`` holds one validated :class:`TrialRecord` (JSON) per completed trial, written
 in the same transaction as its ``trial_complete`` event.
@@ -66,7 +68,7 @@ CREATE TABLE IF NOT EXISTS owner (
 """
 EVENT_KINDS = ("session_started", "session_resumed", "trial_planned", "stimulus_presented",
                "response", "trial_complete", "safety_intervention", "session_stopped",
-               "session_failed", "session_complete", "display_fault")
+               "session_failed", "session_complete", "display_fault", "planned_stimuli_dropped")
 
 
 #: the tables a session file holds (``sqlite_sequence`` is SQLite's own, for AUTOINCREMENT)

@@ -52,6 +52,11 @@ class ResponseSource(abc.ABC):
         """Start listening: called right before the first stimulus of ``plan`` is driven."""
         self._onset_ns = onset_ns
 
+    def on_screen(self, stream: TextIO) -> bool:
+        """True when what is written to ``stream`` shows on the subject's screen (the runner
+        then keeps the running estimate off it). None by default: no subject is watching."""
+        return False
+
     @abc.abstractmethod
     def collect(self, plan: TrialPlan) -> Response:
         """Return the response to ``plan`` (blocks for a real subject)."""
@@ -129,6 +134,22 @@ class TerminalResponses(ResponseSource):
         }[self.task.kind]
         keys = "  ".join(f"[{k}] {label}" for k, label in self.task.key_map.items())
         return f"{question}  {keys}  ([q] quits)"
+
+    def on_screen(self, stream: TextIO) -> bool:
+        """True when ``stream`` writes to the subject's terminal (the same terminal device as
+        the prompt's stream or the keys' input)."""
+        try:
+            device = os.fstat(stream.fileno())
+        except (OSError, ValueError, AttributeError):  # a pseudo-file: not a screen at all
+            return False
+        if not os.isatty(stream.fileno()):
+            return False
+        mine = [self.fd]
+        try:
+            mine.append(self.stdout.fileno())
+        except (OSError, ValueError, AttributeError):
+            pass
+        return any((os.fstat(fd).st_rdev, os.fstat(fd).st_dev) == (device.st_rdev, device.st_dev) for fd in mine)
 
     def arm(self, plan, onset_ns):
         super().arm(plan, onset_ns)

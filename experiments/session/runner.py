@@ -45,6 +45,7 @@ from tactilab.data_schemas.experiment_records import TrialRecord
 from ..devices import (Display, DisplayError, DisplayFault, SafeDisplay, check_frame_rate,
                        description_record, display_fault, foreign_reason, render_drive)
 from ..procedures import PlannedLevel, Procedure, make_procedure, plan_trial, score
+from .progress import NoBar, progress_bar
 from .recording import Recorder, RecordingError, utc_now
 from .responses import ResponseSource
 from .signals import signals_held, stop_signals
@@ -98,7 +99,8 @@ class Runner:
     realtime : bool
         Wait the inter-trial and inter-interval pauses (False for dry runs and tests).
     progress : bool
-        Show a tqdm bar with the trial count and the current estimate.
+        Show a tqdm bar with the trial count and the current estimate on standard error,
+        unless that is the subject's screen (:mod:`.progress`).
     """
 
     def __init__(self, protocol: Protocol, recorder: Recorder, display: Display,
@@ -127,13 +129,11 @@ class Runner:
         attempts = attempts or {}
         stops = contextlib.ExitStack()
         stops.enter_context(stop_signals())
-        if self.progress:
-            from tqdm.auto import tqdm
-
-            bar = tqdm(total=self.procedure.n_planned, initial=self.procedure.n_done, unit="trial",
-                       desc=f"sub-{self.subject} ses-{self.session}")
-        else:  # no tqdm object at all: even a disabled one starts a monitor thread
-            bar = _NoBar()
+        if self.progress:  # the running estimate is the experimenter's: never on the subject's screen
+            bar = progress_bar(self.responses, total=self.procedure.n_planned, initial=self.procedure.n_done,
+                               desc=f"sub-{self.subject} ses-{self.session}", session_path=self.recorder.path)
+        else:
+            bar = NoBar()
         try:
             while True:
                 index = self.procedure.n_done
@@ -254,17 +254,6 @@ class Runner:
         return record
 
 
-class _NoBar:
-    def update(self, n: int) -> None:
-        pass
-
-    def set_postfix_str(self, text: str) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
-
-
 def format_estimate(estimate: dict[str, Any], parameter: str) -> str:
     """One line for humans: ``amplitude threshold 2.47 um`` (``estimate: n/a`` before there is one).
 
@@ -291,7 +280,7 @@ DISPLAY_UNITS = {"amplitude_m": ("amplitude", 1e6, "um"), "pitch_m": ("pitch", 1
 def new_session(protocol: Protocol, path: str | Path, display: Display, responses: ResponseSource, *,
                 subject: str, session: str = "01", subject_pattern: str | None = None, realtime: bool = True,
                 progress: bool = False, on_created: Callable[[Path], None] | None = None,
-                clipped: str = "refuse") -> RunResult:
+                clipped: str | None = None) -> RunResult:
     """Create a session file at ``path`` and run the protocol to the end (or to an interruption).
 
     Parameters
@@ -314,14 +303,18 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     realtime : bool
         Wait in real time between trials and during playback (False: dry runs only).
     progress : bool
-        Show a tqdm bar over trials.
+        Show a tqdm bar over trials (not on the subject's screen, :mod:`.progress`).
     on_created : callable, optional
         Called with the session file's path once the file exists (after the start checks), e.g.
         to tell the user where it is.
-    clipped : {"refuse", "allow"}
+    clipped : {"refuse", "drop", "allow"}, optional
         A planned stimulus the display would limit (clip, slew- or duty-limit) refuses the protocol
-        before any file exists (``refuse``, :func:`~.display_check.check_display_limits`), or is
-        limited by the safety layer at run time and recorded as interventions (``allow``).
+        before any file exists (``refuse``, :func:`~.display_check.check_display_limits`), is left
+        out (``drop``: a level or design candidate, :func:`~.display_check.drop_clipped`; the
+        count is warned, the list is recorded in the metadata's ``clipped`` and a
+        ``planned_stimuli_dropped`` event, the protocol recorded is the one run), or is limited by
+        the safety layer at run time and recorded as interventions (``allow``). Default: the
+        protocol's ``clipped`` (itself ``refuse`` by default).
 
     Returns
     -------
@@ -351,7 +344,7 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
 
 def _new_session(protocol: Protocol, path: str | Path, display: Display, responses: ResponseSource, *,
                  subject: str, session: str, subject_pattern: str | None, realtime: bool, progress: bool,
-                 on_created: Callable[[Path], None] | None, clipped: str) -> RunResult:
+                 on_created: Callable[[Path], None] | None, clipped: str | None) -> RunResult:
     check_subject(subject, "subject", subject_pattern)
     check_label(session, "session")
     # before any file exists: the device answers (a ZERO round trip: it is there and at rest)
@@ -363,9 +356,9 @@ def _new_session(protocol: Protocol, path: str | Path, display: Display, respons
     except ValueError as exc:
         raise ValueError(f"protocol: a planned stimulus's {exc} (frame rates planned: {rates} Hz)") from None
     render_drive(display.description, **protocol.stimulus.model_dump())
-    from .display_check import check_display_limits
+    from .display_check import plan_for_display
 
-    check_display_limits(protocol, display.description, clipped)
+    protocol, clipping = plan_for_display(protocol, display.description, clipped)
     description, description_sha256 = description_record(display.description)
     meta = {"session_id": uuid.uuid4().hex, "created_utc": utc_now(),
             "subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
@@ -373,7 +366,8 @@ def _new_session(protocol: Protocol, path: str | Path, display: Display, respons
             "display_id": str(display.description.display_id), "display_description": description,
             "display_sha256": description_sha256, "responses": responses.name,
             "responses_config": dict(responses.config),
-            "likelihood": getattr(protocol.procedure, "likelihood", None)}
+            "likelihood": getattr(protocol.procedure, "likelihood", None),
+            "clipped": clipping}
     # built before the file exists: an unregistered method or likelihood leaves no session behind
     procedure = make_procedure(protocol.procedure, protocol.task.guess_rate)
     recorder = None
@@ -381,6 +375,8 @@ def _new_session(protocol: Protocol, path: str | Path, display: Display, respons
         with signals_held():  # the file is created and locked whole
             recorder = Recorder.create(path, meta)
             recorder.log("session_started", payload={"pid": os.getpid()})
+            if clipping["dropped"]:
+                recorder.log("planned_stimuli_dropped", payload=clipping)
         if on_created is not None:
             on_created(Path(path))
         runner = Runner(protocol, recorder, display, responses, subject=subject, session=session,
