@@ -235,7 +235,7 @@ def test_a_type_error_deep_in_validation_is_still_one_line(tmp_path, capsys, mon
     was one) is one line naming the file, never a traceback."""
     from tactilab.data_schemas.experiment import Protocol
 
-    def unhashable(cls, data):
+    def unhashable(cls, data, context=None):
         raise TypeError("unhashable type: 'list'")
 
     monkeypatch.setattr(Protocol, "model_validate", classmethod(unhashable))
