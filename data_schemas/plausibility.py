@@ -60,3 +60,33 @@ def check_plausible(value: float, name: str, unit: str = "(SI)") -> None:
             f"{name} = {value:g} {unit} is outside the usual range ({usual}); check its unit",
             PlausibilityWarning, stacklevel=3,
         )
+
+
+#: Largest strain magnitude a linear-elastic (small-strain) answer may reach before it is flagged.
+SMALL_STRAIN_LIMIT = 0.1
+
+
+def check_small_strain(largest: float, where: str, *, stacklevel: int = 2) -> None:
+    """Warn (:class:`PlausibilityWarning`) if a linear-elastic answer leaves the small-strain range.
+
+    Linear elasticity holds for strains well below 0.1; above it the answer is outside the
+    model (and usually a unit mistake in the load or the modulus). The ``tactilab`` command's
+    ``--strict`` option turns the warning into an error.
+
+    Parameters
+    ----------
+    largest : float
+        The largest strain magnitude of the answer (dimensionless; a principal strain or a
+        lower bound of it, such as the largest ``|eps_ij|``). NaN is flagged too.
+    where : str
+        What was computed, for the message (``"HalfSpace.strain"``, ``"tactilab stress"``).
+    stacklevel : int
+        Passed to :func:`warnings.warn` (the caller's line).
+    """
+    if not largest <= SMALL_STRAIN_LIMIT:  # NaN included
+        warnings.warn(
+            f"{where}: the largest strain is {largest:.3g} ({largest * 100:.3g} %), above the small-strain "
+            f"limit {SMALL_STRAIN_LIMIT:g} of linear elasticity, so the answer is outside the model; lower the "
+            "load or check the Young's modulus and its unit (skin is about 0.1 to 10 MPa)",
+            PlausibilityWarning, stacklevel=stacklevel + 1,
+        )
