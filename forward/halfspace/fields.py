@@ -204,6 +204,8 @@ def largest_strain(values: np.ndarray, quantity: str, components: Sequence[str],
     nu : float
         Poisson's ratio.
     """
+    components = check.components(components)
+    young_modulus, nu = check.young_modulus(young_modulus), check.poisson_ratio(nu)
     if values.size == 0:
         return 0.0
     if quantity == "strain":
