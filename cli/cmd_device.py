@@ -46,13 +46,26 @@ _FLAGS = {"port": "--port", "watchdog_s": "--watchdog", "max_seconds": "--max-se
           "late_after_s": "--late-after", "n_tractors": "--tractors", "limits": "--limits"}
 
 
-def run(args: argparse.Namespace) -> int:
+def _time_option(text: str, flag: str, example: str) -> float:
+    """A time option in s, > 0 and within the emulator's clock; the fix is a time WITH a unit
+    (the library's own messages speak of seconds to Python callers)."""
+    from tactilab.core import rules
     from tactilab.data_schemas.units import to_si
+    from tactilab.experiments.devices import MAX_SECONDS
+
+    value = rules.positive(to_si(text, "time", name=flag), flag, "s", fix=f"give a time with a unit, e.g. {example}")
+    if value > MAX_SECONDS:
+        raise ValueError(f"{flag}: must be at most {MAX_SECONDS:g} s (about 4 months), got {text!r}; give e.g. "
+                         f"{example} (restart the emulator for longer runs)")
+    return value
+
+
+def run(args: argparse.Namespace) -> int:
     from tactilab.experiments.devices import emulate
 
-    watchdog = to_si(args.watchdog, "time", name="--watchdog")
-    max_seconds = to_si(args.max_seconds, "time", name="--max-seconds")
-    late_after = to_si(args.late_after, "time", name="--late-after")
+    watchdog = _time_option(args.watchdog, "--watchdog", "50ms")
+    max_seconds = _time_option(args.max_seconds, "--max-seconds", "60s")
+    late_after = _time_option(args.late_after, "--late-after", "1ms")
     log = functools.partial(print, flush=True, file=sys.stderr if args.json else sys.stdout)
     try:
         summary = emulate(args.port, watchdog_s=watchdog, record=args.record, max_seconds=max_seconds,

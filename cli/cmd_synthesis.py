@@ -92,7 +92,7 @@ class _Options:
             to_si(args.footprint, "length", name="--footprint"), "--footprint", "m", fix=_FIX)
         if (self.amplitude is not None or self.limit is not None) and self.young is None:
             raise ValueError("--young-modulus: needed with --amplitude or --traction-limit (the traction scales "
-                             "with E); give it as a pressure, e.g. 200kPa")
+                             "with E); give it as a pressure, e.g. 0.2MPa")
         self.widths = ([f * self.width for f in WIDTH_FACTORS] if args.sensitivity_widths is None
                        else [rules.positive(w, "--sensitivity-widths", "m", fix=_FIX)
                              for w in _lengths(args.sensitivity_widths, "--sensitivity-widths")])

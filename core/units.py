@@ -16,7 +16,7 @@ import math
 import re
 from decimal import Decimal
 
-__all__ = ["SI_UNIT", "UNITS", "factor", "to_si"]
+__all__ = ["SI_UNIT", "UNITS", "canonical_unit", "factor", "natural_unit", "to_si"]
 
 #: unit -> (dimension, factor to SI)
 UNITS: dict[str, tuple[str, float]] = {
@@ -63,7 +63,8 @@ SI_UNIT = {
     "dimensionless": "1",
 }
 
-# the unit a researcher most likely meant, for the fix in error messages
+# The unit a researcher most likely meant for a bare number, by dimension: the scale of a
+# receptor (mm), of a skin traction (kPa), of a trial (ms). Names refine it (natural_unit).
 _EXAMPLE_UNIT = {
     "length": "mm",
     "pressure": "kPa",
@@ -74,6 +75,54 @@ _EXAMPLE_UNIT = {
     "line_load": "N/m",
     "wavenumber": "rad/mm",
 }
+
+# Quantities whose natural unit differs from their dimension's: a modulus is in MPa (skin
+# 0.1 to 10 MPa), an amplitude or a height in um. Matched on the words of the name.
+_NAMED_UNIT: dict[str, tuple[str, str]] = {
+    "modulus": ("pressure", "MPa"),
+    "amplitude": ("length", "um"),
+    "a": ("length", "um"),  # the A of a sinusoid (A=..., p=...)
+    "height": ("length", "um"),
+    "heights": ("length", "um"),
+    "rms": ("length", "um"),
+    "roughness": ("length", "um"),
+    "indentation": ("length", "um"),
+}
+
+# The Greek small letter mu (U+03BC) looks like the micro sign (U+00B5) the table uses.
+_GREEK_MU, _MICRO_SIGN = "\u03bc", "\u00b5"
+
+
+def canonical_unit(unit: str) -> str:
+    """Return ``unit`` with the Greek letter mu (U+03BC) written as the micro sign (U+00B5).
+
+    Both are typed for "micro" (``"μm"`` from a Greek keyboard, ``"µm"`` from a Mac's option-m),
+    and both mean the same unit.
+    """
+    return unit.replace(_GREEK_MU, _MICRO_SIGN)
+
+
+def natural_unit(name: str, dimension: str) -> str:
+    """The unit a bare number given for ``name`` most likely meant, for the fix in messages.
+
+    One rule for every hint: the option's natural unit at receptor scale, never a fixed one.
+    A modulus is in MPa, an amplitude or a height in um, other lengths in mm, pressures in kPa,
+    times in ms, forces in N (``natural_unit("--young-modulus", "pressure") == "MPa"``).
+
+    Parameters
+    ----------
+    name : str
+        The option or field name as written at the edge (``--young-modulus``,
+        ``stimulus.amplitude``, ``sinusoid A``); a field's SI suffix (``_m``) is ignored.
+    dimension : str
+        What the value measures, one of ``SI_UNIT``'s keys.
+    """
+    words = re.split(r"[^a-z0-9]+", name.lower().split(".")[-1])
+    for word in words:
+        named = _NAMED_UNIT.get(word)
+        if named is not None and named[0] == dimension:
+            return named[1]
+    return _EXAMPLE_UNIT.get(dimension, SI_UNIT.get(dimension, ""))
 
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?inf|nan)\s*(\S*)\s*$")
 
@@ -92,6 +141,7 @@ def factor(unit: str, dimension: str, *, name: str = "value") -> float:
     ValueError
         If ``unit`` is unknown or measures another dimension than ``dimension``.
     """
+    unit = canonical_unit(unit)
     if unit not in UNITS:
         raise ValueError(
             f"{name}: unknown unit {unit!r}; use one of {_known_units(dimension)} (SI: {SI_UNIT[dimension]})"
@@ -140,10 +190,10 @@ def to_si(value: str | float | int, dimension: str, *, name: str = "value",
         if match is None:
             raise ValueError(
                 f"{name}: cannot read {value!r} as a quantity; write a number and a unit, "
-                f"e.g. '1.5{SI_UNIT[dimension]}'"
+                f"e.g. '1.5{natural_unit(name, dimension)}'"
             )
         number = float(match.group(1))
-        unit = match.group(2)
+        unit = canonical_unit(match.group(2))
         if not unit:
             if default_unit is not None:
                 unit = default_unit
@@ -153,14 +203,14 @@ def to_si(value: str | float | int, dimension: str, *, name: str = "value",
                 # A bare number at an edge is never silently SI: '--depth 1.25' is not 1.25 m.
                 raise ValueError(
                     f"{name}: {value.strip()!r} has no unit, and a {dimension} needs one; "
-                    f"write it with a unit, e.g. '{value.strip()}{_EXAMPLE_UNIT[dimension]}' "
+                    f"write it with a unit, e.g. '{value.strip()}{natural_unit(name, dimension)}' "
                     f"(units: {_known_units(dimension)})"
                 )
     else:
         raise ValueError(f"{name}: expected a number or a string like '1.5mm', got {type(value).__name__}")
     if not math.isfinite(number):
         raise ValueError(f"{name}: must be finite, got {value!r}; give a finite number with a unit, "
-                         f"e.g. '1.5{SI_UNIT[dimension]}'")
+                         f"e.g. '1.5{natural_unit(name, dimension)}'")
     f = factor(unit, dimension, name=name)
     # decimal product, so "1.25mm" gives exactly the float nearest 1.25e-3
     si = number if f == 1.0 else float(Decimal(repr(number)) * Decimal(repr(f)))

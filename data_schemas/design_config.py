@@ -32,7 +32,8 @@ from typing import Any, ClassVar, Literal
 
 from pydantic import Field, model_validator
 
-from .experiment_procedures import PARAMETERS, ProcedureConfigBase, _grid, register_procedure_config
+from .experiment_procedures import PARAMETERS, ProcedureConfigBase, register_procedure_config
+from .protocol_levels import grid
 from .hypothesis import parse_hypothesis
 from .stimulus import Stimulus
 
@@ -78,7 +79,7 @@ class ModelDiscriminationConfig(ProcedureConfigBase):
                     raise ValueError(f"candidates.surface: a list of 'sinusoid' or 'square', got {values!r}")
                 out[key] = list(values)
             else:
-                out[key] = _grid(values, CANDIDATE_FIELDS[key], f"candidates.{key}")
+                out[key] = grid(values, CANDIDATE_FIELDS[key], f"candidates.{key}")
         return {**data, "candidates": out}
 
     @model_validator(mode="after")

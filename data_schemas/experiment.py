@@ -4,7 +4,9 @@ A :class:`Protocol` is what a TOML protocol file holds: the stimulus (a virtual 
 laterotactile display renders as a travelling wave), the task, the procedure that chooses the
 level of one stimulus parameter on each trial, and the seed. Quantities in files may carry unit
 suffixes (``"20um"``, ``"40mm/s"``, ``"500ms"``); they are converted to SI once, on loading,
-with :func:`tactilab.data_schemas.units.to_si`. Bare numbers are SI. The procedure
+with :func:`tactilab.data_schemas.units.to_si`. A bare number is SI only under a field whose
+name carries its unit (``iti_s``); procedure levels need their unit written
+(:mod:`tactilab.data_schemas.protocol_levels`). The procedure
 configurations live in :mod:`tactilab.data_schemas.experiment_procedures`; trial records and
 sessions in :mod:`tactilab.data_schemas.experiment_records`.
 """
@@ -17,7 +19,7 @@ import warnings
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, SerializeAsAny, ValidationError, field_validator, model_validator
+from pydantic import Field, SerializeAsAny, ValidationError, ValidationInfo, field_validator, model_validator
 
 from tactilab.core import rules
 
@@ -27,6 +29,7 @@ from .experiment_procedures import (  # noqa: F401 - the configs are part of thi
     LIKELIHOOD_FAMILIES, MAX_PLANNED_TRIALS, PARAMETERS, PROCEDURE_CONFIGS, TASKS, ConstantStimuliConfig,
     Frequency, Length, ProcedureConfigBase, PsiConfig, Speed, StaircaseConfig, StaircaseTrack, Time,
     _Model, check_label, check_name, check_subject, procedure_config, register_procedure_config)
+from .protocol_levels import FILE_EDGE
 from .stimulus import MAX_FRAME_RATE_HZ, PITCH_RANGE_M, Stimulus  # noqa: F401 - part of this module's API
 
 #: What a session does with a planned stimulus the display would limit (clip, slew- or duty-limit):
@@ -172,8 +175,8 @@ class Protocol(_Model):
 
     @field_validator("procedure", mode="before")
     @classmethod
-    def _procedure(cls, value: Any) -> Any:
-        return procedure_config(value)
+    def _procedure(cls, value: Any, info: ValidationInfo) -> Any:
+        return procedure_config(value, info.context)
 
     @model_validator(mode="after")
     def _check(self) -> Protocol:
@@ -297,7 +300,7 @@ class Protocol(_Model):
                 raise ValueError(f"{path} (protocol): {exc}") from None
         try:
             with warnings.catch_warnings(record=True) as caught:  # an error supersedes the warnings
-                protocol = cls.model_validate(data)
+                protocol = cls.model_validate(data, context=FILE_EDGE)
             for item in caught:  # valid: the plausibility warnings are shown now
                 warnings.warn_explicit(item.message, item.category, item.filename, item.lineno)
             return protocol

@@ -15,12 +15,12 @@ import math
 import re
 from typing import Annotated, Any, ClassVar, Literal
 
-import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationInfo, model_validator
 
 from tactilab.core import rules
 from tactilab.core.patterns import safe_pattern
 
+from .protocol_levels import FILE_EDGE, grid, level_si
 from .units import to_si
 
 # The stimulus parameters a procedure may vary, with the dimension of their values.
@@ -115,36 +115,13 @@ class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
 
 
-def _grid(raw: Any, dimension: str, name: str) -> list[float]:
-    """Read a list of values or a ``{start, stop, n, scale}`` table, each value with units."""
-    if isinstance(raw, dict):
-        unknown = set(raw) - {"start", "stop", "n", "scale"}
-        if unknown or not {"start", "stop", "n"} <= set(raw):
-            raise ValueError(
-                f"{name}: a grid table needs exactly start, stop, n and optional scale "
-                f"('linear' or 'log'), got keys {sorted(raw)}; e.g. {{start='5um', stop='200um', n=20}}"
-            )
-        start = to_si(raw["start"], dimension, name=f"{name}.start")
-        stop = to_si(raw["stop"], dimension, name=f"{name}.stop")
-        n, scale = raw["n"], raw.get("scale", "linear")
-        if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= 10_000:
-            raise ValueError(f"{name}.n: must be an integer in [2, 10000], got {n!r}")
-        if scale not in ("linear", "log"):
-            raise ValueError(f"{name}.scale: must be 'linear' or 'log', got {scale!r}")
-        if scale == "log" and (start <= 0 or stop <= 0):
-            raise ValueError(f"{name}: a log grid needs start and stop > 0, got {start!r}, {stop!r}")
-        if stop <= start:
-            raise ValueError(f"{name}: stop must exceed start, got start={start!r}, stop={stop!r}")
-        values = np.geomspace(start, stop, n) if scale == "log" else np.linspace(start, stop, n)
-        return [float(v) for v in values]
-    if isinstance(raw, (list, tuple)):
-        if not raw:
-            raise ValueError(f"{name}: needs at least one value, got an empty list")
-        return [to_si(v, dimension, name=f"{name}[{i}]") for i, v in enumerate(raw)]
-    raise ValueError(f"{name}: expected a list of values or a {{start, stop, n}} table, got {raw!r}")
+def _from_file(info: ValidationInfo | None) -> bool:
+    """True when validating a protocol file (context :data:`~.protocol_levels.FILE_EDGE`)."""
+    context = getattr(info, "context", None)
+    return isinstance(context, dict) and context.get("edge") == FILE_EDGE["edge"]
 
 
-def _convert_levels(data: Any, fields: tuple[str, ...], grids: tuple[str, ...] = ()) -> Any:
+def _convert_levels(data: Any, grids: tuple[str, ...], info: ValidationInfo | None) -> Any:
     """Convert level-valued fields with the dimension of the varied ``parameter``."""
     if not isinstance(data, dict):
         return data
@@ -155,12 +132,9 @@ def _convert_levels(data: Any, fields: tuple[str, ...], grids: tuple[str, ...] =
             "stimulus field the procedure varies"
         )
     dimension, out = PARAMETERS[parameter], dict(data)
-    for key in fields:
-        if key in out and out[key] is not None:
-            out[key] = to_si(out[key], dimension, name=key)
     for key in grids:
         if key in out:
-            out[key] = _grid(out[key], dimension, key)
+            out[key] = grid(out[key], dimension, key, parameter=parameter, file=_from_file(info))
     return out
 
 
@@ -256,12 +230,13 @@ class ConstantStimuliConfig(ProcedureConfigBase):
 
     @model_validator(mode="before")
     @classmethod
-    def _units(cls, data: Any) -> Any:
+    def _units(cls, data: Any, info: ValidationInfo) -> Any:
         if isinstance(data, dict) and data.get("conditions") is not None:
             from .conditions import condition_levels
 
-            data = condition_levels(data)
-        return _convert_levels(data, (), ("levels",))
+            # the levels come from the table, whose column header gave their unit: already SI
+            return _convert_levels(condition_levels(data), ("levels",), None)
+        return _convert_levels(data, ("levels",), info)
 
     def planned_fields(self) -> list[tuple[str, dict[str, Any]]]:
         if self.conditions is None:
@@ -325,20 +300,22 @@ class StaircaseConfig(ProcedureConfigBase):
 
     @model_validator(mode="before")
     @classmethod
-    def _units(cls, data: Any) -> Any:
-        data = _convert_levels(data, ())
+    def _units(cls, data: Any, info: ValidationInfo) -> Any:
+        data = _convert_levels(data, (), info)
         if isinstance(data, dict) and isinstance(data.get("tracks"), list):
             linear_steps = lambda t: isinstance(t, dict) and t.get("step_scale", "log") == "linear"
-            dim = PARAMETERS[data["parameter"]]
+            parameter = data["parameter"]
+            dim, file = PARAMETERS[parameter], _from_file(info)
             tracks = []
             for i, t in enumerate(data["tracks"]):
                 if isinstance(t, dict):
                     t = dict(t)
                     for key in ("start", "min_level", "max_level"):
                         if key in t:
-                            t[key] = to_si(t[key], dim, name=f"tracks[{i}].{key}")
+                            t[key] = level_si(t[key], dim, f"tracks[{i}].{key}", parameter=parameter, file=file)
                     if linear_steps(t) and isinstance(t.get("step_sizes"), list):
-                        t["step_sizes"] = [to_si(s, dim, name=f"tracks[{i}].step_sizes") for s in t["step_sizes"]]
+                        t["step_sizes"] = grid(t["step_sizes"], dim, f"tracks[{i}].step_sizes", parameter=parameter,
+                                             file=file)
                 tracks.append(t)
             data["tracks"] = tracks
         return data
@@ -382,12 +359,14 @@ class PsiConfig(ProcedureConfigBase):
 
     @model_validator(mode="before")
     @classmethod
-    def _units(cls, data: Any) -> Any:
-        data = _convert_levels(data, (), ("levels",))
+    def _units(cls, data: Any, info: ValidationInfo) -> Any:
+        data = _convert_levels(data, ("levels",), info)
         if isinstance(data, dict) and isinstance(data.get("parameters"), dict):
-            dim = PARAMETERS[data["parameter"]]
+            parameter = data["parameter"]
+            dim, file = PARAMETERS[parameter], _from_file(info)
             data["parameters"] = {
-                k: _grid(v, dim if k == "threshold" else "dimensionless", f"parameters.{k}")
+                k: grid(v, dim if k == "threshold" else "dimensionless", f"parameters.{k}", parameter=parameter,
+                        file=file)
                 for k, v in data["parameters"].items()
             }
         return data
@@ -441,8 +420,11 @@ def register_procedure_config(name: str, config_cls: type) -> None:
     PROCEDURE_CONFIGS[name] = config_cls
 
 
-def procedure_config(data: Any) -> Any:
-    """Validate a ``[procedure]`` table with the class registered for its ``method``."""
+def procedure_config(data: Any, context: dict | None = None) -> Any:
+    """Validate a ``[procedure]`` table with the class registered for its ``method``.
+
+    ``context`` is the validation context (:data:`~.protocol_levels.FILE_EDGE` for a file).
+    """
     if isinstance(data, ProcedureConfigBase) or not isinstance(data, dict):
         return data
     method = data.get("method")
@@ -452,4 +434,4 @@ def procedure_config(data: Any) -> Any:
             f"{method!r}; register new procedures from Python with "
             "tactilab.experiments.register_procedure(name, config_cls, factory)"
         )
-    return PROCEDURE_CONFIGS[method].model_validate(data)
+    return PROCEDURE_CONFIGS[method].model_validate(data, context=context)

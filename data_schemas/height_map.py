@@ -38,6 +38,7 @@ import pathlib
 import numpy as np
 
 from tactilab.core import rules
+from tactilab.core.units import canonical_unit
 
 from .surface import HeightMap
 from .units import UNITS, to_si
@@ -50,7 +51,7 @@ def _length_factor(unit, where: str) -> float:
     """SI factor of a length ``unit`` string; refuses a missing, unknown or non-length unit."""
     if unit is None or str(unit).strip() == "":
         raise ValueError(f"{where}: the height unit is missing; state it (e.g. 'um', 'nm', 'mm' or 'm')")
-    unit = str(unit).strip()
+    unit = canonical_unit(str(unit).strip())
     dim = UNITS.get(unit, (None,))[0]
     if dim != "length":
         lengths = ", ".join(u for u, (d, _) in UNITS.items() if d == "length")

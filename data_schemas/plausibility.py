@@ -11,6 +11,7 @@ command's ``--strict`` option turns these warnings into errors.
 from __future__ import annotations
 
 import re
+import sys
 import warnings
 
 #: base quantity name -> (lowest, highest) plausible SI value, and the usual range in words
@@ -22,6 +23,7 @@ PLAUSIBLE: dict[str, tuple[float, float, str]] = {
     "watchdog": (0.0, 1.0, "display watchdogs are at most 1 s"),
     "pitch": (1e-6, 0.2, "grating pitches are 1 um to 200 mm"),
     "amplitude": (0.0, 20e-3, "stimulus amplitudes are at most 20 mm"),
+    "finger_radius": (0.1e-3, 1.0, "finger and indenter radii are 0.1 mm to 1 m"),
 }
 
 _UNIT_SUFFIX = re.compile(r"_(m|pa|s|n|hz|m_per_s|n_per_m)$")
@@ -39,7 +41,7 @@ def base_quantity(name: str) -> str:
     return _UNIT_SUFFIX.sub("", last.lower())
 
 
-def check_plausible(value: float, name: str, unit: str = "(SI)") -> None:
+def check_plausible(value: float, name: str, unit: str = "(SI)", *, stacklevel: int | None = None) -> None:
     """Warn (:class:`PlausibilityWarning`) if ``value`` (SI) is outside the usual range of ``name``.
 
     Parameters
@@ -50,6 +52,9 @@ def check_plausible(value: float, name: str, unit: str = "(SI)") -> None:
         The option or field name as written at the edge; quantities without a usual range pass.
     unit : str
         The SI unit of ``value``, for the message.
+    stacklevel : int, optional
+        The caller's ``stacklevel`` for :func:`warnings.warn` (1: the caller's line); default:
+        the caller's caller (a unit parser's user).
     """
     entry = PLAUSIBLE.get(base_quantity(name))
     if entry is None:
@@ -58,5 +63,55 @@ def check_plausible(value: float, name: str, unit: str = "(SI)") -> None:
     if not low <= abs(value) <= high:
         warnings.warn(
             f"{name} = {value:g} {unit} is outside the usual range ({usual}); check its unit",
-            PlausibilityWarning, stacklevel=3,
+            PlausibilityWarning, stacklevel=3 if stacklevel is None else stacklevel + 1,
+        )
+
+
+def check_plausible_at_entry(value: float, name: str, unit: str, *, stacklevel: int) -> None:
+    """:func:`check_plausible` for a Python entry point (``HalfSpace.strain``, ``HertzContact``).
+
+    Warns only when the call comes from outside tactilab (a user's script): tactilab's own
+    callers have checked the value at their edge (an option or a file field), under its name
+    there, so the user sees one warning, not two.
+
+    Parameters
+    ----------
+    value, name, unit
+        As :func:`check_plausible`.
+    stacklevel : int
+        Frames from the caller of this function to the user's line (1: the caller's line).
+    """
+    frame = sys._getframe(stacklevel)
+    if str(frame.f_globals.get("__name__", "")).startswith("tactilab."):
+        return
+    check_plausible(value, name, unit, stacklevel=stacklevel + 1)
+
+
+#: Largest strain magnitude a linear-elastic (small-strain) answer may reach before it is flagged.
+SMALL_STRAIN_LIMIT = 0.1
+
+
+def check_small_strain(largest: float, where: str, *, stacklevel: int = 2) -> None:
+    """Warn (:class:`PlausibilityWarning`) if a linear-elastic answer leaves the small-strain range.
+
+    Linear elasticity holds for strains well below 0.1; above it the answer is outside the
+    model (and usually a unit mistake in the load or the modulus). The ``tactilab`` command's
+    ``--strict`` option turns the warning into an error.
+
+    Parameters
+    ----------
+    largest : float
+        The largest strain magnitude of the answer (dimensionless; a principal strain or a
+        lower bound of it, such as the largest ``|eps_ij|``). NaN is flagged too.
+    where : str
+        What was computed, for the message (``"HalfSpace.strain"``, ``"tactilab stress"``).
+    stacklevel : int
+        Passed to :func:`warnings.warn` (the caller's line).
+    """
+    if not largest <= SMALL_STRAIN_LIMIT:  # NaN included
+        warnings.warn(
+            f"{where}: the largest strain is {largest:.3g} ({largest * 100:.3g} %), above the small-strain "
+            f"limit {SMALL_STRAIN_LIMIT:g} of linear elasticity, so the answer is outside the model; lower the "
+            "load or check the Young's modulus and its unit (skin is about 0.1 to 10 MPa)",
+            PlausibilityWarning, stacklevel=stacklevel + 1,
         )

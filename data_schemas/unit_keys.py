@@ -24,6 +24,8 @@ from typing import Any, Union
 
 from pydantic import BaseModel
 
+from tactilab.core.units import canonical_unit, natural_unit
+
 from .units import SI_UNIT, UNITS, to_si
 
 # Field-name suffix -> dimension; longest first. "_per_s" (rates in 1/s) is deliberately absent:
@@ -160,13 +162,13 @@ def convert_units(model: type[BaseModel], data: dict, where: str = "") -> dict:
             if _has_number(value) and target != key:
                 raise ValueError(
                     f"{here} = {value!r} has no unit ({key} is a quantity in {SI_UNIT[dim]}); write "
-                    f"{key} = \"{value}{SI_UNIT[dim] if dim != 'dimensionless' else ''}\" with a unit, "
+                    f"{key} = \"{value}{natural_unit(key, dim) if dim != 'dimensionless' else ''}\" with a unit, "
                     f"or use {target} for SI"
                 )
         else:
             for base, (name, base_dim) in sorted(by_base.items(), key=lambda kv: -len(kv[0])):
                 if key.startswith(base + "_"):
-                    token = key[len(base) + 1:].lower()
+                    token = canonical_unit(key[len(base) + 1:]).lower()
                     units = _units_for(base_dim)
                     if token not in units:
                         raise ValueError(

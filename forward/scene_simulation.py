@@ -12,11 +12,13 @@ import time
 
 import numpy as np
 
+from tactilab.data_schemas.plausibility import check_small_strain
 from tactilab.data_schemas.recording import Recording
 from tactilab.data_schemas.recording_io import FORMATS, write_recording
 
 from .finger import BiomimeticFinger
 from .finger_plots import plot_field_maps, plot_receptive_fields, plot_spectrum, plot_time_series
+from .halfspace import largest_strain
 from .scanning import check_scan, reference_height, scan_outputs, scanned_surface, scene_finger
 from .surfaces import RecordFeature
 
@@ -62,6 +64,9 @@ def simulate_scene(scene, out_dir, *, fmt: str = "netcdf", rng: np.random.Genera
     weights = finger.node_weights()
     values = scan_outputs(finger, surface, u, reference_height_m=h_ref, weights=weights, progress=progress)
     elapsed = time.perf_counter() - t0
+    c = finger.contact  # values: (frame, sensor, component); one max over them (before noise)
+    check_small_strain(largest_strain(np.moveaxis(values, 2, 1), finger.sensors.quantity, finger.sensors.components,
+                                      c.young_modulus, c.poisson_ratio), "simulate (sensor readings)")
     noise = float(scene.sensors.noise_std)
     if rng is not None and noise > 0:
         values = values + noise * rng.standard_normal(values.shape)
@@ -71,7 +76,6 @@ def simulate_scene(scene, out_dir, *, fmt: str = "netcdf", rng: np.random.Genera
     out.mkdir(parents=True, exist_ok=True)
     path = write_recording(rec, out, fmt, positions_m=u, sensor_positions_m=finger.sensors.positions_m,
                            attrs=_finger_attrs(finger))
-    c = finger.contact
     scale = 1e-3 if rec.quantity == "stress" else 1.0
     unit = "kPa" if rec.quantity == "stress" else "strain"
     lines = [

@@ -3,6 +3,7 @@ traceback), a non-zero exit status, and names the file or option and the fix."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import socket
 import sqlite3
@@ -235,7 +236,7 @@ def test_a_type_error_deep_in_validation_is_still_one_line(tmp_path, capsys, mon
     was one) is one line naming the file, never a traceback."""
     from tactilab.data_schemas.experiment import Protocol
 
-    def unhashable(cls, data):
+    def unhashable(cls, data, context=None):
         raise TypeError("unhashable type: 'list'")
 
     monkeypatch.setattr(Protocol, "model_validate", classmethod(unhashable))
@@ -245,3 +246,16 @@ def test_a_type_error_deep_in_validation_is_still_one_line(tmp_path, capsys, mon
         Protocol.from_toml(path)
     code = cli_main(["experiment", "run", str(path), "--subject", "S01", *_simulated(tmp_path)])
     _one_line_error(code, capsys.readouterr().err, [str(path), "wrong type"])
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["--watchdog", "0ms"], r"--watchdog: must be finite and > 0 s, got 0\.0; give a time with a unit, e\.g\. 50ms$"),
+    (["--late-after=-1ms"], r"--late-after: must be finite and > 0 s, got -0\.001; give a time with a unit, e\.g\. 1ms$"),
+    (["--max-seconds", "1e8s"], r"--max-seconds: must be at most 1e\+07 s \(about 4 months\), got '1e8s'; give e\.g\. 60s "),
+    (["--watchdog", "5"], r"--watchdog: '5' has no unit, and a time needs one; write it with a unit, e\.g\. '5ms'"),
+])
+def test_time_option_hints_never_suggest_a_bare_number(argv, message, capsys):
+    """A time option's fix is a time with a unit: a bare '0.05' (the library's seconds) would be refused."""
+    assert cli_main(["device", "emulate", "--port", "0", *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert re.search(message, err), err

@@ -53,3 +53,30 @@ def test_a_bare_number_string_needs_a_unit(text, dimension, fix):
     assert to_si(text, "dimensionless") == float(text)  # dimensionless values stay bare
     assert to_si(text, dimension, default_unit="m" if dimension == "length" else "Pa" if dimension == "pressure"
                  else "s") == float(text)  # a file key that names its unit (depth_m) takes a bare number
+
+
+@pytest.mark.parametrize("name,dimension,fix", [
+    ("--young-modulus", "pressure", "'1.54MPa'"), ("material.young_modulus", "pressure", "'1.54MPa'"),
+    ("--traction-limit", "pressure", "'1.54kPa'"), ("--depth", "length", "'1.54mm'"),
+    ("--amplitude", "length", "'1.54um'"), ("sinusoid A", "length", "'1.54um'"), ("rough rms", "length", "'1.54um'"),
+    ("--watchdog", "time", "'1.54ms'"), ("--max-seconds", "time", "'1.54ms'"), ("force", "force", "'1.54N'"),
+])
+def test_the_hint_for_a_bare_number_uses_the_options_natural_unit(name, dimension, fix):
+    """One rule: a modulus in MPa (not 1000x softer kPa), amplitudes in um, times never bare."""
+    with pytest.raises(ValueError, match=rf"'1\.54' has no unit, and a {dimension} needs one; write it with a unit, "
+                                         rf"e\.g\. {fix}"):
+        to_si("1.54", dimension, name=name)
+
+
+@pytest.mark.parametrize("text", ["20μm", "20µm", "20 μm", "20um"])
+def test_greek_mu_and_the_micro_sign_both_read_as_micro(text):
+    assert to_si(text, "length") == 2e-5
+
+
+def test_greek_mu_in_a_file_key_suffix_and_a_height_unit():
+    from tactilab.data_schemas.height_map import _length_factor
+    from tactilab.data_schemas.sensors import SensorArray
+    from tactilab.data_schemas.unit_keys import convert_units
+
+    assert convert_units(SensorArray, {"depth_μm": 1250})["depth_m"] == pytest.approx(1.25e-3)
+    assert _length_factor("μm", "heights") == 1e-6

@@ -102,7 +102,7 @@ def test_pickle_bytes_hidden_in_the_levels_are_never_unpickled(tmp_path, canary,
     payload = pickle.dumps(("os", "system"))
     payload += b"\0" * (-len(payload) % 8)
     floats = [struct.unpack("<d", payload[i:i + 8])[0] for i in range(0, len(payload), 8)]
-    levels = "[" + ", ".join(repr(abs(v) if v == v and abs(v) < 1e300 else 1e-6) for v in floats) + "]"
+    levels = "[" + ", ".join(f'"{abs(v) if v == v and abs(v) < 1e300 else 1e-6!r}m"' for v in floats) + "]"
     assert _run(tmp_path, _protocol(tmp_path, "pickle:loads", levels)) == 2
     assert "never holds an import path" in capsys.readouterr().err
     as_text = _protocol(tmp_path, "weibull", json.dumps([payload.decode("latin-1")]))

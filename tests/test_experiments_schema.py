@@ -362,3 +362,44 @@ def test_levels_are_validated_under_every_2afc_alternative_and_staircase_bound()
         Protocol.model_validate(data)
     track["min_level"] = "40ms"
     assert Protocol.model_validate(data).procedure.tracks[0].min_level == pytest.approx(0.04)
+
+
+def _protocol_file(tmp_path, procedure: str):
+    path = tmp_path / "protocol.toml"
+    path.write_text(
+        'name = "det"\nseed = 5\n[task]\nkind = "2ifc"\n[stimulus]\namplitude_m = "20um"\npitch_m = "2mm"\n'
+        'speed_m_per_s = "40mm/s"\nduration_s = "300ms"\n[procedure]\n' + procedure, encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("procedure,message", [
+    ('method = "constant_stimuli"\nparameter = "pitch_m"\nlevels = [0.8, 1.2]\n',
+     r'levels = \[0\.8, 1\.2\] has no unit; in a protocol file every level of pitch_m \(a length\) is written with '
+     r'its unit, e\.g\. levels = \["0\.8mm", "1\.2mm"\]; a bare number is not read as SI \(as m it would be '
+     r'"800mm", "1200mm"\)'),
+    ('method = "constant_stimuli"\nparameter = "pitch_m"\nlevels = {start = 0.8, stop = "3.2mm", n = 4}\n',
+     r'levels\.start = 0\.8 has no unit;.* e\.g\. levels\.start = "0\.8mm"'),
+    ('method = "staircase"\nparameter = "amplitude_m"\n[[procedure.tracks]]\nstart = 0.00002\n'
+     'step_sizes = [0.2]\nmin_level = "0.2um"\nmax_level = "100um"\n',
+     r'tracks\[0\]\.start = 2e-05 has no unit; .*amplitude_m \(a length\).* e\.g\. tracks\[0\]\.start = "2e-05um"; '
+     r'a bare number is not read as SI \(as m it would be "20um"\)'),
+    ('method = "staircase"\nparameter = "amplitude_m"\n[[procedure.tracks]]\nstart = "20um"\nstep_scale = "linear"\n'
+     'step_sizes = [2e-6]\nmin_level = "0.2um"\nmax_level = 0.0001\n', r"tracks\[0\]\.max_level = 0\.0001 has no unit"),
+    ('method = "staircase"\nparameter = "amplitude_m"\n[[procedure.tracks]]\nstart = "20um"\nstep_scale = "linear"\n'
+     'step_sizes = [2e-6]\nmin_level = "0.2um"\nmax_level = "100um"\n', r"tracks\[0\]\.step_sizes = \[2e-06\] has no unit"),
+    ('method = "psi"\nparameter = "amplitude_m"\nlevels = ["1um", "2um"]\n'
+     'parameters = {threshold = [1e-6, 2e-6], slope = [2.0], lapse = [0.02]}\n',
+     r"parameters\.threshold = \[1e-06, 2e-06\] has no unit"),
+])
+def test_bare_levels_in_a_protocol_file_are_refused_not_read_as_metres(tmp_path, procedure, message):
+    """The file rule: a field without a unit in its name (levels, start, ...) needs its unit written."""
+    with pytest.raises(ValueError, match=message):
+        Protocol.from_toml(_protocol_file(tmp_path, procedure))
+
+
+def test_levels_with_units_in_a_file_and_si_numbers_from_python_still_load(tmp_path):
+    protocol = Protocol.from_toml(_protocol_file(
+        tmp_path, 'method = "constant_stimuli"\nparameter = "pitch_m"\nlevels = ["0.8mm", "1.2mm"]\n'))
+    assert protocol.procedure.levels == pytest.approx([0.8e-3, 1.2e-3])
+    python = Protocol.model_validate(with_("procedure.tracks.0.start", 2e-5))  # Python numbers are SI
+    assert python.procedure.tracks[0].start == 2e-5

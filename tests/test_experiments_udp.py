@@ -423,7 +423,7 @@ def test_emulate_rejects_bad_arguments(kwargs, match):
 
 def test_cli_reports_bad_options_in_one_line(capsys):
     assert cli_main(["device", "emulate", "--port", "0", "--watchdog", "0ms", "--max-seconds", "1s"]) == 2
-    assert "--watchdog: must be a finite number of seconds > 0" in capsys.readouterr().err
+    assert "--watchdog: must be finite and > 0 s, got 0.0; give a time with a unit, e.g. 50ms" in capsys.readouterr().err
     assert cli_main(["device", "emulate", "--port", "0", "--max-seconds", "1e300s"]) == 2  # was OverflowError
     assert "--max-seconds: must be at most" in capsys.readouterr().err
     assert cli_main(["device", "emulate", "--port", "0", "--tractors", "0"]) == 2

@@ -183,6 +183,12 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.halfspace.output_weights", "young_modulus"): (
         lambda v: fwd.halfspace.output_weights("strain", ("zz",), v, 0.5)),
     ("forward.halfspace.output_weights", "nu"): lambda v: fwd.halfspace.output_weights("strain", ("zz",), 1e6, v),
+    ("forward.halfspace.largest_strain", "components"): (
+        lambda v: fwd.halfspace.largest_strain(np.zeros((1, 1, 2)), "strain", v, 1e6, 0.5)),
+    ("forward.halfspace.largest_strain", "young_modulus"): (
+        lambda v: fwd.halfspace.largest_strain(np.zeros((1, 1, 2)), "strain", ("zz",), v, 0.5)),
+    ("forward.halfspace.largest_strain", "nu"): (
+        lambda v: fwd.halfspace.largest_strain(np.zeros((1, 1, 2)), "strain", ("zz",), 1e6, v)),
     ("forward.halfspace.dcfft_kernel_spectrum", "spacing"): (
         lambda v: _kernel_spectrum(spacing=v)),
     ("forward.halfspace.dcfft_kernel_spectrum", "depth"): (

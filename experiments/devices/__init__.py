@@ -53,6 +53,7 @@ _EXPORTS = {
     "encode": "link",
     "EmulatorSummary": "emulator",
     "emulate": "emulator",
+    "MAX_SECONDS": "emulator",
     "read_record": "emulator",
     "DEVICE_PRESETS": "registry",
     "description_from_spec": "registry",

@@ -75,7 +75,8 @@ class EmulatorSummary:
     duration_s: float = 0.0
 
 
-_MAX_SECONDS = 1e7
+#: the longest time the emulator counts (its clock is in integer ns), s
+MAX_SECONDS = 1e7
 
 
 def _seconds(value, name: str, *, allow_none: bool = False) -> float | None:
@@ -84,8 +85,8 @@ def _seconds(value, name: str, *, allow_none: bool = False) -> float | None:
     number = math.nan if isinstance(value, bool) or value is None else float(value)
     if not (math.isfinite(number) and number > 0):
         raise ValueError(f"{name}: must be a finite number of seconds > 0, got {value!r}; give e.g. 0.05")
-    if number > _MAX_SECONDS:  # the emulator counts in integer ns; 1e300 s overflowed to inf there
-        raise ValueError(f"{name}: must be at most {_MAX_SECONDS:g} s (about 4 months), got {value!r}; "
+    if number > MAX_SECONDS:  # the emulator counts in integer ns; 1e300 s overflowed to inf there
+        raise ValueError(f"{name}: must be at most {MAX_SECONDS:g} s (about 4 months), got {value!r}; "
                          "give e.g. 60 and restart the emulator for longer runs")
     return number
 

@@ -36,6 +36,7 @@ import numpy as np
 
 from tactilab.core import rules as check
 from tactilab.core.rules import positive
+from tactilab.data_schemas.plausibility import check_plausible_at_entry
 
 from ..halfspace import ContinuousLoad, SurfaceLoad
 
@@ -76,6 +77,7 @@ class HertzContact:
         positive(self.normal_force, "normal_force", unit,
                   "a finger pressing on a surface has a positive normal force (a pull is not a Hertz contact)")
         positive(self.finger_radius, "finger_radius", "m", "give the fingertip radius of curvature in metres")
+        check_plausible_at_entry(self.finger_radius, "finger_radius", "m", stacklevel=3)  # 10 meant as mm warns
         check.young_modulus(self.young_modulus)
         check.poisson_ratio(self.poisson_ratio, "poisson_ratio")
 

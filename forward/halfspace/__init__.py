@@ -27,6 +27,7 @@ _EXPORTS = {
     "HalfSpace": "facade",
     "INVARIANTS": "fields",
     "invariants": "fields",
+    "largest_strain": "fields",
     "line_green": "kernels",
     "line_load_stress": "kernels",
     "LOAD_COMPONENTS": "loads",

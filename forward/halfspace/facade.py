@@ -18,10 +18,11 @@ import math
 import numpy as np
 
 from tactilab.core import rules as check
+from tactilab.data_schemas.plausibility import check_plausible_at_entry
 
 from .continuous import ContinuousLoad
 from .loads import SurfaceLoad
-from .methods import AccuracyWarning  # noqa: F401  (re-exported: the solver's door names it here)
+from .methods import AccuracyWarning, user_stacklevel  # noqa: F401  (AccuracyWarning: re-exported, the solver's door names it here)
 from .sampled import continuous_field
 from .solve import FLOAT32_TOL, FieldResult, check_points, package, solve  # noqa: F401  (re-exports)
 from .spectral import pressure_from_deflection
@@ -155,6 +156,8 @@ class HalfSpace:
         if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not math.isfinite(tol) or tol <= 0:
             raise ValueError(f"tol: must be a finite relative tolerance > 0, got {tol!r} (e.g. 1e-6)")
         depths = check.depths(depth)
+        for z in depths:  # the rule the options and the files follow: 1.25 meant as mm warns
+            check_plausible_at_entry(float(z), "depth", "m", stacklevel=user_stacklevel())
         comps = check.components(components)
         if want_invariants and comps != check.COMPONENTS:
             raise ValueError("invariants: need all six components; call with components=None")

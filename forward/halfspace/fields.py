@@ -180,3 +180,41 @@ def _build_label(values: np.ndarray, quantity: str, components: Sequence[str], d
         if isinstance(coord.variable.data, np.ndarray):
             coord.variable.data.setflags(write=False)
     return da
+
+
+def largest_strain(values: np.ndarray, quantity: str, components: Sequence[str], young_modulus: float,
+                   nu: float) -> float:
+    """A lower bound of the largest principal strain magnitude of a computed field (dimensionless).
+
+    Every entry of a symmetric tensor is bounded by its largest eigenvalue magnitude, so the
+    largest ``|eps_ij|`` over the computed components bounds the principal strain from below:
+    one max over the field for a strain. For a stress, shear components give
+    ``eps_ij = (1 + nu) sigma_ij / E`` exactly, and the normal ones are converted when all three
+    were computed (Hooke's law needs the trace).
+
+    Parameters
+    ----------
+    values : ndarray, shape (n_depths, n_components, ...)
+        The field: strain (dimensionless) or stress (Pa), components along axis 1.
+    quantity : {"strain", "stress"}
+    components : sequence of str
+        Voigt names of axis 1.
+    young_modulus : float
+        E in Pa.
+    nu : float
+        Poisson's ratio.
+    """
+    components = check.components(components)
+    young_modulus, nu = check.young_modulus(young_modulus), check.poisson_ratio(nu)
+    if values.size == 0:
+        return 0.0
+    if quantity == "strain":
+        return float(np.abs(values).max())
+    index = {c: i for i, c in enumerate(components)}
+    shear = [index[c] for c in ("yz", "zx", "xy") if c in index]
+    largest = (1.0 + nu) / young_modulus * float(np.abs(values[:, shear]).max()) if shear else 0.0
+    if all(c in index for c in ("xx", "yy", "zz")):
+        normal = values[:, [index["xx"], index["yy"], index["zz"]]]
+        trace = normal.sum(axis=1, keepdims=True)
+        largest = max(largest, float(np.abs((1.0 + nu) * normal - nu * trace).max()) / young_modulus)
+    return largest

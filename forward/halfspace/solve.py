@@ -14,9 +14,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import xarray as xr
 
-from .fields import SHEAR_CONVENTION, compliance_matrix, invariants, label, output_weights
+from tactilab.data_schemas.plausibility import check_small_strain
+
+from .fields import SHEAR_CONVENTION, compliance_matrix, invariants, label, largest_strain, output_weights
 from .loads import SurfaceLoad
-from .methods import Method, Problem, select_method
+from .methods import Method, Problem, select_method, user_stacklevel
 
 #: tolerances from this one up are computed in float32
 FLOAT32_TOL = 1e-4
@@ -148,7 +150,13 @@ def solve(E: float, nu: float, load: SurfaceLoad, depths, comps, pts, method, to
 
 def package(E: float, nu: float, load, sol: Solution, depths, comps, pts, want_invariants: bool, error_covers: str,
             sampling_estimate: float | None = None, extra: dict | None = None) -> FieldResult:
-    """The result; its xarray Dataset is built on the first access of ``FieldResult.data``."""
+    """The result; its xarray Dataset is built on the first access of ``FieldResult.data``.
+
+    A field whose largest strain exceeds the small-strain limit warns here, once per answer
+    (:func:`tactilab.data_schemas.plausibility.check_small_strain`; one max over the field).
+    """
+    check_small_strain(largest_strain(sol.values, sol.quantity, comps, E, nu), f"HalfSpace.{sol.quantity}",
+                       stacklevel=user_stacklevel())
     err = sol.err if sampling_estimate is None else sol.err + sampling_estimate
     attrs = dict(method=sol.chosen.name, error_estimate=err, error_covers=error_covers,
                  method_error_estimate=sol.err, reason=sol.reason, E_pa=E, nu=nu,
