@@ -223,9 +223,12 @@ def plot_comparison(table, fits, path) -> None:
                                       for n, v in zip(names, table["verdict"])], fontsize=7)
     for i, (_, row) in enumerate(table.iterrows()):
         if i:
-            ax.annotate(f"diff {row['elpd_diff']:.1f} +- {row['dse']:.1f} (z {row['z']:.2f}; "
-                        f"separation {row['separation']:.2g})", (i, row["elpd"]),
-                        textcoords="offset points", xytext=(6, 6), fontsize=7)
+            # above the error bar and centred on it, so that the last model's label stays in the axes
+            ax.annotate(f"diff {row['elpd_diff']:.1f} +- {row['dse']:.1f}\n(z {row['z']:.2f}; "
+                        f"separation {row['separation']:.2g})", (i, row["elpd"] + row["se"]),
+                        textcoords="offset points", xytext=(0, 4), ha="center", va="bottom", fontsize=7)
+    ax.set_xlim(-0.5, len(names) - 0.5)
+    ax.margins(y=0.2)
     ax.set_ylabel("ELPD (PSIS-LOO, +- se), nats")
     ax.set_title("model comparison (higher is better)", fontsize=9)
     for i, name in enumerate(names):
@@ -238,7 +241,7 @@ def plot_comparison(table, fits, path) -> None:
                 label=f"observed, on {name}'s axis")
         bx.plot(data["s1"][order], pred[order], "-", color=f"C{i}", label=f"{name} (posterior mean)")
     bx.set_xscale("log")
-    bx.set_xlabel("statistic of the test interval under each model (strain)")
+    bx.set_xlabel("test-interval statistic under each model (strain)")
     bx.set_ylabel("proportion correct")
     bx.legend(fontsize=7)
     fig.savefig(path, dpi=110)
