@@ -151,7 +151,7 @@ max_trials = 6
 def test_a_plain_staircase_session_loads_nothing_from_modelling():
     """A simulated 2IFC staircase session, run start to end in a fresh interpreter, imports no
     module of the modelling room (nor psi, whose module loads only when a protocol names it)."""
-    proc = subprocess.run([sys.executable, "-c", STAIRCASE_SESSION, PROTOCOL], capture_output=True, text=True,
+    proc = subprocess.run([sys.executable, "-P", "-c", STAIRCASE_SESSION, PROTOCOL], capture_output=True, text=True,
                           cwd=ROOT.parent, timeout=120)
     assert proc.returncode == 0, proc.stderr
     loaded = proc.stdout.split()
@@ -192,7 +192,7 @@ def test_each_built_in_procedure_loads_its_module_when_a_protocol_first_names_it
     """In a fresh interpreter the registry lists every built-in before any is loaded, and building
     each one imports its module then: staircase alone, then psi, then the modelling room's design."""
     script = f"STIMULUS = {STIMULUS!r}\nPROCEDURES = {PROCEDURES!r}\n" + BUILD_EACH
-    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT.parent,
+    proc = subprocess.run([sys.executable, "-P", "-c", script], capture_output=True, text=True, cwd=ROOT.parent,
                           timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.splitlines() == [
