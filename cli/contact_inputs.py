@@ -129,7 +129,7 @@ def finger_gap(radius: float | None, x: np.ndarray, y: np.ndarray | None) -> np.
     return r2 / (2 * radius)
 
 
-def _positive(value: float, option: str, text: str, example: str) -> float:
+def _positive_option(value: float, option: str, text: str, example: str) -> float:
     """The core rule for a positive quantity, its message naming the option and an example with a unit."""
     from tactilab.core import rules
 
@@ -161,18 +161,18 @@ def parse_options(args) -> dict:
                          f"{', '.join('--' + k.replace('_', '-') for k in values)}")
     for key, value in values.items():
         if key != "approach":
-            _positive(value, "--" + key.replace("_", "-"), loads[key], "0.8N" if key == "normal_force" else "10kPa")
+            _positive_option(value, "--" + key.replace("_", "-"), loads[key], "0.8N" if key == "normal_force" else "10kPa")
     out = {"load": values, "grid": parse_grid(args.grid, plane)}
     out["young_modulus"] = (rules.young_modulus(_quantities(args.young_modulus, "pressure", "--young-modulus",
                                                             (1,))[0], "--young-modulus")
                             if args.young_modulus else None)
-    out["finger_radius"] = (_positive(_quantities(args.finger_radius, "length", "--finger-radius", (1,))[0],
+    out["finger_radius"] = (_positive_option(_quantities(args.finger_radius, "length", "--finger-radius", (1,))[0],
                                       "--finger-radius", args.finger_radius, "10mm") if args.finger_radius else None)
-    out["grid_spacing"] = (_positive(_quantities(args.grid_spacing, "length", "--grid-spacing", (1,))[0],
+    out["grid_spacing"] = (_positive_option(_quantities(args.grid_spacing, "length", "--grid-spacing", (1,))[0],
                                      "--grid-spacing", args.grid_spacing, "20um") if args.grid_spacing else None)
     out["spacing"] = None
     if args.spacing:
-        spacing = [_positive(v, "--spacing", args.spacing, "20um") for v in _quantities(args.spacing, "length",
+        spacing = [_positive_option(v, "--spacing", args.spacing, "20um") for v in _quantities(args.spacing, "length",
                                                                                          "--spacing")]
         out["spacing"] = spacing[0] if len(spacing) == 1 else tuple(spacing)
     out["tangential_force"] = None
@@ -185,7 +185,7 @@ def parse_options(args) -> dict:
         raise ValueError(f"--slide-direction: must not be zero, got {args.slide_direction!r}; e.g. 1,0")
     out["slide_direction"] = tuple(direction)
     depths = [z for text in args.depth for z in _quantities(text, "length", "--depth", tuple(range(1, 65)))]
-    out["depths"] = [_positive(z, "--depth", ",".join(args.depth), "1mm") for z in depths]
+    out["depths"] = [_positive_option(z, "--depth", ",".join(args.depth), "1mm") for z in depths]
     if args.nu is not None:
         rules.poisson_ratio(args.nu, "--nu")
     if args.friction is not None and not args.friction >= 0:
