@@ -247,6 +247,11 @@ def metamer_pair(target: FamilyStimulus, family: StimulusFamily, hypothesis: Rec
     r = resolve_receptors(receptors, family, target.family)
     bnds = _bounds(bounds, family)
     b = target.readout(h, r)
+    if not np.any(b):  # 0/0: every stimulus would "match", and the residual would read 0
+        raise ValueError(f"hypothesis: {h} reads exactly 0 of the target at every receptor (volumetric strain in "
+                         "an incompressible skin, nu = 0.5, is 0 for every surface traction), so any stimulus "
+                         "matches it and there is no metamer to find; pick a hypothesis that reads the target, "
+                         "e.g. deviatoric_norm or xx,zx")
     if h.linear:
         params, rank, a = _solve(family, h, r, b, bnds, rc)
     else:

@@ -229,7 +229,7 @@ SINE = SinusoidFamily(4e-3).stimulus([1e-5])
     (lambda: metamer_pair(SINE, PERIODIC, "xx@1mm", criterion=0), "criterion: the d' threshold must be"),
     (lambda: metamer_pair(SINE, PERIODIC, "xx@1mm", rcond=2.0), r"rcond: must be in \[0, 1\)"),
     (lambda: metamer_pair(SINE, PERIODIC, "xx@1mm", bounds=(1.0, -1.0)), "bounds: need lower <= upper"),
-    (lambda: metamer_pair(PERIODIC.stimulus(np.ones(16)), PERIODIC, "xx@1mm", scan_phases=[0.0]),
+    (lambda: metamer_pair(PERIODIC.stimulus(np.arange(16.0)), PERIODIC, "xx@1mm", scan_phases=[0.0]),
      "scan_phases: a travelling scan needs a SinusoidFamily target"),
     (lambda: metamer_pair(SINE, PERIODIC, "xx@1mm", scan_phases=[np.nan]), "scan_phases: give finite phases"),
     (lambda: metamer_pair("bump", PERIODIC, "xx@1mm"), "target: expected a FamilyStimulus"),
@@ -261,3 +261,14 @@ SINE = SinusoidFamily(4e-3).stimulus([1e-5])
 def test_bad_input_is_named(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+def test_a_hypothesis_that_reads_nothing_of_the_target_is_refused_not_called_metameric():
+    """Volumetric strain at nu = 1/2 is 0 for every surface traction: the residual would be 0/0 and
+    every stimulus 'metameric'; metamer_pair refuses instead (it used to answer residual 0, True)."""
+    target = SinusoidFamily(4e-3).stimulus([5e-4])
+    fam = TractorFamily(np.array([-9, -7, -5, -3, -1, 1, 3, 5, 7, 9]) * 1e-3, E, limit=600.0)
+    x = np.linspace(-5e-3, 5e-3, 201)
+    with pytest.raises(ValueError, match=r"reads exactly 0 of the target .* no metamer to find"):
+        metamer_pair(target, fam, "volumetric@1.25mm;noise=1e-3", x)
+    assert metamer_pair(target, fam, "xx,zx@1.25mm;noise=1e-3", x).relative_residual > 0
