@@ -74,7 +74,7 @@ def test_checker_catches_a_backward_import():
 
 
 #: the rooms of tactilab.forward that have their own door
-ROOMS = ("halfspace", "contact")
+ROOMS = ("halfspace", "contact", "skin")
 
 
 def door_breaches(source: str, in_forward: bool, room: str = "halfspace") -> set[str]:

@@ -1,0 +1,16 @@
+"""Skin models beyond the homogeneous elastic half-space: this package is the skin room's one door.
+
+Forward code outside this package imports from here, never from the modules inside (a test
+enforces it). The skin models here keep the faces of :class:`tactilab.forward.halfspace.HalfSpace`
+(``stress`` / ``strain`` / ``operator``) and provide ``surface_compliance(kx, ky)`` so that
+:func:`tactilab.forward.contact.solve_contact` takes them. SI units; the theory is in
+``docs/theory.md``.
+"""
+
+from tactilab.core import attach
+
+#: public name -> module of the skin room that defines it (loaded on first use)
+_EXPORTS: dict[str, str] = {}
+
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = attach(__name__, _EXPORTS)
