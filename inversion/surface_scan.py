@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tactilab.forward import ContactCompliance, HalfSpace, solve_contact
+from tactilab.forward import ContactCompliance, HalfSpace, solve_scan
 
 __all__ = ["ProfileGrid", "ContactScan", "ScanState", "CONTEXT_NAMES"]
 
@@ -97,24 +97,18 @@ class ScanState:
     pressure : ndarray, shape (n_frames, *grid)
         Pa, at the context's modulus.
     contact : ndarray of bool, shape (n_frames, *grid)
-    gap : ndarray, shape (n_frames, *grid)
-        Final gap, m (0 in contact).
     node_heights : ndarray, shape (n_frames, *grid)
         The surface heights each frame read, m.
     outputs : ndarray, shape (n_frames, n_out)
         Pa (stress) or tensor strain.
-    solutions : list of ContactSolution
-        The reference solves (modulus ``E_ref``), the next solve's warm starts.
     """
 
     heights: np.ndarray
     context: dict
     pressure: np.ndarray
     contact: np.ndarray
-    gap: np.ndarray
     node_heights: np.ndarray
     outputs: np.ndarray
-    solutions: list
 
 
 class ContactScan:
@@ -185,6 +179,10 @@ class ContactScan:
         self.y_offset = float(y_offset)
         self.tol = float(tol)
         self._interp = self._build_interpolation()
+        steps = -np.diff(self.positions, prepend=self.positions[0]) / self.spacing
+        whole = np.allclose(steps, np.round(steps), rtol=0, atol=1e-9)
+        # the surface moves -step nodes in the finger frame: the engine's warm start follows it
+        self._shifts = np.round(steps).astype(np.int64) if whole else None
 
     # ---------------------------------------------------------------- geometry
     @property
@@ -221,6 +219,12 @@ class ContactScan:
         wts = ay[None, :, None, :, None] * ax[:, None, :, None, :]
         t, ny, nx = idx.shape[:3]
         return idx.reshape(t, ny, nx, 4), wts.reshape(t, ny, nx, 4)
+
+    @property
+    def interpolation(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per frame, the profile indices and weights each node (line: each column) reads,
+        shapes ``(n_frames, nx, 2)`` (line) or ``(n_frames, ny, nx, 4)`` (patch)."""
+        return self._interp
 
     def node_heights(self, heights) -> np.ndarray:
         """Heights read by every frame at its nodes, shape (n_frames, *grid), m."""
@@ -262,8 +266,9 @@ class ContactScan:
         return self.output_scale(ctx) * (self.weights_p + self.direction * ctx["friction"] * self.weights_q)
 
     # ---------------------------------------------------------------- the solve
-    def solve(self, heights, context: dict | None = None, start: ScanState | None = None) -> ScanState:
-        """Solve every frame at ``heights`` (``profile.shape``, m) and the context (warm-started)."""
+    def solve(self, heights, context: dict | None = None) -> ScanState:
+        """Solve every frame at ``heights`` (``profile.shape``, m) and the context, with the scene
+        engine (:func:`tactilab.forward.solve_scan`, each frame warm-started from the previous one)."""
         h = np.asarray(heights, dtype=float)
         if h.shape != self.profile.shape or not np.all(np.isfinite(h)):
             raise ValueError(f"heights: expected finite values of shape {self.profile.shape} (m), got {h.shape}")
@@ -272,16 +277,19 @@ class ContactScan:
         load = {"mean_pressure": self.mean_pressure / ratio} if self.mean_pressure is not None else \
             {"normal_force": ctx["normal_force"] / ratio}
         H = self.node_heights(h)
-        sols, prev = [], None
+        sol = solve_scan(self.skin, lambda i: self.shape_gap - H[i], (self.spacing,) * len(self.grid_shape),
+                         n_frames=self.n_frames, periodic=self.periodic, tol=self.tol, shifts=self._shifts, **load)
+        pressure = ratio * sol.pressure
+        outputs = pressure.reshape(self.n_frames, -1) @ self.effective_weights(ctx)
+        return ScanState(heights=h.copy(), context=ctx, pressure=pressure, contact=sol.contact, node_heights=H,
+                         outputs=outputs)
+
+    def final_gap(self, state: ScanState) -> np.ndarray:
+        """The gap after loading in every frame, ``g0 + uz - delta`` (m, 0 in contact), shape (n_frames, *grid)."""
+        ratio = state.context["young_modulus"] / self.reference["young_modulus"]
+        out = np.empty_like(state.pressure)
         for t in range(self.n_frames):
-            initial = start.solutions[t] if start is not None else prev
-            sol = solve_contact(self.skin, self.shape_gap - H[t], self.spacing, periodic=self.periodic,
-                                tol=self.tol, initial=initial, **load)
-            sols.append(sol)
-            prev = sol
-        pressure = ratio * np.stack([s.pressure for s in sols])
-        W = self.effective_weights(ctx)
-        outputs = pressure.reshape(self.n_frames, -1) @ W
-        return ScanState(heights=h.copy(), context=ctx, pressure=pressure,
-                         contact=np.stack([s.contact for s in sols]), gap=np.stack([s.gap for s in sols]),
-                         node_heights=H, outputs=outputs, solutions=sols)
+            g = self.shape_gap - state.node_heights[t] + self.compliance.normal(state.pressure[t] / ratio)
+            delta = float(g[state.contact[t]].mean()) if state.contact[t].any() else float(g.min())
+            out[t] = np.maximum(g - delta, 0.0)
+        return out
