@@ -190,9 +190,10 @@ def solve_scan(skin, gaps, spacing, *, n_frames: int | None = None, normal_force
         Default 0 (the previous solution as it is).
     warm_start : bool
         Start each frame from the previous one (the cold solve's answer to ``tol``, tested).
-    sensors : SensorArray or sequence of SensorArray, optional
+    sensors : SensorArray, sequence of SensorArray or SensorReadout, optional
         Sensors (finger frame) read through one weight matrix over a window of the grid around frame
-        0's contact; a frame whose contact leaves the window rebuilds it over the whole grid.
+        0's contact (or the given readout's window); a frame whose contact leaves the window rebuilds
+        it over the whole grid.
     keep_tractions : bool
         Keep every frame's tractions and contact mask (n_frames x grid values each).
     tol : float
@@ -240,7 +241,8 @@ def solve_scan(skin, gaps, spacing, *, n_frames: int | None = None, normal_force
     contact = np.zeros((n, *shape), dtype=bool) if keep_tractions else None
     stats = {k: np.zeros(n) for k in ("iterations", "contact_fraction", "normal_force", "error_estimate")}
     converged = np.zeros(n, dtype=bool)
-    readout, outputs, pending = None, None, []
+    readout = sensors if isinstance(sensors, SensorReadout) else None
+    outputs, pending = (None if readout is None else np.zeros((n, readout.n_outputs))), []
     seconds = {"contact": 0.0, "readout": 0.0}
     frames = range(n)
     if progress:
@@ -289,8 +291,9 @@ def solve_scan(skin, gaps, spacing, *, n_frames: int | None = None, normal_force
         loads_read = ("p", "qx") if len(shape) == 1 else ("p", "qx", "qy")
         if readout is None or (not periodic and not _inside(sol.contact, readout.window)):
             flush()
+            arrays = sensors if readout is None else readout.arrays
             window = None if (periodic or readout is not None) else _window(sol.contact)
-            readout = SensorReadout(skin, shape, spacing, sensors, periodic=periodic, window=window, loads=loads_read)
+            readout = SensorReadout(skin, shape, spacing, arrays, periodic=periodic, window=window, loads=loads_read)
             outputs = np.zeros((n, readout.n_outputs)) if outputs is None else outputs
         pending.append((i, readout.stack(sol.pressure[None], sol.qx[None],
                                          None if sol.qy is None else sol.qy[None])[0]))
