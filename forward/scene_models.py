@@ -30,11 +30,13 @@ from .scene_frames import SceneFrames
 #: cheapest first: auto picks the first whose error is within tol
 CHEAP_FIRST = ("modulation", "linear", "exact")
 #: frames the a-priori criterion looks at, and frames solved exactly to confirm it
-APRIORI_FRAMES = 8
+APRIORI_FRAMES = 16
 CHECK_FRAMES = 3
 #: the a-priori estimate's safety factor over the clipped tension's signal (the exact contact
 #: moves that load to the neighbouring nodes: the error is up to about the tension itself)
 APRIORI_FACTOR = 2.0
+#: the error measured on the few frames solved exactly, times this, stands for the frames not solved
+POSTERIORI_FACTOR = 2.0
 #: signals below this fraction of their array's largest are measured against the floor
 SIGNAL_FLOOR = 1e-3
 
@@ -107,7 +109,7 @@ def run_model(frames: SceneFrames, model: str, indices=None, *, warm_start: bool
     return ModelRun(model, readout.split(out)[0], idx, time.perf_counter() - t0)
 
 
-def apriori_errors(frames: SceneFrames, indices) -> tuple[dict, dict]:
+def apriori_errors(frames: SceneFrames, indices, *, per_frame: bool = False):
     """Each cheap model's error estimated without a contact solve, and the contact's pressure ratio.
 
     Linear: the tension ``t = max(0, -(p_finger + E* |k| H~ / 2))`` that the clipped superposition
@@ -122,6 +124,8 @@ def apriori_errors(frames: SceneFrames, indices) -> tuple[dict, dict]:
     pressures : dict
         ``"p_bar"`` (the contact's mean pressure, Pa), ``"p_star"`` (the largest tension of the
         texture's full-contact pressure, Pa: pi E* A / L for a sinusoid) and ``"ratio"`` p_bar / p_star.
+    frame_errors : ndarray, shape (len(indices),)
+        With ``per_frame``: the two estimates summed, frame by frame (where to confirm them).
     """
     readout = frames.readout()
     lin, mod, tension, p_star = [], [], [], 0.0
@@ -143,11 +147,13 @@ def apriori_errors(frames: SceneFrames, indices) -> tuple[dict, dict]:
     read = {name: _read(readout, rows) for name, rows in (("linear", lin), ("modulation", mod), ("tension", tension))}
     scale = np.maximum(np.abs(read["linear"]).max(axis=0), 1e-300)
     scale = np.maximum(scale, SIGNAL_FLOOR * float(scale.max()))
-    e_lin = APRIORI_FACTOR * float((np.abs(read["tension"]).max(axis=0) / scale).max())
-    e_mod = float((np.abs(read["modulation"] - read["linear"]).max(axis=0) / scale).max()) + e_lin
+    lin_t = APRIORI_FACTOR * (np.abs(read["tension"]) / scale).max(axis=(1, 2))
+    mod_t = (np.abs(read["modulation"] - read["linear"]) / scale).max(axis=(1, 2)) + lin_t
     p_bar = frames.mean_pressure
     ratio = p_bar / p_star if p_star > 0 else float("inf")
-    return {"linear": e_lin, "modulation": e_mod}, {"p_bar": p_bar, "p_star": p_star, "ratio": ratio}
+    out = {"linear": float(lin_t.max()), "modulation": float(mod_t.max())}, {"p_bar": p_bar, "p_star": p_star,
+                                                                           "ratio": ratio}
+    return (*out, lin_t + mod_t) if per_frame else out
 
 
 def _read(readout, rows) -> np.ndarray:
@@ -169,7 +175,8 @@ class ModelChoice:
     tol : float
     apriori, aposteriori, errors : dict
         Per cheap model: the a-priori estimate, the error measured on the frames solved exactly, and
-        the estimate reported (the larger of the two).
+        the estimate reported (the larger of the a-priori one and twice the measured one: the factor
+        stands for the frames not solved).
     pressures : dict
         See :func:`apriori_errors`.
     check_frames : list of int
@@ -186,16 +193,15 @@ class ModelChoice:
 
 
 def choose_model(frames: SceneFrames, tol: float, *, n_check: int = CHECK_FRAMES) -> ModelChoice:
-    """Pick the cheapest model whose estimated error is within ``tol`` (a-priori, then confirmed on
-    ``n_check`` frames solved exactly, cold)."""
+    """Pick the cheapest model whose estimated error is within ``tol`` (a-priori on 16 frames spread over
+    the scan, then confirmed on the ``n_check`` of them with the largest estimates, solved exactly, cold)."""
     n = frames.n_frames
     sample = np.unique(np.linspace(0, n - 1, min(n, APRIORI_FRAMES)).round().astype(int))
-    apriori, pressures = apriori_errors(frames, sample)
-    check = sample[np.linspace(0, sample.size - 1, min(n_check, sample.size)).round().astype(int)]
-    check = np.unique(check)
+    apriori, pressures, per_frame = apriori_errors(frames, sample, per_frame=True)
+    check = np.sort(sample[np.argsort(per_frame, kind="stable")[::-1][:n_check]])  # where the estimates are largest
     exact = run_model(frames, "exact", check, warm_start=False)
     post = {m: signal_error(run_model(frames, m, check).values, exact.values) for m in ("linear", "modulation")}
-    errors = {m: max(apriori[m], post[m]) for m in post}
+    errors = {m: max(apriori[m], POSTERIORI_FACTOR * post[m]) for m in post}
     chosen = next(m for m in CHEAP_FIRST if m == "exact" or errors[m] <= tol)
     state = "full contact" if pressures["ratio"] >= 1 else "partial contact"
     verdict = {m: ("within" if errors[m] <= tol else "above") for m in errors}
