@@ -200,10 +200,10 @@ class SceneFrames:
         """The full-contact pressure of the texture and the ridges, ``E* |k| H~ / 2`` (Pa, zero mean)."""
         h = self.heights(i) + self.ridges()
         if self.periodic:
-            return _stiffness(h, self.spacing, self.e_star)
+            return full_contact_pressure(h, self.spacing, self.e_star)
         pad = [(n // 2, n - n // 2) for n in h.shape]  # mirrored margins: no wrap-around of an isolated window
         big = np.pad(h, pad, mode="reflect")
-        p = _stiffness(big, self.spacing, self.e_star)
+        p = full_contact_pressure(big, self.spacing, self.e_star)
         return p[tuple(slice(a, a + n) for (a, _), n in zip(pad, h.shape))]
 
     def _finger_tractions(self, ratio: float, fingerprint: bool):
@@ -259,8 +259,12 @@ class SceneFrames:
                 mid = self.shape[0] // 2
                 window = (slice(mid - half, mid + half), slice(mid - half, mid + half))
             loads = ("p", "qx") if self.periodic else ("p", "qx", "qy")
+            sliding = None  # every frame slides (q = D mu p in every model): fold q into the weights
+            if np.all(self.slip_ratios >= 1) and (self.scene.contact.adhesion == 0 or self.friction == 0):
+                sliding = (self.friction, (self.direction, 0.0))
             self._cache["readout"] = SensorReadout(self.skin, self.shape, self.spacing, self.scene.sensors,
-                                                   periodic=self.periodic, window=window, loads=loads)
+                                                   periodic=self.periodic, window=window, loads=loads,
+                                                   sliding=sliding)
         return self._cache["readout"]
 
 
@@ -272,8 +276,19 @@ def _shifts(u: np.ndarray, h: float) -> np.ndarray | None:
     return None
 
 
-def _stiffness(h: np.ndarray, spacing, e_star: float) -> np.ndarray:
-    """``E* |k| H~ / 2`` of a periodic grid of heights (Pa): the full-contact pressure of a rigid texture."""
+def full_contact_pressure(h: np.ndarray, spacing, e_star: float) -> np.ndarray:
+    """``E* |k| H~ / 2`` of a periodic grid of heights: the zero-mean pressure (Pa) that presses the skin
+    into a rigid texture everywhere (the linear model's texture pressure; pi E* A / L for a sinusoid).
+
+    Parameters
+    ----------
+    h : ndarray, shape (nx,) or (ny, nx)
+        Heights in m, one period of the texture.
+    spacing : tuple of float
+        ``(dx,)`` or ``(dx, dy)`` in m.
+    e_star : float
+        E / (1 - nu^2), Pa.
+    """
     axes = tuple(range(h.ndim))
     k = 2 * np.pi * sfft.rfftfreq(h.shape[-1], spacing[0])
     if h.ndim == 2:

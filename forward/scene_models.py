@@ -104,8 +104,8 @@ def run_model(frames: SceneFrames, model: str, indices=None, *, warm_start: bool
         chunk = idx[start:start + batch]
         tr = [frames.tractions(model, int(i)) for i in chunk]
         qy = None if tr[0][2] is None else np.stack([t[2] for t in tr])
-        out[start:start + chunk.size] = readout.stack(np.stack([t[0] for t in tr]), np.stack([t[1] for t in tr]),
-                                                      qy) @ readout.weights
+        out[start:start + chunk.size] = readout.apply(readout.stack(np.stack([t[0] for t in tr]),
+                                                                    np.stack([t[1] for t in tr]), qy))
     return ModelRun(model, readout.split(out)[0], idx, time.perf_counter() - t0)
 
 
@@ -159,7 +159,7 @@ def apriori_errors(frames: SceneFrames, indices, *, per_frame: bool = False):
 def _read(readout, rows) -> np.ndarray:
     qy = None if rows[0][2] is None else np.stack([r[2] for r in rows])
     stack = readout.stack(np.stack([r[0] for r in rows]), np.stack([r[1] for r in rows]), qy)
-    return readout.split(stack @ readout.weights)[0]
+    return readout.split(readout.apply(stack))[0]
 
 
 @dataclass
