@@ -203,7 +203,8 @@ def choose_model(frames: SceneFrames, tol: float, *, n_check: int = CHECK_FRAMES
     post = {m: signal_error(run_model(frames, m, check).values, exact.values) for m in ("linear", "modulation")}
     errors = {m: max(apriori[m], POSTERIORI_FACTOR * post[m]) for m in post}
     chosen = next(m for m in CHEAP_FIRST if m == "exact" or errors[m] <= tol)
-    state = "full contact" if pressures["ratio"] >= 1 else "partial contact"
+    state = (f"mean pressure {'above' if pressures['ratio'] >= 1 else 'below'} the texture's full-contact "
+             f"pressure p* = {pressures['p_star'] * 1e-3:.3g} kPa")
     verdict = {m: ("within" if errors[m] <= tol else "above") for m in errors}
     reason = (f"p_bar/p* = {pressures['ratio']:.3g} ({state}); estimated error of modulation {errors['modulation']:.2g} "
               f"({verdict['modulation']} tol {tol:g}), linear {errors['linear']:.2g} ({verdict['linear']}); a priori "

@@ -51,7 +51,7 @@ def test_simulate_states_and_prints_the_model(tmp_path, capsys, fmt):
     out = tmp_path / "out"
     assert main(["simulate", str(_cell(tmp_path)), "--out", str(out), "--quiet", "--no-plots", "--format", fmt]) == 0
     text = capsys.readouterr().out
-    assert "interface model: exact (auto: p_bar/p* = 0.298 (partial contact)" in text
+    assert "interface model: exact (auto: p_bar/p* = 0.298 (mean pressure below the texture's full-contact" in text
     assert "model errors: linear" in text and "measured on every frame against the exact model" in text
     path = out / ("recording.nc" if fmt == "netcdf" else "recording.parquet")
     stated = recording_model(read_recording(path), path)

@@ -90,12 +90,12 @@ def test_exact_equals_the_modulation_at_its_one_load_ratio():
     assert np.abs(values - westergaard_signals(scene)).max() <= 1e-9 * np.abs(values).max()
 
 
-def _finger(surface, model="auto", tol=0.05, speed=0.01, **contact):
+def _finger(surface, model="auto", tol=0.05, speed=0.01, duration=0.01, **contact):
     return Scene(material=SkinMaterial(young_modulus_pa=E, poisson_ratio=NU), surface=surface,
                  contact=Contact(normal_force_n=1.0, finger_radius_m=0.01, friction_coefficient=0.5, model=model,
                                  tol=tol, **contact),
                  sensors=SensorArray.grid(3, 1, 0.4e-3, 0.5e-3, quantity="strain", components=("zz", "zx")),
-                 scan=Scan(speed_m_per_s=speed, duration_s=0.01, sampling_rate_hz=2000))
+                 scan=Scan(speed_m_per_s=speed, duration_s=duration, sampling_rate_hz=2000))
 
 
 def test_full_contact_finger_exact_and_linear_agree_and_auto_picks_linear():
@@ -124,7 +124,7 @@ def test_the_modulation_on_the_contact_grid_is_todays_scan():
 
 def test_a_finger_that_does_not_move_is_a_static_press():
     bump = IsolatedDefect(shape="bump", size_m=0.4e-3, height_m=2e-6)
-    scene = _finger(bump, model="exact", speed=0.0, adhesion=0.4)
+    scene = _finger(bump, model="exact", speed=0.0, duration=0.0015, adhesion=0.4)
     values, info = scene_signals(scene)
     frames = info["frames"]
     sol = solve_contact(frames.skin, frames.gap(0), frames.spacing, normal_force=1.0, friction=0.5,
