@@ -1,6 +1,6 @@
 """Benchmark of a scene scanned through the solved contact: the exact model's time, the linear model's.
 
-Run: ``python benchmarks/bench_scenes_contact.py [--frames 1000] [--cold-frames 100] [--quick]``
+Run: ``python benchmarks/bench_scenes_contact.py [--frames 1000] [--cold-frames 100] [--quick] [--auto-table]``
 (``--quick``: 128^2 nodes of 40 um, 40 frames, to check the harness in seconds). One thread (OMP/BLAS 1,
 ``scipy.fft`` workers 1), float64, SI.
 
@@ -17,6 +17,10 @@ components at 25 sensors (5 x 5, 0.5 mm pitch) at each of 0.5, 1 and 2 mm depth,
   Hertz disc, clipped at 0 (the plate's pressure by one FFT of the strip), the same readout;
 - the linear model's error against the exact one, the scene's measure (max over the scan of |error|
   / max |signal| per sensor and component), per depth.
+
+``--auto-table`` instead prints what ``"auto"`` estimates on Westergaard's sinusoid (a periodic cell,
+A = 2 um, L = 1 mm, E = 1 MPa, nu = 1/2, mu = 0.3, strain zz, zx, xx at three sensors 0.3 mm deep, 20
+frames, tol 1e-2) against the cheap models' true errors (the exact scan), for p_bar / p* 0.05 to 2.
 """
 
 from __future__ import annotations
@@ -70,13 +74,46 @@ def _linear(skin, plate, g0, arrays, n, frames, spacing, batch=64):
     return readout.split(out), time.perf_counter() - t0
 
 
+def auto_table() -> None:
+    """What auto estimates against the true errors on a periodic sinusoid (docs/scenes.md)."""
+    import math
+
+    from tactilab.data_schemas import Contact, Scan, Scene, SinusoidalGrating, SkinMaterial
+    from tactilab.forward.scene_frames import SceneFrames
+    from tactilab.forward.scene_models import choose_model, run_model
+
+    length, amplitude = 1e-3, 2e-6
+    p_star = math.pi * E_STAR * amplitude / length
+    sensors = SensorArray(positions_m=[[0, 0], [0.25e-3, 0], [-0.1e-3, 0]], depth_m=0.3e-3, quantity="strain",
+                          components=("zz", "zx", "xx"))
+    print("| p_bar/p* | chosen | linear: a priori | measured (3 frames) | reported | true "
+          "| modulation: a priori | measured | reported | true |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for ratio in (0.05, 0.1, 0.3, 0.5, 0.9, 1.0, 1.5, 2.0):
+        scene = Scene(material=SkinMaterial(young_modulus_pa=E_PA, poisson_ratio=NU),
+                      surface=SinusoidalGrating(period_m=length, amplitude_m=amplitude, phase_rad=0.3),
+                      contact=Contact(mean_pressure_pa=ratio * p_star, friction_coefficient=0.3), sensors=sensors,
+                      scan=Scan(speed_m_per_s=0.01, duration_s=0.01, sampling_rate_hz=2000))
+        frames = SceneFrames.from_scene(scene)
+        choice = choose_model(frames, 1e-2)
+        exact = run_model(frames, "exact").values
+        true = {m: signal_error(run_model(frames, m).values, exact) for m in ("linear", "modulation")}
+        print(f"| {ratio:g} | {choice.model} | " + " | ".join(
+            f"{choice.apriori[m]:.2g} | {choice.aposteriori[m]:.2g} | {choice.errors[m]:.2g} | {true[m]:.2g}"
+            for m in ("linear", "modulation")) + " |")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=1000, help="frames of the scan (count)")
     parser.add_argument("--cold-frames", type=int, default=100, help="frames solved cold for the iteration count")
     parser.add_argument("--n", type=int, default=256, help="nodes per axis")
     parser.add_argument("--quick", action="store_true", help="128^2 nodes, 40 frames")
+    parser.add_argument("--auto-table", action="store_true", help="what auto estimates on a periodic sinusoid")
     args = parser.parse_args(argv)
+    if args.auto_table:
+        auto_table()
+        return 0
     n, frames, cold_frames = (128, 40, 10) if args.quick else (args.n, args.frames, args.cold_frames)
     spacing = 40e-6 if args.quick else 20e-6  # the grid spans 5.12 mm either way
     skin = HalfSpace(E=E_PA, nu=NU)
