@@ -53,13 +53,16 @@ def run(args: argparse.Namespace) -> int:
     for line in lines:
         if line.startswith("method: "):
             report.method = line.removeprefix("method: ")
+        elif line.startswith("model errors: "):
+            report.error_estimate = "interface " + line
         elif not line.startswith(("recording: ", "plots")):  # the files are listed below
             report.computed.append(line)
     if not report.method and scene.display is not None:
         report.method = ("display plane model: tractor line loads on the half-space, rows uniform in y; "
                          "compared with the real sliding surface where the scene has one")
-    report.error_estimate = ("not estimated by this command (grid quadrature; refine --grid-spacing and compare "
-                             "to check convergence)")
+    if not report.error_estimate:
+        report.error_estimate = ("not estimated by this command (grid quadrature; refine --grid-spacing and compare "
+                                 "to check convergence)")
     if args.seed is None and float(scene.sensors.noise_std) > 0:
         report.dropped.append(f"sensor noise (noise_std {scene.sensors.noise_std:g} in the recording's unit): "
                               "not added without --seed")

@@ -27,6 +27,8 @@ from .halfspace import LoadToSensor
 
 #: the most weight values a readout may hold (2 GiB of float64)
 MAX_WEIGHT_VALUES = 2**28
+#: below this fraction of loaded nodes the product is sparse
+SPARSE_BELOW = 0.3
 
 
 class SensorReadout:
@@ -49,16 +51,21 @@ class SensorReadout:
         grid. Tractions outside it are refused by :meth:`read`.
     loads : sequence of {"p", "qx", "qy"}
         The traction components read.
+    sliding : (float, (float, float)), optional
+        ``(mu, (dx, dy))``: every frame slides fully, ``q = mu p`` along ``(dx, dy)``; the tangential
+        blocks of the weights are folded into the normal one (``W_p + mu dx W_qx + mu dy W_qy``), so a
+        frame is read from its pressure alone (one third of the products and of the memory).
 
     Attributes
     ----------
     weights : ndarray, shape (len(loads) * n_window_nodes, n_outputs)
         Load-major rows (all window nodes of ``loads[0]``, C order, then the next); outputs are the
-        arrays' ``n_sensors * n_components`` values one array after the other.
+        arrays' ``n_sensors * n_components`` values one array after the other. With ``sliding``:
+        shape (n_window_nodes, n_outputs), rows of the pressure (``loads`` is then ``("p",)``).
     """
 
     def __init__(self, skin, shape, spacing, sensors, *, periodic: bool = False, window=None,
-                 loads: Sequence[str] = ("p", "qx")):
+                 loads: Sequence[str] = ("p", "qx"), sliding=None):
         self.arrays = (sensors,) if isinstance(sensors, SensorArray) else tuple(sensors)
         if not self.arrays or not all(isinstance(s, SensorArray) for s in self.arrays):
             raise ValueError(f"sensors: expected a data_schemas SensorArray or a non-empty sequence of them, got "
@@ -69,6 +76,11 @@ class SensorReadout:
         self.loads = tuple(loads)
         full = tuple(slice(0, n) for n in self.shape)
         self.window = full if (window is None or periodic) else tuple(window)
+        if len(self.window) != len(self.shape) or any(
+                not isinstance(w, slice) or w.step not in (None, 1) or not 0 <= (w.start or 0) < (w.stop or 0) <= n
+                for w, n in zip(self.window, self.shape)):
+            raise ValueError(f"window: expected {len(self.shape)} slices start:stop inside the grid {self.shape} "
+                             f"(rows first), got {window!r}; or None for the whole grid")
         win_shape = tuple(s.stop - s.start for s in self.window)
         n_out = sum(a.n_sensors * a.n_components for a in self.arrays)
         if len(self.loads) * math.prod(win_shape) * n_out > MAX_WEIGHT_VALUES:
@@ -89,7 +101,17 @@ class SensorReadout:
             w = op.rmatmat(np.eye(op.shape[0]))
             w = w.reshape(-1, arr.n_components, arr.n_sensors).transpose(0, 2, 1).reshape(w.shape[0], -1)
             blocks.append(w)
-        self.weights = np.ascontiguousarray(np.concatenate(blocks, axis=1))
+        weights = np.concatenate(blocks, axis=1)
+        self.sliding = None
+        if sliding is not None:
+            mu, (dx, dy) = float(sliding[0]), (float(v) for v in sliding[1])
+            n_nodes = math.prod(win_shape)
+            coef = {"p": 1.0, "qx": mu * dx, "qy": mu * dy}
+            folded = np.zeros((n_nodes, n_out))
+            for k, name in enumerate(self.loads):
+                folded += coef[name] * weights[k * n_nodes:(k + 1) * n_nodes]
+            weights, self.loads, self.sliding = folded, ("p",), (mu, (dx, dy))
+        self.weights = np.ascontiguousarray(weights)
         self.n_outputs = n_out
 
     def stack(self, pressure, qx=None, qy=None) -> np.ndarray:
@@ -98,7 +120,7 @@ class SensorReadout:
         Parameters
         ----------
         pressure, qx, qy : ndarray, shape (n_frames, *shape), Pa
-            Tractions on the skin (``qx``, ``qy`` may be None: zero).
+            Tractions on the skin (``qx``, ``qy`` may be None: zero; ignored with ``sliding``).
 
         Returns
         -------
@@ -121,6 +143,15 @@ class SensorReadout:
             rows.append(inside.reshape(p.shape[0], -1))
         return np.concatenate(rows, axis=1)
 
+    def apply(self, rows: np.ndarray) -> np.ndarray:
+        """``rows @ weights`` for stacked frames (:meth:`stack`), through a sparse product when few
+        nodes carry load (a rough contact touches a fraction of its window)."""
+        if rows.size and np.count_nonzero(rows) < SPARSE_BELOW * rows.size:
+            from scipy import sparse
+
+            return np.asarray(sparse.csr_matrix(rows) @ self.weights)
+        return rows @ self.weights
+
     def read(self, pressure, qx=None, qy=None) -> list[np.ndarray]:
         """Sensor outputs of a batch of frames: one matrix product.
 
@@ -133,7 +164,7 @@ class SensorReadout:
         list of ndarray, one per sensor array, shape (n_frames, n_sensors, n_components):
             Pa (stress) or tensor strain.
         """
-        return self.split(self.stack(pressure, qx, qy) @ self.weights)
+        return self.split(self.apply(self.stack(pressure, qx, qy)))
 
     def split(self, outputs: np.ndarray) -> list[np.ndarray]:
         """Outputs of shape (n_frames, n_outputs) cut into one (n_frames, n_sensors, n_components) per array."""

@@ -126,3 +126,21 @@ def test_refusals_of_the_gap_and_the_readout():
     ro = SensorReadout(SKIN, (N, N), DX, sens, window=(slice(10, 20), slice(10, 20)))
     with pytest.raises(ValueError, match="outside the readout's window"):
         ro.read(np.ones((1, N, N)))
+
+
+def test_a_sliding_readout_folds_the_friction_into_the_weights(rng):
+    sens = SensorArray.grid(2, 2, 0.5e-3, 1e-3, quantity="strain", components=("zz", "zx", "yy"))
+    p = np.abs(rng.standard_normal((3, N, N)))
+    full = SensorReadout(SKIN, (N, N), DX, sens, loads=("p", "qx", "qy"))
+    folded = SensorReadout(SKIN, (N, N), DX, sens, loads=("p", "qx", "qy"), sliding=(0.4, (0.6, 0.8)))
+    want = full.read(p, 0.4 * 0.6 * p, 0.4 * 0.8 * p)[0]
+    assert np.allclose(folded.read(p)[0], want, rtol=0, atol=1e-12 * np.abs(want).max())
+    sparse = p * (rng.random(p.shape) < 0.05)  # few loaded nodes: the sparse product
+    assert np.allclose(folded.read(sparse)[0], full.read(sparse, 0.24 * sparse, 0.32 * sparse)[0],
+                       rtol=0, atol=1e-12 * np.abs(want).max())
+
+
+def test_a_window_must_lie_inside_the_grid():
+    sens = SensorArray.grid(1, 1, 0.5e-3, 1e-3, components=("zz",))
+    with pytest.raises(ValueError, match="window: expected 2 slices"):
+        SensorReadout(SKIN, (N, N), DX, sens, window=(slice(-8, 20), slice(0, 20)))
