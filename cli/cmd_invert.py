@@ -7,6 +7,7 @@ from pathlib import Path
 
 from .batch_options import add_batch_options, run_invert_batch
 from .common import RunReport, add_report_options, choose_out
+from .invert_surface import add_surface_arguments, run_surface
 
 NAME = "invert"
 HELP = ("invert a sensor recording (recording.nc or .json, stress in Pa) of a defect scene: defect position "
@@ -42,12 +43,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "an existing non-empty one needs --force (with --batch, the same --out resumes)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the samplers (integer)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_surface_arguments(parser)
     add_report_options(parser)
     add_batch_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     if args.batch is not None:
+        if args.target == "surface":
+            raise ValueError("--target surface: not available with --batch; invert one recording at a time")
         if args.json:
             raise ValueError("--json: not available with --batch; the batch summary is in <--out>/invert_many.nc "
                              "(one row per recording) -- drop --json")
@@ -72,6 +76,8 @@ def run(args: argparse.Namespace) -> int:
         raise type(err)(f"RECORDING: {str(err).removeprefix('path: ')}") from None
     report = RunReport("invert")
     out = report.watch(choose_out(args.out, Path(f"{args.recording.stem}-inversion"), args.force))
+    if args.target == "surface":
+        return run_surface(args, scene, recording, report, out)
     _warn_model(report, recording, args.recording)
     rng = np.random.default_rng(args.seed)
     problem = defect_problem(scene, recording, max_data=args.max_data)  # prepared once, used by both methods

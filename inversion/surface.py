@@ -47,7 +47,8 @@ def parse_context(scan, context: dict) -> tuple[list[ContextTransform], dict]:
                              "normal_force to fix or free (drop it)")
         if isinstance(value, (Uniform, Normal, LogNormal)):
             free.append(ContextTransform(name, value))
-        elif isinstance(value, (int, float)) and np.isfinite(value) and (value >= 0 if name == "friction" else value > 0):
+        elif isinstance(value, (int, float)) and np.isfinite(value) and \
+                (value >= 0 if name == "friction" else value > 0):
             fixed[name] = float(value)
         else:
             raise ValueError(f"context: {name} must be a finite float (> 0; friction >= 0) or a Uniform, Normal or "

@@ -14,7 +14,7 @@ Objective ``Phi(z) = |(d - f(z)) / sigma|^2 / 2 + (prior terms)``; the Gauss-New
 sigma; ``P`` the prior's identity), then an Armijo backtracking line search on ``Phi`` with the
 non-linear solve (the contact sets may change along the step; a Uniform parameter's step is cut at
 its bounds). It stops when the Gauss-Newton decrement ``-g . dz`` falls below ``tol`` (nats), or
-when the objective moved by less than ``tol`` over two iterations: near the MAP a contact node
+when the objective moved by less than ``STALL`` (1e-3 nats) over two iterations: near the MAP a contact node
 entering or leaving the set makes the objective piecewise quadratic, and the line search then
 creeps along the kink (the step that leaves the current piece is cut to a few percent).
 
@@ -49,6 +49,9 @@ MAX_STAGES = 8
 #: a node counts as touched when its largest load over the frames is at least this share of the
 #: largest node's (a node the MAP left on the skin with almost no load is held by the bound)
 TOUCH_THRESHOLD = 0.02
+#: nats: an objective that moves less over two iterations has stalled on a contact-set kink (the
+#: posterior's own scale is 1 nat)
+STALL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -228,9 +231,9 @@ def _descend(evaluate, scan, data, sigma, z, names, transforms, root, penal, uni
                              f"{decrement:.2g} nats)", it
         z, state, phi = z + alpha * step, new_state, new_phi
         history.append((sigma, phi, decrement, alpha, int(touched.sum())))
-        if len(history) >= 3 and history[-3][0] == sigma and history[-3][1] - phi < tol:
+        if len(history) >= 3 and history[-3][0] == sigma and history[-3][1] - phi < STALL:
             # creeping along a contact-set kink: the objective no longer moves
-            return z, state, (f"converged: the objective changed by {history[-3][1] - phi:.2g} < {tol:g} nats over "
+            return z, state, (f"converged: the objective changed by {history[-3][1] - phi:.2g} < {STALL:g} nats over "
                               f"2 iterations (last step {alpha:.2g} of the Gauss-Newton step)"), it
     return z, state, f"stopped at max_iter = {max_iter} iterations (decrement {decrement:.2g} nats)", it
 
@@ -271,5 +274,6 @@ def _unknowns(J, touched, transforms, z, root, sigma, flat_h, n, spacing) -> np.
         raise ValueError(
             f"spacing: without a prior the data must resolve every node of the grid, but the Fisher information "
             f"of the {int(touched.sum())} touched nodes has condition number "
-            f"{ratio} > {FISHER_CONDITION_LIMIT:g} at spacing {spacing:.3g} m; give a prior (prior=StationaryPrior(...)) or a coarser spacing")
+            f"{ratio} > {FISHER_CONDITION_LIMIT:g} at spacing {spacing:.3g} m; give a prior "
+            "(prior=StationaryPrior(...)) or a coarser spacing")
     return unknowns

@@ -76,6 +76,7 @@ class ContactLinearisation:
         n = int(np.prod(compliance.shape))
         self.max_iter = int(max_iter) if max_iter is not None else int(20 * math.sqrt(n)) + 100
         self._axes = tuple(range(-compliance.ndim, 0))
+        self._stiffness = None
         self.last_iterations = 0
 
     # ---------------------------------------------------------------- the operators on stacks
@@ -96,7 +97,15 @@ class ContactLinearisation:
         return x
 
     def _precondition(self, r: np.ndarray) -> np.ndarray:
-        return np.stack([self.compliance.stiffness(ri) for ri in r])
+        """The periodic surface stiffness on a stack (the normal solver's preconditioner), one batched FFT pair."""
+        c = self.compliance
+        if self._stiffness is None:  # its spectrum: ask the compliance once, read it back by a unit impulse
+            impulse = np.zeros(c.shape)
+            impulse.flat[0] = 1.0
+            self._stiffness = sfft.rfftn(c.stiffness(impulse), axes=self._axes, workers=1)
+        spec = sfft.rfftn(r, axes=self._axes, workers=1)
+        spec *= self._stiffness
+        return sfft.irfftn(spec, s=c.shape, axes=self._axes, workers=1)
 
     def _masks(self, k: int, frames) -> tuple[np.ndarray, np.ndarray]:
         if frames is None:
