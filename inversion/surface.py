@@ -110,7 +110,7 @@ def invert_scan(scan, data, noise_std: float, *, prior: StationaryPrior | None =
     n, names = scan.profile.size, [t.name for t in transforms]
     touched = lap.touched
     rows = bound_rows(scan, lap.state, touched)
-    cond = None if prior is None else TruncatedConditional(root @ root, mean0, touched, rows)
+    cond = None if prior is None else TruncatedConditional(root @ root, mean0, touched, rows, lap.heights)
 
     def gaussian_draws(k, gen):
         """Laplace draws: heights (all nodes; untouched from the unconstrained conditional) and context."""

@@ -7,6 +7,10 @@ deformed skin, ``s = (heights read) + (final gap)`` at the MAP. Rows that involv
 nodes are dropped (the Laplace posterior of those nodes already holds what the data say); rows
 with the same coefficients are merged (the smallest bound wins).
 
+The skin moves with the touched heights: each bound is shifted by the mean change of the touched
+block from the MAP (exact for the uniform shift, which the data cannot see and which moves the skin
+as much; first order otherwise).
+
 Given the touched heights ``h_T``, the untouched block ``h_U`` follows the prior's conditional
 ``N(m_U + C_UT C_TT^-1 (h_T - m_T), C_UU - C_UT C_TT^-1 C_TU)`` truncated to ``A h <= b``. Each
 draw tries that Gaussian up to ``tries`` times (exact: rejection); if none is feasible it runs
@@ -95,15 +99,22 @@ class TruncatedConditional:
         The prior mean, m.
     touched : ndarray of bool, shape (n,)
     rows : BoundRows
+        The bounds at the MAP.
+    reference : ndarray, shape (n,), optional
+        The MAP heights, m: a draw whose touched block is shifted from them by ``c`` on average moves
+        the skin, and so every bound, by ``c``.
     tries, sweeps : int
         Rejection tries per draw, then Gibbs sweeps from a feasible start.
     """
 
-    def __init__(self, covariance, mean, touched, rows: BoundRows, *, tries: int = 20, sweeps: int = 30):
+    def __init__(self, covariance, mean, touched, rows: BoundRows, reference=None, *, tries: int = 20,
+                 sweeps: int = 30):
         self.t = np.flatnonzero(touched)
         self.u = np.flatnonzero(~touched)
         self.mean = float(mean)
         self.rows = rows
+        ref = np.zeros(touched.size) if reference is None else np.asarray(reference, dtype=float).reshape(-1)
+        self.reference = ref[self.t]
         self.tries, self.sweeps = int(tries), int(sweeps)
         self.gibbs_draws = 0
         C = np.asarray(covariance, dtype=float)
@@ -131,7 +142,10 @@ class TruncatedConditional:
             return out
         k = out.shape[0]
         mu = self.conditional_mean_rows(out[:, self.t])  # (k, n_U)
-        limit = self.rows.bound[None, :] - (self.A_t @ out[:, self.t].T).T  # (k, n_rows)
+        # the skin moves with the touched block: rigidly with its mean shift from the MAP (exact for the
+        # unidentifiable uniform shift, which moves the skin by as much; first order otherwise)
+        lift = (out[:, self.t] - self.reference).mean(axis=1) if self.t.size else np.zeros(k)
+        limit = self.rows.bound[None, :] + lift[:, None] - (self.A_t @ out[:, self.t].T).T  # (k, n_rows)
         todo = np.ones(k, dtype=bool)
         for _ in range(self.tries):  # rejection: exact draws of the truncated Gaussian
             idx = np.flatnonzero(todo)

@@ -21,8 +21,11 @@ creeps along the kink (the step that leaves the current piece is cut to a few pe
 Touched nodes: those whose largest load over the frames is at least ``TOUCH_THRESHOLD`` (2 %) of
 the largest node's. A node the MAP leaves resting on the skin with almost no load (the prior
 pulls it up, the data say it carried nothing) sits at a kink of the posterior: raising it loads
-the skin, lowering it changes nothing. It is the bound's, not the data's: its Jacobian column is
-dropped and it joins the untouched nodes (:mod:`.surface_bound`).
+the skin, lowering it changes nothing. It is the bound's, not the data's: the contact-grid nodes
+that read it leave the contact set of the final linearisation (they carry almost no load), its
+Jacobian column vanishes, and it joins the untouched nodes (:mod:`.surface_bound`). (Zeroing its
+column alone would let a uniform shift of the touched nodes change the data at the nodes that read
+both, and the unidentifiable absolute level would look measured.)
 
 The Laplace posterior is ``N(z_map, H^-1)``, ``H = Jz^T Jz + P`` at the MAP: the context
 parameters are part of the state, so the heights' covariance is their block of ``H^-1``: the joint
@@ -32,7 +35,7 @@ Laplace approximation, with the context marginalised.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
@@ -186,9 +189,11 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         messages.append(info)
     message = messages[-1] + (f" (after {len(stages) - 1} continuation stages in the noise sd)" if len(stages) > 1
                               else "")
-    J, _ = _jacobian(scan, state, names)
     touched = loaded_nodes(scan, state, touch_threshold)
-    J[:, :n][:, ~touched] = 0.0  # nodes at the bound with (almost) no load: the bound's, not the data's
+    # nodes resting on the skin with (almost) no load are the bound's, not the data's: the grid nodes
+    # that read them leave the contact set of the linearisation (they carry almost nothing), so that
+    # their columns vanish and a uniform shift of the touched nodes still changes no datum
+    J, touched = _jacobian(scan, replace(state, contact=state.contact & ~reads_nodes(scan, ~touched)), names)
     unknowns = _unknowns(J, touched, transforms, z, root, noise_std, flat_h, n, scan.profile.spacing)
     A = _whiten(J, transforms, z, root, noise_std, n)[:, unknowns]
     factor = cho_factor(A.T @ A + np.diag(penal[unknowns]))
@@ -236,6 +241,16 @@ def _descend(evaluate, scan, data, sigma, z, names, transforms, root, penal, uni
             return z, state, (f"converged: the objective changed by {history[-3][1] - phi:.2g} < {STALL:g} nats over "
                               f"2 iterations (last step {alpha:.2g} of the Gauss-Newton step)"), it
     return z, state, f"stopped at max_iter = {max_iter} iterations (decrement {decrement:.2g} nats)", it
+
+
+def reads_nodes(scan, nodes: np.ndarray) -> np.ndarray:
+    """Per frame, the contact-grid nodes whose height interpolation reads any of the profile ``nodes``,
+    shape (n_frames, *grid)."""
+    idx, w = scan.interpolation
+    hit = (nodes.reshape(-1)[idx] & (w > 0)).any(axis=-1)
+    if scan.profile.y is None and len(scan.grid_shape) == 2:
+        hit = np.broadcast_to(hit[:, None, :], (scan.n_frames, *scan.grid_shape))
+    return hit
 
 
 def loaded_nodes(scan, state, threshold: float) -> np.ndarray:
