@@ -154,6 +154,8 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     fixed : dict
         Fixed context values.
     """
+    if int(max_iter) < 1:
+        raise ValueError(f"max_iter: the Gauss-Newton search needs at least 1 iteration, got {max_iter!r}")
     n, k = scan.profile.size, len(transforms)
     names = [t.name for t in transforms]
     flat_h = root is None

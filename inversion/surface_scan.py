@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tactilab.core import rules
 from tactilab.forward import ContactCompliance, HalfSpace, solve_scan
 
 __all__ = ["ProfileGrid", "ContactScan", "ScanState", "CONTEXT_NAMES"]
@@ -148,7 +149,7 @@ class ContactScan:
                  weights_q, profile: ProfileGrid, quantity="stress", normal_force=None, mean_pressure=None,
                  friction=0.0, friction_direction=1.0, periodic=False, y_offset=0.0, tol=1e-10):
         self.grid_shape = tuple(int(n) for n in grid_shape)
-        self.spacing = float(spacing)
+        self.spacing = rules.spacing(spacing, 1)[0]
         self.skin = HalfSpace(E=float(young_modulus), nu=float(poisson_ratio))
         if friction > 0 and self.skin.nu < 0.5:
             raise ValueError(f"poisson_ratio: the surface inversion solves frictionless frames and adds q = mu p, "

@@ -19,6 +19,8 @@ import numpy as np
 from tactilab.forward import SensorReadout, finger_gap
 from tactilab.forward.scene_frames import SceneFrames
 
+from tactilab.core import rules
+
 from .surface import invert_scan
 from .surface_scan import ContactScan, ProfileGrid
 
@@ -48,6 +50,8 @@ def scene_scan(scene, recording=None, *, geometry: str = "line", spacing: float 
     """
     if geometry not in GEOMETRIES:
         raise ValueError(f"geometry: must be one of {GEOMETRIES}, got {geometry!r}")
+    if spacing is not None:
+        spacing = rules.spacing(spacing, 1)[0]
     if scene.contact is None:
         raise ValueError("scene.contact: a surface inversion needs a finger (or a periodic cell) touching the "
                          "surface; a display scene has no contact to invert")
@@ -78,14 +82,17 @@ def scene_scan(scene, recording=None, *, geometry: str = "line", spacing: float 
 
 
 def _profile(frames, geometry: str, spacing: float, grid: float) -> ProfileGrid:
-    if not np.isfinite(spacing) or spacing < grid * (1 - 1e-9):
+    if spacing < grid * (1 - 1e-9):
         raise ValueError(f"spacing: the profile's spacing must be at least the contact grid's {grid:.4g} m (the "
                          f"forward model reads the surface at its nodes), got {spacing!r}; give spacing >= {grid:.4g}")
     if frames.periodic:
-        if geometry != "line" or abs(spacing - grid) > 1e-9 * grid:
-            raise ValueError(f"spacing: a periodic cell's profile is its period on the cell's own nodes (a 'line' at "
-                             f"{grid:.4g} m), got geometry {geometry!r} and spacing {spacing!r}")
-        return ProfileGrid(x=frames.x.copy(), periodic=True)
+        period = grid * frames.shape[-1]
+        count = period / spacing
+        if geometry != "line" or abs(count - round(count)) > 1e-6 * count:
+            raise ValueError(f"spacing: a periodic cell's profile is a 'line' over its period {period:.4g} m with a "
+                             f"whole number of nodes, got geometry {geometry!r} and spacing {spacing!r} "
+                             f"({count:.4g} nodes); give a spacing that divides the period")
+        return ProfileGrid(x=frames.x[0] + spacing * np.arange(int(round(count))), periodic=True)
     x0 = float(frames.positions.min() + frames.x[0])
     x1 = float(frames.positions.max() + frames.x[-1])
     x = x0 + spacing * np.arange(int(np.ceil((x1 - x0) / spacing - 1e-9)) + 1)
@@ -147,6 +154,8 @@ def invert_surface(scene, recording, *, geometry: str = "line", spacing: float |
     -------
     SurfacePosterior
     """
+    if spacing is not None:
+        spacing = rules.spacing(spacing, 1)[0]
     scan = scene_scan(scene, recording, geometry=geometry, spacing=spacing, grid_spacing=grid_spacing)
     noise = float(scene.sensors.noise_std)
     if not noise > 0:
