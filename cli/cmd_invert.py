@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .batch_options import add_batch_options, run_invert_batch
 from .common import RunReport, add_report_options, choose_out
-from .invert_surface import add_surface_arguments, run_surface
+from .invert_surface import add_surface_arguments, run_surface, surface_lengths
 
 NAME = "invert"
 HELP = ("invert a sensor recording (recording.nc or .json, stress in Pa) of a defect scene: defect position "
@@ -58,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
         return run_invert_batch(args)
     if args.recording is None:
         raise ValueError("recording: give one recording file, or --batch DIR for a folder of them")
+    prior_lengths = surface_lengths(args)
     import numpy as np
 
     from tactilab.data_schemas import load_scene, read_recording
@@ -77,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     report = RunReport("invert")
     out = report.watch(choose_out(args.out, Path(f"{args.recording.stem}-inversion"), args.force))
     if args.target == "surface":
-        return run_surface(args, scene, recording, report, out)
+        return run_surface(args, scene, recording, report, out, prior_lengths)
     _warn_model(report, recording, args.recording)
     rng = np.random.default_rng(args.seed)
     problem = defect_problem(scene, recording, max_data=args.max_data)  # prepared once, used by both methods

@@ -78,15 +78,26 @@ def _warn_model(recording, path: Path) -> None:
         warnings.warn(line, UserWarning, stacklevel=3)
 
 
-def run_surface(args, scene, recording, report, out: Path) -> int:
+def surface_lengths(args) -> tuple[float | None, float]:
+    """``--prior-rms`` (None: from the scene) and ``--prior-length`` in m, checked before any file is read."""
+    from tactilab.core import rules
+    from tactilab.data_schemas.units import to_si
+
+    out = []
+    for flag, text in (("--prior-rms", args.prior_rms), ("--prior-length", args.prior_length)):
+        value = None if text is None else to_si(text, "length", name=flag)
+        out.append(None if value is None else rules.positive(value, flag, "m", fix="give a length, e.g. 5um"))
+    return out[0], out[1]
+
+
+def run_surface(args, scene, recording, report, out: Path, lengths) -> int:
     import numpy as np
 
-    from tactilab.core.units import to_si
+    from tactilab.data_schemas.units import to_si
     from tactilab.inversion import StationaryPrior, invert_surface
 
-    rms = to_si(args.prior_rms, "length", name="--prior-rms") if args.prior_rms else (_scene_rms(scene)
-                                                                                     or to_si(PRIOR_RMS, "length"))
-    length = to_si(args.prior_length, "length", name="--prior-length")
+    rms, length = lengths
+    rms = rms if rms is not None else (_scene_rms(scene) or to_si(PRIOR_RMS, "length"))
     prior = StationaryPrior(variance=rms**2, correlation_length=length, kind="self_affine", hurst=PRIOR_HURST)
     names = tuple(q.strip() for q in args.sample.split(",") if q.strip())
     with report.collecting_warnings():
