@@ -17,6 +17,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from scipy.linalg import solve_triangular
 
@@ -108,6 +110,11 @@ def invert_scan(scan, data, noise_std: float, *, prior: StationaryPrior | None =
     mean0 = 0.0 if prior is None else prior.mean
     lap = gauss_newton(scan, d, float(noise_std), root, mean0, transforms, fixed, max_iter=max_iter)
     n, names = scan.profile.size, [t.name for t in transforms]
+    if lap.chi2 > d.size + 4 * np.sqrt(2 * d.size):  # the residual is 4 sd above its expectation
+        warnings.warn(f"chi2: the MAP leaves chi2 = {lap.chi2:.4g} for {d.size} data (expected {d.size} +- "
+                      f"{np.sqrt(2 * d.size):.2g}): a local optimum of the non-convex partial-contact objective, or a "
+                      "model or noise level that does not fit the data; the posterior is centred there",
+                      UserWarning, stacklevel=2)
     touched = lap.touched
     rows = bound_rows(scan, lap.state, touched)
     cond = None if prior is None else TruncatedConditional(root @ root, mean0, touched, rows, lap.heights)

@@ -92,8 +92,9 @@ def _groove_problem(rng):
 def test_noise_free_partial_contact_recovers_the_touched_heights_and_bounds_the_groove(rng):
     scan, truth, data = _groove_problem(rng)
     sd = 2e-6
-    post = invert_scan(scan, data, 1e-4 * np.abs(data).max(), prior=StationaryPrior(variance=sd**2, kind="white"),
-                       rng=rng, n_draws=1500)
+    with pytest.warns(UserWarning, match="chi2: the MAP leaves chi2"):  # a local optimum at the groove's edge
+        post = invert_scan(scan, data, 1e-4 * np.abs(data).max(), prior=StationaryPrior(variance=sd**2, kind="white"),
+                           rng=rng, n_draws=1500)
     touched, groove = post.touched, truth < 0
     assert touched.sum() >= 10 and not (touched & groove).any()
     # the absolute level is not identified (a uniform shift leaves the data unchanged): compare shapes
