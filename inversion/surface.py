@@ -60,7 +60,7 @@ def parse_context(scan, context: dict) -> tuple[list[ContextTransform], dict]:
 
 def invert_scan(scan, data, noise_std: float, *, prior: StationaryPrior | None = None, context: dict | None = None,
                 method: str = "laplace", rng: np.random.Generator, n_draws: int = 400, truth=None,
-                max_iter: int = 30, mcmc_options: dict | None = None) -> SurfacePosterior:
+                max_iter: int = 30, continuation: bool = True, mcmc_options: dict | None = None) -> SurfacePosterior:
     """The surface posterior of a prepared scan (see the module docstring).
 
     Parameters
@@ -83,7 +83,10 @@ def invert_scan(scan, data, noise_std: float, *, prior: StationaryPrior | None =
     truth : ndarray, optional
         The true heights (m), for the figure and the files.
     max_iter : int
-        Gauss-Newton iteration limit.
+        Gauss-Newton iteration limit (per continuation stage).
+    continuation : bool
+        Lower the noise sd tenfold per stage from the initial misfit (default); False with
+        ``max_iter=1`` is the linearised inversion (one Gauss-Newton step from the prior mean).
     mcmc_options : dict, optional
         Passed to :func:`~tactilab.inversion.surface_mcmc.sample_surface` (``method="mcmc"``).
 
@@ -108,7 +111,8 @@ def invert_scan(scan, data, noise_std: float, *, prior: StationaryPrior | None =
     spacing_xy = spacing if scan.profile.y is None else (spacing, float(scan.profile.y[1] - scan.profile.y[0]))
     root = None if prior is None else prior_root(prior, shape, spacing_xy)
     mean0 = 0.0 if prior is None else prior.mean
-    lap = gauss_newton(scan, d, float(noise_std), root, mean0, transforms, fixed, max_iter=max_iter)
+    lap = gauss_newton(scan, d, float(noise_std), root, mean0, transforms, fixed, max_iter=max_iter,
+                       continuation=continuation)
     n, names = scan.profile.size, [t.name for t in transforms]
     if lap.chi2 > d.size + 4 * np.sqrt(2 * d.size):  # the residual is 4 sd above its expectation
         warnings.warn(f"chi2: the MAP leaves chi2 = {lap.chi2:.4g} for {d.size} data (expected {d.size} +- "

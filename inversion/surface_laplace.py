@@ -136,7 +136,7 @@ def _context(z_c, transforms, fixed) -> dict | None:
 
 
 def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_iter=30, tol=1e-6,
-                 touch_threshold=TOUCH_THRESHOLD, start=None) -> LaplaceResult:
+                 touch_threshold=TOUCH_THRESHOLD, start=None, continuation=True) -> LaplaceResult:
     """Gauss-Newton MAP with a line search, then the Hessian there (see the module docstring).
 
     Parameters
@@ -182,7 +182,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     # noise_std, each stage's MAP starting the next (a steep objective far from the MAP sends plain
     # Gauss-Newton into spiky surfaces that touch only at their spikes)
     misfit = float(np.sqrt(np.mean(((data - state.outputs) / noise_std) ** 2)))
-    stages = [misfit / 10.0**j for j in range(MAX_STAGES) if misfit / 10.0**j > 1.0] + [1.0]
+    stages = [misfit / 10.0**j for j in range(MAX_STAGES) if misfit / 10.0**j > 1.0 and continuation] + [1.0]
     history, messages, total = [], [], 0
     for factor in stages:
         z, state, info, its = _descend(evaluate, scan, data, noise_std * factor, z, names, transforms, root,
