@@ -72,7 +72,8 @@ def invert_scan(scan, data, noise_std: float, *, prior: StationaryPrior | None =
         The data's noise sd (> 0), data units.
     prior : StationaryPrior or None
         Prior of the heights on the profile grid (m^2 variance, m correlation length); None: flat,
-        the untouched nodes then have no posterior (NaN mean and sd, their bound in ``upper_bound``).
+        the touched heights are then a relief of mean 0 (a uniform shift changes no datum at a given
+        force) and the untouched nodes have no posterior (NaN mean and sd, their bound in ``upper_bound``).
     context : dict, optional
         ``normal_force``, ``friction``, ``young_modulus`` -> a float (fixed, SI) or a prior (free).
     method : {"laplace", "mcmc"}
@@ -98,6 +99,9 @@ def invert_scan(scan, data, noise_std: float, *, prior: StationaryPrior | None =
         raise ValueError(f"method: must be one of {METHODS}, got {method!r}")
     if not isinstance(rng, np.random.Generator):
         raise ValueError(f"rng: expected a numpy Generator (np.random.default_rng(seed)), got {rng!r}")
+    if method == "mcmc" and prior is None:
+        raise ValueError("prior: method='mcmc' samples a reduced basis of the prior-whitened heights; give a "
+                         "StationaryPrior (or use method='laplace' without a prior)")
     if prior is not None and not isinstance(prior, StationaryPrior):
         raise ValueError(f"prior: expected a StationaryPrior (or None for a flat prior), got {type(prior).__name__}")
     if not (np.isfinite(noise_std) and noise_std > 0):
@@ -158,6 +162,10 @@ def invert_scan(scan, data, noise_std: float, *, prior: StationaryPrior | None =
     upper = np.full(n, np.nan)
     if (~touched).any():
         upper[~touched] = rows.node_bound(lap.heights, np.flatnonzero(~touched))
+    map_h = lap.heights.copy()
+    if prior is None:  # no prior: the level is not measured; the touched heights are a relief of mean 0
+        level = float(map_h.reshape(-1)[touched].mean())
+        mean, map_h, draws, upper = mean - level, map_h - level, draws - level, upper - level
     ctx_summary = {}
     for i, t in enumerate(transforms):
         vals = np.asarray(ctx_draws_kept[t.name], dtype=float)
@@ -171,7 +179,7 @@ def invert_scan(scan, data, noise_std: float, *, prior: StationaryPrior | None =
                   f"prior conditioned on the touched nodes and the skin's bound ({rows.n_rows} bounds; "
                   f"{gibbs} of the draws needed Gibbs sweeps)") + (f"; {note}" if note else ""))
     return SurfacePosterior(x=scan.profile.x.copy(), y=None if scan.profile.y is None else scan.profile.y.copy(),
-                            mean=mean, std=std, map=lap.heights.copy(), touched=touched.reshape(shape),
+                            mean=mean, std=std, map=map_h, touched=touched.reshape(shape),
                             upper_bound=upper.reshape(shape), context=ctx_summary,
                             resolvable_band=_resolvable_band(cov_h, prior, lap, shape, spacing_xy, touched),
                             noise_std=float(noise_std), chi2=lap.chi2, n_data=d.size, method=method, message=message,

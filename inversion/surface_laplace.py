@@ -4,7 +4,8 @@ Unknowns, whitened (so that every prior term is ``|z|^2 / 2`` and the Hessian is
 
 - the heights ``h = m0 + L z_h`` with ``L = C^(1/2)`` the prior covariance's circulant root
   (:class:`~tactilab.inversion.gaussian.StationaryPrior` on the profile grid); without a prior the
-  heights themselves, restricted to the nodes the data see (the touched nodes);
+  heights themselves, restricted to the nodes the data see (the touched nodes), their level held
+  at 0 (a uniform shift changes no datum at a given force: the heights are then a relief);
 - each free context parameter ``theta = T(z)``: ``Normal(mean, sd)``: ``mean + sd z``;
   ``LogNormal(median, s)``: ``median exp(s z)``; ``Uniform(low, high)``: ``mid + half z`` with
   ``|z| <= 1`` and no prior term (flat).
@@ -198,7 +199,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     J, touched = _jacobian(scan, replace(state, contact=state.contact & ~reads_nodes(scan, ~touched)), names)
     unknowns = _unknowns(J, touched, transforms, z, root, noise_std, flat_h, n, scan.profile.spacing)
     A = _whiten(J, transforms, z, root, noise_std, n)[:, unknowns]
-    factor = cho_factor(A.T @ A + np.diag(penal[unknowns]))
+    factor = cho_factor(A.T @ A + np.diag(penal[unknowns]) + _gauge(A, unknowns, n, flat_h))
     _, phi = evaluate(z, noise_std)
     r = (data - state.outputs).ravel() / noise_std
     return LaplaceResult(z=z, heights=heights(z), context=dict(state.context), state=state, jacobian=J,
@@ -213,12 +214,15 @@ def _descend(evaluate, scan, data, sigma, z, names, transforms, root, penal, uni
     it, message = 0, ""
     for it in range(1, max_iter + 1):
         J, touched = _jacobian(scan, state, names)
+        if flat_h:  # without a prior, a node just entering the contact is held until it carries a load
+            touched &= loaded_nodes(scan, state, TOUCH_THRESHOLD)
         unknowns = _unknowns(J, touched, transforms, z, root, sigma, flat_h, n, scan.profile.spacing)
         A = _whiten(J, transforms, z, root, sigma, n)[:, unknowns]
         r = (data - state.outputs).ravel() / sigma
-        g = -(A.T @ r) + penal[unknowns] * z[unknowns]
+        gauge = _gauge(A, unknowns, n, flat_h)
+        g = -(A.T @ r) + penal[unknowns] * z[unknowns] + gauge @ z[unknowns]
         step = np.zeros_like(z)
-        step[unknowns] = -cho_solve(cho_factor(A.T @ A + np.diag(penal[unknowns])), g)
+        step[unknowns] = -cho_solve(cho_factor(A.T @ A + np.diag(penal[unknowns]) + gauge), g)
         decrement = -float(g @ step[unknowns])
         if decrement < tol:
             return z, state, f"converged: Gauss-Newton decrement {decrement:.2g} < {tol:g} nats", it
@@ -279,13 +283,26 @@ def _whiten(J, transforms, z, root, sigma, n):
     return Jz / sigma
 
 
+def _gauge(A, unknowns, n, flat_h) -> np.ndarray:
+    """Without a prior, the level of the touched heights (a uniform shift changes no datum at a given
+    force) is held where it is (at 0: the flat start): a curvature ``c u u^T`` along the uniform
+    direction ``u`` of the touched heights, ``c`` the Fisher information's mean eigenvalue."""
+    k = unknowns.size
+    if not flat_h:
+        return np.zeros((k, k))
+    u = (unknowns < n).astype(float)
+    u /= np.sqrt(u.sum()) if u.sum() else 1.0
+    c = float(np.sum(A * A)) / max(k, 1) or 1.0
+    return c * np.outer(u, u)
+
+
 def _unknowns(J, touched, transforms, z, root, sigma, flat_h, n, spacing) -> np.ndarray:
     """All of z with a prior; without one the touched heights (checked: the data must resolve them) and the context."""
     if not flat_h:
         return np.arange(n + len(transforms))
     unknowns = np.concatenate([np.flatnonzero(touched), n + np.arange(len(transforms))])
     Jz = _whiten(J, transforms, z, root, sigma, n)[:, unknowns]
-    fisher = np.linalg.eigvalsh(Jz.T @ Jz)
+    fisher = np.linalg.eigvalsh(Jz.T @ Jz + _gauge(Jz, unknowns, n, True))
     if fisher[0] <= fisher[-1] / FISHER_CONDITION_LIMIT:
         ratio = f"{fisher[-1] / fisher[0]:.3g}" if fisher[0] > fisher[-1] * 1e-300 else "infinite"
         raise ValueError(

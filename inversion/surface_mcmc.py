@@ -99,9 +99,6 @@ def sample_surface(scan, data, noise_std, lap, root, mean, transforms, fixed, *,
                    max_steps: int = 4000, check_every: int = 250, n_walkers: int | None = None, min_ess: float = 400.0,
                    tau_factor: float = 30.0, n_start: int = 16) -> dict:
     """emcee on the reduced basis (module docstring); returns ``heights`` (N, n), ``context`` and a ``message``."""
-    if root is None:
-        raise ValueError("prior: method='mcmc' samples a reduced basis of the prior-whitened heights; give a "
-                         "StationaryPrior (or use method='laplace' without a prior)")
     n = scan.profile.size
     k_ctx = len(transforms)
     J = lap.jacobian

@@ -81,6 +81,7 @@ class ProfileGrid:
                              f"{axis[-1]:.6g}] m; build the grid over the whole scanned strip")
         lo = np.clip(np.floor(s + 1e-9), 0, max(n - 1, 0)).astype(np.int64)
         w = np.clip(s - lo, 0.0, 1.0)
+        w[w < 1e-9] = 0.0  # a node on a profile node reads it alone (no round-off weight on the next one)
         hi = (lo + 1) % n if self.periodic else np.minimum(lo + 1, n - 1)
         return np.stack([lo, hi], axis=-1), np.stack([1.0 - w, w], axis=-1)
 
