@@ -126,6 +126,20 @@ class SurfacePosterior:
                 lower[u], upper[u] = q[0][u], q[1][u]
         return lower, upper
 
+    def relief(self, level: float = 0.9) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The relief: every draw minus its mean over the touched nodes (the level a scan at a given force
+        cannot measure), as ``(sd, lower, upper)`` per node, m: what the data say about the shape.
+
+        Without a prior the heights already are this relief and only touched nodes have draws.
+        """
+        if not (0 < level < 1):
+            raise ValueError(f"level: the band's probability must lie in (0, 1), got {level!r}")
+        flat = self.draws.reshape(self.draws.shape[0], -1)
+        rel = flat - flat[:, self.touched.reshape(-1)].mean(axis=1, keepdims=True)
+        q = np.quantile(rel, [0.5 - level / 2, 0.5 + level / 2], axis=0)
+        shape = self.mean.shape
+        return rel.std(axis=0, ddof=1).reshape(shape), q[0].reshape(shape), q[1].reshape(shape)
+
     # ---------------------------------------------------------------- files
     @property
     def tree(self):

@@ -201,3 +201,18 @@ def test_without_a_prior_the_touched_relief_is_recovered_and_the_rest_only_bound
     lower, upper = post.band(0.9)
     assert np.all(lower[~t] == -np.inf) and np.all(upper[~t] == post.upper_bound[~t])
     assert "no prior, no posterior (NaN)" in post.message
+
+
+def test_the_relief_is_known_far_better_than_the_level(rng):
+    scan, truth, data = _groove_problem(rng)
+    sigma = 0.01 * np.abs(data).max()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        post = invert_scan(scan, data + sigma * rng.standard_normal(data.shape), sigma, rng=rng,
+                           prior=StationaryPrior(variance=(8e-6) ** 2, correlation_length=60e-6, kind="matern52"))
+    sd, lower, upper = post.relief(0.9)
+    t = post.touched
+    assert np.median(sd[t]) < 0.2 * np.median(post.std[t])  # the level dominates the heights' sd
+    assert np.all(lower[t] <= upper[t])
+    with pytest.raises(ValueError, match="level: the band's probability must lie in"):
+        post.relief(0.0)
