@@ -26,6 +26,7 @@ from .gaussian import StationaryPrior
 from .priors import LogNormal, Normal, Uniform
 from .surface_bound import TruncatedConditional, bound_rows
 from .surface_laplace import ContextTransform, gauss_newton, prior_root
+from .surface_mcmc import sample_surface
 from .surface_posterior import CONTEXT_UNITS, SurfacePosterior
 from .surface_scan import CONTEXT_NAMES
 
@@ -140,8 +141,6 @@ def invert_scan(scan, data, noise_std: float, *, prior: StationaryPrior | None =
 
     note, chain = "", None
     if method == "mcmc":
-        from .surface_mcmc import sample_surface
-
         chain = sample_surface(scan, d, float(noise_std), lap, root, mean0, transforms, fixed, rng=rng,
                                **(mcmc_options or {}))
         note = chain["message"]

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import norm
 
+from .surface_plots import plot_surface
+
 __all__ = ["SurfacePosterior", "CONTEXT_UNITS"]
 
 #: units and long names of the context parameters
@@ -202,6 +204,4 @@ class SurfacePosterior:
     def plot(self, path, truth=None) -> pathlib.Path:
         """Save a PNG: the profile with its 90 % band against the truth (when known), the untouched
         stretches shaded with their upper bound, and the posterior sd; mm along x, um for heights."""
-        from .surface_plots import plot_surface
-
         return plot_surface(self, pathlib.Path(path), self.truth if truth is None else np.asarray(truth))
