@@ -83,7 +83,9 @@ class ContactLinearisation:
     def _compliance(self, x: np.ndarray) -> np.ndarray:
         """``A x`` for a stack ``(k, *grid)`` of pressures (Pa -> m): one batched FFT pair."""
         c = self.compliance
-        spec = c.rfft(x)
+        # the transform over the grid's own axes (the stack's first axis is not a grid axis); the same
+        # layout as the compliance's spectrum (rfftn of the padded grid)
+        spec = sfft.rfftn(x, s=c.fft_shape, axes=self._axes, workers=1)
         spec *= c.spectrum("uz", "p")
         out = sfft.irfftn(spec, s=c.fft_shape, axes=self._axes, workers=1)
         return out if c.periodic else out[(Ellipsis,) + tuple(slice(0, n) for n in c.shape)]
