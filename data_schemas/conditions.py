@@ -42,7 +42,15 @@ _HEADER = re.compile(r"\s*([a-z_]+)\s*(?:\[\s*([^\]]+?)\s*\])?\s*")
 
 
 def conditions_path(folder: str | Path, name: str) -> Path:
+    """``folder / name``, checked by :func:`file_inside` (the conditions CSV next to a protocol)."""
+    return file_inside(folder, name, field="procedure.conditions", owner="protocol", what="CSV")
+
+
+def file_inside(folder: str | Path, name: str, *, field: str, owner: str, what: str) -> Path:
     """``folder / name``, checked: relative, inside ``folder``, a regular file, no symlink on the way.
+
+    ``field`` names the setting in errors, ``owner`` the file whose folder it is (``protocol``,
+    ``description``), ``what`` the file (``CSV``, ``key file``).
 
     Raises
     ------
@@ -52,21 +60,21 @@ def conditions_path(folder: str | Path, name: str) -> Path:
     """
     folder = Path(folder)
     if not isinstance(name, str) or not name or Path(name).is_absolute() or "\x00" in name:
-        raise ValueError(f"procedure.conditions: must be a file name relative to the protocol's folder, got "
-                         f"{name!r}; put the CSV next to the protocol")
+        raise ValueError(f"{field}: must be a file name relative to the {owner}'s folder, got "
+                         f"{name!r}; put the {what} next to the {owner}")
     target = folder / name
     walked = folder
-    for part in Path(name).parts:  # no symlink anywhere below the protocol's folder
+    for part in Path(name).parts:  # no symlink anywhere below the owner's folder
         walked = walked / part
         if part == ".." or os.path.islink(walked):
-            raise ValueError(f"procedure.conditions: {name!r} must lie inside the protocol's folder with no "
-                             "'..' or symlink on the way; copy the CSV next to the protocol")
+            raise ValueError(f"{field}: {name!r} must lie inside the {owner}'s folder with no "
+                             f"'..' or symlink on the way; copy the {what} next to the {owner}")
     if not target.resolve().is_relative_to(folder.resolve()):
-        raise ValueError(f"procedure.conditions: {name!r} resolves outside the protocol's folder; copy the CSV "
-                         "next to the protocol")
+        raise ValueError(f"{field}: {name!r} resolves outside the {owner}'s folder; copy the {what} "
+                         f"next to the {owner}")
     if not target.is_file():
-        raise ValueError(f"procedure.conditions: {target} is not a regular file (missing, or a folder or "
-                         "device); give the CSV's name relative to the protocol")
+        raise ValueError(f"{field}: {target} is not a regular file (missing, or a folder or "
+                         f"device); give the {what}'s name relative to the {owner}")
     return target
 
 

@@ -1,0 +1,30 @@
+"""The pairing key the UDP tests share (frame format 3: only a host with the device's key arms it),
+and the files a command line run needs: the key file (mode 600) and a description naming it."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+#: the pairing key of every emulator and host in the tests
+KEY = bytes(range(32))
+#: another key: a host holding it is an intruder
+WRONG_KEY = bytes(range(1, 33))
+
+
+def key_file(folder: Path, key: bytes = KEY, name: str = "display.key") -> Path:
+    """Write ``key`` to ``folder / name`` readable by its owner only, and return the path."""
+    path = Path(folder) / name
+    descriptor = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    try:
+        os.write(descriptor, key)
+    finally:
+        os.close(descriptor)
+    os.chmod(path, 0o600)
+    return path
+
+
+def paired_description(folder: Path, description, name: str = "display.json") -> Path:
+    """Save ``description`` to ``folder / name`` naming a key file next to it (``display.key``)."""
+    key_file(folder)
+    return description.replace(pairing_key_file="display.key").save(Path(folder) / name)
