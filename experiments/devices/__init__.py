@@ -49,6 +49,7 @@ _EXPORTS = {
     "UdpDisplay": "udp",
     "parse_udp_url": "udp",
     # the display UDP frame format (docs/udp-frame-format.md)
+    "ARM": "link",
     "FRAME": "link",
     "FrameFormatError": "link",
     "decode": "link",
