@@ -209,8 +209,10 @@ class HostLink:
             if answer.status == STATUS_CODE["zeroed"] and answer.authentic:
                 self.look(answer.frames_applied)
                 return
-            if answer.status == STATUS_CODE["disarmed"] and attempt == 0:
-                self.lost = "the device's watchdog ended the link"  # outputs are zero; arm again
+            if answer.status in (STATUS_CODE["disarmed"], STATUS_CODE["refused"]) and attempt == 0:
+                # the device's watchdog ended the link (outputs zero): arm again; its ARMED's counter
+                # tells whether anything was applied meanwhile
+                self.lost = f"the device answered {STATUS[answer.status]}"
                 continue
             raise DisplayError(f"{self.url}: the device refused ZERO ({STATUS.get(answer.status)}); its watchdog "
                                "zeroes it when frames stop; see docs/udp-frame-format.md")
