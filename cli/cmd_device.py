@@ -21,8 +21,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
              "zero the outputs when frames stop (watchdog)",
         description="Emulate a tactile display on loopback (127.0.0.1 only); see docs/udp-frame-format.md.",
     )
-    emu.add_argument("--pairing-key", metavar="FILE", required=True,
-                     help="the 32-byte pairing key its hosts hold (the file the display description's pairing_key_file "
+    emu.add_argument("--pairing-key", metavar="FILE", default=None,
+                     help="required: the 32-byte pairing key its hosts hold (the file the display description's pairing_key_file "
                           "names; owner-only permissions, e.g. chmod 600); only a host with this key can arm it")
     emu.add_argument("--port", type=int, required=True,
                      help="UDP port on 127.0.0.1 (0: any free port, printed at start)")
@@ -78,11 +78,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"pairing key written to {path} (32 random bytes, mode 600); name it in the display description "
               "(\"pairing_key_file\") and give it to the device")
         return 0
-    key = read_pairing_key(args.pairing_key, "--pairing-key")
-
     watchdog = _time_option(args.watchdog, "--watchdog", "50ms")
     max_seconds = _time_option(args.max_seconds, "--max-seconds", "60s")
     late_after = _time_option(args.late_after, "--late-after", "1ms")
+    if args.pairing_key is None:
+        raise ValueError("--pairing-key: required; the emulator holds the pairing key its hosts hold (frame format 3): "
+                         "create one with `tactilab device pair FILE`, name it in the display description's "
+                         "pairing_key_file and give it here")
+    key = read_pairing_key(args.pairing_key, "--pairing-key")
     log = functools.partial(print, flush=True, file=sys.stderr if args.json else sys.stdout)
     try:
         summary = emulate(args.port, watchdog_s=watchdog, record=args.record, max_seconds=max_seconds,
