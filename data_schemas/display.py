@@ -120,6 +120,12 @@ class DisplayDescription(Record):
         description._folder = pathlib.Path(path).parent
         return description
 
+    def replace(self, **changes) -> DisplayDescription:
+        """A copy with some fields changed, validated again; it keeps the folder of the file it was read from."""
+        copy = super().replace(**changes)
+        copy._folder = self._folder
+        return copy
+
     def pairing_key_path(self) -> pathlib.Path:
         """The checked path of ``pairing_key_file`` (inside the description's folder, a regular file, no symlink).
 

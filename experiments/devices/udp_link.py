@@ -226,12 +226,16 @@ class HostLink:
                 pass
 
     def _keep_alive(self) -> None:
-        """Every quarter of the watchdog time, a ZERO while no one else uses the link; a lost link is noted."""
+        """Every quarter of the watchdog time, a ZERO while no one else uses the link; a link the device
+        ended (its watchdog tripped: this process was descheduled for longer than W) is armed again."""
         while not self._stop.wait(min(max((self.watchdog_s or 0.2) / 4, 1e-3), 0.25)):
             if not self.lock.acquire(blocking=False):
                 continue  # playback or an exchange holds the link: their messages keep it alive
             try:
-                if self.key is None or self.lost is not None or self.sock.fileno() < 0:
+                if self.key is None or self.sock.fileno() < 0:
+                    continue
+                if self.lost is not None:
+                    self.arm()  # outputs were at zero; the ARMED's counter is looked at
                     continue
                 data, seq = self.sealed(ZERO)
                 start = time.perf_counter_ns()
@@ -248,8 +252,8 @@ class HostLink:
                                 self._sample(start, arrival, message.device_ns)
                         elif message.status in REFUSALS:
                             self.lost = f"the device answered {STATUS.get(message.status)} between stimuli"
-            except (OSError, DisplayError) as exc:
-                self.lost = f"keep-alive failed: {exc}"
+            except (OSError, DisplayError) as exc:  # the next use arms again, and says why it cannot
+                self.lost, self.key = f"keep-alive failed: {exc}", None
             finally:
                 self.lock.release()
 
