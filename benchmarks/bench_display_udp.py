@@ -160,7 +160,8 @@ def main() -> None:
         print("-" * len(head))
         for name, r in rows.items():
             print(f"{name:<24}{r['mean']:>9.4f}{r['p50']:>8.4f}{r['p99']:>8.4f}{r['max']:>8.3f}{r['std']:>8.4f}"
-                  f"{r['n']:>6d}{r['skipped']:>8d}{r['late']:>6d}{r['missing']:>8d}{r['rtt50']:>9.3f}{r['rtt99']:>9.3f}")
+                  f"{r['n']:>6d}{r['skipped']:>8d}{r['late']:>6d}{r['missing']:>8d}{r['rtt50']:>9.3f}"
+                  f"{r['rtt99']:>9.3f}")
         print(f"emulator (all runs): frames applied {summary['frames_applied']}, late (> 1 ms after due) "
               f"{summary['late']}, missing {summary['missing']}, stale {summary['stale']}, "
               f"rejected {summary['rejected']}, link sessions {summary['sessions']}, foreign {summary['foreign']}")

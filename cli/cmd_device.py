@@ -22,8 +22,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         description="Emulate a tactile display on loopback (127.0.0.1 only); see docs/udp-frame-format.md.",
     )
     emu.add_argument("--pairing-key", metavar="FILE", default=None,
-                     help="required: the 32-byte pairing key its hosts hold (the file the display description's pairing_key_file "
-                          "names; owner-only permissions, e.g. chmod 600); only a host with this key can arm it")
+                     help="required: the 32-byte pairing key its hosts hold (the file the display description's "
+                          "pairing_key_file names; owner-only permissions, e.g. chmod 600); only a host with this key "
+                          "can arm it")
     emu.add_argument("--port", type=int, required=True,
                      help="UDP port on 127.0.0.1 (0: any free port, printed at start)")
     emu.add_argument("--watchdog", default="50ms",

@@ -3,7 +3,8 @@
 The display interface and its drive (:mod:`.display`), limits and strain (:mod:`.display_limits`,
 :mod:`.display_strain`), the safety layer no stimulus can bypass (:mod:`.safety`), playback faults
 (:mod:`.display_faults`), the simulated display, the UDP display with its paired link
-(:mod:`.udp`, :mod:`.udp_link`, :mod:`.link`, :mod:`.pairing`), the loopback device emulator (:mod:`.emulator`) and the registry of
+(:mod:`.udp`, :mod:`.udp_link`, :mod:`.link`, :mod:`.pairing`), the loopback device emulator
+(:mod:`.emulator`) and the registry of
 device kinds (:mod:`.registry`: ``"simulated"``, ``"udp://HOST:PORT"``, plug-ins in the
 ``tactilab.devices`` entry-point group).
 

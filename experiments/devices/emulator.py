@@ -200,7 +200,8 @@ def read_record(path: str | pathlib.Path) -> dict:
         ``values`` (ndarray (n_frames, n_tractors), the applied outputs, float32 exact),
         ``seq``, ``arrival_ns`` (when each frame was received), ``applied_ns`` (when the tick
         applied it), ``tick_ns`` (the tick's scheduled time on the device's timer) and ``due_ns``
-        (the frame's due time) (ndarrays (n_frames,), device clock, ns); ``n_frames``: frames in all streams; ``events``:
+        (the frame's due time) (ndarrays (n_frames,), device clock, ns); ``n_frames``: frames in
+        all streams; ``events``:
         every non-frame entry, in order; ``clamps``: the clamp entries; ``summary``: the final
         counts (None if the emulator was killed).
 

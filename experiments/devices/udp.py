@@ -166,7 +166,8 @@ class UdpDisplay(Display):
         self.link.close()
 
     def _zero(self) -> None:
-        self.audit()
+        with self.link.lock:  # what this look finds is kept for the next audit() or play() report
+            self.link.zero()
 
     def audit(self) -> int:
         """An acknowledged ZERO on the armed link (armed first if needed); return the frames the device

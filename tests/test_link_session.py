@@ -1,0 +1,73 @@
+"""The host's end of the paired link (experiments/devices/udp_link.py): the device's clock from the
+quickest round trip, the keep-alive arming again after the device's watchdog ended the link while
+this host was descheduled, and the onset delay a UDP display states."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+from udp_pairing import KEY
+
+from tactilab.data_schemas.display import DisplayDescription
+from tactilab.experiments.devices import SafeDisplay
+from tactilab.experiments.devices.emulator import emulate
+from tactilab.experiments.devices.udp import UdpDisplay
+from tactilab.experiments.devices.udp_link import HostLink
+
+DESC = DisplayDescription.braille_row(n_tractors=2)
+
+
+def test_the_device_clock_comes_from_the_quickest_round_trip():
+    """offset = device time - midpoint of the exchange, taken from the sample with the smallest round trip."""
+    link = HostLink(("127.0.0.1", 9), KEY, ack_timeout_s=0.05, retries=1, url="udp://127.0.0.1:9")
+    try:
+        link._sample(100, 300, 1200)  # round trip 200 ns, offset 1200 - 200 = 1000
+        link._sample(1000, 1050, 2030)  # round trip 50 ns, offset 2030 - 1025 = 1005
+        link._sample(5000, 5400, 9000)  # round trip 400 ns, offset 3800
+        assert link.clock_offset_ns() == 1005
+    finally:
+        link.close()
+
+
+def test_the_keep_alive_arms_again_after_a_trip_between_stimuli():
+    """The host holds its link busy (a process descheduled for 3 watchdog times): the device zeroes and
+    ends the link; the keep-alive finds it ended and arms again at once (the ARMED's counter shows no
+    foreign frame), and the next stimulus plays on the new link."""
+    stop, logs, result = threading.Event(), [], {}
+    thread = threading.Thread(target=lambda: result.update(summary=emulate(
+        0, watchdog_s=0.3, max_seconds=60, log=logs.append, stop=stop, handle_signals=False, limits=DESC,
+        pairing_key=KEY)), daemon=True)
+    thread.start()
+    while not logs:
+        time.sleep(0.005)
+    port = int(logs[0].split(":")[2].split()[0])
+    display = UdpDisplay(DESC, "127.0.0.1", port, pairing_key=KEY, max_skipped_fraction=1.0)
+    try:
+        display.zero()
+        with display.link.lock:  # nothing reaches the device meanwhile
+            while not any(line.startswith("watchdog:") for line in logs):
+                time.sleep(0.01)
+        while display.link.rearms == 0:  # the keep-alive's next rounds: `disarmed`, then ARM
+            time.sleep(0.01)
+        assert display.audit() == 0 and display.link.lost is None
+        display.load(np.zeros((20, 2)), 1000.0)
+        report = display.play()
+        assert (report.acked, report.foreign) == (20, 0)
+    finally:
+        display.close()
+        stop.set()
+        thread.join(timeout=10)
+    summary = result["summary"]
+    assert (summary.watchdog_trips, summary.sessions, summary.frames_applied) == (1, 2, 20)
+
+
+def test_a_udp_display_states_its_onset_delay():
+    display = UdpDisplay(DESC.replace(lookahead_s=0.02), port=9, pairing_key=KEY)
+    try:
+        assert display.onset_delay_s == pytest.approx(0.02)
+        assert SafeDisplay(display, lambda e: None).onset_delay_s == pytest.approx(0.02)
+    finally:
+        display.close()
