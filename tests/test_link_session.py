@@ -12,7 +12,7 @@ import pytest
 from udp_pairing import KEY
 
 from tactilab.data_schemas.display import DisplayDescription
-from tactilab.experiments.devices import SafeDisplay
+from tactilab.experiments.devices import DisplayError, SafeDisplay
 from tactilab.experiments.devices.emulator import emulate
 from tactilab.experiments.devices.udp import UdpDisplay
 from tactilab.experiments.devices.udp_link import HostLink
@@ -71,3 +71,37 @@ def test_a_udp_display_states_its_onset_delay():
         assert SafeDisplay(display, lambda e: None).onset_delay_s == pytest.approx(0.02)
     finally:
         display.close()
+
+
+def test_a_device_fifo_too_small_for_the_lookahead_is_a_clear_error():
+    stop, logs = threading.Event(), []
+    thread = threading.Thread(target=emulate, kwargs=dict(port=0, watchdog_s=1.0, max_seconds=60, log=logs.append,
+                                                          stop=stop, handle_signals=False, limits=DESC,
+                                                          pairing_key=KEY, fifo_frames=20), daemon=True)
+    thread.start()
+    while not logs:
+        time.sleep(0.005)
+    display = UdpDisplay(DESC, "127.0.0.1", int(logs[0].split(":")[2].split()[0]), pairing_key=KEY)
+    try:
+        display.load(np.zeros((5, 2)), 1000.0)
+        with pytest.raises(DisplayError, match=r"lookahead_s 0.05 s at 1000 Hz needs 52 frames in the device's FIFO, "
+                                               r"which holds 20; lower the description's lookahead_s"):
+            display.play()
+    finally:
+        display.close()
+        stop.set()
+        thread.join(timeout=10)
+
+
+def test_a_key_file_that_changes_while_it_is_read_is_refused(tmp_path, monkeypatch):
+    import os
+
+    from udp_pairing import key_file
+
+    from tactilab.experiments.devices import read_pairing_key
+
+    path = key_file(tmp_path)
+    real_read = os.read
+    monkeypatch.setattr(os, "read", lambda fd, n: real_read(fd, n)[:10])  # truncated between stat and read
+    with pytest.raises(ValueError, match=r"pairing_key_file: .* changed while it was read; read it again"):
+        read_pairing_key(path)

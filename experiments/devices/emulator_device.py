@@ -14,6 +14,8 @@ import json
 import math
 import os
 import select
+import socket
+import struct
 import time
 from dataclasses import asdict
 
@@ -82,7 +84,11 @@ class Device:
                  f"{self.watchdog_ns / 1e6:g} ms, tick {self.period_ns / 1e6:g} ms, stops after "
                  f"{self.max_ns / 1e9:g} s or on SIGTERM)")
         end = start + self.max_ns
+        stamped = _kernel_timestamps(self.sock)
         while not self.stop.is_set():
+            # first every datagram already received, at its arrival time: a wake-up the operating
+            # system delayed never trips the watchdog on messages that came in time
+            self.drain(stamped)
             now = time.monotonic_ns()
             if now >= end:
                 break
@@ -99,15 +105,23 @@ class Device:
                     self.tick(now, due)
                     continue
                 wake = min(wake, due)
-            # sleep until the next event (a tick is never early)
-            timeout = (wake - now) / 1e9
-            readable, _, _ = select.select([self.sock], [], [], min(max(timeout, 0.0), 0.1))
-            if readable:
-                data, sender = self.sock.recvfrom(65536)
-                self.handle(data, sender, time.monotonic_ns())
+            # sleep until the next event (a tick is never early) or a datagram (drained above)
+            select.select([self.sock], [], [], min(max((wake - now) / 1e9, 0.0), 0.1))
         self.summary.duration_s = (time.monotonic_ns() - start) / 1e9
         self.write({"type": "summary", "t_ns": time.monotonic_ns(), **asdict(self.summary)})
         self.log("summary: " + ", ".join(f"{k} {v}" for k, v in asdict(self.summary).items()))
+
+    def drain(self, stamped: bool) -> None:
+        """Handle every datagram waiting in the socket, each at its arrival time (the kernel's receive
+        time stamp where the system gives one, else now)."""
+        while select.select([self.sock], [], [], 0)[0]:
+            if stamped:
+                data, ancillary, _, sender = self.sock.recvmsg(65536, socket.CMSG_SPACE(16))
+                arrival = _arrival_ns(ancillary)
+            else:
+                data, sender = self.sock.recvfrom(65536)
+                arrival = time.monotonic_ns()
+            self.handle(data, sender, arrival)
 
     def deadline(self) -> int:
         """The watchdog's deadline: W after the last valid message or the due time of the last
@@ -310,3 +324,26 @@ class Device:
         self.state, self.last_seq, self.last_valid_ns = "streaming", message.seq, arrival
         self.last_due_ns = max(self.last_due_ns, message.due_ns)
         # acknowledged `applied` by the tick that applies it
+
+
+def _kernel_timestamps(sock) -> bool:
+    """Ask the kernel to stamp each received datagram (Linux ``SO_TIMESTAMPNS``); False where it cannot."""
+    option = getattr(socket, "SO_TIMESTAMPNS", None)
+    if option is None:
+        return False
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, option, 1)
+    except OSError:
+        return False
+    return True
+
+
+def _arrival_ns(ancillary) -> int:
+    """A datagram's kernel receive time (CLOCK_REALTIME) on this process's monotonic clock, ns."""
+    for level, kind, data in ancillary:
+        if level == socket.SOL_SOCKET and kind == socket.SO_TIMESTAMPNS and len(data) >= 16:
+            seconds, nanoseconds = struct.unpack("qq", data[:16])
+            now_mono, now_real = time.monotonic_ns(), time.time_ns()
+            return min(now_mono, seconds * 1_000_000_000 + nanoseconds - (now_real - now_mono))
+    return time.monotonic_ns()
+

@@ -267,15 +267,17 @@ class UdpDisplay(Display):
                             collect()
             # stopped: no wait, the ZERO below drops the frames still in the device's FIFO
             sent_whole = not (self.stop_requested or skipped > allowed_skips)
-            # the device acknowledges a frame when its tick applies it, at its due time: wait for them
-            end = (int(due_ns[sent - 1]) if sent else time.perf_counter_ns()) + self.ack_timeout_s * 1e9
+            # the device acknowledges a frame when its tick applies it, at its due time: wait for them,
+            # as long as the device's own watchdog time (a device slower than that is at fault)
+            patience_ns = max(self.ack_timeout_s, link.watchdog_s or 0.0) * 1e9
+            end = (int(due_ns[sent - 1]) if sent else time.perf_counter_ns()) + patience_ns
             while sent_whole and np.any(ack_ns[:sent] == 0) and (remaining := max(end, 0) - time.perf_counter_ns()) > 0:
                 readable, _, _ = select.select([link.sock], [], [], remaining / 1e9)
                 if readable:
                     before = np.count_nonzero(ack_ns[:sent])
                     collect()
                     if np.count_nonzero(ack_ns[:sent]) > before:
-                        end = max(end, time.perf_counter_ns() + self.ack_timeout_s * 1e9)
+                        end = max(end, time.perf_counter_ns() + patience_ns)
         except BaseException:
             link.send_zero()  # no wait: the caller may be unwinding a signal; it zeroes again
             raise
