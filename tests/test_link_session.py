@@ -105,3 +105,38 @@ def test_a_key_file_that_changes_while_it_is_read_is_refused(tmp_path, monkeypat
     monkeypatch.setattr(os, "read", lambda fd, n: real_read(fd, n)[:10])  # truncated between stat and read
     with pytest.raises(ValueError, match=r"pairing_key_file: .* changed while it was read; read it again"):
         read_pairing_key(path)
+
+
+def test_a_link_ended_before_the_onset_starts_the_stimulus_again(monkeypatch):
+    """This host is descheduled between a stimulus's opening ZERO and its first frame, long enough for
+    the device's watchdog: the device answers `disarmed` before the first frame was due, so nothing of
+    the stimulus was applied; the host arms again and plays the whole stimulus on the new link."""
+    stop, logs, result = threading.Event(), [], {}
+    thread = threading.Thread(target=lambda: result.update(summary=emulate(
+        0, watchdog_s=0.1, max_seconds=60, log=logs.append, stop=stop, handle_signals=False, limits=DESC,
+        pairing_key=KEY)), daemon=True)
+    thread.start()
+    while not logs:
+        time.sleep(0.005)
+    real_check, stalls = UdpDisplay._check_device, []
+
+    def stall_once(self, rate):
+        if not stalls:  # the first stimulus only: wait (holding the link) until the device trips
+            stalls.append(True)
+            while not any(line.startswith("watchdog:") for line in logs):
+                time.sleep(0.01)
+        real_check(self, rate)
+
+    monkeypatch.setattr(UdpDisplay, "_check_device", stall_once)
+    display = UdpDisplay(DESC, "127.0.0.1", int(logs[0].split(":")[2].split()[0]), pairing_key=KEY,
+                         max_skipped_fraction=1.0)
+    try:
+        display.load(np.full((30, 2), 0.0), 1000.0)
+        report = display.play()
+        assert (report.acked, report.rejected, report.foreign, display.link.rearms) == (30, 0, 0, 1)
+    finally:
+        display.close()
+        stop.set()
+        thread.join(timeout=10)
+    summary = result["summary"]
+    assert (summary.watchdog_trips, summary.sessions, summary.frames_applied) == (1, 2, 30)

@@ -191,9 +191,20 @@ class UdpDisplay(Display):
     def _play(self, frames: np.ndarray, frame_rate_hz: float) -> PlaybackReport:
         link = self.link
         with link.lock:  # the keep-alive pauses: the stream keeps the link alive
-            link.zero()  # the link is armed, the outputs at rest, a fresh clock sample taken
-            self._check_device(frame_rate_hz)
-            return self._stream(frames.astype("<f4"), frame_rate_hz, link.clock_offset_ns())
+            for attempt in range(3):
+                link.zero()  # the link is armed, the outputs at rest, a fresh clock sample taken
+                self._check_device(frame_rate_hz)
+                try:
+                    return self._stream(frames.astype("<f4"), frame_rate_hz, link.clock_offset_ns())
+                except _EndedBeforeOnset:
+                    if attempt == 2:
+                        raise DisplayError(f"{self.url}: the device's watchdog ended the link before the stimulus "
+                                           "began, three times; this host is descheduled for longer than the "
+                                           "device's watchdog time (a busy machine?)") from None
+
+    # the device's watchdog ended the link between this stimulus's opening ZERO and its first frame (this
+    # host was descheduled): its answer came before the first frame was due, so nothing was applied,
+    # and the stimulus starts again on a new link
 
     def _stream(self, wire: np.ndarray, frame_rate_hz: float, offset_ns: int) -> PlaybackReport:
         link, n = self.link, wire.shape[0]
@@ -213,6 +224,9 @@ class UdpDisplay(Display):
                 link.last_ack = message
                 if message.status == STATUS_CODE["disarmed"]:
                     link.lost = "the device's watchdog ended the link during playback"
+                    if message.authentic and message.device_ns < first_due:  # before the onset: nothing applied
+                        link.own_sent -= sent
+                        raise _EndedBeforeOnset
                     raise DisplayError(f"{self.url}: the device's watchdog tripped during playback (frame {index}); "
                                        "frames arrived too late. It stays at zero; the next use arms it again")
                 if message.status in _LINK_LOST:
@@ -233,6 +247,7 @@ class UdpDisplay(Display):
         skipped, diverged = 0, False
         last = np.zeros(wire.shape[1], dtype="<f4")
         start = time.perf_counter_ns() + ahead_ns  # frame k is due at start + k period (host clock)
+        first_due = int(round(start + offset_ns))  # frame 0's, on the device's clock
         try:
             k = 0
             while k < n:
@@ -278,6 +293,8 @@ class UdpDisplay(Display):
                     collect()
                     if np.count_nonzero(ack_ns[:sent]) > before:
                         end = max(end, time.perf_counter_ns() + patience_ns)
+        except _EndedBeforeOnset:
+            raise
         except BaseException:
             link.send_zero()  # no wait: the caller may be unwinding a signal; it zeroes again
             raise
@@ -307,3 +324,7 @@ class UdpDisplay(Display):
             skipped=skipped,
             foreign=self.link.found(),
         )
+
+
+class _EndedBeforeOnset(Exception):
+    """The device's watchdog ended the link before the stimulus's first frame was due."""
