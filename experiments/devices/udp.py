@@ -84,7 +84,7 @@ class UdpDisplay(Display):
     ack_timeout_s : float
         How long one try of an exchange waits (ARM, ZERO, DISARM; each is tried ``zero_retries``
         times), and how long after a frame's due time its ACK may come before it counts as late,
-        s (> 0).
+        s (> 0; default 0.2: a device process on a busy host may answer that late).
     zero_retries : int
         Attempts of each ARM, ZERO and DISARM exchange before giving up (>= 1).
     max_skipped_fraction : float
@@ -99,7 +99,7 @@ class UdpDisplay(Display):
     """
 
     def __init__(self, description, host: str = "127.0.0.1", port: int = 9000, *,
-                 command: str | None = None, ack_timeout_s: float = 0.05, zero_retries: int = 3,
+                 command: str | None = None, ack_timeout_s: float = 0.2, zero_retries: int = 3,
                  max_skipped_fraction: float = 0.01, pairing_key: bytes | None = None) -> None:
         super().__init__(description, command)
         if isinstance(port, bool) or not isinstance(port, int) or not 0 < port < 65536:
@@ -282,9 +282,8 @@ class UdpDisplay(Display):
                             collect()
             # stopped: no wait, the ZERO below drops the frames still in the device's FIFO
             sent_whole = not (self.stop_requested or skipped > allowed_skips)
-            # the device acknowledges a frame when its tick applies it, at its due time: wait for them,
-            # as long as the device's own watchdog time (a device slower than that is at fault)
-            patience_ns = max(self.ack_timeout_s, link.watchdog_s or 0.0) * 1e9
+            # the device acknowledges a frame when its tick applies it, at its due time: wait for them
+            patience_ns = self.ack_timeout_s * 1e9
             end = (int(due_ns[sent - 1]) if sent else time.perf_counter_ns()) + patience_ns
             while sent_whole and np.any(ack_ns[:sent] == 0) and (remaining := max(end, 0) - time.perf_counter_ns()) > 0:
                 readable, _, _ = select.select([link.sock], [], [], remaining / 1e9)
