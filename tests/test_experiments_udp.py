@@ -292,6 +292,7 @@ def test_wrong_tractor_count_and_watchdog_trip_raise_and_zero(tmp_path):
         with pytest.raises(DisplayError, match=r"the device has 4 tractors, display 'VirtualBrailleRow' has 10"):
             safe.play()
         assert events[-1]["kind"] == "zero_on_exception"
+        safe.close()  # its link ends: the device may be armed by the next host
         # 20 Hz frames against a 5 ms watchdog: the device trips, then refuses frames.
         safe = SafeDisplay(UdpDisplay(DisplayDescription.braille_row(n_tractors=4, lookahead_s=0.0), LOOPBACK, port,
                                       ack_timeout_s=0.2, pairing_key=PAIRING_KEY), events.append)
@@ -299,6 +300,7 @@ def test_wrong_tractor_count_and_watchdog_trip_raise_and_zero(tmp_path):
         with pytest.raises(DisplayError, match="watchdog tripped during playback"):
             safe.play()
         assert events[-1]["kind"] == "zero_on_exception"
+        safe.close()
     finally:
         out = stop_emulator(proc)
     assert "watchdog: no frame for" in out
