@@ -5,17 +5,16 @@ drive the device while the link was down, the host's look at ``frames_applied`` 
 
 from __future__ import annotations
 
-import threading
 import time
 
 import numpy as np
 import pytest
-from udp_pairing import KEY, WRONG_KEY
+from udp_pairing import KEY, WRONG_KEY, emulator_thread
 
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
 from tactilab.experiments.devices import DisplayFault
-from tactilab.experiments.devices.emulator import emulate, read_record
+from tactilab.experiments.devices.emulator import read_record
 from tactilab.experiments.devices.link import ARM, ARMED, DISARM, FRAME, STATUS, encode
 from tactilab.experiments.devices.udp import UdpDisplay
 from tactilab.experiments.devices.udp_link import HostLink, RawLink
@@ -38,22 +37,10 @@ def start(tmp_path):
     stops = []
 
     def run(watchdog_s: float = 30.0):
-        stop, logs, record, result = threading.Event(), [], tmp_path / "link.jsonl", {}
-        thread = threading.Thread(target=lambda: result.update(summary=emulate(
-            0, watchdog_s=watchdog_s, record=record, max_seconds=120, log=logs.append, stop=stop,
-            handle_signals=False, limits=DESC, pairing_key=KEY)), daemon=True)
-        thread.start()
-        while not logs:
-            assert thread.is_alive(), "the emulator ended before listening"
-            time.sleep(0.005)
-
-        def finish():
-            stop.set()
-            thread.join(timeout=10)
-            return result["summary"]
-
+        record = tmp_path / "link.jsonl"
+        port, finish, _ = emulator_thread(watchdog_s=watchdog_s, record=record, limits=DESC)
         stops.append(finish)
-        return int(logs[0].split(":")[2].split()[0]), finish, record
+        return port, finish, record
 
     yield run
     for finish in stops:

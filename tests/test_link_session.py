@@ -4,16 +4,14 @@ this host was descheduled, and the onset delay a UDP display states."""
 
 from __future__ import annotations
 
-import threading
 import time
 
 import numpy as np
 import pytest
-from udp_pairing import KEY
+from udp_pairing import KEY, emulator_thread
 
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.experiments.devices import DisplayError, SafeDisplay
-from tactilab.experiments.devices.emulator import emulate
 from tactilab.experiments.devices.udp import UdpDisplay
 from tactilab.experiments.devices.udp_link import HostLink
 
@@ -36,14 +34,7 @@ def test_the_keep_alive_arms_again_after_a_trip_between_stimuli():
     """The host holds its link busy (a process descheduled for 3 watchdog times): the device zeroes and
     ends the link; the keep-alive finds it ended and arms again at once (the ARMED's counter shows no
     foreign frame), and the next stimulus plays on the new link."""
-    stop, logs, result = threading.Event(), [], {}
-    thread = threading.Thread(target=lambda: result.update(summary=emulate(
-        0, watchdog_s=0.3, max_seconds=60, log=logs.append, stop=stop, handle_signals=False, limits=DESC,
-        pairing_key=KEY)), daemon=True)
-    thread.start()
-    while not logs:
-        time.sleep(0.005)
-    port = int(logs[0].split(":")[2].split()[0])
+    port, finish, logs = emulator_thread(watchdog_s=0.3, limits=DESC)
     display = UdpDisplay(DESC, "127.0.0.1", port, pairing_key=KEY, max_skipped_fraction=1.0)
     try:
         display.zero()
@@ -58,9 +49,7 @@ def test_the_keep_alive_arms_again_after_a_trip_between_stimuli():
         assert (report.acked, report.foreign) == (20, 0)
     finally:
         display.close()
-        stop.set()
-        thread.join(timeout=10)
-    summary = result["summary"]
+        summary = finish()
     assert (summary.watchdog_trips, summary.sessions, summary.frames_applied) == (1, 2, 20)
 
 
@@ -74,14 +63,8 @@ def test_a_udp_display_states_its_onset_delay():
 
 
 def test_a_device_fifo_too_small_for_the_lookahead_is_a_clear_error():
-    stop, logs = threading.Event(), []
-    thread = threading.Thread(target=emulate, kwargs=dict(port=0, watchdog_s=1.0, max_seconds=60, log=logs.append,
-                                                          stop=stop, handle_signals=False, limits=DESC,
-                                                          pairing_key=KEY, fifo_frames=20), daemon=True)
-    thread.start()
-    while not logs:
-        time.sleep(0.005)
-    display = UdpDisplay(DESC, "127.0.0.1", int(logs[0].split(":")[2].split()[0]), pairing_key=KEY)
+    port, finish, _ = emulator_thread(watchdog_s=1.0, limits=DESC, fifo_frames=20)
+    display = UdpDisplay(DESC, "127.0.0.1", port, pairing_key=KEY)
     try:
         display.load(np.zeros((5, 2)), 1000.0)
         with pytest.raises(DisplayError, match=r"lookahead_s 0.05 s at 1000 Hz needs 52 frames in the device's FIFO, "
@@ -89,8 +72,7 @@ def test_a_device_fifo_too_small_for_the_lookahead_is_a_clear_error():
             display.play()
     finally:
         display.close()
-        stop.set()
-        thread.join(timeout=10)
+        finish()
 
 
 def test_a_key_file_that_changes_while_it_is_read_is_refused(tmp_path, monkeypatch):
@@ -111,13 +93,7 @@ def test_a_link_ended_before_the_onset_starts_the_stimulus_again(monkeypatch):
     """This host is descheduled between a stimulus's opening ZERO and its first frame, long enough for
     the device's watchdog: the device answers `disarmed` before the first frame was due, so nothing of
     the stimulus was applied; the host arms again and plays the whole stimulus on the new link."""
-    stop, logs, result = threading.Event(), [], {}
-    thread = threading.Thread(target=lambda: result.update(summary=emulate(
-        0, watchdog_s=0.1, max_seconds=60, log=logs.append, stop=stop, handle_signals=False, limits=DESC,
-        pairing_key=KEY)), daemon=True)
-    thread.start()
-    while not logs:
-        time.sleep(0.005)
+    port, finish, logs = emulator_thread(watchdog_s=0.1, limits=DESC)
     real_check, stalls = UdpDisplay._check_device, []
 
     def stall_once(self, rate):
@@ -128,15 +104,12 @@ def test_a_link_ended_before_the_onset_starts_the_stimulus_again(monkeypatch):
         real_check(self, rate)
 
     monkeypatch.setattr(UdpDisplay, "_check_device", stall_once)
-    display = UdpDisplay(DESC, "127.0.0.1", int(logs[0].split(":")[2].split()[0]), pairing_key=KEY,
-                         max_skipped_fraction=1.0)
+    display = UdpDisplay(DESC, "127.0.0.1", port, pairing_key=KEY, max_skipped_fraction=1.0)
     try:
         display.load(np.full((30, 2), 0.0), 1000.0)
         report = display.play()
         assert (report.acked, report.rejected, report.foreign, display.link.rearms) == (30, 0, 0, 1)
     finally:
         display.close()
-        stop.set()
-        thread.join(timeout=10)
-    summary = result["summary"]
+        summary = finish()
     assert (summary.watchdog_trips, summary.sessions, summary.frames_applied) == (1, 2, 30)

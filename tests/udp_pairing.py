@@ -28,3 +28,28 @@ def paired_description(folder: Path, description, name: str = "display.json") ->
     """Save ``description`` to ``folder / name`` naming a key file next to it (``display.key``)."""
     key_file(folder)
     return description.replace(pairing_key_file="display.key").save(Path(folder) / name)
+
+
+def emulator_thread(**kwargs):
+    """The emulator in a thread on a free loopback port with :data:`KEY` (keywords go to ``emulate``);
+    returns ``(port, finish, logs)``: ``finish()`` stops it and returns its summary."""
+    import threading
+    import time
+
+    from tactilab.experiments.devices.emulator import emulate
+
+    stop, logs, result = threading.Event(), [], {}
+    options = {"port": 0, "max_seconds": 120, "log": logs.append, "stop": stop, "handle_signals": False,
+               "pairing_key": KEY, **kwargs}
+    thread = threading.Thread(target=lambda: result.update(summary=emulate(**options)), daemon=True)
+    thread.start()
+    while not logs:
+        assert thread.is_alive(), "the emulator ended before listening"
+        time.sleep(0.005)
+
+    def finish():
+        stop.set()
+        thread.join(timeout=10)
+        return result.get("summary")
+
+    return int(logs[0].split(":")[2].split()[0]), finish, logs

@@ -34,7 +34,8 @@ A frame is late when the tick that applied it came more than ``late_after_s`` af
 time. Missing frames are gaps in the sequence numbers.
 
 It binds to 127.0.0.1 only (loopback), stops after ``max_seconds`` or on SIGTERM / SIGINT, and
-writes a JSON-lines record (one line per applied frame, clamp or event, flushed at once) that
+writes a JSON-lines record (one line per applied frame, clamp or event; flushed at once, frame lines
+while more frames wait at least every 20 ms) that
 :func:`read_record` loads.
 """
 
