@@ -277,12 +277,12 @@ class UdpDisplay(Display):
                     sent_ns[sent], due_ns[sent], frame_of[sent] = time.perf_counter_ns(), int(due), k
                     last, sent, k = values, sent + 1, k + 1
                 collect()
-                if k < n:  # sleep until the next batch enters the lookahead, collecting ACKs meanwhile
-                    wait_ns = start + (k + batch - 1) * period_ns - ahead_ns - time.perf_counter_ns()
-                    if wait_ns > 0:
-                        readable, _, _ = select.select([link.sock], [], [], wait_ns / 1e9)
-                        if readable:
-                            collect()
+                # sleep until the next batch enters the lookahead, collecting ACKs meanwhile
+                send_at = start + (k + batch - 1) * period_ns - ahead_ns
+                while k < n and (wait_ns := send_at - time.perf_counter_ns()) > 0 and not self.stop_requested:
+                    readable, _, _ = select.select([link.sock], [], [], wait_ns / 1e9)
+                    if readable:
+                        collect()
             # stopped: no wait, the ZERO below drops the frames still in the device's FIFO
             sent_whole = not (self.stop_requested or skipped > allowed_skips)
             # the device acknowledges a frame when its tick applies it, at its due time: wait for them
