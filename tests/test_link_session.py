@@ -113,3 +113,23 @@ def test_a_link_ended_before_the_onset_starts_the_stimulus_again(monkeypatch):
         display.close()
         summary = finish()
     assert (summary.watchdog_trips, summary.sessions, summary.frames_applied) == (1, 2, 30)
+
+
+def test_a_link_that_keeps_ending_before_the_onset_is_a_clear_error(monkeypatch):
+    from tactilab.experiments.devices import udp
+
+    port, finish, _ = emulator_thread(watchdog_s=1.0, limits=DESC)
+
+    def ended(self, *args):
+        raise udp._EndedBeforeOnset
+
+    monkeypatch.setattr(UdpDisplay, "_stream", ended)
+    display = UdpDisplay(DESC, "127.0.0.1", port, pairing_key=KEY)
+    try:
+        display.load(np.zeros((5, 2)), 1000.0)
+        with pytest.raises(DisplayError, match=r"the device's watchdog ended the link before the stimulus began, "
+                                               r"three times; this host is descheduled"):
+            display.play()
+    finally:
+        display.close()
+        finish()

@@ -197,14 +197,13 @@ class UdpDisplay(Display):
                 try:
                     return self._stream(frames.astype("<f4"), frame_rate_hz, link.clock_offset_ns())
                 except _EndedBeforeOnset:
+                    # the device's watchdog ended the link between the opening ZERO and the first frame
+                    # (this host was descheduled): it answered before the first frame was due, so nothing
+                    # was applied, and the stimulus starts again on a new link
                     if attempt == 2:
                         raise DisplayError(f"{self.url}: the device's watchdog ended the link before the stimulus "
                                            "began, three times; this host is descheduled for longer than the "
                                            "device's watchdog time (a busy machine?)") from None
-
-    # the device's watchdog ended the link between this stimulus's opening ZERO and its first frame (this
-    # host was descheduled): its answer came before the first frame was due, so nothing was applied,
-    # and the stimulus starts again on a new link
 
     def _stream(self, wire: np.ndarray, frame_rate_hz: float, offset_ns: int) -> PlaybackReport:
         link, n = self.link, wire.shape[0]
