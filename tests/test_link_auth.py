@@ -15,7 +15,7 @@ import zlib
 
 import numpy as np
 import pytest
-from udp_pairing import KEY, WRONG_KEY
+from udp_pairing import KEY, WRONG_KEY, emulator_thread
 
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.experiments.devices.display import DisplayError
@@ -33,21 +33,9 @@ DESC = DisplayDescription.braille_row(n_tractors=2)
 def device(tmp_path):
     """The emulator in a thread with DESC's limits (watchdog 30 s: no session expires while a test
     waits for a subprocess on a loaded machine); yields (port, finish() -> summary, record, logs)."""
-    stop, logs, record, result = threading.Event(), [], tmp_path / "link.jsonl", {}
-    thread = threading.Thread(target=lambda: result.update(summary=emulate(
-        0, watchdog_s=30.0, record=record, max_seconds=120, log=logs.append, stop=stop, handle_signals=False,
-        limits=DESC, pairing_key=KEY)), daemon=True)
-    thread.start()
-    while not logs:
-        assert thread.is_alive(), "the emulator ended before listening"
-        time.sleep(0.005)
-
-    def finish():
-        stop.set()
-        thread.join(timeout=10)
-        return result["summary"]
-
-    yield int(logs[0].split(":")[2].split()[0]), finish, record, logs
+    record = tmp_path / "link.jsonl"
+    port, finish, logs = emulator_thread(watchdog_s=30.0, record=record, limits=DESC)
+    yield port, finish, record, logs
     finish()
 
 
