@@ -10,6 +10,25 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 
+#: every warning printed during the current command, one line each: ``main()`` empties it when a command starts
+#: and routes every warning through :func:`print_warning`, so a run summary counts all it printed
+PRINTED_WARNINGS: list[str] = []
+
+
+def print_warning(command: str, message) -> str:
+    """Print ``message`` as one ``tactilab COMMAND: warning: ...`` line on stderr and count it.
+
+    The one path for warnings: ``main()``'s ``warnings.showwarning``, :meth:`RunReport.collecting_warnings`
+    and a command's own notices all come here, so every warning printed is in the summary's count.
+    """
+    from tactilab.core.outputs import printable
+
+    text = printable(" ".join(str(message).split()))
+    print(f"tactilab {command}: warning: {text}", file=sys.stderr)
+    PRINTED_WARNINGS.append(text)
+    return text
+
+
 def make_out(folder: Path, option: str = "--out") -> Path:
     """Create the output folder first, so a bad path fails before the computation, in one line."""
     try:
@@ -71,7 +90,8 @@ class RunReport:
     dropped : list of str
         What was left out and why (sensors, samples, components, ...); empty when nothing was.
     warnings : list of str
-        Warnings issued during the run (one line each).
+        Every warning printed during the command, one line each (read-only: :data:`PRINTED_WARNINGS`,
+        which also holds those printed before the report existed, e.g. while reading options).
     out : Path or None
         Output folder; ``files`` lists the files written there.
     data : dict
@@ -83,7 +103,6 @@ class RunReport:
     method: str = ""
     error_estimate: str = "not estimated"
     dropped: list[str] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
     out: Path | None = None
     files: list[str] = field(default_factory=list)
     data: dict = field(default_factory=dict)
@@ -95,14 +114,21 @@ class RunReport:
         self._before = _files_below(self.out)
         return self.out
 
+    @property
+    def warnings(self) -> list[str]:
+        """Every warning printed during this command (see :func:`print_warning`)."""
+        return list(PRINTED_WARNINGS)
+
     @contextlib.contextmanager
     def collecting_warnings(self):
-        """Collect warnings raised inside (each printed as one line on stderr and kept for the summary).
+        """Print every warning raised inside, repeated ones too, through :func:`print_warning` (so the
+        summary counts it).
 
         The caller's filters stay in force, so ``tactilab --strict`` still turns plausibility warnings
         into errors.
         """
-        with warnings.catch_warnings(record=True) as caught:
+        with warnings.catch_warnings():
+            warnings.showwarning = lambda message, *_, **__: print_warning(self.command, message)
             errors = [f for f in warnings.filters if f[0] == "error"]
             warnings.simplefilter("always", UserWarning)  # every run reports its own, repeated or not
             warnings.simplefilter("always", RuntimeWarning)
@@ -110,10 +136,6 @@ class RunReport:
                 warnings.filterwarnings("error", message.pattern if message else "", category,
                                         module.pattern if module else "", lineno)
             yield
-        for w in caught:
-            text = " ".join(str(w.message).split())
-            print(f"tactilab {self.command}: warning: {text}", file=sys.stderr)
-            self.warnings.append(text)
 
     def as_dict(self) -> dict:
         """The summary as a JSON-ready dict."""
