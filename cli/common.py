@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import sys
 import warnings
 from dataclasses import dataclass, field
@@ -67,6 +68,37 @@ def choose_out(out: Path | None, default: Path, force: bool = False, option: str
         k += 1
         candidate = default.with_name(f"{default.name}-{k}")
     return make_out(candidate, option)
+
+
+@contextlib.contextmanager
+def staged_outputs(out: Path, created: bool = False):
+    """Yield a hidden staging folder inside ``out``; move what was written there into ``out`` only when the
+    block succeeds.
+
+    A run that fails part-way (an error, or a warning that ``--strict`` turns into one) leaves no partial
+    output behind: the staging folder is removed, and ``out`` itself too when the run created it and it
+    is still empty. On success each file replaces its namesake in ``out`` (``--force`` was checked by
+    :func:`choose_out`).
+    """
+    import shutil
+    import tempfile
+
+    out = Path(out)
+    stage = Path(tempfile.mkdtemp(prefix=".tactilab-partial-", dir=out))
+    try:
+        yield stage
+        for path in sorted(stage.rglob("*")):
+            target = out / path.relative_to(stage)
+            if path.is_dir():
+                target.mkdir(exist_ok=True)
+            else:
+                os.replace(path, target)
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        if created and not any(out.iterdir()):
+            out.rmdir()  # refused: leave no empty folder behind
+        raise
+    shutil.rmtree(stage, ignore_errors=True)
 
 
 def _files_below(folder: Path) -> dict[str, float]:
