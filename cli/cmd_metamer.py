@@ -11,7 +11,7 @@ import json
 from pathlib import Path
 
 from .batch_options import add_worker_options, batch_where, wants_batch
-from .common import check_hypothesis, make_out
+from .common import check_hypothesis, choose_out, make_out
 
 NAME = "metamer"
 HELP = ("tactile metamer of a sinusoidal surface on a tractor display: residual, d' and tractor loads (N/mm) "
@@ -37,7 +37,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--receptors", default="201", help="number of receptors in the window, an integer >= 2 (default 201)")
     parser.add_argument("--scan", default="32", help="frames of a travelling scan over one pitch, an integer >= 1 (default 32)")
     parser.add_argument("--unbounded", action="store_true", help="ignore the display's load limits")
-    parser.add_argument("--out", type=Path, default=None, help="folder for the PNGs (default: metamer-<display>)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="folder for the PNGs (default: a new folder metamer-<display>, then -2, -3, ...); an "
+                             "existing non-empty one needs --force; with --scan-* the batch folder (default "
+                             "metamer-scan; the same folder resumes)")
+    parser.add_argument("--force", action="store_true",
+                        help="write into an existing, non-empty --out folder (files of the same name are replaced)")
     parser.add_argument("--json", action="store_true", help="print one JSON object (SI units) instead of text")
     scan = add_worker_options(parser, default_help="serial in-process")
     scan.add_argument("--scan-pitch", default=None, metavar="LIST",
@@ -175,7 +180,7 @@ def run(args: argparse.Namespace) -> int:
     window = _quantity(args.window, "length", "--window")
     x = np.linspace(-window / 2, window / 2, _count(args.receptors, "--receptors", 2))
     frames = _count(args.scan, "--scan", 1)
-    out = make_out(args.out if args.out is not None else Path(f"metamer-{description.display_id}"))
+    out = choose_out(args.out, Path(f"metamer-{description.display_id}"), args.force)
 
     tractors = TractorFamily.from_display(description, young)
     grating = SinusoidFamily(target_spec["pitch"], target_spec["phase"])
