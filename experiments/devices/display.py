@@ -55,7 +55,16 @@ DEFAULT_YOUNG_MODULUS_PA = 1.0e6
 
 
 class DisplayError(RuntimeError):
-    """A display could not do what was asked (no device answer, nothing loaded, ...)."""
+    """A display could not do what was asked (no device answer, nothing loaded, ...).
+
+    Attributes
+    ----------
+    frames_sent : int or None
+        For an error during ``play()``: the frames sent before it (count), so the session reports
+        what the display actually played; None where unknown or not during playback.
+    """
+
+    frames_sent: int | None = None
 
 
 @dataclass(frozen=True)
