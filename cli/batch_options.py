@@ -80,7 +80,8 @@ def run_invert_batch(args: argparse.Namespace) -> int:
     tree = invert_many(args.batch, args.scene, seed=getattr(args, "seed", 0), out_dir=out, workers=args.workers,
                        scheduler=args.scheduler, sample=sample, max_data=getattr(args, "max_data", 1500),
                        criterion=getattr(args, "criterion", "evidence"), sampler_options={"max_steps": max_steps},
-                       progress=not getattr(args, "quiet", False))
+                       progress=not getattr(args, "quiet", False),
+                       allow_scene_mismatch=getattr(args, "allow_scene_mismatch", False))
     a = tree.attrs
     print(f"batch: {a['n_run']} recording(s) inverted, {a['n_skipped']} skipped (done before), "
           f"{a['n_failed']} failed, {a['wall_s']:.1f} s (+ {a['gather_s']:.1f} s reading the results back)")

@@ -31,6 +31,7 @@ _EXPORTS = {
     "sample_scene_posterior": "mcmc",
     "invert_defect_position": "scene_inversion",
     "defect_profile": "scene_inversion",
+    "check_scene_recording": "scene_check",
     "DefectScanModel": "scene_params",
     "defect_footprint": "scene_params",
     "Uniform": "priors",
