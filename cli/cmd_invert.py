@@ -67,6 +67,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.max_steps < 1:
         raise ValueError(f"--max-steps: must be >= 1 step, got {args.max_steps}; e.g. 20000")
+    from tactilab.inversion import check_max_steps
+
+    if args.method in ("all", "mcmc"):  # x0, y0 and the extra parameters (the defect area is integrated out)
+        check_max_steps(args.max_steps, 2 + len([q for q in args.sample.split(",") if q.strip()]), name="--max-steps")
     if args.max_data < 10:
         raise ValueError(f"--max-data: must be >= 10 values, got {args.max_data}; e.g. 1500")
     scene = load_scene(args.scene)

@@ -85,6 +85,28 @@ def _display(spec: str):
     raise ValueError(f"--display: must be one of {', '.join(PRESETS)} or an existing .json display description, got {spec!r}")
 
 
+#: bytes per frame of a travelling scan: its phase and its relative residual (float64 each)
+SCAN_FRAME_BYTES = 16
+
+
+def _receptors(args, n_tractors: int, hypothesis) -> "np.ndarray":
+    """The receptor x positions (m), after the memory rule (before the array exists)."""
+    import numpy as np
+
+    from tactilab.inversion import check_receptor_memory
+
+    window = _quantity(args.window, "length", "--window")
+    n = check_receptor_memory(_count(args.receptors, "--receptors", 2), n_tractors, hypothesis.n_depths, "--receptors")
+    return np.linspace(-window / 2, window / 2, n)
+
+
+def _scan_frames(args) -> int:
+    from tactilab.core.memory import check_count
+
+    return check_count(_count(args.scan, "--scan", 1), SCAN_FRAME_BYTES, "--scan",
+                       "frames (a phase and a residual each)")
+
+
 def _count(text: str, name: str, minimum: int) -> int:
     try:
         value = int(text)
@@ -125,13 +147,13 @@ def _scan(args: argparse.Namespace) -> int:
               if args.scan_phase is not None else [target["phase"]])
     displays = [_display(t.strip()) for t in (args.scan_display or args.display).split(",") if t.strip()]
     hypothesis = check_hypothesis(args.hypothesis, "--hypothesis").with_noise(_quantity(args.noise, "dimensionless", "--noise"))
-    window = _quantity(args.window, "length", "--window")
-    x = np.linspace(-window / 2, window / 2, _count(args.receptors, "--receptors", 2))
+    x = _receptors(args, max(np.size(d.tractor_x_m) for d in displays), hypothesis)
+    frames = _scan_frames(args)
     out = make_out(args.out if args.out is not None else Path("metamer-scan"))
     scan = metamer_scan(pitches, phases, displays, hypothesis, amplitude=target["amplitude"],
                         young_modulus=_young_modulus(args.young_modulus), receptors=x,
                         out_dir=out, bounds=None if args.unbounded else "family",
-                        scan_frames=_count(args.scan, "--scan", 1), progress=not args.json,
+                        scan_frames=frames, progress=not args.json,
                         echo=(lambda _: None) if args.json else print, **batch_where(args))
     a = scan.attrs
     points = []
@@ -177,9 +199,9 @@ def run(args: argparse.Namespace) -> int:
     noise = _quantity(args.noise, "dimensionless", "--noise")
     hypothesis = check_hypothesis(args.hypothesis, "--hypothesis").with_noise(noise)
     young = _young_modulus(args.young_modulus)
-    window = _quantity(args.window, "length", "--window")
-    x = np.linspace(-window / 2, window / 2, _count(args.receptors, "--receptors", 2))
-    frames = _count(args.scan, "--scan", 1)
+    x = _receptors(args, np.size(description.tractor_x_m), hypothesis)
+    window = float(x[-1] - x[0])
+    frames = _scan_frames(args)
     out = choose_out(args.out, Path(f"metamer-{description.display_id}"), args.force)
 
     tractors = TractorFamily.from_display(description, young)

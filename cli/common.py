@@ -210,6 +210,21 @@ def _json_default(value):
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
+@contextlib.contextmanager
+def renamed(mapping: dict[str, str]):
+    """Re-word a library error that names a parameter (``max_steps: ...; give max_steps at most N``) so it
+    names the command-line option that sets it (``--max-steps``)."""
+    try:
+        yield
+    except ValueError as exc:
+        text = str(exc)
+        for parameter, option in mapping.items():
+            if text.startswith(parameter + ":"):
+                rest = text[len(parameter):].replace(f"give {parameter} at most", f"give {option} at most")
+                raise ValueError(option + rest) from None
+        raise
+
+
 def check_hypothesis(text: str, option: str):
     """Parse a receptor hypothesis (``zx@1mm``) given on the command line; an error names the option.
 

@@ -12,7 +12,7 @@ import math
 from pathlib import Path
 
 from .batch_options import add_worker_options, batch_where, wants_batch
-from .common import check_hypothesis, make_out
+from .common import check_hypothesis, make_out, renamed
 
 _JSON_HELP = "print one JSON object (the summary, SI units or units in the key names) instead of text"
 _FORCE_HELP = "replace PNGs of the same name that an earlier run wrote (without it they are refused)"
@@ -172,9 +172,10 @@ def run_compare(args: argparse.Namespace) -> int:
 
     display = _recorded_display(args.sessions) if args.source == "display" else None
     path = _figure(args, "compare.png")  # checked before the fits
-    table, fits = compare_sessions(args.sessions, args.model, statistic=args.statistic, rng=args.seed,
-                                   method=args.method, sampler_options=_sampler(args), source=args.source,
-                                   display=display)
+    with renamed({"max_steps": "--max-steps"}):  # emcee's memory rule names the option
+        table, fits = compare_sessions(args.sessions, args.model, statistic=args.statistic, rng=args.seed,
+                                       method=args.method, sampler_options=_sampler(args), source=args.source,
+                                       display=display)
     plot_comparison(table, fits, path)
     if args.json:
         print(json.dumps({"command": "experiment compare", "models": {
@@ -273,6 +274,13 @@ def run_power(args: argparse.Namespace) -> int:
     check_hypothesis(args.true_model, "--true")
     check_hypothesis(args.rival, "--rival")
     design = read_design(args.design)
+    if args.seeds is not None:  # the sweep's sizes and memory, before anything is computed or written
+        from tactilab.experiments.modelling.batch import check_power_sweep
+
+        n_design = sum(n for _, n in design)
+        ns = ns if ns is not None else [n_design, 2 * n_design, 4 * n_design]
+        with renamed({"n_seeds": "--seeds", "n_repeats": "--repeats", "n_trials": "--trials"}):
+            check_power_sweep(ns, args.seeds, args.repeats)
     path = new_file(args.out / "power.png", args.force)  # before the computation: an earlier run's PNG stays
     true_model, rival = TransductionModel(args.true_model), TransductionModel(args.rival)
     threshold = args.threshold
@@ -291,10 +299,10 @@ def run_power(args: argparse.Namespace) -> int:
     if args.seeds is not None:
         from tactilab.experiments.modelling import power_sweep
 
-        ns = ns if ns is not None else [n_design, 2 * n_design, 4 * n_design]
         sweep = power_sweep(true_model, params, rival, design, ns, n_seeds=args.seeds, seed=args.seed,
-                            out_dir=args.out / "power-batch", task=args.task, n_repeats=args.repeats, progress=not args.json,
-                            echo=(lambda _: None) if args.json else print, **batch_where(args))
+                            out_dir=args.out / "power-batch", task=args.task, n_repeats=args.repeats,
+                            progress=not args.json, echo=(lambda _: None) if args.json else print,
+                            **batch_where(args))
     need = {z: result.trials_for(z) for z in (2.0, 4.0)}
     if args.json:
         summary = dict(command="experiment power", true=args.true_model, rival=args.rival, threshold_strain=threshold,

@@ -32,6 +32,8 @@ _EXPORTS = {
     "invert_defect_position": "scene_inversion",
     "defect_profile": "scene_inversion",
     "check_scene_recording": "scene_check",
+    "check_receptor_memory": "metamer_families",
+    "check_max_steps": "sampler",
     "DefectScanModel": "scene_params",
     "defect_footprint": "scene_params",
     "Uniform": "priors",
