@@ -24,13 +24,6 @@ def test_contact_strict_failure_keeps_an_existing_folder_as_it_was(tmp_path, cap
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
 
 
-def test_contact_without_strict_writes_everything_after_the_warning(tmp_path, capsys):
-    out = tmp_path / "c"
-    assert main(["contact", *SOFT, "--out", str(out)]) == 0
-    assert "warnings: 1" in capsys.readouterr().out
-    assert sorted(p.name for p in out.iterdir()) == ["contact.nc", "pressure.png", "strain.nc", "strain.png"]
-
-
 def test_stress_strict_failure_writes_nothing(tmp_path, capsys):
     load = tmp_path / "load.npz"
     np.savez(load, p=np.full((16, 16), 5e4), spacing=1e-4)  # 50 kPa on 1 kPa skin: far above small strain

@@ -23,16 +23,18 @@ def _stress_load(tmp_path):
     return load
 
 
-@pytest.mark.parametrize("argv", [
+@pytest.mark.parametrize("argv, as_json", [
     # an option's plausibility warning, printed before the summary exists (was "warnings: 0")
-    lambda tmp: ["simulate", str(EXAMPLES / "fingerprint_texture.toml"), "--grid-spacing", "50m", "--no-plots",
-                 "--quiet", "--out", str(tmp / "sim")],
+    (lambda tmp: ["simulate", str(EXAMPLES / "fingerprint_texture.toml"), "--grid-spacing", "50m", "--no-plots",
+                  "--quiet", "--out", str(tmp / "sim")], False),
+    (lambda tmp: ["simulate", str(EXAMPLES / "fingerprint_texture.toml"), "--grid-spacing", "50m", "--no-plots",
+                  "--quiet", "--out", str(tmp / "sim")], True),
     # a command whose computation has no collecting block (was "warnings: 0")
-    lambda tmp: ["synthesis", "--depth", "125mm", "--width", "1m", "--no-sensitivity"],
+    (lambda tmp: ["synthesis", "--depth", "125mm", "--width", "1m", "--no-sensitivity"], False),
+    (lambda tmp: ["synthesis", "--depth", "125mm", "--width", "1m", "--no-sensitivity"], True),
     # a warning inside the computation's collecting block
-    lambda tmp: ["stress", str(_stress_load(tmp)), "--depth", "1um", "--out", str(tmp / "o")],
-], ids=["simulate", "synthesis", "stress"])
-@pytest.mark.parametrize("as_json", [False, True], ids=["text", "json"])
+    (lambda tmp: ["stress", str(_stress_load(tmp)), "--depth", "1um", "--out", str(tmp / "o")], False),
+], ids=["simulate-text", "simulate-json", "synthesis-text", "synthesis-json", "stress-text"])
 def test_summary_counts_every_printed_warning(tmp_path, capsys, argv, as_json):
     assert main(argv(tmp_path) + (["--json"] if as_json else [])) == 0
     out, err = capsys.readouterr()
