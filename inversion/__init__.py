@@ -33,7 +33,7 @@ _EXPORTS = {
     "defect_profile": "scene_inversion",
     "check_scene_recording": "scene_check",
     "check_receptor_memory": "metamer_families",
-    "check_max_steps": "sampler",
+    "check_max_steps": "chain_memory",
     "DefectScanModel": "scene_params",
     "defect_footprint": "scene_params",
     "Uniform": "priors",
