@@ -9,7 +9,7 @@ from pathlib import Path
 
 from tactilab.core.outputs import printable
 
-from .common import RunReport, make_out
+from .common import PRINTED_WARNINGS, RunReport, make_out, print_warning
 
 from .experiment_analysis import add_subcommands as add_analysis_subcommands
 
@@ -198,8 +198,8 @@ def _zero_and_close(display, responses, report: bool) -> None:
             display.zero()
         except Exception as exc:  # noqa: BLE001 - the device may be what failed
             if report:
-                print(f"tactilab experiment: warning: final ZERO failed ({' '.join(str(exc).split())}); "
-                      "the device's watchdog zeroes it when frames stop", file=sys.stderr)
+                print_warning("experiment", f"final ZERO failed ({exc}); the device's watchdog zeroes it when "
+                              "frames stop")
     finally:
         try:
             responses.close()
@@ -228,7 +228,7 @@ def run(args: argparse.Namespace) -> int:
     except DisplayError as exc:
         path = getattr(args, "session_path", None)
         if path is not None and Path(path).is_file():  # the run's summary first: what was done, what failed
-            _print_summary(path, f"experiment {args.action}", args.json)
+            _print_summary(path, f"experiment {args.action}", args.json, list(PRINTED_WARNINGS))
         print(f"tactilab experiment: display error: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_DISPLAY_FAULT
 

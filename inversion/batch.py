@@ -25,6 +25,7 @@ import numpy as np
 from tactilab.core.batch import batch_client, result_path, run_batch, write_netcdf_atomic
 from tactilab.data_schemas.recording import Recording
 
+from .scene_check import check_scene_recording
 from .scene_inversion import defect_problem, defect_profile, invert_defect_position
 
 __all__ = ["invert_many", "recording_keys"]
@@ -94,6 +95,8 @@ def _invert_recording(item, rng: np.random.Generator, *, scene, options: dict):
 
     from tactilab.data_schemas.recording_io import read_recording
 
+    if not isinstance(item, Recording):  # a file records the scene that made it: it must be this one
+        check_scene_recording(scene, item, sample=options["sample"], allow_mismatch=options["allow_scene_mismatch"])
     rec = item if isinstance(item, Recording) else read_recording(item)
     problem = defect_problem(scene, rec, max_data=options["max_data"])  # once, for the position and the profile
     res, info = invert_defect_position(scene, rec, rng, sample=options["sample"], problem=problem,
@@ -139,7 +142,7 @@ def _invert_recording(item, rng: np.random.Generator, *, scene, options: dict):
 def invert_many(recordings, scene, *, client=None, seed: int, out_dir, workers: int | None = None,
                 scheduler: str | None = None, per_task: int = 1, sample=(), max_data: int = 1500, n_grid: int = 200,
                 criterion: str = "evidence", sampler_options: Mapping | None = None, progress: bool = True,
-                echo: Callable[[str], None] = print):
+                echo: Callable[[str], None] = print, allow_scene_mismatch: bool = False):
     """Defect position and load profile of many recordings of one scene, gathered along ``recording``.
 
     Parameters
@@ -166,6 +169,9 @@ def invert_many(recordings, scene, *, client=None, seed: int, out_dir, workers: 
         Further keywords of :func:`~.mcmc.sample_scene_posterior` (``max_steps``, ``n_walkers``, ...).
     progress : bool
         Progress bar over recordings.
+    allow_scene_mismatch : bool
+        Invert a recording file whose recorded scene differs from ``scene`` (with a warning) instead
+        of failing it (:func:`~.scene_check.check_scene_recording`).
 
     Returns
     -------
@@ -184,7 +190,7 @@ def invert_many(recordings, scene, *, client=None, seed: int, out_dir, workers: 
     if criterion not in ("gcv", "lcurve", "discrepancy", "evidence"):
         raise ValueError(f"criterion: must be one of gcv, lcurve, discrepancy, evidence, got {criterion!r}")
     items = recording_keys(recordings, exclude=out_dir)
-    options = dict(sample=tuple(sample), max_data=int(max_data), n_grid=int(n_grid), criterion=criterion,
+    options = dict(sample=tuple(sample), allow_scene_mismatch=bool(allow_scene_mismatch), max_data=int(max_data), n_grid=int(n_grid), criterion=criterion,
                    sampler=dict(sampler_options or {}, progress=False))
     with batch_client(workers, scheduler, client=client, echo=echo) as cl:
         report = run_batch(_invert_recording, items, seed=seed, out_dir=out_dir, client=cl,

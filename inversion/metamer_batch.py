@@ -19,9 +19,10 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 
 from tactilab.core.batch import read_result, run_batch, write_netcdf_atomic
+from tactilab.core.memory import check_count
 from tactilab.forward import ReceptorHypothesis
 
-from .metamer_families import SinusoidFamily, TractorFamily
+from .metamer_families import SinusoidFamily, TractorFamily, check_receptor_memory
 from .metameres import metamer_pair
 
 __all__ = ["metamer_scan"]
@@ -128,6 +129,10 @@ def metamer_scan(pitches: Sequence[float], phases: Sequence[float], displays, hy
     h = hypothesis if isinstance(hypothesis, ReceptorHypothesis) else ReceptorHypothesis.parse(str(hypothesis))
     x = np.asarray(receptors, dtype=float).reshape(-1)
     families = {str(k): TractorFamily.from_display(d, float(young_modulus)) for k, d in named.items()}
+    # the memory rule, before any point runs (a failure per point would hide it in errors.tsv)
+    check_receptor_memory(x.size, max(f.n_params for f in families.values()), h.n_depths)
+    if scan_frames is not None:
+        check_count(int(scan_frames), 16, "scan_frames", "frames (a phase and a residual each)")
     items = {f"display={d}/pitch={p!r}m/phase={ph!r}rad": {"display": d, "pitch": p, "phase": ph, "at": (i, j, k)}
              for i, d in enumerate(families) for j, p in enumerate(ps) for k, ph in enumerate(phs)}
     shared = dict(families=families, hypothesis=h, receptors=x, amplitude=float(amplitude), bounds=bounds,

@@ -35,6 +35,7 @@ from .metamer_families import (
     SinusoidFamily,
     StimulusFamily,
     _check_hypothesis,
+    check_families_memory,
     resolve_receptors,
 )
 from .metamer_grids import GridLoadFamily
@@ -245,6 +246,7 @@ def metamer_pair(target: FamilyStimulus, family: StimulusFamily, hypothesis: Rec
     if not 0 <= rc < 1:
         raise ValueError(f"rcond: must be in [0, 1), got {rcond!r}")
     r = resolve_receptors(receptors, family, target.family)
+    check_families_memory(r, h, family, target.family)  # the memory rule, for the largest of them
     bnds = _bounds(bounds, family)
     b = target.readout(h, r)
     if not np.any(b):  # 0/0: every stimulus would "match", and the residual would read 0

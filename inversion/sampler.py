@@ -40,6 +40,7 @@ import emcee
 import numpy as np
 from scipy.optimize import minimize
 
+from .chain_memory import check_max_steps, default_walkers
 from .pointwise import loo_ready
 
 __all__ = ["PosteriorModel", "sample_posterior", "mcmc_diagnostics"]
@@ -350,10 +351,10 @@ def sample_posterior(model: PosteriorModel, rng: np.random.Generator, *, n_ensem
         except Exception as exc:  # noqa: BLE001 (any pickling failure)
             raise ValueError(f"model: must be picklable to be sent to pool workers, pickling failed with {exc!r}; "
                              "keep only data and module-level functions on the model") from exc
-    n_walkers = int(n_walkers) if n_walkers is not None else max(16, 4 * ndim)
-    n_walkers += n_walkers % 2
+    n_walkers = default_walkers(ndim) if n_walkers is None else int(n_walkers) + int(n_walkers) % 2
     if n_walkers < 2 * ndim:
         raise ValueError(f"n_walkers: emcee needs at least 2 x n_parameters = {2 * ndim} walkers, got {n_walkers}")
+    check_max_steps(max_steps, ndim, n_ensembles=k, n_walkers=n_walkers)  # before any chain grows
     has_initial = callable(getattr(model, "initial", None))
     starts_given = None
     if start is not None:

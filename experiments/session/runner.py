@@ -207,13 +207,16 @@ class Runner:
             except DisplayFault:
                 raise
             except DisplayError as exc:  # the link failed mid-trial (device lost): a fault like any other
-                report, fault = None, {"reason": " ".join(str(exc).split())}
+                report, fault = None, {"reason": " ".join(str(exc).split()), "frames_sent": exc.frames_sent}
             else:
                 fault = display_fault(report)
             if fault is not None:  # never scored: zero, log, stop; resume repeats the trial
                 with contextlib.suppress(DisplayError):  # a lost device cannot answer; its watchdog zeroes it
                     self.display.zero()
-                self.recorder.log("display_fault", index, attempt, {**fault, "interval": k})
+                # what the display played of this aborted attempt, every interval so far (the status counts it)
+                played = sum(r.frames_sent for r in reports) + int(fault.get("frames_sent") or 0)
+                self.recorder.log("display_fault", index, attempt, {**fault, "interval": k,
+                                                                    "frames_sent_trial": played})
                 raise DisplayFault(
                     f"display fault in trial {index}, interval {k}: {fault['reason']}. The display is "
                     f"zeroed and the trial was not scored; fix the link or the device, then resume "
@@ -226,7 +229,8 @@ class Runner:
         foreign = self.display.audit()
         if foreign:
             self.recorder.log("display_fault", index, attempt, {
-                "reason": foreign_reason(foreign), "alarm": True, "foreign": foreign, "interval": None})
+                "reason": foreign_reason(foreign), "alarm": True, "foreign": foreign, "interval": None,
+                "frames_sent_trial": sum(r.frames_sent for r in reports)})
             raise DisplayFault(
                 f"display fault in trial {index}: {foreign_reason(foreign)}. The display is zeroed and the "
                 f"trial was not scored; find the other process, then resume {self.recorder.path} (the trial "
