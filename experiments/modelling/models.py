@@ -54,7 +54,9 @@ class TransductionModel:
     statistic : {"peak", "rms"}
     source : {"surface", "display"}
     display : SimulatedDisplay, optional
-        Needed for ``source="display"``.
+        Needed for ``source="display"``: any object with ``steady_drive(stimulus)`` and
+        ``strain(frames, depth_m=...)``, e.g. a session's ``RenderedStimuli`` (the candidate as a
+        trial plays it).
     """
 
     def __init__(self, hypothesis, *, statistic: str = "peak", source: str = "surface", display=None):
