@@ -295,7 +295,27 @@ def _tree(post, ll, lp, lik, data, best, attrs, elpd_i=None):
     root = {k: v for k, v in attrs.items() if isinstance(v, (str, int, float, bool, np.integer, np.floating))}
     root = {k: (int(v) if isinstance(v, (bool, np.bool_)) else v) for k, v in root.items()}
     root.update(task=lik.kind, map_estimate=json.dumps(dict(zip(lik.param_names, map(float, best)))))
-    return azb.from_dict({"posterior": post, "log_likelihood": {"correct": ll},
+    tree = azb.from_dict({"posterior": post, "log_likelihood": {"correct": ll},
                           "observed_data": {"correct": lik.observed}, "sample_stats": {"lp": lp},
                           "constant_data": constant},
                          dims={"correct": ["trial"], **{k: ["trial"] for k in constant}}, attrs={"/": root})
+    for group, attrs in _TREE_ATTRS.items():  # units (SI; "1" dimensionless) for az.summary users and CF files
+        for name, value in attrs.items():
+            if group in tree.children and name in tree[group].dataset:
+                tree[group].dataset[name].attrs.update(units=value[0], long_name=value[1])
+    return tree
+
+
+#: group -> variable -> (units, long_name) of a fit's tree
+_TREE_ATTRS = {
+    "posterior": {"threshold_strain": ("1", "strain readout at d' = 1 (tensor strain)"),
+                  "exponent": ("1", "transducer exponent"), "lapse": ("1", "lapse rate"),
+                  "false_alarm": ("1", "false-alarm rate")},
+    "log_likelihood": {"correct": ("1", "pointwise log-likelihood of the response (nats)")},
+    "observed_data": {"correct": ("1", "response correct (1) or wrong (0)")},
+    "sample_stats": {"lp": ("1", "log posterior density up to a constant (nats)")},
+    "constant_data": {"statistic_target": ("1", "the model's statistic of the target interval (strain)"),
+                      "statistic_other": ("1", "the model's statistic of the other interval (strain)"),
+                      "pitch_m": ("m", "target pitch"), "amplitude_m": ("m", "target amplitude"),
+                      "elpd_loo_quadrature": ("1", "exact leave-one-out elpd per trial (nats)")},
+}
