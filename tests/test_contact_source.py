@@ -109,3 +109,84 @@ def test_bad_settings_are_refused():
                                                   duration_s=0.1))
     with pytest.raises(ValueError, match="stimulus: expected a data_schemas Stimulus"):
         FingerContact().solutions("grating")
+
+
+PROTOCOL = """
+name = "physicalgrating"
+seed = 4
+iti_s = 0
+[task]
+kind = "2ifc"
+[stimulus]
+amplitude_m = "2um"
+pitch_m = "2mm"
+speed_m_per_s = "20mm/s"
+duration_s = "50ms"
+ramp_s = "5ms"
+[procedure]
+method = "constant_stimuli"
+parameter = "amplitude_m"
+levels = ["1um", "4um"]
+repeats_per_block = 2
+n_blocks = 1
+"""
+FINGER = """
+[finger]
+finger_radius_m = "10mm"
+normal_force_n = "0.5N"
+friction = 0.5
+young_modulus_pa = "1MPa"
+"""
+
+
+def test_the_cli_observer_feels_the_protocol_s_finger_and_resume_rebuilds_it(tmp_path, capsys):
+    from tactilab.cli.main import main
+    from tactilab.data_schemas.experiment import Protocol
+    from tactilab.experiments.session import SessionLog
+
+    (tmp_path / "p.toml").write_text(PROTOCOL + FINGER)
+    argv = ["experiment", "run", str(tmp_path / "p.toml"), "--subject", "S01", "--responses", "simulated",
+            "--no-wait", "--quiet", "--out", str(tmp_path / "out"), "--observer", "zx@1mm",
+            "--observer-strain", "contact", "--observer-threshold", "1e-4"]
+    assert main(argv) == 0
+    (session,) = (tmp_path / "out").glob("*.sqlite")
+    log = SessionLog(session)
+    meta = log.meta()
+    log.close()
+    assert meta["responses_config"]["strain"] == "contact"
+    finger = Protocol.model_validate(meta["protocol"]).finger
+    assert (finger.finger_radius_m, finger.normal_force_n, finger.young_modulus_pa) == (10e-3, 0.5, 1e6)
+    # a resume rebuilds the observer from the recorded configuration and the protocol's [finger]
+    import argparse
+
+    from tactilab.cli.experiment_observer import observer_responses
+
+    args = argparse.Namespace(observer=None, observer_statistic=None, observer_threshold=None, observer_strain=None)
+    rebuilt = observer_responses("simulated", Protocol.model_validate(meta["protocol"]), None, args,
+                                 meta["responses_config"])
+    assert rebuilt.model.source == "contact" and rebuilt.model.contact.normal_force == 0.5
+    assert dict(rebuilt.config) == meta["responses_config"]
+    # the default observer reads no hypothesis: 'contact' needs one
+    capsys.readouterr()
+    assert main([a for a in argv if a not in ("--observer", "zx@1mm")]) != 0
+    assert "'contact' is read through a receptor hypothesis" in capsys.readouterr().err
+    # without a [finger] the contact has nothing to press the grating: refused, naming the table
+    (tmp_path / "bare.toml").write_text(PROTOCOL)
+    capsys.readouterr()
+    assert main([*argv[:2], str(tmp_path / "bare.toml"), *argv[3:]]) != 0
+    assert "--observer-strain: 'contact' needs the finger that presses the gratings: add a [finger] table" in \
+        capsys.readouterr().err
+
+
+def test_a_finger_table_is_validated_with_units():
+    from tactilab.data_schemas.experiment import Protocol
+    import tomllib
+
+    data = tomllib.loads(PROTOCOL + FINGER)
+    assert Protocol.model_validate(data).finger.normal_force_n == 0.5
+    for key, value, match in (("friction", -0.5, "friction: must be a Coulomb coefficient >= 0"),
+                              ("normal_force_n", "-1N", "normal_force_n"),
+                              ("poisson_ratio", 0.7, "poisson_ratio")):
+        bad = {**data, "finger": {**data["finger"], key: value}}
+        with pytest.raises(ValueError, match=match):
+            Protocol.model_validate(bad)

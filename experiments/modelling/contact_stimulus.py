@@ -86,6 +86,12 @@ class FingerContact:
         self._solutions: dict = {}  # stimulus -> solutions per offset; (stimulus, "smooth") -> baseline
         self._strain: dict[tuple, np.ndarray] = {}
 
+    @classmethod
+    def from_config(cls, config, **options) -> FingerContact:
+        """The finger a protocol's ``[finger]`` table describes (``data_schemas.FingerConfig``)."""
+        return cls(config.finger_radius_m, config.normal_force_n, config.friction,
+                   young_modulus=config.young_modulus_pa, poisson_ratio=config.poisson_ratio, **options)
+
     @property
     def young_modulus(self) -> float:
         """Skin Young's modulus E, Pa."""
