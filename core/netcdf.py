@@ -72,7 +72,7 @@ def cf_ready(data):
     out = data.copy(deep=False)
     if isinstance(out, xr.DataTree):
         for node in out.subtree:
-            node.dataset = _dataset_ready(node.to_dataset())
+            node.dataset = _dataset_ready(node.to_dataset(inherit=False))  # inherited coordinates stay the parent's
     else:
         out = _dataset_ready(out)
     out.attrs.update(Conventions=CONVENTIONS, tactilab_version=package_version())
