@@ -20,6 +20,7 @@ import numpy as np
 
 from tactilab.core.batch import read_result, run_batch, write_netcdf_atomic
 from tactilab.core.memory import check_count
+from tactilab.core.netcdf import cf_ready
 from tactilab.forward import ReceptorHypothesis
 
 from .metamer_families import SinusoidFamily, TractorFamily, check_receptor_memory
@@ -29,6 +30,8 @@ __all__ = ["metamer_scan"]
 
 #: scalar results of one scan point, gathered over (display, pitch, phase)
 SCAN_VARIABLES = ("relative_residual", "dprime", "p_correct_2ifc", "scan_rms", "n_at_limit")
+#: the scan's variables are ratios, probabilities, d' and counts: dimensionless
+_SCAN_UNITS = {name: "1" for name in SCAN_VARIABLES}
 
 
 def _scan_point(item, rng, *, families, hypothesis, receptors, amplitude, bounds, scan_frames, criterion):
@@ -156,5 +159,8 @@ def metamer_scan(pitches: Sequence[float], phases: Sequence[float], displays, hy
                     attrs=dict(hypothesis=str(h), amplitude_m=float(amplitude), young_modulus_pa=float(young_modulus),
                                criterion=float(criterion), seed=int(seed), n_run=rep.n_run, n_skipped=rep.n_skipped,
                                n_failed=rep.n_failed, failed=";".join(rep.errors)))
+    for name, units in _SCAN_UNITS.items():
+        ds[name].attrs.update(units=units)
+    ds = cf_ready(ds)  # the dataset returned is the file's (CF attributes included)
     write_netcdf_atomic(ds, pathlib.Path(out_dir) / "metamer_scan.nc")
     return ds

@@ -150,14 +150,17 @@ class MetamerPair:
 
         h = self.hypothesis
         shape = (h.n_depths, h.n_components, -1)
-        coords = {"depth": ("depth", np.array(h.depths), {"units": "m"}), "component": list(h.components)}
+        coords = {"depth": ("depth", np.array(h.depths), {"units": "m", "positive": "down"}),
+                  "component": list(h.components)}
         rec = np.asarray(self.receptors)
         if rec.ndim == 1:
-            coords["x"] = ("receptor", rec, {"units": "m"})
+            coords["x"] = ("receptor", rec, {"units": "m", "long_name": "receptor position x"})
         dims = ("depth", "component", "receptor")
         attrs = {"units": "1", "shear_convention": h.shear}
-        ds = xr.Dataset({"target": (dims, self.target_readout.reshape(shape), attrs),
-                         "match": (dims, self.match_readout.reshape(shape), attrs),
+        ds = xr.Dataset({"target": (dims, self.target_readout.reshape(shape),
+                                    {**attrs, "long_name": "readout of the target stimulus"}),
+                         "match": (dims, self.match_readout.reshape(shape),
+                                   {**attrs, "long_name": "readout of the matching stimulus"}),
                          "params": ("param", self.params, {"units": ",".join(sorted(set(self.match.family.param_units)))})},
                         coords=coords)
         ds.attrs.update(hypothesis=str(h), relative_residual=self.relative_residual,

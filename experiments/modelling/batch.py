@@ -26,6 +26,7 @@ import numpy as np
 
 from tactilab.core.batch import batch_client, read_result, result_path, run_batch, write_netcdf_atomic
 from tactilab.core.memory import check_count
+from tactilab.core.netcdf import cf_ready
 
 from .model_power import REPEAT_BYTES, power_analysis
 
@@ -37,7 +38,9 @@ def _power_point(item, rng, *, true_model, true_params, rival, design, task, n_r
 
     res = power_analysis(true_model, true_params, rival, design, task=task, method="simulate",
                          n_repeats=n_repeats, rng=rng)
-    return xr.Dataset({"p_select": res.p_select(item["n"], z=z)}, attrs={"mu_nats": res.mu, "sigma_nats": res.sigma})
+    return xr.Dataset({"p_select": ((), res.p_select(item["n"], z=z),
+                                    {"units": "1", "long_name": "probability that the true model is selected"})},
+                      attrs={"mu_nats": res.mu, "sigma_nats": res.sigma})
 
 
 #: bytes of bookkeeping per batch point of :func:`power_sweep` (its key, its item, its cell of the table)
@@ -228,6 +231,8 @@ def _fit_point(item, rng, *, models, options):
                          coords={"parameter": names},
                          attrs={"units": "threshold_strain in strain (dimensionless); exponent, lapse, false_alarm "
                                          "dimensionless", "interval": "2.5 % and 97.5 % posterior quantiles"})
+    for name in summary.data_vars:  # every transduction parameter is dimensionless (strain, exponent, rates)
+        summary[name].attrs.update(units="1")
     tree["summary"] = xr.DataTree(summary)
     tree.attrs.update(subject=item["subject"], model=item["model"], converged=int(fit.converged))
     return tree
@@ -377,5 +382,9 @@ def _gather_comparison(subs, names, parts, attrs, out_dir):
                     coords={"subject": subs, "model": names, "parameter": params},
                     attrs={**attrs, "warnings": " | ".join(sorted(notes)),
                            "units": "elpd, elpd_diff, se, dse, mcse, mcse_diff in nats (PSIS-LOO); threshold_strain in strain"})
+    for name in ds.data_vars:  # PSIS-LOO columns in nats, parameters dimensionless (strain, rates): all "1"
+        if ds[name].dtype.kind in "iuf":
+            ds[name].attrs.setdefault("units", "1")
+    ds = cf_ready(ds)  # the table returned is the file's (CF attributes included)
     write_netcdf_atomic(ds, pathlib.Path(out_dir) / "compare_many.nc")
     return ds
