@@ -3,7 +3,7 @@ check that a scene given to ``invert`` is the one that produced the recording.
 
 :func:`recording_attrs` is the one list of the scene's scalar parameters a recording carries (SI, the
 unit in each name); :func:`scene_mismatches` compares a scene with what a recording file carries
-(:func:`tactilab.data_schemas.recording_metadata.read_recording_metadata`): every field both describe,
+(:func:`tactilab.data_schemas.recording_metadata.scene_fields`): every field both describe,
 scalars, the sensors' positions, the contact path and the components, so a field a writer adds is
 compared once the scene describes it too. A scene that did not produce the recording gives an
 inversion that is confidently wrong (a contact radius 2x off put a profile peak 7x too high and 1.15 mm
@@ -46,7 +46,7 @@ def recording_attrs(finger) -> dict[str, float]:
 
 
 def scene_description(scene) -> dict[str, Any]:
-    """What a recording of ``scene`` carries about it, in the form of ``read_recording_metadata``."""
+    """What a recording of ``scene`` carries about it, in the form of ``recording_metadata.scene_fields``."""
     s = scene.scan
     out: dict[str, Any] = dict(depth_m=float(scene.sensors.depth_m), young_modulus_pa=scene.material.young_modulus_pa,
                                poisson_ratio=scene.material.poisson_ratio, sampling_rate_hz=s.sampling_rate_hz,
@@ -67,7 +67,7 @@ def scene_mismatches(scene, recorded: dict[str, Any], ignore=()) -> list[str]:
     ----------
     scene : data_schemas Scene
     recorded : dict
-        ``read_recording_metadata(path)``.
+        ``recording_metadata.scene_fields(path)``.
     ignore : iterable of str
         Fields not to compare (e.g. the parameters an inversion samples, whose scene value is only a
         prior's centre).

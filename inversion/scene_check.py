@@ -46,11 +46,11 @@ def check_scene_recording(scene, path, *, sample=(), allow_mismatch: bool = Fals
     ValueError
         On a mismatch, unless ``allow_mismatch``.
     """
-    from tactilab.data_schemas.recording_metadata import read_recording_metadata
+    from tactilab.data_schemas.recording_metadata import scene_fields
     from tactilab.forward.scene_recording import scene_mismatches
 
     ignore = [field for s in sample for field in SAMPLED_FIELDS.get(s, ())]
-    differ = scene_mismatches(scene, read_recording_metadata(path), ignore)
+    differ = scene_mismatches(scene, scene_fields(path), ignore)
     if differ:
         text = f"the scene did not produce the recording {path}: " + "; ".join(differ)
         if not allow_mismatch:

@@ -94,3 +94,19 @@ def test_allow_scene_mismatch_inverts_with_a_counted_warning(recording, tmp_path
     out, err = capsys.readouterr()
     assert "warning: --scene: the scene did not produce the recording" in err and "contact radius" in err
     assert any("contact radius: scene" in w for w in json.loads(out)["warnings"])
+
+
+def test_a_parquet_recording_carries_what_the_check_compares(tmp_path):
+    """The check reads Parquet recordings through the same metadata reader as netCDF ones."""
+    from tactilab.data_schemas.recording_metadata import scene_fields
+    from tactilab.forward.scene_recording import scene_mismatches
+
+    pytest.importorskip("pyarrow")
+    (tmp_path / "scene.toml").write_text(SCENE.format(**SAME))
+    scene = load_scene(tmp_path / "scene.toml")
+    list(simulate_scene(scene, tmp_path / "sim", fmt="parquet", plots=False))
+    fields = scene_fields(tmp_path / "sim" / "recording.parquet")
+    assert fields["depth_m"] == pytest.approx(3e-3) and fields["sensor_positions_m"].shape == (4, 2)
+    assert scene_mismatches(scene, fields) == []
+    other = load_scene(_scene(tmp_path, Z="2mm"))
+    assert any("depth" in m for m in scene_mismatches(other, fields))
