@@ -275,7 +275,7 @@ def run_power(args: argparse.Namespace) -> int:
     check_hypothesis(args.rival, "--rival")
     design = read_design(args.design)
     if args.seeds is not None:  # the sweep's sizes and memory, before anything is computed or written
-        from tactilab.experiments.modelling.batch import check_power_sweep
+        from tactilab.experiments.modelling import check_power_sweep
 
         n_design = sum(n for _, n in design)
         ns = ns if ns is not None else [n_design, 2 * n_design, 4 * n_design]

@@ -54,6 +54,7 @@ _EXPORTS = {
     "compare_many": "batch",
     "design_sweep": "batch",
     "power_sweep": "batch",
+    "check_power_sweep": "batch",
     "sessions_by_subject": "batch",
 }
 
