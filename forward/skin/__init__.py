@@ -10,7 +10,14 @@ enforces it). The skin models here keep the faces of :class:`tactilab.forward.ha
 from tactilab.core import attach
 
 #: public name -> module of the skin room that defines it (loaded on first use)
-_EXPORTS: dict[str, str] = {}
+_EXPORTS: dict[str, str] = {
+    # viscoelastic skin (time): the material, the half-space, its contact
+    "Prony": "prony",
+    "ViscoelasticHalfSpace": "viscoelastic",
+    "TimeFieldResult": "time_field",
+    "HereditaryIntegral": "hereditary",
+    "HistoryOperator": "viscoelastic_operator",
+}
 
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = attach(__name__, _EXPORTS)
