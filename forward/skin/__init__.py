@@ -17,6 +17,8 @@ _EXPORTS: dict[str, str] = {
     "TimeFieldResult": "time_field",
     "HereditaryIntegral": "hereditary",
     "HistoryOperator": "viscoelastic_operator",
+    "solve_viscoelastic_contact": "viscoelastic_contact",
+    "ViscoelasticContactHistory": "viscoelastic_contact",
 }
 
 __all__ = sorted(_EXPORTS)
