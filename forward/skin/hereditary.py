@@ -85,10 +85,10 @@ def check_times(times, name: str = "times") -> np.ndarray:
         raise ValueError(f"{name}: expected a 1-D sequence of times in s, got shape {np.shape(times)}")
     if not np.all(np.isfinite(t)) or (t < 0).any():
         raise ValueError(f"{name}: times must be finite and >= 0 s (t = 0 is the start of the load history), "
-                         f"got {t[~np.isfinite(t) | (t < 0)][0]!r}")
+                         f"got {float(t[~np.isfinite(t) | (t < 0)][0])!r}")
     if (np.diff(t) <= 0).any():
         i = int(np.argmax(np.diff(t) <= 0))
-        raise ValueError(f"{name}: times must increase strictly, got {t[i]!r} then {t[i + 1]!r}; sort them and "
+        raise ValueError(f"{name}: times must increase strictly, got {float(t[i])!r} then {float(t[i + 1])!r}; sort them and "
                          "drop repeats")
     return t
 

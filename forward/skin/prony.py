@@ -136,7 +136,7 @@ class Prony:
         if np.isnan(arr).any() or (arr < 0).any():
             bad = arr[np.isnan(arr) | (arr < 0)].ravel()[0]
             raise ValueError(f"{name}: times must be >= 0 s (0 is the instant of loading, inf the relaxed "
-                             f"state) and not NaN, got {bad!r}")
+                             f"state) and not NaN, got {check.show(bad)}")
         return arr
 
     @property
