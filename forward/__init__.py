@@ -46,6 +46,10 @@ _EXPORTS = {
     "stick_radius": "contact",
     "ContactLoad": "contact",
     "ContinuousLoad": "halfspace",
+    # skin models with time (viscoelastic)
+    "Prony": "skin",
+    "ViscoelasticHalfSpace": "skin",
+    "solve_viscoelastic_contact": "skin",
     "TractionField": "halfspace",
     "DeflectionLoad": "halfspace",
     "Surface": "surfaces",

@@ -59,6 +59,8 @@ X = np.linspace(-2e-3, 2e-3, 5)
 DESIGNS = {d: fwd.optimal_half_spacing(d, grid_points=20) for d in (1e-3, 2.5e-4)}
 ROW = np.zeros(DISPLAY.tractor_x_m.shape[-1])  # one line load per tractor of a row, N/m
 CONTACT = fwd.HertzContact(0.5, finger_radius=0.01, young_modulus=1e6)
+SLS = fwd.Prony.sls(1e6, 3e6, 0.07)
+VS = fwd.ViscoelasticHalfSpace(SLS)
 _HEIGHT_MAP: list = []
 
 
@@ -162,6 +164,42 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.solve_contact", "spacing"): lambda v: fwd.solve_contact(HS, np.linspace(-1, 1, N) ** 2 * 1e-6, v,
                                                                       normal_force=1.0),
     ("forward.HalfSpace.surface_influence", "spacing"): lambda v: HS.surface_influence(X, X, v),
+    # the viscoelastic skin (forward.skin)
+    ("forward.ViscoelasticHalfSpace", "nu"): lambda v: fwd.ViscoelasticHalfSpace(SLS, v),
+    ("forward.ViscoelasticHalfSpace.stress", "depth"): lambda v: VS.stress(LOAD, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.stress", "components"): lambda v: VS.stress(LOAD, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticHalfSpace.strain", "depth"): lambda v: VS.strain(LOAD, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.strain", "components"): lambda v: VS.strain(LOAD, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticHalfSpace.pressure_from_deflection", "spacing"):
+        lambda v: VS.pressure_from_deflection(np.zeros(N), v, [0.0]),
+    ("forward.ViscoelasticHalfSpace.stress_from_deflection", "spacing"):
+        lambda v: VS.stress_from_deflection(np.zeros(N), v, 1e-3, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.stress_from_deflection", "depth"):
+        lambda v: VS.stress_from_deflection(np.zeros(N), H, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.stress_from_deflection", "components"):
+        lambda v: VS.stress_from_deflection(np.zeros(N), H, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticHalfSpace.strain_from_deflection", "spacing"):
+        lambda v: VS.strain_from_deflection(np.zeros(N), v, 1e-3, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.strain_from_deflection", "depth"):
+        lambda v: VS.strain_from_deflection(np.zeros(N), H, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.strain_from_deflection", "components"):
+        lambda v: VS.strain_from_deflection(np.zeros(N), H, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticHalfSpace.sliding_pressure", "spacing"): lambda v: VS.sliding_pressure(np.zeros(N), v, 0.1),
+    ("forward.ViscoelasticHalfSpace.steady_sliding", "spacing"):
+        lambda v: VS.steady_sliding(np.zeros(N), v, 0.1, 1e-3, components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.steady_sliding", "depth"):
+        lambda v: VS.steady_sliding(np.zeros(N), H, 0.1, v, components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.steady_sliding", "components"):
+        lambda v: VS.steady_sliding(np.zeros(N), H, 0.1, 1e-3, components=v),
+    ("forward.ViscoelasticHalfSpace.surface_influence", "spacing"): lambda v: VS.surface_influence(X, X, v),
+    ("forward.ViscoelasticHalfSpace.operator", "spacing"): lambda v: VS.operator((N,), v, [0.0]),
+    ("forward.ViscoelasticHalfSpace.operator", "depth"): lambda v: VS.operator((N,), H, [0.0], depth=v),
+    ("forward.ViscoelasticHalfSpace.operator", "components"): lambda v: VS.operator((N,), H, [0.0], components=v),
+    ("forward.Prony.shear_relaxation_modulus", "nu"): lambda v: SLS.shear_relaxation_modulus(0.1, v),
+    ("forward.Prony.shear_creep_compliance", "nu"): lambda v: SLS.shear_creep_compliance(0.1, v),
+    ("forward.solve_viscoelastic_contact", "spacing"):
+        lambda v: fwd.solve_viscoelastic_contact(VS, np.linspace(-1, 1, N) ** 2 * 1e-6, v, [0.0, 0.1],
+                                                 normal_force=1.0),
     ("forward.ContactLoad.sample", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=H).sample((N, N), v),
     ("forward.angular_wavenumbers", "spacing"): lambda v: fwd.angular_wavenumbers((N, N), v),
     ("forward.pressure_from_deflection", "spacing"): lambda v: fwd.pressure_from_deflection(np.zeros(N), v, 1e6, 0.5),

@@ -23,6 +23,7 @@ elastic contact (gain 1, no memory); a load held for long relaxes to the elastic
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -161,6 +162,7 @@ def solve_viscoelastic_contact(skin, gap, spacing, times, *, normal_force=None, 
     tangential = np.empty((n, first.ndim))
     kept, kept_t = [], []
     previous, sol = float(times[0]), None
+    first_warnings: dict = {}
     for i, t in enumerate(times):
         dt = float(t) - previous
         gain, memory = state.split(dt)
@@ -175,8 +177,14 @@ def solve_viscoelastic_contact(skin, gap, spacing, times, *, normal_force=None, 
             step_gap = g0 - operators[E_n].normal(memory)
         kwargs = {k: float(v[i]) for k, v in loads.items() if v is not None}
         start = sol if (sol is not None and sol.pressure.shape == g0.shape) else None
-        sol = solve_contact(elastic, step_gap, spacing, periodic=periodic, tol=tol, max_iter=max_iter,
-                            initial=start, **kwargs)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            sol = solve_contact(elastic, step_gap, spacing, periodic=periodic, tol=tol, max_iter=max_iter,
+                                initial=start, **kwargs)
+        for w in caught:  # once per kind, at the end: a thousand steps must not print a thousand lines
+            key = (w.category, str(w.message).split(";")[0])
+            w0, t0, count = first_warnings.get(key, (w, float(t), 0))
+            first_warnings[key] = (w0, t0, count + 1)
         p = np.asarray(sol.pressure)
         state.advance(dt, (p - memory) / gain)  # the pseudo-pressure w_n
         cell = sol.cell_area
@@ -188,6 +196,8 @@ def solve_viscoelastic_contact(skin, gap, spacing, times, *, normal_force=None, 
             kept.append(p.copy())
             kept_t.append(float(t))
         previous = float(t)
+    for w, t0, count in first_warnings.values():
+        warnings.warn(f"{w.message} (at t = {t0:g} s, first of {count} steps that warned)", w.category, stacklevel=2)
     return ViscoelasticContactHistory(times=times, normal_force=record["normal_force"], approach=record["approach"],
                                       area=record["area"], tangential_force=tangential, iterations=iterations,
                                       converged=converged, error_estimate=record["error_estimate"],
