@@ -7,6 +7,7 @@ from pathlib import Path
 
 from .batch_options import add_worker_options, batch_where, wants_batch
 from .common import RunReport, add_report_options, make_out
+from .material_option import add_material_option, describe_material, read_material_option
 
 NAME = "synthesis"
 HELP = ("design a laterotactile display: optimal tractor half spacing d (mm) for receptors at a depth, "
@@ -24,6 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--amplitude", default=None,
                         help="virtual sinusoid amplitude A, a length such as 50um (needs --young-modulus)")
     parser.add_argument("--young-modulus", default=None, help="skin Young's modulus E, a pressure such as 200kPa")
+    add_material_option(parser)
     parser.add_argument("--traction-limit", default=None,
                         help="per-tractor traction limit, a pressure such as 5kPa (needs --young-modulus)")
     parser.add_argument("--footprint", default=None,
@@ -86,6 +88,15 @@ class _Options:
                              "give its size, e.g. 50um (a sign only shifts the phase)")
         self.young = None if args.young_modulus is None else rules.young_modulus(
             to_si(args.young_modulus, "pressure", name="--young-modulus"), "--young-modulus")
+        self.material = read_material_option(args, replaces=("young_modulus",))
+        if self.material is not None:
+            if self.material.is_layered:
+                raise ValueError("--material: the synthesis design is for a homogeneous half-space (plane strain, "
+                                 "nu = 1/2), got a layered material; use an elastic or viscoelastic one")
+            if self.material.poisson_ratio != 0.5:
+                raise ValueError(f"--material: the synthesis design assumes nu = 1/2 (plane strain, incompressible), "
+                                 f"got poisson_ratio {self.material.poisson_ratio!r}; set it to 0.5")
+            self.young = self.material.young_modulus_pa  # viscoelastic: the relaxed modulus (quasi-static)
         self.limit = None if args.traction_limit is None else rules.positive(
             to_si(args.traction_limit, "pressure", name="--traction-limit"), "--traction-limit", "Pa", fix=_FIX)
         self.footprint = None if args.footprint is None else rules.positive(
@@ -139,6 +150,13 @@ def run(args: argparse.Namespace) -> int:
     say = (lambda *a: None) if args.json else print
     footprint = "d (half the tractor pitch)" if opts.footprint is None else f"{opts.footprint * 1e3:g} mm"
     say("tactile synthesis design (docs/theory.md 4a; plane strain, nu = 1/2, tractors as line loads)")
+    if opts.material is not None:
+        skin = describe_material(opts.material)
+        if opts.material.is_viscoelastic:
+            skin += ("; traction and amplitude use the relaxed modulus (quasi-static): under its tractions the "
+                     "display's strain lags and creeps (docs/theory.md section 6)")
+        say(f"skin from --material: {skin}")
+        report.computed.append(f"skin from --material: {skin}")
     say("objective J(d) over x in [-w/2, w/2]; optimum = lowest non-trivial local minimum, d in "
           "[0.2 Z, 5 Z]; k2 = max S_Psi, k2p = S_Psi(d)")
     if opts.amplitude is not None:

@@ -88,6 +88,32 @@ def load_scene(path: str | pathlib.Path) -> Scene:
     return read_toml_record(path, Scene)
 
 
+def read_material(path: str | pathlib.Path):
+    """Read a :class:`~.material.SkinMaterial` from a TOML file (its ``[material]`` table, or the whole
+    file when it has none) or a JSON record, units converted to SI once.
+
+    Raises
+    ------
+    OSError
+        If the file cannot be read.
+    ValueError
+        A wrong suffix or an invalid material, in one line naming the file.
+    """
+    from .material import SkinMaterial
+
+    path = pathlib.Path(path)
+    if path.suffix.lower() not in (".toml", ".json"):
+        raise ValueError(f"{path}: a material file must end in .toml or .json, got {path.suffix!r}; write a "
+                         "[material] table in a .toml file")
+    if path.suffix.lower() == ".json":
+        return SkinMaterial.load(path)
+    try:
+        has_table = "material" in tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as err:
+        raise ValueError(f"{path}: not valid TOML ({err}); fix the syntax") from None
+    return read_toml_record(path, SkinMaterial, table="material" if has_table else None)
+
+
 def list_examples() -> list[str]:
     """Names of the built-in example scenes (without the ``.toml`` extension)."""
     folder = importlib.resources.files(_EXAMPLES_PACKAGE) / _EXAMPLES_DIR

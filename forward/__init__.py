@@ -50,6 +50,7 @@ _EXPORTS = {
     "Prony": "skin",
     "ViscoelasticHalfSpace": "skin",
     "solve_viscoelastic_contact": "skin",
+    "skin_from_material": "skin",
     "TractionField": "halfspace",
     "DeflectionLoad": "halfspace",
     "Surface": "surfaces",

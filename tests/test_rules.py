@@ -24,8 +24,8 @@ import pytest
 import tactilab.forward as fwd
 import tactilab.inversion as inv
 from tactilab.core import rules
-from tactilab.data_schemas import (Recording, SensorArray, SkinMaterial, load_example, random_rough_surface,
-                                  read_height_map)
+from tactilab.data_schemas import (ElasticBase, Recording, SensorArray, SkinLayer, SkinMaterial, load_example,
+                                  random_rough_surface, read_height_map)
 
 
 class Rule(NamedTuple):
@@ -124,6 +124,9 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("core.rules.components", "value"): lambda v: rules.components(v),
     # records
     ("data_schemas.SkinMaterial", "poisson_ratio"): lambda v: SkinMaterial(young_modulus_pa=1e6, poisson_ratio=v),
+    ("data_schemas.SkinLayer", "poisson_ratio"): lambda v: SkinLayer(thickness_m=1e-3, young_modulus_pa=1e5,
+                                                                     poisson_ratio=v),
+    ("data_schemas.ElasticBase", "poisson_ratio"): lambda v: ElasticBase(young_modulus_pa=1e6, poisson_ratio=v),
     ("data_schemas.SensorArray", "components"): lambda v: SensorArray(positions_m=[[0, 0]], depth_m=1e-3, components=v),
     ("data_schemas.Recording", "components"): _recording,
     ("data_schemas.Recording.from_dataframe", "components"): _from_dataframe,

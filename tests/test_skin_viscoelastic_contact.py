@@ -54,6 +54,16 @@ def test_the_same_grid_elastic_contact_of_modulus_one_over_J(step_load):
         assert step_load.area[i] == pytest.approx(elastic.area, abs=4 * H * H)
 
 
+def test_strain_at_depth_is_the_elastic_one_of_modulus_one_over_J(step_load):
+    """While the contact grows under a held load, the strain field at t is the elastic field of 1 / J(t)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AccuracyWarning)
+        elastic = solve_contact(SKIN.at(TIMES[-1]), SPHERE, H, normal_force=P)
+    expected = SKIN.at(TIMES[-1]).strain(elastic.load(), 1e-3, components=("zz", "zx")).data["strain"].values
+    got = step_load.strain(SKIN, 1e-3, components=("zz", "zx")).data["strain"].values
+    assert np.abs(got - expected).max() < 2e-3 * np.abs(expected).max()
+
+
 def test_instantaneous_and_relaxed_limits_and_the_relaxed_bound(step_load):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AccuracyWarning)

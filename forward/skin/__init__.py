@@ -19,6 +19,7 @@ _EXPORTS: dict[str, str] = {
     "HistoryOperator": "viscoelastic_operator",
     "solve_viscoelastic_contact": "viscoelastic_contact",
     "ViscoelasticContactHistory": "viscoelastic_contact",
+    "skin_from_material": "materials",
 }
 
 __all__ = sorted(_EXPORTS)

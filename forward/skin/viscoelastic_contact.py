@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..contact import ContactCompliance, ContactSolution, solve_contact
-from ..halfspace import HalfSpace
+from ..halfspace import HalfSpace, SurfaceLoad
 from .hereditary import HereditaryIntegral, check_times
 
 
@@ -61,8 +61,11 @@ class ViscoelasticContactHistory:
     pressures : ndarray, shape (n_kept, *grid)
         Pressure on the skin, Pa, at ``kept_times``.
     last : ContactSolution
-        The last step's solution (its ``pressure`` is the real pressure; its ``approach`` and
-        ``gap`` are those of the step's elastic problem with the history in the gap).
+        The last step's solution: the real pressure, approach and gap.
+    pseudo_pressure : ndarray, shape grid
+        The last step's pseudo-pressure ``w`` (Pa): the skin's displacement, and so its strain at
+        any depth, is that of the glassy elastic skin (E(0)) under ``w``; the stress is that of
+        the real pressure (the correspondence principle at constant nu).
     """
 
     times: np.ndarray
@@ -76,6 +79,25 @@ class ViscoelasticContactHistory:
     kept_times: np.ndarray
     pressures: np.ndarray = field(repr=False)
     last: ContactSolution = field(repr=False)
+    pseudo_pressure: np.ndarray = field(repr=False, default=None)
+
+    def strain(self, skin, depth, components=None, tol: float = 1e-6):
+        """TENSOR strain at depth at the last step: the glassy elastic strain of :attr:`pseudo_pressure`.
+
+        Parameters
+        ----------
+        skin : ViscoelasticHalfSpace
+            The skin that was solved.
+        depth, components, tol
+            As :meth:`HalfSpace.strain`.
+
+        Returns
+        -------
+        FieldResult
+        """
+        load = SurfaceLoad(p=self.pseudo_pressure, spacing=self.last.spacing, periodic=self.last.periodic,
+                           error_estimate=self.last.error_estimate)
+        return skin.instantaneous.strain(load, depth, components=components, tol=tol)
 
     @property
     def contact_radius(self) -> np.ndarray:
@@ -201,4 +223,5 @@ def solve_viscoelastic_contact(skin, gap, spacing, times, *, normal_force=None, 
     return ViscoelasticContactHistory(times=times, normal_force=record["normal_force"], approach=record["approach"],
                                       area=record["area"], tangential_force=tangential, iterations=iterations,
                                       converged=converged, error_estimate=record["error_estimate"],
-                                      kept_times=np.array(kept_t), pressures=np.array(kept), last=sol)
+                                      kept_times=np.array(kept_t), pressures=np.array(kept), last=sol,
+                                      pseudo_pressure=state.previous.copy())
