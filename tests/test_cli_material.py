@@ -1,0 +1,145 @@
+"""``--material FILE`` on stress, contact, simulate and synthesis: it replaces --young-modulus/--nu (both is an
+error), a viscoelastic material's --time, and the refusals, each one line with exit status 2."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from tactilab.cli.main import main
+from tactilab.cli.material_option import read_material_option
+from tactilab.forward import HalfSpace
+from tactilab.forward.skin import Prony
+
+SLS = '[material]\nmodel = "sls"\nyoung_modulus = "100kPa"\ninstantaneous_modulus = "300kPa"\nrelaxation_time = "50ms"\n'
+ELASTIC = '[material]\nyoung_modulus = "200kPa"\npoisson_ratio = 0.5\n'
+LAYERED = '[material]\nlayers = [{thickness = "2mm", young_modulus = "100kPa"}]\nbase = "rigid"\n'
+
+
+def _file(tmp_path, text, name):
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return str(path)
+
+
+def _fails(argv, capsys, match):
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and re.search(match, err), err
+
+
+def _load(tmp_path):
+    x = (np.arange(32) - 16) * 1e-4
+    path = tmp_path / "load.npz"
+    np.savez(path, p=np.exp(-(x[None, :] ** 2 + x[:, None] ** 2) / 1e-7) * 1e4, spacing=1e-4)
+    return str(path)
+
+
+def test_material_with_young_modulus_or_nu_is_an_error(tmp_path):
+    path = _file(tmp_path, ELASTIC, "m.toml")
+    args = argparse.Namespace(material=path, young_modulus="1MPa", nu=None)
+    with pytest.raises(ValueError, match=r"--material: .* but --young-modulus was given too; drop --young-modulus"):
+        read_material_option(args)
+    args = argparse.Namespace(material=path, young_modulus="1MPa", nu=0.4)
+    with pytest.raises(ValueError, match=r"--young-modulus and --nu were given too"):
+        read_material_option(args)
+    assert read_material_option(argparse.Namespace(material=None, young_modulus="1MPa", nu=0.4)) is None
+
+
+@pytest.mark.parametrize("command", [
+    ["stress", "LOAD", "--depth", "1mm", "--nu", "0.5"],
+    ["contact", "sphere:R=10mm", "--normal-force", "0.1N", "--grid", "32", "--young-modulus", "1MPa"],
+    ["synthesis", "--depth", "1mm", "--young-modulus", "1MPa"],
+])
+def test_every_command_refuses_both(tmp_path, capsys, command):
+    argv = [_load(tmp_path) if a == "LOAD" else a for a in command]
+    _fails([*argv, "--material", _file(tmp_path, ELASTIC, "m.toml")], capsys, r"--material: the material file sets")
+
+
+def test_stress_with_an_elastic_material_equals_the_options(tmp_path):
+    load = _load(tmp_path)
+    assert main(["stress", load, "--depth", "1mm", "--material", _file(tmp_path, ELASTIC, "m.toml"),
+                 "--out", str(tmp_path / "a"), "--json"]) == 0
+    assert main(["stress", load, "--depth", "1mm", "--young-modulus", "200kPa", "--out", str(tmp_path / "b"),
+                 "--json"]) == 0
+    with xr.open_dataset(tmp_path / "a" / "field.nc", engine="h5netcdf") as a, \
+            xr.open_dataset(tmp_path / "b" / "field.nc", engine="h5netcdf") as b:
+        np.testing.assert_array_equal(a["strain"].values, b["strain"].values)
+
+
+def test_stress_with_a_viscoelastic_material_creeps_with_time(tmp_path, capsys):
+    """Tractions held for t: the strain is the instantaneous one times J(t) / J(0) (SLS written out)."""
+    load = _load(tmp_path)
+    path = _file(tmp_path, SLS, "sls.toml")
+    for name, time in (("t0", "0ms"), ("t1", "70ms")):
+        assert main(["stress", load, "--depth", "1mm", "--components", "zz", "--material", path, "--time", time,
+                     "--out", str(tmp_path / name), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert any("1/J(t)" in line for line in summary["computed"])
+    ratio = 3e5 * (1 / 1e5 - (1 / 1e5 - 1 / 3e5) * np.exp(-0.07 * 1e5 / (0.05 * 3e5)))
+    with xr.open_dataset(tmp_path / "t0" / "field.nc", engine="h5netcdf") as a, \
+            xr.open_dataset(tmp_path / "t1" / "field.nc", engine="h5netcdf") as b:
+        np.testing.assert_allclose(b["strain"].values, ratio * a["strain"].values, rtol=1e-10,
+                                   atol=1e-12 * float(np.abs(a["strain"]).max()))
+
+
+def test_contact_with_a_viscoelastic_material_grows_to_the_relaxed_limit(tmp_path, capsys):
+    path = _file(tmp_path, SLS, "sls.toml")
+    base = ["contact", "sphere:R=10mm", "--normal-force", "0.1N", "--grid", "32", "--grid-spacing", "0.2mm",
+            "--quiet", "--json"]
+    areas = []
+    for name, extra in (("now", ["--material", path]), ("later", ["--material", path, "--time", "1s"]),
+                        ("relaxed", ["--young-modulus", "100kPa"])):
+        assert main([*base, *extra, "--out", str(tmp_path / name), "--depth", "1mm"]) == 0
+        areas.append(json.loads(capsys.readouterr().out)["contact_area_mm2"])
+        assert (tmp_path / name / "strain.nc").exists()
+    # Lee-Radok: a^3 grows with J(t): from the glassy (1/3 the relaxed compliance) towards the relaxed
+    assert areas[0] < areas[1] <= areas[2]
+    assert areas[0] == pytest.approx(areas[2] / 3 ** (2 / 3), rel=0.15)  # 9 nodes across the radius
+    assert areas[1] == pytest.approx(areas[2], rel=0.05)
+
+
+def test_contact_viscoelastic_refusals(tmp_path, capsys):
+    path = _file(tmp_path, SLS, "sls.toml")
+    sphere = ["contact", "sphere:R=10mm", "--normal-force", "0.1N", "--grid", "32", "--quiet"]
+    _fails([*sphere, "--time", "1s"], capsys, r"--time: only a viscoelastic --material")
+    _fails([*sphere, "--material", path, "--time=-1s"], capsys, r"--time: must be >= 0")
+    _fails([*sphere, "--material", path, "--condition", "sliding", "--friction", "0.5"], capsys,
+           r"--condition: a viscoelastic --material is solved frictionless")
+    _fails([*sphere, "--material", _file(tmp_path, "x", "m.txt")], capsys, r"a material file must end in .toml")
+
+
+def test_synthesis_material_sets_the_modulus_and_refuses_what_it_cannot_design(tmp_path, capsys):
+    common = ["synthesis", "--depth", "1mm", "--amplitude", "50um", "--no-sensitivity", "--json"]
+    assert main([*common, "--material", _file(tmp_path, ELASTIC, "m.toml")]) == 0
+    a = json.loads(capsys.readouterr().out)
+    assert main([*common, "--young-modulus", "200kPa"]) == 0
+    b = json.loads(capsys.readouterr().out)
+    assert a["designs"] == b["designs"] and a["designs"][0]["traction_kpa"] > 0
+    assert any("skin from --material: E = 200 kPa" in line for line in a["computed"])
+    _fails([*common, "--material", _file(tmp_path, LAYERED, "l.toml")], capsys, r"got a layered material")
+    _fails([*common, "--material", _file(tmp_path, ELASTIC.replace("0.5", "0.4"), "n.toml")], capsys,
+           r"assumes nu = 1/2")
+
+
+def test_simulate_takes_the_material_and_refuses_layers(tmp_path, capsys):
+    from tactilab.data_schemas import example_path
+
+    scene = str(example_path("sliding_grating"))
+    _fails(["simulate", scene, "--material", _file(tmp_path, LAYERED, "l.toml"), "--out", str(tmp_path / "x"),
+            "--quiet"], capsys, r"--material: a scene simulation takes an elastic or viscoelastic material")
+    assert main(["simulate", scene, "--material", _file(tmp_path, SLS, "s.toml"), "--out", str(tmp_path / "s"),
+                 "--quiet", "--no-plots", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert any("relaxed modulus" in line for line in summary["computed"])
+
+
+def test_the_viscoelastic_stress_equals_the_library(tmp_path):
+    """The option's skin is ViscoelasticHalfSpace.at(t): E = 1 / J(t)."""
+    skin = HalfSpace(1 / float(Prony.sls(1e5, 3e5, 0.05).creep_compliance(0.07)))
+    assert skin.E == pytest.approx(1 / (1 / 1e5 - (1 / 1e5 - 1 / 3e5) * np.exp(-0.07 * 1e5 / (0.05 * 3e5))))
