@@ -130,9 +130,9 @@ def _held_time(args: argparse.Namespace, material) -> float | None:
         return None
     from tactilab.data_schemas.units import to_si
 
+    held = to_si(args.time, "time", name="--time")
     if material is None or not material.is_viscoelastic:
         raise ValueError("--time: only a viscoelastic --material (model prony or sls) depends on time; drop --time")
-    held = to_si(args.time, "time", name="--time")
     if not held >= 0:
         raise ValueError(f"--time: must be >= 0 (0 is the instant the load is applied), got {args.time!r}; e.g. 200ms")
     return held
