@@ -10,7 +10,10 @@ enforces it). The skin models here keep the faces of :class:`tactilab.forward.ha
 from tactilab.core import attach
 
 #: public name -> module of the skin room that defines it (loaded on first use)
-_EXPORTS: dict[str, str] = {}
+_EXPORTS: dict[str, str] = {
+    "Layer": "layered",
+    "LayeredHalfSpace": "layered",
+}
 
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = attach(__name__, _EXPORTS)
