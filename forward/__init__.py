@@ -35,6 +35,9 @@ _EXPORTS = {
     "to_engineering": "halfspace",
     "invariants": "halfspace",
     "ReceptorHypothesis": "receptors",
+    # skin models beyond the half-space (their own door)
+    "Layer": "skin",
+    "LayeredHalfSpace": "skin",
     # contacts and surfaces
     "solve_contact": "contact",
     "ContactSolution": "contact",

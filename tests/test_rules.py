@@ -51,6 +51,7 @@ QUANTITY = {"depth": "depth", "spacing": "spacing", "E": "young_modulus", "young
 N = 8
 H = 1e-4
 HS = fwd.HalfSpace(1e6, 0.5)
+LAYERED = fwd.LayeredHalfSpace([fwd.Layer(2e-3, 1e6, 0.5)], base=HS)  # deep enough for every good depth
 LOAD = fwd.SurfaceLoad(p=1e3 * np.cos(2 * np.pi * np.arange(N) / N)[None, :].repeat(N, 0), spacing=H, periodic=True)
 SCENE = load_example("tractor_display")
 DISPLAY = SCENE.display
@@ -235,6 +236,17 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.halfspace.dcfft_kernel_spectrum", "depth"): (
         lambda v: _kernel_spectrum(depth=v)),
     ("forward.halfspace.dcfft_kernel_spectrum", "nu"): lambda v: _kernel_spectrum(nu=v),
+    # the layered skin
+    ("forward.Layer", "E"): lambda v: fwd.Layer(1e-3, v),
+    ("forward.Layer", "nu"): lambda v: fwd.Layer(1e-3, 1e6, v),
+    ("forward.LayeredHalfSpace.stress", "depth"): lambda v: LAYERED.stress(LOAD, v, components=("zz",)),
+    ("forward.LayeredHalfSpace.stress", "components"): lambda v: LAYERED.stress(LOAD, 1e-4, components=v),
+    ("forward.LayeredHalfSpace.strain", "depth"): lambda v: LAYERED.strain(LOAD, v, components=("zz",)),
+    ("forward.LayeredHalfSpace.strain", "components"): lambda v: LAYERED.strain(LOAD, 1e-4, components=v),
+    ("forward.LayeredHalfSpace.operator", "spacing"): lambda v: LAYERED.operator((N,), v, depth=1e-4),
+    ("forward.LayeredHalfSpace.operator", "depth"): lambda v: LAYERED.operator((N,), H, depth=v),
+    ("forward.LayeredHalfSpace.operator", "components"): lambda v: LAYERED.operator((N,), H, 1e-4, components=v),
+    ("forward.LayeredHalfSpace.material_at", "depth"): lambda v: LAYERED.material_at(v),
     # scenes, displays, tractors, receptors
     ("forward.rigid_surface_pressure", "spacing"): lambda v: fwd.rigid_surface_pressure(np.zeros(N), v, 1e6),
     ("forward.rigid_surface_pressure", "young_modulus"): lambda v: fwd.rigid_surface_pressure(np.zeros(N), H, v),

@@ -11,6 +11,9 @@ from tactilab.core import attach
 
 #: public name -> module of the skin room that defines it (loaded on first use)
 _EXPORTS: dict[str, str] = {
+    # layered skin (structure)
+    "Layer": "layered",
+    "LayeredHalfSpace": "layered",
     # viscoelastic skin (time): the material, the half-space, its contact
     "Prony": "prony",
     "ViscoelasticHalfSpace": "viscoelastic",
