@@ -139,6 +139,24 @@ def test_simulate_takes_the_material_and_refuses_layers(tmp_path, capsys):
     assert any("relaxed modulus" in line for line in summary["computed"])
 
 
+def test_stress_and_contact_with_a_layered_material(tmp_path, capsys):
+    """A 2 mm layer on bone is stiffer than the half-space of its modulus: a smaller contact."""
+    path = _file(tmp_path, LAYERED, "l.toml")
+    load = _load(tmp_path)
+    assert main(["stress", load, "--depth", "1mm", "--components", "zz", "--material", path, "--quantity", "stress",
+                 "--out", str(tmp_path / "s"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert any("layered skin: 2 mm of E = 100 kPa on a rigid base" in line for line in summary["computed"])
+    _fails(["stress", load, "--depth", "1mm", "--material", path, "--method", "spectral", "--out",
+            str(tmp_path / "t")], capsys, r"--method: a layered --material has its own solver")
+    sphere = ["contact", "sphere:R=10mm", "--normal-force", "0.1N", "--grid", "32", "--grid-spacing", "0.2mm",
+              "--quiet", "--json"]
+    assert main([*sphere, "--material", path, "--out", str(tmp_path / "c1")]) == 0
+    layered = json.loads(capsys.readouterr().out)["contact_area_mm2"]
+    assert main([*sphere, "--young-modulus", "100kPa", "--out", str(tmp_path / "c2")]) == 0
+    assert layered < json.loads(capsys.readouterr().out)["contact_area_mm2"]
+
+
 def test_the_viscoelastic_stress_equals_the_library(tmp_path):
     """The option's skin is ViscoelasticHalfSpace.at(t): E = 1 / J(t)."""
     skin = HalfSpace(1 / float(Prony.sls(1e5, 3e5, 0.05).creep_compliance(0.07)))

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from tactilab.data_schemas import ElasticBase, PronyTerm, SkinLayer, SkinMaterial, read_material
-from tactilab.forward import HalfSpace, ViscoelasticHalfSpace, skin_from_material
+from tactilab.forward import HalfSpace, Layer, LayeredHalfSpace, ViscoelasticHalfSpace, skin_from_material
 
 
 def _write(tmp_path, text, name="material.toml"):
@@ -53,6 +53,11 @@ def test_layers_on_a_rigid_or_elastic_base(tmp_path):
                                                'base = {young_modulus = "1MPa", poisson_ratio = 0.45}\n', "b.toml"))
     assert on_tissue.base == ElasticBase(young_modulus_pa=1e6, poisson_ratio=0.45)
     assert SkinMaterial.from_json(on_tissue.to_json()) == on_tissue
+    stack = skin_from_material(m)
+    assert isinstance(stack, LayeredHalfSpace) and stack.rigid_base and stack.thickness == pytest.approx(5e-3)
+    assert stack.layers == (Layer(4e-3, 1e5, 0.49), Layer(1e-3, 1e6, 0.5))
+    on = skin_from_material(on_tissue)
+    assert not on.rigid_base and (on.base.E, on.base.nu) == (1e6, 0.45)
 
 
 @pytest.mark.parametrize("fields, match", [

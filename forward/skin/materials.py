@@ -9,6 +9,7 @@ and ``"sls"``, and a :class:`LayeredHalfSpace` when the material has layers.
 from __future__ import annotations
 
 from ..halfspace import HalfSpace
+from .layered import Layer, LayeredHalfSpace
 from .prony import Prony
 from .viscoelastic import ViscoelasticHalfSpace
 
@@ -29,8 +30,11 @@ def skin_from_material(material):
         raise ValueError(f"material: expected a SkinMaterial record, got {type(material).__name__}; read one with "
                          "tactilab.data_schemas.read_material(path)")
     if material.layers:
-        raise ValueError("material: a layered skin needs the layered half-space, which this build lacks; "
-                         "use an elastic or viscoelastic material")
+        layers = [Layer(layer.thickness_m, layer.young_modulus_pa, layer.poisson_ratio) for layer in material.layers]
+        base = material.base
+        if base is None or base == "rigid":
+            return LayeredHalfSpace(layers, base="rigid")
+        return LayeredHalfSpace(layers, base=HalfSpace(base.young_modulus_pa, base.poisson_ratio))
     if material.model == "elastic":
         return HalfSpace.from_material(material)
     return ViscoelasticHalfSpace(Prony(material.young_modulus_pa, material.prony_terms), material.poisson_ratio)
