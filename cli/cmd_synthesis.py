@@ -154,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
         skin = describe_material(opts.material)
         if opts.material.is_viscoelastic:
             skin += ("; traction and amplitude use the relaxed modulus (quasi-static): under its tractions the "
-                     "display's strain lags and creeps (docs/theory.md section 6)")
+                     "display's strain lags and creeps (docs/theory.md section 7)")
         say(f"skin from --material: {skin}")
         report.computed.append(f"skin from --material: {skin}")
     say("objective J(d) over x in [-w/2, w/2]; optimum = lowest non-trivial local minimum, d in "

@@ -5,7 +5,7 @@ plane-strain modulus); ``poisson_ratio`` is nu. Skin is nearly incompressible, s
 allowed exactly and is the default: code built on this record must treat it as a stable limit
 (no division by 1 - 2 nu).
 
-``model`` says how the modulus depends on time (docs/theory.md section 6):
+``model`` says how the modulus depends on time (docs/theory.md section 7):
 
 - ``"elastic"`` (default): E at every time;
 - ``"prony"``: ``young_modulus_pa`` is the relaxed modulus E_inf and ``terms`` the Prony terms

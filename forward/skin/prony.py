@@ -23,7 +23,7 @@ relaxation. Each root is bracketed and found to machine precision (``scipy.optim
 and the residue gives ``J_j = lambda_j / (d/ds [s E~(s)])(r_j) > 0``.
 
 At constant Poisson's ratio ``nu`` the shear functions are ``G(t) = E(t) / (2 (1 + nu))`` and
-``J_G(t) = 2 (1 + nu) J(t)``; docs/theory.md section 6 states why constant ``nu`` is the model.
+``J_G(t) = 2 (1 + nu) J(t)``; docs/theory.md section 7 states why constant ``nu`` is the model.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """A linear viscoelastic half-space at constant Poisson's ratio, by the correspondence principle.
 
 At constant ``nu`` every elastic field scales with ``1/E`` or not at all, so time and space
-separate (docs/theory.md section 6):
+separate (docs/theory.md section 7):
 
 - **prescribed tractions** (a force-controlled finger, a tractor display): the stress at depth is
   the elastic one at each instant (it does not depend on E); the strain is the elastic strain of
