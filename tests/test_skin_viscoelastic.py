@@ -115,6 +115,22 @@ def test_sls_sliding_sinusoid_gain_and_phase_of_pressure_and_stress(frequency):
     assert abs(S_zx) / (relaxed_amplitude * k * z * decay) == pytest.approx(gain, rel=1e-10)
 
 
+def test_oblique_sliding_grating_sees_the_frequency_of_its_x_wavenumber():
+    """h = A cos(kx x + ky y) moving along x: the frequency is kx V (not |k| V); the pressure's amplitude
+    is the relaxed one, E_inf |k| A / (2 (1 - nu^2)), times |E*(kx V)| / E_inf."""
+    n, L, A, V = 32, 3.2e-3, 1e-6, 0.02
+    x = (np.arange(n) - n // 2) * L / n
+    kx, ky = 2 * np.pi / L, 3 * 2 * np.pi / L
+    h = A * np.cos(kx * x[None, :] + ky * x[:, None])
+    p = SKIN.sliding_pressure(h, L / n, V).p
+    w = kx * V
+    E_star = 1e5 + 2e5 * 1j * w * 0.01 / (1 + 1j * w * 0.01)
+    amplitude = abs(E_star) * np.hypot(kx, ky) * A / (2 * (1 - 0.25))
+    lead = np.angle(E_star)  # the peak sits lead / kx ahead along +x
+    expected = amplitude * np.cos(kx * x[None, :] + ky * x[:, None] - lead)
+    assert np.abs(p - expected).max() < 1e-10 * amplitude
+
+
 def test_sliding_strain_equals_the_elastic_strain_through_the_complex_compliance():
     """eps~ = S(E = 1) J*(-kx V) sigma~ per mode, from the creep series; equal to the elastic strain to 1e-12."""
     n, L, V, z = 64, 2e-3, 0.05, 4e-4

@@ -56,8 +56,9 @@ class HereditaryIntegral:
             return self.k_inf + float(self.k_j.sum()), np.zeros_like(self.previous)
         decay, g = _gains(dt, self.theta)
         gain = self.k_inf + float(np.dot(self.k_j, g))
-        shape = (-1,) + (1,) * self.previous.ndim
-        memory = np.tensordot(self.k_j, decay.reshape(shape) * self.h, axes=1) - float(np.dot(self.k_j, g)) * self.previous
+        memory = -float(np.dot(self.k_j, g)) * self.previous
+        for k, d, h in zip(self.k_j, decay, self.h):  # a loop over the few terms: no BLAS call on a field
+            memory += (k * d) * h
         return gain, memory
 
     def advance(self, dt: float, a) -> None:
@@ -75,7 +76,10 @@ class HereditaryIntegral:
 
     def value(self) -> np.ndarray:
         """``c`` at the last sample."""
-        return self.k_inf * self.previous + np.tensordot(self.k_j, self.h, axes=1)
+        out = self.k_inf * self.previous
+        for k, h in zip(self.k_j, self.h):
+            out += k * h
+        return out
 
 
 def check_times(times, name: str = "times") -> np.ndarray:

@@ -202,8 +202,8 @@ class ViscoelasticHalfSpace:
         time = check.finite(time, "time", "s")
         spacing = check.spacing(spacing, h.ndim)
         waves = angular_wavenumbers(h.shape, spacing, half=True)
-        kx = waves[0] if h.ndim == 1 else waves[0][None, :]
-        rho = np.abs(kx) if h.ndim == 1 else np.hypot(kx, waves[1][:, None])
+        kx = waves[0]  # (nx//2 + 1,) or (1, nx//2 + 1): broadcast with eta's (ny, 1)
+        rho = np.abs(kx) if h.ndim == 1 else np.hypot(kx, waves[1])
         axes = tuple(range(-h.ndim, 0))
         spectrum = sfft.rfftn(h, axes=axes)
         if time != 0.0:  # the profile moved by speed * time along +x: exact for its trigonometric interpolant
