@@ -86,6 +86,11 @@ def test_shear_functions_at_constant_nu():
 
 def test_equal_relaxation_times_merge_and_an_empty_series_is_elastic():
     assert Prony(1e6, [(1e6, 0.1), (2e6, 0.1)]) == Prony(1e6, [(3e6, 0.1)])
+    assert len(Prony(1e6, [(1e6, 1.0), (1e6, 1.0 + 1e-12)]).taus) == 1  # closer than float64 can separate
+    close = Prony(1e6, [(1e6, 1.0), (1e9, 1.0 + 3e-9)])  # two terms, 3e-9 apart, moduli 1000x apart
+    assert len(close.retardation_times) == 2
+    w = np.geomspace(1e-3, 1e3, 30)
+    np.testing.assert_allclose(close.complex_modulus(w) * close.complex_compliance(w), 1.0, rtol=1e-10, atol=0)
     elastic = Prony(1e6)
     assert elastic.is_elastic and elastic.creep_compliance(5.0) == 1e-6 and elastic.relaxation_modulus(0.0) == 1e6
 

@@ -36,6 +36,10 @@ from scipy.optimize import brentq
 from tactilab.core import rules as check
 
 
+#: relative difference of relaxation times below which two terms are merged into one
+MERGE = 1e-9
+
+
 def _modulus(value, name: str, fix: str) -> float:
     return check.positive(value, name, "Pa", fix)
 
@@ -49,8 +53,9 @@ class Prony:
         Relaxed (long-time) Young's modulus in Pa, > 0.
     terms : sequence of (float, float)
         ``(E_i, tau_i)`` pairs: spring modulus in Pa (> 0) and relaxation time in s (> 0). Terms
-        with equal relaxation times are merged (their moduli add). An empty sequence is an
-        elastic solid.
+        whose relaxation times agree to a relative ``MERGE`` (1e-9) are one term (their moduli add,
+        at their modulus-weighted mean time; E(t) moves by less than 1e-9 relative, and float64
+        could not place a retardation time between them). An empty sequence is an elastic solid.
 
     Examples
     --------
@@ -62,7 +67,7 @@ class Prony:
 
     def __init__(self, E_inf: float, terms: Sequence[tuple[float, float]] = ()):
         self.E_inf = _modulus(E_inf, "E_inf", "give the relaxed Young's modulus in Pa, e.g. 1e6")
-        merged: dict[float, float] = {}
+        checked = []
         for n, term in enumerate(terms):
             if np.ndim(term) != 1 or len(term) != 2:
                 raise ValueError(f"terms[{n}]: must be a pair (E_i in Pa, tau_i in s), got {term!r}")
@@ -70,9 +75,16 @@ class Prony:
                            "(drop a term of zero modulus)")
             tau = check.positive(term[1], f"terms[{n}] tau_i", "s", "a relaxation time must be > 0 s "
                                  "(e.g. 0.07 for 70 ms)")
-            merged[tau] = merged.get(tau, 0.0) + E_i
-        self.taus = np.array(sorted(merged), dtype=float)  #: relaxation times, s, ascending
-        self.moduli = np.array([merged[t] for t in self.taus], dtype=float)  #: their moduli E_i, Pa
+            checked.append((tau, E_i))
+        merged: list[list[float]] = []  # [tau, E]: times within MERGE of each other are one term
+        for tau, E_i in sorted(checked):
+            if merged and tau <= merged[-1][0] * (1.0 + MERGE):
+                total = merged[-1][1] + E_i
+                merged[-1] = [(merged[-1][0] * merged[-1][1] + tau * E_i) / total, total]
+            else:
+                merged.append([tau, E_i])
+        self.taus = np.array([m[0] for m in merged], dtype=float)  #: relaxation times, s, ascending
+        self.moduli = np.array([m[1] for m in merged], dtype=float)  #: their moduli E_i, Pa
         self.E_0 = self.E_inf + float(self.moduli.sum())  #: instantaneous modulus E(0), Pa
         self.retardation_times, self.creep_terms = self._interconvert()
 
@@ -114,20 +126,27 @@ class Prony:
             brackets.append((poles[-1], 0.0))
         lams, weights = [], []
         for lo, hi in brackets:
-            # the open interval: step off each pole by a relative hair, where s E~(s) is finite
-            a = lo + abs(lo) * 1e-15 if lo != 0 else lo
-            b = hi - abs(hi) * 1e-15 if hi != 0 else hi
-            while self._laplace(a) > 0:  # next to the pole s E~ -> -inf; round-off may need a nearer start
-                a = 0.5 * (a + lo)
-                if a == lo:
-                    raise ValueError(f"terms: relaxation times {self.taus.tolist()} are too close to resolve "
-                                     "their retardation times in float64; merge the nearly equal ones")
-            root = brentq(self._laplace, a, b, xtol=1e-300, rtol=4 * np.finfo(float).eps, maxiter=500)
+            root = self._root(lo, hi)
             lam = -1.0 / root
             lams.append(lam)
             weights.append(lam / self._laplace_slope(root))
         order = np.argsort(lams)
         return np.array(lams)[order], np.array(weights)[order]
+
+    def _root(self, lo: float, hi: float) -> float:
+        """The root of ``s E~(s)`` between the pole ``lo`` and ``hi`` (the next pole, or 0).
+
+        ``s E~`` rises from -inf just above ``lo`` to +inf just below ``hi`` (to ``E_inf`` at 0); the
+        bracket's ends step off the poles by 1e-12 of the interval (at least a few units of round-off),
+        halving that step while the sign is wrong (the poles are at least ``MERGE`` apart)."""
+        width, eps = hi - lo, np.finfo(float).eps
+        a = lo + max(1e-12 * width, 8 * eps * abs(lo))  # never closer to a pole than round-off resolves
+        b = hi - max(1e-12 * width, 8 * eps * abs(hi))
+        while self._laplace(a) > 0 and a - lo > 4 * eps * abs(lo):
+            a = 0.5 * (a + lo)
+        while self._laplace(b) < 0 and hi - b > 4 * eps * abs(hi):
+            b = 0.5 * (b + hi)
+        return brentq(self._laplace, a, b, xtol=1e-300, rtol=4 * np.finfo(float).eps, maxiter=500)
 
     # -- time and frequency domain -----------------------------------------------------------
     @staticmethod
