@@ -104,6 +104,16 @@ def test_contact_with_a_viscoelastic_material_grows_to_the_relaxed_limit(tmp_pat
     assert areas[1] == pytest.approx(areas[2], rel=0.05)
 
 
+def test_stress_time_refusals(tmp_path, capsys):
+    load = _load(tmp_path)
+    _fails(["stress", load, "--depth", "1mm", "--time", "70ms", "--out", str(tmp_path / "a")], capsys,
+           r"--time: only a viscoelastic --material")
+    _fails(["stress", load, "--depth", "1mm", "--time", "70ms", "--material", _file(tmp_path, ELASTIC, "m.toml"),
+            "--out", str(tmp_path / "b")], capsys, r"--time: only a viscoelastic --material")
+    _fails(["stress", load, "--depth", "1mm", "--time=-5ms", "--material", _file(tmp_path, SLS, "s.toml"),
+            "--out", str(tmp_path / "c")], capsys, r"--time: must be >= 0")
+
+
 def test_contact_viscoelastic_refusals(tmp_path, capsys):
     path = _file(tmp_path, SLS, "sls.toml")
     sphere = ["contact", "sphere:R=10mm", "--normal-force", "0.1N", "--grid", "32", "--quiet"]
