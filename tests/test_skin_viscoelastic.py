@@ -50,6 +50,27 @@ def test_step_traction_strain_creeps_by_the_creep_ratio_and_stress_stays():
     np.testing.assert_allclose(late, e_inf, rtol=1e-10, atol=1e-12 * np.abs(e_inf).max())
 
 
+def test_a_sinusoidal_traction_makes_the_strain_lag_by_the_complex_compliance():
+    """A tractor display drives q(t) = Q sin(omega t): after the transient the strain is the glassy
+    elastic strain times E(0) [Re J* sin(omega t) + Im J* cos(omega t)], J* = 1 / E*(omega) of the SLS
+    written out by hand: a gain |J*| E(0) and a lag -arg J*; the stress does not lag."""
+    load, f = _gaussian_load(8), 10.0
+    w = 2 * np.pi * f
+    t = np.arange(0.0, 0.5, 1 / (400 * f))
+    amplitude = np.sin(w * t)
+    strain = SKIN.strain(load, 1e-3, t, history=amplitude, components=("zz",)).values[:, 0, 0, 4, 4]
+    stress = SKIN.stress(load, 1e-3, t, history=amplitude, components=("zz",)).values[:, 0, 0, 4, 4]
+    e0 = SKIN.instantaneous.strain(load, 1e-3, components=("zz",)).data["strain"].values[0, 0, 4, 4]
+    s0 = SKIN.instantaneous.stress(load, 1e-3, components=("zz",)).data["stress"].values[0, 0, 4, 4]
+    late = t > 0.4  # 13 retardation times (lambda = tau E(0) / E_inf = 30 ms) after the start
+    basis = np.stack([np.sin(w * t[late]), np.cos(w * t[late])], axis=1)
+    (a, b), *_ = np.linalg.lstsq(basis, strain[late] / (3e5 * e0), rcond=None)
+    J_star = 1 / (1e5 + 2e5 * 1j * w * 0.01 / (1 + 1j * w * 0.01))
+    assert abs((a + 1j * b) - J_star) < 1e-4 * abs(J_star)
+    assert np.angle(a + 1j * b) < 0  # the strain lags the traction
+    np.testing.assert_allclose(stress, s0 * amplitude, rtol=1e-12, atol=1e-12 * abs(s0))
+
+
 def test_one_load_per_time_equals_a_scaled_pattern():
     """Two routes: the history convolved as a scalar, and every field convolved recursively."""
     load, t = _gaussian_load(16), np.array([0.0, 0.004, 0.01, 0.02, 0.05])
