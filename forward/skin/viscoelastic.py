@@ -239,10 +239,11 @@ class ViscoelasticHalfSpace:
 
     # -- the contact solver's protocol -------------------------------------------------------
     def surface_compliance(self, kx, ky=None, time: float = 0.0) -> np.ndarray:
-        """Surface compliance (m/Pa per unit Fourier amplitude) of a traction held since t = 0, at ``time``
-        (s; default 0: the instantaneous compliance ``J(0)``-scaled, which :func:`solve_contact` uses for
-        a fast load; ``inf``: relaxed). Rows and columns as :meth:`HalfSpace.surface_compliance`; the
-        time-stepped contact of :func:`solve_viscoelastic_contact` uses the step's own compliance."""
+        """Surface compliance (m/Pa per unit Fourier amplitude) ``time`` s after a traction was applied and
+        held: the elastic compliance of modulus ``1 / J(time)``. The default 0 is the instantaneous
+        (glassy) skin, which :func:`solve_contact` then sees (a load faster than the fastest
+        relaxation); ``inf`` is the relaxed skin. Rows and columns as :meth:`HalfSpace.surface_compliance`;
+        the time-stepped :func:`solve_viscoelastic_contact` uses each step's own compliance."""
         return self.at(time).surface_compliance(kx, ky)
 
     def surface_influence(self, x, y, spacing, reference_length: float | None = None,
