@@ -23,7 +23,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from tactilab.forward import HalfSpace, Layer, LayeredHalfSpace, SurfaceLoad
-from tactilab.forward.skin.receptive_field import receptive_field
+from tactilab.forward.skin import receptive_field
 
 E_PA, DEPTH, SPACING = 0.5e6, 1e-3, 1e-4
 

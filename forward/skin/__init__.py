@@ -13,6 +13,10 @@ from tactilab.core import attach
 _EXPORTS: dict[str, str] = {
     "Layer": "layered",
     "LayeredHalfSpace": "layered",
+    "tractor_phi_psi": "line_loads",
+    "tangential_line_strain": "line_loads",
+    "receptive_field": "receptive",
+    "ReceptiveField": "receptive",
 }
 
 __all__ = sorted(_EXPORTS)
