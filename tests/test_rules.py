@@ -206,6 +206,7 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.LayeredHalfSpace.operator", "depth"): lambda v: LAYERED.operator((N,), H, depth=v),
     ("forward.LayeredHalfSpace.operator", "components"): lambda v: LAYERED.operator((N,), H, 1e-4, components=v),
     ("forward.LayeredHalfSpace.material_at", "depth"): lambda v: LAYERED.material_at(v),
+    ("forward.LayeredHalfSpace.transfer", "depth"): lambda v: LAYERED.transfer(1e3, 0.0, v),
     ("forward.skin.receptive_field", "depth"): (
         lambda v: fwd.skin.receptive_field(LAYERED, v, spacing=H, half_extent=4 * H)),
     ("forward.skin.receptive_field", "spacing"): (

@@ -172,6 +172,20 @@ def test_periodic_fields_of_a_same_material_stack_are_the_halfspace_fields(rng):
     assert np.array_equal(at, full[[5, 20], [3, 10]])
 
 
+def test_public_transfer_is_the_multiplier_and_its_strain_the_layer_hooke_law(rng):
+    skin = LayeredHalfSpace([Layer(1e-3, E, 0.5), Layer(1e-3, 4 * E, 0.3)])
+    kx, ky = rng.standard_normal((2, 5)) * 3e3
+    stress = skin.transfer(kx, ky, 1.5e-3)
+    assert stress.shape == (5, 6, 3) and np.array_equal(stress, transfer_matrix(skin, kx, ky, 1.5e-3))
+    strain = skin.transfer(kx, ky, 1.5e-3, quantity="strain")
+    trace = stress[:, 0] + stress[:, 1] + stress[:, 2]
+    assert np.allclose(strain[:, 2], (1.3 * stress[:, 2] - 0.3 * trace) / (4 * E), rtol=0, atol=1e-20)
+    with pytest.raises(ValueError, match="quantity: must be 'stress' or 'strain'"):
+        skin.transfer(kx, ky, 1e-3, quantity="energy")
+    with pytest.raises(ValueError, match="ky: "):
+        skin.transfer(kx, np.full(5, math.inf), 1e-3)
+
+
 def test_strain_uses_the_hooke_law_of_the_layer_at_the_depth():
     n, h = 16, 2e-4
     load = SurfaceLoad(p=1e3 * np.cos(2 * np.pi * np.arange(n) / n)[None, :].repeat(n, 0), spacing=h, periodic=True)
@@ -400,3 +414,14 @@ def test_synthesis_optimum_takes_a_skin():
     assert same.d == pytest.approx(closed.d, rel=2e-3) and same.skin.startswith("LayeredHalfSpace")
     with pytest.raises(ValueError, match="skin: the design takes None or HalfSpace"):
         optimal_half_spacing(z, grid_points=20, skin=HalfSpace(E, 0.3))
+
+
+def test_a_large_strain_and_a_depth_meant_in_mm_warn():
+    from tactilab.data_schemas.plausibility import PlausibilityWarning
+
+    skin = LayeredHalfSpace([Layer(5.0, E, 0.5)])
+    load = SurfaceLoad(p=np.full((4, 4), 1e5) * np.cos(np.arange(4) * np.pi / 2), spacing=1e-4, periodic=True)
+    with pytest.warns(PlausibilityWarning, match="LayeredHalfSpace.strain"):
+        skin.strain(load, 1e-5)
+    with pytest.warns(PlausibilityWarning, match="depth"):
+        skin.stress(load.scaled(1e-6), 1.25)
