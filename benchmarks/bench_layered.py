@@ -12,6 +12,9 @@ Run: ``python benchmarks/bench_layered.py [--sizes 256 512] [--repeats 15] [--no
 2. Science (2): the receptive field of a sensor 3 mm deep (and 1 mm) in a 4 mm pulp (E = 0.5 MPa,
    nu = 1/2) bonded to bone, against the half-space of the same material: peak reading per newton
    of normal force, and the radii where it falls to a half and a tenth (docs/layered_skin.md).
+3. Science (3): the tactile-synthesis optimum half spacing d_opt (docs/theory.md 4a) for receptors
+   1, 2 and 3 mm deep in the 4 mm pulp on bone, against the half-space's, same window (10 mm) and
+   number of pairs (5): ``optimal_half_spacing(Z, skin=...)``.
 """
 
 from __future__ import annotations
@@ -22,8 +25,8 @@ import time
 import numpy as np
 import scipy.fft as sfft
 
-from tactilab.forward import HalfSpace, Layer, LayeredHalfSpace, SurfaceLoad
-from tactilab.forward.skin.receptive_field import receptive_field
+from tactilab.forward import HalfSpace, Layer, LayeredHalfSpace, SurfaceLoad, optimal_half_spacing
+from tactilab.forward.skin import receptive_field
 
 E_PA, DEPTH, SPACING = 0.5e6, 1e-3, 1e-4
 
@@ -81,6 +84,20 @@ def section_receptive_field() -> None:
                       f"{r.tenth_width * 1e3:>10.2f}")
 
 
+def section_synthesis() -> None:
+    print("3. tactile-synthesis optimum: half-space vs 4 mm pulp on bone (window 10 mm, 5 pairs)")
+    print(f"{'Z_mm':>5} {'d_half_mm':>9} {'d_pulp_mm':>9} {'change_%':>8} {'resid_half':>10} {'resid_pulp':>10} "
+          f"{'t_pulp_s':>8}")
+    pulp = LayeredHalfSpace([Layer(4e-3, E_PA, 0.5)])
+    for z in (1e-3, 2e-3, 3e-3):
+        half = optimal_half_spacing(z)
+        t0 = time.perf_counter()
+        layered = optimal_half_spacing(z, skin=pulp)
+        t = time.perf_counter() - t0
+        print(f"{z * 1e3:>5.1f} {half.d * 1e3:>9.4f} {layered.d * 1e3:>9.4f} {100 * (layered.d / half.d - 1):>8.2f} "
+              f"{half.relative_residual:>10.4f} {layered.relative_residual:>10.4f} {t:>8.1f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[256, 512])
@@ -90,6 +107,7 @@ def main() -> None:
     section_cost(args.sizes, args.repeats)
     if not args.no_science:
         section_receptive_field()
+        section_synthesis()
 
 
 if __name__ == "__main__":

@@ -247,6 +247,14 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.LayeredHalfSpace.operator", "depth"): lambda v: LAYERED.operator((N,), H, depth=v),
     ("forward.LayeredHalfSpace.operator", "components"): lambda v: LAYERED.operator((N,), H, 1e-4, components=v),
     ("forward.LayeredHalfSpace.material_at", "depth"): lambda v: LAYERED.material_at(v),
+    ("forward.LayeredHalfSpace.transfer", "depth"): lambda v: LAYERED.transfer(1e3, 0.0, v),
+    ("forward.skin.receptive_field", "depth"): (
+        lambda v: fwd.skin.receptive_field(LAYERED, v, spacing=H, half_extent=4 * H)),
+    ("forward.skin.receptive_field", "spacing"): (
+        lambda v: fwd.skin.receptive_field(LAYERED, 1e-3, spacing=v, half_extent=4 * (v if v > 0 else H))),
+    ("forward.skin.tangential_line_strain", "depth"): (
+        lambda v: fwd.skin.tangential_line_strain(LAYERED, X, [0.0], [1.0], v)),
+    ("forward.skin.tractor_phi_psi", "depth"): lambda v: fwd.skin.tractor_phi_psi(LAYERED, X, [0.0], [1.0], v),
     # scenes, displays, tractors, receptors
     ("forward.rigid_surface_pressure", "spacing"): lambda v: fwd.rigid_surface_pressure(np.zeros(N), v, 1e6),
     ("forward.rigid_surface_pressure", "young_modulus"): lambda v: fwd.rigid_surface_pressure(np.zeros(N), H, v),

@@ -172,6 +172,20 @@ def test_periodic_fields_of_a_same_material_stack_are_the_halfspace_fields(rng):
     assert np.array_equal(at, full[[5, 20], [3, 10]])
 
 
+def test_public_transfer_is_the_multiplier_and_its_strain_the_layer_hooke_law(rng):
+    skin = LayeredHalfSpace([Layer(1e-3, E, 0.5), Layer(1e-3, 4 * E, 0.3)])
+    kx, ky = rng.standard_normal((2, 5)) * 3e3
+    stress = skin.transfer(kx, ky, 1.5e-3)
+    assert stress.shape == (5, 6, 3) and np.array_equal(stress, transfer_matrix(skin, kx, ky, 1.5e-3))
+    strain = skin.transfer(kx, ky, 1.5e-3, quantity="strain")
+    trace = stress[:, 0] + stress[:, 1] + stress[:, 2]
+    assert np.allclose(strain[:, 2], (1.3 * stress[:, 2] - 0.3 * trace) / (4 * E), rtol=0, atol=1e-20)
+    with pytest.raises(ValueError, match="quantity: must be 'stress' or 'strain'"):
+        skin.transfer(kx, ky, 1e-3, quantity="energy")
+    with pytest.raises(ValueError, match="ky: "):
+        skin.transfer(kx, np.full(5, math.inf), 1e-3)
+
+
 def test_strain_uses_the_hooke_law_of_the_layer_at_the_depth():
     n, h = 16, 2e-4
     load = SurfaceLoad(p=1e3 * np.cos(2 * np.pi * np.arange(n) / n)[None, :].repeat(n, 0), spacing=h, periodic=True)
@@ -327,3 +341,87 @@ def test_bad_inputs_are_refused_with_the_rule():
         skin.operator((4,), 1e-4, depth=5e-4, periodic="yes")
     with pytest.raises(ValueError, match="quantity: must be 'stress' or 'strain'"):
         skin.operator((4,), 1e-4, depth=5e-4, quantity="energy")
+
+
+def test_receptive_field_of_the_halfspace_is_boussinesq_and_bone_concentrates_it():
+    """sigma_zz = -3 F Z^3 / (2 pi R^5): peak 3 F / (2 pi Z^2), half at x = Z sqrt(2^(2/5) - 1), a tenth
+    at x = Z sqrt(10^(2/5) - 1); layers of the half-space's material on it read the same; on bone the
+    pulp concentrates the stress under the force (docs/layered_skin.md)."""
+    from tactilab.forward.skin import receptive_field
+
+    Z = 3e-3
+    same = LayeredHalfSpace([Layer(4e-3, E, 0.5)], base=HalfSpace(E, 0.5))
+    for skin, tol in ((HalfSpace(E, 0.5), 1e-4), (same, 1e-2)):
+        r = receptive_field(skin, Z, "zz", "stress", spacing=2e-4, half_extent=12e-3, tol=tol)
+        assert r.peak == pytest.approx(3 / (2 * math.pi * Z**2), rel=2e-3)
+        assert r.half_width == pytest.approx(Z * math.sqrt(2**0.4 - 1), rel=1e-2)
+        assert r.tenth_width == pytest.approx(Z * math.sqrt(10**0.4 - 1), rel=2e-2)
+    pulp = receptive_field(LayeredHalfSpace([Layer(4e-3, E, 0.5)]), Z, "zz", "stress", spacing=2e-4, half_extent=12e-3)
+    assert pulp.peak > 1.2 * 3 / (2 * math.pi * Z**2) and pulp.error_estimate < 1e-4
+    with pytest.raises(ValueError, match="reading: must be one of"):
+        receptive_field(HalfSpace(E, 0.5), Z, "pressure")
+    with pytest.raises(ValueError, match="quantity: must be 'strain' or 'stress'"):
+        receptive_field(HalfSpace(E, 0.5), Z, "von_mises", "stress")
+
+
+def _array(d, n=5):
+    from tactilab.forward.tractors import array_centres
+
+    centres, sign = array_centres(d, n)
+    return np.concatenate([centres - d, centres + d]), np.concatenate([-sign * np.ones(n), sign * np.ones(n)])
+
+
+def test_tractor_shapes_on_the_halfspace_match_the_closed_form_and_converge_with_the_period():
+    """S_Phi, S_Psi of a tractor array (docs/theory.md 4a, closed form at nu = 1/2) from the layered
+    Fourier series of a half-space: the images of the period L leave an error falling like 1/L^2."""
+    from tactilab.forward.skin import tangential_line_strain
+    from tactilab.forward.tractors import array_phi_psi
+
+    z, d = 1e-3, 0.8e-3
+    xs = np.linspace(-5e-3, 5e-3, 101)
+    src, w = _array(d)
+    phi, psi = array_phi_psi(xs, d, z, 5)
+    errors = []
+    for period in (0.1, 0.4):
+        eps, gamma = tangential_line_strain(HalfSpace(E, 0.5), xs, src, w, z, period=period)
+        errors.append(max(np.abs(math.pi * E / 3 * eps - phi).max() / np.abs(phi).max(),
+                          np.abs(math.pi * E / 3 * gamma - psi).max() / np.abs(psi).max()))
+    assert errors[1] < 5e-4 and errors[0] / errors[1] > 12
+
+
+def test_tractor_shapes_on_a_grid_and_spline_equal_the_direct_sum():
+    from tactilab.forward.skin import tangential_line_strain
+
+    skin = LayeredHalfSpace([Layer(4e-3, E, 0.5)])
+    src, w = _array(1e-3)
+    xs = np.linspace(-6e-3, 6e-3, 200)  # more than 32 points: the FFT grid and the spline
+    eps, gamma = tangential_line_strain(skin, xs, src, w, 2e-3)
+    direct = [tangential_line_strain(skin, xs[i:i + 20], src, w, 2e-3) for i in range(0, 200, 20)]
+    assert np.abs(eps - np.concatenate([e for e, _ in direct])).max() <= 1e-8 * np.abs(eps).max()
+    assert np.abs(gamma - np.concatenate([g for _, g in direct])).max() <= 1e-8 * np.abs(gamma).max()
+
+
+def test_synthesis_optimum_takes_a_skin():
+    """The half-space's optimum through the layered series (layers of its material on it) is the closed
+    form's; a pulp on bone moves it (docs/layered_skin.md tabulates by how much)."""
+    from tactilab.forward import optimal_half_spacing
+
+    z = 1e-3
+    closed = optimal_half_spacing(z, grid_points=20)
+    assert optimal_half_spacing(z, grid_points=20, skin=HalfSpace(E, 0.5)).d == closed.d
+    same = optimal_half_spacing(z, grid_points=20, skin=LayeredHalfSpace([Layer(0.5e-3, E, 0.5)],
+                                                                         base=HalfSpace(E, 0.5)))
+    assert same.d == pytest.approx(closed.d, rel=2e-3) and same.skin.startswith("LayeredHalfSpace")
+    with pytest.raises(ValueError, match="skin: the design takes None or HalfSpace"):
+        optimal_half_spacing(z, grid_points=20, skin=HalfSpace(E, 0.3))
+
+
+def test_a_large_strain_and_a_depth_meant_in_mm_warn():
+    from tactilab.data_schemas.plausibility import PlausibilityWarning
+
+    skin = LayeredHalfSpace([Layer(5.0, E, 0.5)])
+    load = SurfaceLoad(p=np.full((4, 4), 1e5) * np.cos(np.arange(4) * np.pi / 2), spacing=1e-4, periodic=True)
+    with pytest.warns(PlausibilityWarning, match="LayeredHalfSpace.strain"):
+        skin.strain(load, 1e-5)
+    with pytest.warns(PlausibilityWarning, match="depth"):
+        skin.stress(load.scaled(1e-6), 1.25)

@@ -14,6 +14,10 @@ _EXPORTS: dict[str, str] = {
     # layered skin (structure)
     "Layer": "layered",
     "LayeredHalfSpace": "layered",
+    "tractor_phi_psi": "line_loads",
+    "tangential_line_strain": "line_loads",
+    "receptive_field": "receptive",
+    "ReceptiveField": "receptive",
     # viscoelastic skin (time): the material, the half-space, its contact
     "Prony": "prony",
     "ViscoelasticHalfSpace": "viscoelastic",

@@ -18,8 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from tactilab.core import rules as check
-from tactilab.forward.halfspace import HalfSpace
+from tactilab.forward.halfspace import HalfSpace, compliance_matrix
 
+from .layered_multipliers import transfer_matrix
 from .propagator import Stack, surface_amplitudes
 
 
@@ -164,6 +165,35 @@ class LayeredHalfSpace:
             shear = float(np.sum(st.thickness / st.G))
             out[~live] = np.diag([normal, shear, shear])
         return out[..., :2, :2] if plane else out
+
+    def transfer(self, kx, ky, depth: float, quantity: str = "stress") -> np.ndarray:
+        """The exact multipliers from surface tractions to stress or strain at ``depth``, per wavenumber.
+
+        Parameters
+        ----------
+        kx, ky : array_like
+            Angular wavenumbers, rad/m (broadcast together); no Nyquist rule is applied.
+        depth : float
+            Depth in m.
+        quantity : {"stress", "strain"}
+            Stress (Pa per Pa) or TENSOR strain (per Pa), by the Hooke's law of the layer at ``depth``.
+
+        Returns
+        -------
+        ndarray, complex, shape ``(*broadcast(kx, ky).shape, 6, 3)``
+            Rows: Voigt components ``(xx, yy, zz, yz, zx, xy)``; columns: loads ``(p, qx, qy)``. At
+            ``k = 0`` the uniform solution (docs/theory.md section 6).
+        """
+        depth = check.depth(depth)
+        E, nu = self.material_at(depth)
+        kx = check.finite_array(kx, "kx", "rad/m")
+        ky = check.finite_array(ky, "ky", "rad/m")
+        T = transfer_matrix(self, kx, ky, depth)
+        if quantity == "stress":
+            return T
+        if quantity == "strain":
+            return np.einsum("ij,...jl->...il", compliance_matrix(E, nu), T)
+        raise ValueError(f"quantity: must be 'stress' or 'strain', got {quantity!r}")
 
     # -- fields ----------------------------------------------------------------------------------
     def stress(self, load, depth, points=None, components=None, tol: float = 1e-6, padding="auto"):

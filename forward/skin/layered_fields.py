@@ -25,8 +25,9 @@ import scipy.fft as sfft
 import xarray as xr
 
 from tactilab.core import rules as check
+from tactilab.data_schemas.plausibility import check_plausible_at_entry, check_small_strain
 from tactilab.forward.halfspace import (SHEAR_CONVENTION, AccuracyWarning, FieldResult, SurfaceLoad,
-                                        compliance_matrix)
+                                        compliance_matrix, largest_strain)
 
 from .layered_multipliers import VOIGT, output_multipliers
 
@@ -154,6 +155,7 @@ def layered_field(skin, load, depth, points, components, tol, padding, quantity:
         raise ValueError(f"tol: must be a finite relative tolerance > 0, got {tol!r} (e.g. 1e-6)")
     depths = check.depths(depth)
     for z in depths:
+        check_plausible_at_entry(float(z), "depth", "m", stacklevel=4)  # 1.25 meant as mm warns
         skin.material_at(float(z))  # refuses a depth in the rigid base
     comps = check.components(components)
     pts, index = (None, None) if points is None else _points_index(points, load)
@@ -176,6 +178,9 @@ def layered_field(skin, load, depth, points, components, tol, padding, quantity:
             warnings.warn(f"the padded grid ({factor}x the load grid per axis) leaves an estimated truncation error "
                           f"{err:.1e} above tol={tol:.0e}; enlarge the load grid (more zero margin) or loosen tol",
                           AccuracyWarning, stacklevel=3)
+    largest = max(largest_strain(values[d:d + 1], quantity, comps, *skin.material_at(float(z)))
+                  for d, z in enumerate(depths))
+    check_small_strain(largest, f"LayeredHalfSpace.{quantity}", stacklevel=4)
     rounding = 30.0 * np.finfo(float).eps * math.log2(max(values[0, 0].size * factor ** load.ndim, 2))
     err = float(err + rounding)
     if index is not None:
