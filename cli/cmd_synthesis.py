@@ -89,10 +89,16 @@ class _Options:
         self.young = None if args.young_modulus is None else rules.young_modulus(
             to_si(args.young_modulus, "pressure", name="--young-modulus"), "--young-modulus")
         self.material = read_material_option(args, replaces=("young_modulus",))
-        if self.material is not None:
-            if self.material.is_layered:
-                raise ValueError("--material: the synthesis design is for a homogeneous half-space (plane strain, "
-                                 "nu = 1/2), got a layered material; use an elastic or viscoelastic one")
+        self.skin = None  # the closed-form half-space; a layered material designs on its layers
+        if self.material is not None and self.material.is_layered:
+            from tactilab.forward import skin_from_material
+
+            if args.amplitude is not None or args.traction_limit is not None:
+                raise ValueError("--material: a layered skin gets its optimal spacing here, not its matching traction "
+                                 "(the grating's strain on layers has no closed form); drop --amplitude and "
+                                 "--traction-limit")
+            self.skin = skin_from_material(self.material)
+        elif self.material is not None:
             if self.material.poisson_ratio != 0.5:
                 raise ValueError(f"--material: the synthesis design assumes nu = 1/2 (plane strain, incompressible), "
                                  f"got poisson_ratio {self.material.poisson_ratio!r}; set it to 0.5")
@@ -155,6 +161,8 @@ def run(args: argparse.Namespace) -> int:
         if opts.material.is_viscoelastic:
             skin += ("; traction and amplitude use the relaxed modulus (quasi-static): under its tractions the "
                      "display's strain lags and creeps (docs/theory.md section 7)")
+        if opts.skin is not None:
+            skin += "; the tractors' strain shapes are the layered skin's (docs/layered_skin.md), slower to design"
         say(f"skin from --material: {skin}")
         report.computed.append(f"skin from --material: {skin}")
     say("objective J(d) over x in [-w/2, w/2]; optimum = lowest non-trivial local minimum, d in "
@@ -167,7 +175,7 @@ def run(args: argparse.Namespace) -> int:
     say()
     say("design")
     say(_header(opts))
-    designs = [synthesis.optimal_half_spacing(z, opts.width, opts.pairs) for z in opts.depths]
+    designs = [synthesis.optimal_half_spacing(z, opts.width, opts.pairs, skin=opts.skin) for z in opts.depths]
     for design in designs:
         say(_row(design, opts))
     _summarise(report, designs, opts)
@@ -178,13 +186,13 @@ def run(args: argparse.Namespace) -> int:
     say()
     say(f"sensitivity to the window width (depth {z * 1e3:g} mm, pairs {opts.pairs})")
     say(_header(opts))
-    by_width = [synthesis.optimal_half_spacing(z, w, opts.pairs) for w in opts.widths]
+    by_width = [synthesis.optimal_half_spacing(z, w, opts.pairs, skin=opts.skin) for w in opts.widths]
     for design in by_width:
         say(_row(design, opts))
     say()
     say(f"sensitivity to the number of pairs (depth {z * 1e3:g} mm, width {opts.width * 1e3:g} mm)")
     say(_header(opts))
-    by_pairs = [synthesis.optimal_half_spacing(z, opts.width, n) for n in opts.pairs_list]
+    by_pairs = [synthesis.optimal_half_spacing(z, opts.width, n, skin=opts.skin) for n in opts.pairs_list]
     for design in by_pairs:
         say(_row(design, opts))
     for label, group in (("width", by_width), ("pairs", by_pairs)):
@@ -231,6 +239,9 @@ def _run_batch(args: argparse.Namespace, opts: _Options) -> int:
 
     from tactilab.experiments.modelling import design_sweep
 
+    if opts.skin is not None:
+        raise ValueError("--workers/--scheduler: the batch design table is for the half-space; run a layered "
+                         "--material without --workers")
     if opts.amplitude is not None or opts.limit is not None:
         raise ValueError("--workers/--scheduler: the batch design table has no matching columns; drop --amplitude "
                          "and --traction-limit (run without --workers for them)")

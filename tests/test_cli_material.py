@@ -132,9 +132,32 @@ def test_synthesis_material_sets_the_modulus_and_refuses_what_it_cannot_design(t
     b = json.loads(capsys.readouterr().out)
     assert a["designs"] == b["designs"] and a["designs"][0]["traction_kpa"] > 0
     assert any("skin from --material: E = 200 kPa" in line for line in a["computed"])
-    _fails([*common, "--material", _file(tmp_path, LAYERED, "l.toml")], capsys, r"got a layered material")
+    _fails([*common, "--material", _file(tmp_path, LAYERED, "l.toml")], capsys,
+           r"--material: a layered skin gets its optimal spacing here, not its matching traction")
     _fails([*common, "--material", _file(tmp_path, ELASTIC.replace("0.5", "0.4"), "n.toml")], capsys,
            r"assumes nu = 1/2")
+
+
+def test_synthesis_designs_on_a_layered_material(tmp_path, capsys, monkeypatch):
+    """The layered skin reaches the design: the CLI's optimum is optimal_half_spacing(..., skin=the layers)."""
+    from tactilab.forward import Layer, LayeredHalfSpace, synthesis
+
+    original = synthesis.optimal_half_spacing
+    seen = []
+
+    def quick(*args, **kwargs):  # a coarse search grid: the wiring is under test, not the optimum
+        seen.append(kwargs.get("skin"))
+        return original(*args, grid_points=20, **kwargs)
+
+    monkeypatch.setattr(synthesis, "optimal_half_spacing", quick)
+    assert main(["synthesis", "--depth", "1mm", "--no-sensitivity", "--json", "--material",
+                 _file(tmp_path, LAYERED, "l.toml")]) == 0
+    row = json.loads(capsys.readouterr().out)["designs"][0]
+    skin = LayeredHalfSpace([Layer(2e-3, 1e5, 0.5)])
+    assert repr(seen[0]) == repr(skin)
+    assert row["d_mm"] == pytest.approx(original(1e-3, grid_points=20, skin=skin).d * 1e3, rel=1e-12)
+    _fails(["synthesis", "--depth", "1mm", "--workers", "2", "--material", _file(tmp_path, LAYERED, "l.toml")],
+           capsys, r"--workers/--scheduler: the batch design table is for the half-space")
 
 
 def test_simulate_takes_the_material_and_refuses_layers(tmp_path, capsys):
