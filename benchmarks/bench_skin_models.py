@@ -7,7 +7,10 @@ Run: ``python benchmarks/bench_skin_models.py [--sizes 256 512] [--repeats 15] [
    six stress components, float64, one FFT thread, on 256^2 and 512^2 grids. Times are medians and
    minima over interleaved repeats after a warm-up call (the transfer tables cached: what a scan
    over frames sees), with each row's goal and an agreement column against an independent
-   reference. The table is the list ``FIELD_CASES``: a skin model adds a row.
+   reference. The table is the list ``FIELD_CASES``: a skin model adds a row. Rows: a rigid random
+   surface sliding at 10 cm/s over a standard linear solid in full contact (goal 1.2x), and a
+   random traction on a 4 mm pulp on bone (goal 1.5x; its first call builds the layered tables,
+   ``benchmarks/bench_layered.py`` times that).
 2. A time-stepped viscoelastic contact at 128^2 (isolated; a standard linear solid, tau = 50 ms):
    a sphere pressed with 0.1 N, held, then slid at 1 cm/s, ``--steps`` steps of 0.5 ms; the time
    per step against one elastic ``solve_contact`` of the same grid.
@@ -24,8 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft as sfft
 
-from tactilab.forward import (AccuracyWarning, HalfSpace, Prony, ViscoelasticHalfSpace, solve_contact,
-                              solve_viscoelastic_contact)
+from tactilab.forward import (AccuracyWarning, HalfSpace, Layer, LayeredHalfSpace, Prony, SurfaceLoad,
+                              ViscoelasticHalfSpace, solve_contact, solve_viscoelastic_contact)
 
 DEPTH, SPACING = 1e-3, 1e-4
 SLS = Prony.sls(1e5, 3e5, 0.05)  # Pa, Pa, s
@@ -70,9 +73,28 @@ def _viscoelastic_steady(n: int, rng):
     return model, elastic, check
 
 
-#: the field rows: (name, goal, build); the layered skin adds its own
+def _layered(n: int, rng):
+    """A random periodic traction (p, qx, qy) on a 4 mm pulp (0.5 MPa) on bone, against the half-space of
+    the pulp's material; agreement: the pulp on a half-space of its own material is that half-space."""
+    load = SurfaceLoad(p=rng.standard_normal((n, n)), qx=rng.standard_normal((n, n)),
+                       qy=rng.standard_normal((n, n)), spacing=SPACING, periodic=True)
+    hs = HalfSpace(0.5e6, 0.5)
+    pulp = LayeredHalfSpace([Layer(4e-3, 0.5e6, 0.5)])
+    model = lambda: pulp.stress(load, DEPTH)  # noqa: E731
+    elastic = lambda: hs.stress(load, DEPTH, method="spectral")  # noqa: E731
+
+    def check() -> float:
+        same = LayeredHalfSpace([Layer(4e-3, 0.5e6, 0.5)], base=hs)
+        ref = elastic().data["stress"].values
+        return float(np.abs(same.stress(load, DEPTH).data["stress"].values - ref).max() / np.abs(ref).max())
+
+    return model, elastic, check
+
+
+#: the field rows: (name, goal, build)
 FIELD_CASES: list[FieldCase] = [
     FieldCase("viscoelastic steady sliding", 1.2, _viscoelastic_steady),
+    FieldCase("layered: 4 mm pulp on bone", 1.5, _layered),
 ]
 
 
