@@ -168,6 +168,7 @@ def _viscoelastic(args, report, problem, settings, skin, held, depths, out, mate
                         stem="strain")
     settings = {**settings, "condition": "frictionless", "friction": 0.0}
     _summarise(report, sol, problem, settings, elapsed, depths)
+    report.computed[0] = report.computed[0].replace("; E = ", "; relaxed E = ", 1)
     unit, scale = ("mm", 1e3) if problem.gap.ndim == 1 else ("mm^2", 1e6)
     report.computed.append(f"{describe_material(material)}; load held for {held * 1e3:g} ms in {len(times)} time "
                            f"steps: contact area {history.area[0] * scale:.4g} -> {history.area[-1] * scale:.4g} {unit}")
