@@ -23,6 +23,7 @@ import pathlib
 import tomllib
 
 from .base import R, record_from_dict
+from .material import SkinMaterial
 from .scene import Scene
 
 _EXAMPLES_PACKAGE = "tactilab.data_schemas"
@@ -88,7 +89,7 @@ def load_scene(path: str | pathlib.Path) -> Scene:
     return read_toml_record(path, Scene)
 
 
-def read_material(path: str | pathlib.Path):
+def read_material(path: str | pathlib.Path) -> SkinMaterial:
     """Read a :class:`~.material.SkinMaterial` from a TOML file (its ``[material]`` table, or the whole
     file when it has none) or a JSON record, units converted to SI once.
 
@@ -99,8 +100,6 @@ def read_material(path: str | pathlib.Path):
     ValueError
         A wrong suffix or an invalid material, in one line naming the file.
     """
-    from .material import SkinMaterial
-
     path = pathlib.Path(path)
     if path.suffix.lower() not in (".toml", ".json"):
         raise ValueError(f"{path}: a material file must end in .toml or .json, got {path.suffix!r}; write a "
