@@ -81,6 +81,20 @@ def test_instantaneous_and_relaxed_limits_and_the_relaxed_bound(step_load):
     np.testing.assert_allclose(step_load.normal_force, P, rtol=1e-10)
 
 
+def test_a_held_indentation_keeps_its_contact_and_the_force_relaxes_as_E():
+    """Approach held (Lee and Radok, displacement control): the contact stays that of the glassy solve
+    and every pressure, hence the force, relaxes as E(t) / E(0), exactly for this step history."""
+    t = np.array([0.0, 0.002, 0.01, 0.05, 0.2, 1.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AccuracyWarning)
+        hist = solve_viscoelastic_contact(SKIN, SPHERE, H, t, approach=2e-4)
+    ratio = SLS.relaxation_modulus(t) / SLS.E_0
+    np.testing.assert_allclose(hist.normal_force, hist.normal_force[0] * ratio, rtol=1e-6)
+    np.testing.assert_allclose(hist.pressures, hist.pressures[0] * ratio[:, None, None], rtol=1e-6,
+                               atol=1e-6 * hist.pressures[0].max())
+    assert np.all(hist.area == hist.area[0])
+
+
 def test_sliding_sinusoid_in_full_contact_pressure_and_drag():
     """A rigid sinusoid h = A cos(k (x - V t)) slides over the skin pressed in full contact (plane
     strain, periodic): after the transient, p = p_mean + P Re[conj(E*) exp(ik(x - Vt))] with
