@@ -157,5 +157,8 @@ def test_bad_inputs_are_refused():
         solve_viscoelastic_contact(SKIN, SPHERE, H, [0.0], normal_force=P, keep_every=0)
     with pytest.raises(ValueError, match=r"times: times must increase strictly"):
         solve_viscoelastic_contact(SKIN, SPHERE, H, [0.0, 0.0], normal_force=P)
+    with pytest.raises(ValueError, match=r"gap: gap\(t\) must keep one grid, shape \(64, 64\) at t = 0 s, got \(32, 32\)"):
+        solve_viscoelastic_contact(SKIN, lambda t: SPHERE if t == 0 else SPHERE[:32, :32], H, [0.0, 0.1],
+                                   normal_force=P)
     with pytest.raises(ValueError, match=r"normal_force, mean_pressure, approach: give exactly one"):
         solve_viscoelastic_contact(SKIN, SPHERE, H, [0.0], normal_force=P, approach=1e-4)

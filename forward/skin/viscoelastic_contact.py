@@ -32,6 +32,7 @@ import numpy as np
 from ..contact import ContactCompliance, ContactSolution, solve_contact
 from ..halfspace import HalfSpace, SurfaceLoad
 from .hereditary import HereditaryIntegral, check_times
+from .viscoelastic import ViscoelasticHalfSpace
 
 
 @dataclass(frozen=True)
@@ -160,8 +161,6 @@ def solve_viscoelastic_contact(skin, gap, spacing, times, *, normal_force=None, 
     -------
     ViscoelasticContactHistory
     """
-    from .viscoelastic import ViscoelasticHalfSpace
-
     if not isinstance(skin, ViscoelasticHalfSpace):
         raise ValueError(f"skin: expected a ViscoelasticHalfSpace, got {type(skin).__name__}; for an elastic skin "
                          "call solve_contact")
@@ -191,6 +190,9 @@ def solve_viscoelastic_contact(skin, gap, spacing, times, *, normal_force=None, 
         E_n = gain * E0
         elastic = HalfSpace(E_n, skin.nu)
         g0 = first if i == 0 else np.asarray(gap_at(float(t)), dtype=float)
+        if g0.shape != first.shape:
+            raise ValueError(f"gap: gap(t) must keep one grid, shape {first.shape} at t = {float(times[0]):g} s, got "
+                             f"{g0.shape} at t = {float(t):g} s; return the same grid at every time")
         step_gap = g0
         if np.any(memory):
             if E_n not in operators:
