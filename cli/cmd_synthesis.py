@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from .batch_options import add_worker_options, batch_where, wants_batch
@@ -26,6 +27,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="virtual sinusoid amplitude A, a length such as 50um (needs --young-modulus)")
     parser.add_argument("--young-modulus", default=None, help="skin Young's modulus E, a pressure such as 200kPa")
     add_material_option(parser)
+    parser.add_argument("--drive-frequency", default=None,
+                        help="with a viscoelastic --material: the display's drive frequency, e.g. 100Hz; the traction "
+                             "is matched with |E*(2 pi f)| (default: the relaxed modulus, a quasi-static drive)")
     parser.add_argument("--traction-limit", default=None,
                         help="per-tractor traction limit, a pressure such as 5kPa (needs --young-modulus)")
     parser.add_argument("--footprint", default=None,
@@ -103,6 +107,20 @@ class _Options:
                 raise ValueError(f"--material: the synthesis design assumes nu = 1/2 (plane strain, incompressible), "
                                  f"got poisson_ratio {self.material.poisson_ratio!r}; set it to 0.5")
             self.young = self.material.young_modulus_pa  # viscoelastic: the relaxed modulus (quasi-static)
+        self.drive = None if args.drive_frequency is None else to_si(args.drive_frequency, "frequency",
+                                                                      name="--drive-frequency")
+        if self.drive is not None:
+            if self.material is None or not self.material.is_viscoelastic:
+                raise ValueError("--drive-frequency: only a viscoelastic --material (model prony or sls) depends on "
+                                 "the drive frequency; drop --drive-frequency")
+            if not self.drive >= 0:
+                raise ValueError(f"--drive-frequency: must be >= 0 Hz, got {args.drive_frequency!r}; e.g. 100Hz")
+            from tactilab.forward import skin_from_material
+
+            # under given tractions the strain is J* times the stress: the matching traction scales with |E*|
+            self.complex_modulus = complex(skin_from_material(self.material).prony.complex_modulus(
+                2 * math.pi * self.drive))
+            self.young = abs(self.complex_modulus)
         self.limit = None if args.traction_limit is None else rules.positive(
             to_si(args.traction_limit, "pressure", name="--traction-limit"), "--traction-limit", "Pa", fix=_FIX)
         self.footprint = None if args.footprint is None else rules.positive(
@@ -158,9 +176,13 @@ def run(args: argparse.Namespace) -> int:
     say("tactile synthesis design (docs/theory.md 4a; plane strain, nu = 1/2, tractors as line loads)")
     if opts.material is not None:
         skin = describe_material(opts.material)
-        if opts.material.is_viscoelastic:
+        if opts.material.is_viscoelastic and opts.drive is None:
             skin += ("; traction and amplitude use the relaxed modulus (quasi-static): under its tractions the "
-                     "display's strain lags and creeps (docs/theory.md section 7)")
+                     "display's strain lags and creeps (docs/theory.md section 7); --drive-frequency sets the rate")
+        elif opts.material.is_viscoelastic:
+            lag = math.degrees(math.atan2(opts.complex_modulus.imag, opts.complex_modulus.real))
+            skin += (f"; driven at {opts.drive:g} Hz: traction and amplitude use |E*| = {opts.young * 1e-3:.4g} kPa, "
+                     f"and the strain lags the traction by {lag:.3g} deg (docs/theory.md section 7)")
         if opts.skin is not None:
             skin += "; the tractors' strain shapes are the layered skin's (docs/layered_skin.md), slower to design"
         say(f"skin from --material: {skin}")

@@ -138,6 +138,25 @@ def test_synthesis_material_sets_the_modulus_and_refuses_what_it_cannot_design(t
            r"assumes nu = 1/2")
 
 
+def test_synthesis_matches_the_traction_at_the_drive_frequency(tmp_path, capsys):
+    """Given tractions, the strain is J* times the stress: the matching traction scales with |E*(2 pi f)|
+    (the SLS's written out by hand)."""
+    path = _file(tmp_path, SLS, "sls.toml")
+    common = ["synthesis", "--depth", "1mm", "--amplitude", "50um", "--no-sensitivity", "--json"]
+    assert main([*common, "--material", path, "--drive-frequency", "10Hz"]) == 0
+    driven = json.loads(capsys.readouterr().out)
+    assert main([*common, "--material", path]) == 0
+    quasi_static = json.loads(capsys.readouterr().out)
+    w = 2 * np.pi * 10.0
+    gain = abs(1e5 + 2e5 * 1j * w * 0.05 / (1 + 1j * w * 0.05)) / 1e5
+    assert driven["designs"][0]["traction_kpa"] == pytest.approx(gain * quasi_static["designs"][0]["traction_kpa"],
+                                                                 rel=1e-12)
+    assert any("the strain lags the traction by" in line for line in driven["computed"])
+    _fails([*common, "--drive-frequency", "10Hz", "--young-modulus", "1MPa"], capsys,
+           r"--drive-frequency: only a viscoelastic --material")
+    _fails([*common, "--material", path, "--drive-frequency=-1Hz"], capsys, r"--drive-frequency: must be >= 0 Hz")
+
+
 def test_synthesis_designs_on_a_layered_material(tmp_path, capsys, monkeypatch):
     """The layered skin reaches the design: the CLI's optimum is optimal_half_spacing(..., skin=the layers)."""
     from tactilab.forward import Layer, LayeredHalfSpace, synthesis
