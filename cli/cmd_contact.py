@@ -83,11 +83,17 @@ def run(args: argparse.Namespace) -> int:
 
     report = RunReport("contact")
     material = read_material_option(args)
-    held = _held_time(args, material)
     opts = parse_options(args)
     if material is not None:  # its modulus sizes the default grid (the relaxed one: the largest contact)
         opts["young_modulus"], args.nu = material.young_modulus_pa, material.poisson_ratio
     problem, settings = build_problem(args, opts)
+    if material is None and problem.scene is not None and (problem.scene.material.is_viscoelastic
+                                                            or problem.scene.material.is_layered):
+        if args.young_modulus is not None or args.nu is not None:
+            raise ValueError("--young-modulus, --nu: the scene's material is viscoelastic or layered, which they "
+                             "cannot describe; drop them, or give an elastic --material")
+        material = problem.scene.material  # the scene's own skin, as a --material would give it
+    held = _held_time(args, material)
     from tactilab.forward import HalfSpace, skin_from_material, solve_contact
     from tactilab.forward.contact_files import write_contact
 
@@ -166,6 +172,9 @@ def _viscoelastic(args, report, problem, settings, skin, held, depths, out, mate
         if depths:
             write_field(history.strain(skin, list(depths), tol=max(1e-6, float(sol.error_estimate))), out,
                         stem="strain")
+    if settings["condition"] != "frictionless":
+        report.dropped.append(f"friction (mu = {settings['friction']:g}, the scene's): a viscoelastic contact is "
+                              "solved frictionless")
     settings = {**settings, "condition": "frictionless", "friction": 0.0}
     _summarise(report, sol, problem, settings, elapsed, depths)
     report.computed[0] = report.computed[0].replace("; E = ", "; relaxed E = ", 1)

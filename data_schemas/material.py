@@ -29,6 +29,7 @@ layer's (filled from it when omitted). In a scene file::
 
 from __future__ import annotations
 
+import warnings
 from typing import Annotated, Literal
 
 from pydantic import AfterValidator, model_validator
@@ -192,6 +193,33 @@ class SkinMaterial(Record):
     def is_layered(self) -> bool:
         """True when the skin has layers."""
         return bool(self.layers)
+
+    def half_space_constants(self, purpose: str) -> tuple[float, float]:
+        """``(E in Pa, nu)`` for code that models the skin as one elastic half-space.
+
+        Parameters
+        ----------
+        purpose : str
+            What computes with them (named in the messages), e.g. ``"the biomimetic finger's scan"``.
+
+        Raises
+        ------
+        ValueError
+            For a layered material: one half-space cannot stand for its layers.
+
+        Warns
+        -----
+        UserWarning
+            For a viscoelastic material, which enters with its relaxed modulus (a quasi-static model).
+        """
+        if self.layers:
+            raise ValueError(f"material: {purpose} models the skin as one elastic half-space, but the material has "
+                             f"{len(self.layers)} layer(s); use an elastic or viscoelastic material there, and the "
+                             "layered skin with tactilab.forward.skin_from_material (stress, contact, synthesis)")
+        if self.model != "elastic":
+            warnings.warn(f"material: {purpose} is quasi-static: the viscoelastic skin ({self.model}) enters with its "
+                          f"relaxed modulus E_inf = {self.young_modulus_pa:g} Pa", UserWarning, stacklevel=2)
+        return self.young_modulus_pa, self.poisson_ratio
 
     @property
     def prony_terms(self) -> tuple[tuple[float, float], ...]:

@@ -114,6 +114,23 @@ def test_stress_time_refusals(tmp_path, capsys):
             "--out", str(tmp_path / "c")], capsys, r"--time: must be >= 0")
 
 
+def test_contact_takes_a_scenes_viscoelastic_material(tmp_path, capsys):
+    """A scene whose [material] is viscoelastic is solved on that skin (not on its relaxed modulus alone)."""
+    from tactilab.data_schemas import example_path
+
+    text = example_path("fingertip_defect").read_text()
+    scene = tmp_path / "scene.toml"
+    scene.write_text(text.replace('young_modulus = "1MPa"', 'model = "sls"\nyoung_modulus = "1MPa"\n'
+                                  'instantaneous_modulus = "3MPa"\nrelaxation_time = "50ms"'), encoding="utf-8")
+    argv = ["contact", str(scene), "--grid", "32", "--quiet", "--json"]
+    assert main([*argv, "--out", str(tmp_path / "a")]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert any("viscoelastic skin (sls)" in line for line in summary["computed"])
+    assert any("solved frictionless" in line for line in summary["dropped"])  # the scene's mu = 0.5
+    _fails([*argv, "--young-modulus", "1MPa", "--out", str(tmp_path / "b")], capsys,
+           r"--young-modulus, --nu: the scene's material is viscoelastic or layered")
+
+
 def test_contact_viscoelastic_refusals(tmp_path, capsys):
     path = _file(tmp_path, SLS, "sls.toml")
     sphere = ["contact", "sphere:R=10mm", "--normal-force", "0.1N", "--grid", "32", "--quiet"]

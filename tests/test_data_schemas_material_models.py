@@ -108,3 +108,27 @@ def test_bad_material_files_are_refused(tmp_path):
         read_material(_write(tmp_path, '[material]\nmodel = "prony"\nyoung_modulus = "1MPa"\nterms = [["1MPa", "7mm"]]\n'))
     with pytest.raises(ValueError, match=r"material: expected a SkinMaterial record, got dict"):
         skin_from_material({"young_modulus_pa": 1e6})
+
+
+def test_one_half_space_code_refuses_layers_and_warns_for_relaxation():
+    """Scene code that models the skin as one half-space (the finger's scan, the display scene, the defect
+    inversion) takes (E, nu) through half_space_constants: layers refused, a viscoelastic skin relaxed."""
+    elastic = SkinMaterial(young_modulus_pa=1e6, poisson_ratio=0.45)
+    assert elastic.half_space_constants("the scan") == (1e6, 0.45)
+    sls = SkinMaterial(young_modulus_pa=1e5, model="sls", instantaneous_modulus_pa=3e5, relaxation_time_s=0.05)
+    with pytest.warns(UserWarning, match=r"material: the scan is quasi-static: .* relaxed modulus E_inf = 100000 Pa"):
+        assert sls.half_space_constants("the scan") == (1e5, 0.5)
+    layered = SkinMaterial(layers=[dict(thickness_m=4e-3, young_modulus_pa=1e5)])
+    with pytest.raises(ValueError, match=r"material: the scan models the skin as one elastic half-space, but the "
+                                         r"material has 1 layer"):
+        layered.half_space_constants("the scan")
+
+
+def test_a_scene_with_a_layered_material_is_refused_by_the_finger_scan():
+    from tactilab.data_schemas import load_example
+    from tactilab.forward import BiomimeticFinger
+
+    scene = load_example("fingertip_defect")
+    layered = scene.model_copy(update={"material": SkinMaterial(layers=[dict(thickness_m=4e-3, young_modulus_pa=1e5)])})
+    with pytest.raises(ValueError, match=r"the biomimetic finger's scan models the skin as one elastic half-space"):
+        BiomimeticFinger.from_scene(layered)
