@@ -27,7 +27,7 @@ import xarray as xr
 from tactilab.core import rules as check
 from tactilab.data_schemas.plausibility import check_plausible_at_entry, check_small_strain
 from tactilab.forward.halfspace import (SHEAR_CONVENTION, AccuracyWarning, FieldResult, SurfaceLoad,
-                                        compliance_matrix, largest_strain)
+                                        compliance_matrix, label, largest_strain)
 
 from .layered_multipliers import VOIGT, output_multipliers
 
@@ -108,22 +108,8 @@ def truncation_error(skin, load: SurfaceLoad, depths, comps, quantity: str, fact
 
 
 def _labelled(values: np.ndarray, quantity: str, comps, depths, load: SurfaceLoad, points, attrs: dict) -> xr.Dataset:
-    coords = {"depth": ("depth", np.array(depths, float), {"units": "m"}), "component": list(comps)}
-    if points is not None:
-        dims = ["depth", "component", "point"]
-        coords["x"] = ("point", points[:, 0], {"units": "m"})
-        if points.shape[1] > 1:
-            coords["y"] = ("point", points[:, 1], {"units": "m"})
-    elif load.ndim == 1:
-        dims = ["depth", "component", "x"]
-        coords["x"] = ("x", load.x, {"units": "m"})
-    else:
-        dims = ["depth", "component", "y", "x"]
-        coords.update(x=("x", load.x, {"units": "m"}), y=("y", load.y, {"units": "m"}))
-    units = {"units": "Pa" if quantity == "stress" else "1", "quantity": quantity}
-    if quantity == "strain":
-        units["shear_convention"] = SHEAR_CONVENTION
-    ds = xr.DataArray(values, dims=dims, coords=coords, name=quantity, attrs=units).to_dataset()
+    """The Dataset of a result (the half-space's labelling, whose coordinates are cached between calls)."""
+    ds = label(values, quantity, comps, np.asarray(depths, float), load.x, load.y, points).to_dataset()
     ds.attrs.update(attrs)
     return ds
 
@@ -155,7 +141,7 @@ def layered_field(skin, load, depth, points, components, tol, padding, quantity:
         raise ValueError(f"tol: must be a finite relative tolerance > 0, got {tol!r} (e.g. 1e-6)")
     depths = check.depths(depth)
     for z in depths:
-        check_plausible_at_entry(float(z), "depth", "m", stacklevel=4)  # 1.25 meant as mm warns
+        check_plausible_at_entry(float(z), "depth", "m", stacklevel=3)  # 1.25 meant as mm warns
         skin.material_at(float(z))  # refuses a depth in the rigid base
     comps = check.components(components)
     pts, index = (None, None) if points is None else _points_index(points, load)
@@ -180,7 +166,7 @@ def layered_field(skin, load, depth, points, components, tol, padding, quantity:
                           AccuracyWarning, stacklevel=3)
     largest = max(largest_strain(values[d:d + 1], quantity, comps, *skin.material_at(float(z)))
                   for d, z in enumerate(depths))
-    check_small_strain(largest, f"LayeredHalfSpace.{quantity}", stacklevel=4)
+    check_small_strain(largest, f"LayeredHalfSpace.{quantity}", stacklevel=3)
     rounding = 30.0 * np.finfo(float).eps * math.log2(max(values[0, 0].size * factor ** load.ndim, 2))
     err = float(err + rounding)
     if index is not None:
