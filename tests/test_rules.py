@@ -312,6 +312,8 @@ EXEMPT = {
     ("forward.halfspace.pixel_influence", "E"): "the unchecked formula behind HalfSpace.surface_influence",
     ("forward.halfspace.pixel_influence", "nu"): "the unchecked formula behind HalfSpace.surface_influence",
     ("forward.halfspace.pixel_influence", "spacing"): "the unchecked formula behind HalfSpace.surface_influence",
+    ("forward.halfspace.label", "components"): "labels a computed field: the solver (half-space or skin model) "
+                                               "checked its components",
 }
 
 
