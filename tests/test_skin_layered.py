@@ -101,6 +101,7 @@ def test_reciprocity_and_positive_energy_of_a_stack(rng):
     assert np.all(np.linalg.eigvalsh(M) > 0)
     M1 = skin.surface_compliance(kx, None)
     assert np.abs(M1 - np.conj(np.swapaxes(M1, -1, -2))).max() <= 1e-14 * np.abs(M1).max()
+    assert np.array_equal(M1, skin.surface_compliance(kx, np.zeros_like(kx))[:, :2, :2])  # plane strain
 
 
 def test_nu_one_half_is_exact_not_a_limit(rng):
