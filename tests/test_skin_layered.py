@@ -426,3 +426,14 @@ def test_a_large_strain_and_a_depth_meant_in_mm_warn():
         skin.strain(load, 1e-5)
     with pytest.warns(PlausibilityWarning, match="depth"):
         skin.stress(load.scaled(1e-6), 1.25)
+
+
+def test_a_loads_own_error_is_carried_into_the_estimate():
+    n = 16
+    p = 1e3 * np.cos(2 * np.pi * np.arange(n) / n)[None, :].repeat(n, 0)
+    skin = LayeredHalfSpace([Layer(1e-3, E, 0.5)])
+    exact = skin.stress(SurfaceLoad(p=p, spacing=1e-4, periodic=True), 5e-4)
+    loose = skin.stress(SurfaceLoad(p=p, spacing=1e-4, periodic=True, error_estimate=1e-3), 5e-4)
+    peak = np.abs(exact.data["stress"].values).max()
+    assert loose.error_estimate == pytest.approx(exact.error_estimate + 1e-3 * 1e3 / peak, rel=1e-12)
+    assert loose.data.attrs["error_covers"] == "method+load"

@@ -132,6 +132,20 @@ def _points_index(points, load: SurfaceLoad):
     return pts, tuple(rounded.astype(int))
 
 
+def _load_error(skin, load: SurfaceLoad, values: np.ndarray, depths, quantity: str) -> float:
+    """The load's own error (``SurfaceLoad.error_estimate``, relative to its peak traction) relative to the
+    field's peak: the field is linear in the tractions, so a traction error moves it by about that stress
+    (times the compliance 1 / E for a strain; the softest material among the depths, the larger bound)."""
+    if not load.error_estimate:
+        return 0.0
+    peak_field = float(np.abs(values).max())
+    if peak_field == 0.0:
+        return load.error_estimate
+    peak_traction = float(sum(np.abs(a) for a in load.components.values()).max())
+    scale = 1.0 if quantity == "stress" else 1.0 / min(skin.material_at(float(z))[0] for z in depths)
+    return load.error_estimate * peak_traction * scale / peak_field
+
+
 def layered_field(skin, load, depth, points, components, tol, padding, quantity: str) -> FieldResult:
     """The body of :meth:`LayeredHalfSpace.stress` / ``strain`` (see there)."""
     if not isinstance(load, SurfaceLoad):
@@ -168,10 +182,11 @@ def layered_field(skin, load, depth, points, components, tol, padding, quantity:
                   for d, z in enumerate(depths))
     check_small_strain(largest, f"LayeredHalfSpace.{quantity}", stacklevel=3)
     rounding = 30.0 * np.finfo(float).eps * math.log2(max(values[0, 0].size * factor ** load.ndim, 2))
-    err = float(err + rounding)
+    err = float(err + rounding + _load_error(skin, load, values, depths, quantity))
     if index is not None:
         values = values[(slice(None), slice(None), *index)]
-    attrs = dict(method=method, error_estimate=err, error_covers="method+truncation" if not load.periodic else "method",
+    covers = "method" if load.periodic else "method+truncation"
+    attrs = dict(method=method, error_estimate=err, error_covers=covers + ("+load" if load.error_estimate else ""),
                  padding=factor, skin=repr(skin), shear_convention=SHEAR_CONVENTION)
     reason = "periodic load: exact per wavenumber" if load.periodic else \
         f"isolated load on a grid padded {factor}x per axis (truncation estimate {err:.1e})"
