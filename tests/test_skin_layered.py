@@ -52,6 +52,12 @@ def test_deep_layer_on_rigid_base_is_the_halfspace_for_every_nonzero_mode(nu, rn
     for z in (0.2e-3, 1e-3):
         T, T_ref = transfer_matrix(skin, kx, ky, z), _halfspace_transfer(kx, ky, z, nu)
         assert np.abs(T - T_ref).max() <= 1e-10
+    # no growing exponential: a layer 1e5 wavelengths deep is as exact (cosh(k h) would overflow at 710)
+    far = np.array([2e3, 2e5]) / h * 2 * np.pi
+    assert np.abs(skin.surface_compliance(far, 0 * far) - HalfSpace(E, nu).surface_compliance(far, 0 * far)).max() \
+        <= 1e-15 * np.abs(HalfSpace(E, nu).surface_compliance(far, 0 * far)).max()
+    assert np.abs(transfer_matrix(skin, far, 0 * far, 1e-6) - _halfspace_transfer(far, 0 * far, 1e-6, nu)).max() \
+        <= 1e-14  # k z = 2.5 and 250
     # the uniform mode differs by physics: bonded to bone, the layer is laterally constrained
     T0 = transfer_matrix(skin, 0.0, 0.0, 1e-3)
     assert np.allclose(T0[:3, 0].real, [-nu / (1 - nu), -nu / (1 - nu), -1.0], atol=1e-15)
