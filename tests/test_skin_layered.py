@@ -324,8 +324,8 @@ def test_bad_inputs_are_refused_with_the_rule():
         skin.stress(periodic, 2e-3)
     with pytest.raises(ValueError, match="depth: every depth must be finite and > 0 m"):
         skin.stress(periodic, math.nan)
-    with pytest.raises(ValueError, match="points: a layered skin evaluates sensors on grid nodes"):
-        skin.stress(periodic, 5e-4, points=[[0.3e-4, 0.0]])
+    with pytest.raises(ValueError, match="points: an isolated load's sensors must lie within its grid"):
+        skin.stress(SurfaceLoad(p=np.ones((4, 4)), spacing=1e-4), 5e-4, points=[[3e-4, 0.0]])
     with pytest.raises(ValueError, match=r"points: expected finite positions of shape \(n, 2\)"):
         skin.stress(periodic, 5e-4, points=[[math.nan, 0.0]])
     with pytest.raises(ValueError, match="padding: must be 'auto' or an integer >= 1"):
@@ -443,3 +443,30 @@ def test_a_loads_own_error_is_carried_into_the_estimate():
     peak = np.abs(exact.data["stress"].values).max()
     assert loose.error_estimate == pytest.approx(exact.error_estimate + 1e-3 * 1e3 / peak, rel=1e-12)
     assert loose.data.attrs["error_covers"] == "method+load"
+
+
+def test_sensors_off_the_nodes_read_the_exact_field_of_a_plane_wave(rng):
+    """A single Fourier mode p = cos(k . x) gives sigma(x) = Re(T(k) exp(i k . x)) at every point, on or
+    off the nodes (T from transfer, an independent evaluation of the same multiplier)."""
+    n, h = 16, 1e-4
+    x = (np.arange(n) - n // 2) * h
+    X, Y = np.meshgrid(x, x)
+    kx, ky = 2 * np.pi * 3 / (n * h), 2 * np.pi * -2 / (n * h)
+    load = SurfaceLoad(p=np.cos(kx * X + ky * Y), qx=np.sin(kx * X + ky * Y), spacing=h, periodic=True)
+    skin = LayeredHalfSpace([Layer(0.6e-3, E, 0.5), Layer(1e-3, 2 * E, 0.3)])
+    pts = rng.uniform(-1e-3, 1e-3, (7, 2))
+    got = skin.strain(load, 0.8e-3, points=pts).data["strain"].values[0]  # (6, 7)
+    T = skin.transfer(np.array(kx), np.array(ky), 0.8e-3, quantity="strain")  # (6, 3)
+    phase = np.exp(1j * (kx * pts[:, 0] + ky * pts[:, 1]))
+    ref = (T[:, 0, None] * phase).real + (T[:, 1, None] * -1j * phase).real  # sin = Re(-i e^{i theta})
+    assert np.allclose(got, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    line = SurfaceLoad(p=np.cos(kx * x), spacing=h, periodic=True)
+    got = skin.stress(line, 0.8e-3, points=pts[:, 0], components=("zz",)).data["stress"].values[0, 0]
+    T = skin.transfer(np.array(kx), np.array(0.0), 0.8e-3)
+    assert np.allclose(got, (T[2, 0] * np.exp(1j * kx * pts[:, 0])).real, rtol=0, atol=1e-12)
+    iso = SurfaceLoad(p=np.exp(-(X**2 + Y**2) / (2 * (2 * h) ** 2)), spacing=h)
+    inside = np.array([[0.25 * h, -0.5 * h], [3 * h, 2 * h]])  # the second on a node: the interpolant is exact there
+    at = skin.stress(iso, 0.5e-3, points=inside, components=("zz",), tol=1e-3, padding=4).data["stress"].values[0, 0]
+    grid = skin.stress(iso, 0.5e-3, components=("zz",), tol=1e-3, padding=4).data["stress"].values[0, 0]
+    assert at[1] == pytest.approx(grid[n // 2 + 2, n // 2 + 3], rel=1e-12)
+    assert abs(at[0]) <= np.abs(grid).max()

@@ -210,7 +210,8 @@ class LayeredHalfSpace:
         depth : float or sequence of float
             Depths in m, within the layers on a rigid base.
         points : ndarray, shape (n, 2) or (n,), optional
-            Sensor positions (x, y) in m on grid nodes; default the load grid.
+            Sensor positions (x, y) in m; default the load grid. Off the nodes the exact trigonometric
+            interpolant is summed there; an isolated load's sensors must lie within its grid.
         components : sequence of str, optional
             Voigt names; default all six.
         tol : float

@@ -48,20 +48,43 @@ def output_weights(skin, quantity: str, comps: tuple[str, ...], z: float) -> np.
     raise ValueError(f"quantity: must be 'stress' or 'strain', got {quantity!r}")
 
 
-def periodic_outputs(skin, load: SurfaceLoad, depths, comps, quantity: str) -> np.ndarray:
-    """Outputs of one period, shape ``(n_depth, n_out, *load.shape)``."""
+def _phases(shape, spacing, points: np.ndarray):
+    """Fourier phases of off-grid points for an rfft half spectrum: ``(Ex (n_kx, n), Ey (ny, n) or None)``."""
+    nx = shape[-1]
+    xi = 2 * np.pi * sfft.rfftfreq(nx, spacing[0])
+    ex = np.exp(1j * np.outer(xi, points[:, 0] + (nx // 2) * spacing[0]))  # node j sits at (j - nx // 2) dx
+    weight = np.full(len(xi), 2.0)
+    weight[0] = 1.0
+    if nx % 2 == 0:
+        weight[-1] = 1.0  # the Nyquist column: its real part only (the average of +-k)
+    ex *= weight[:, None]
+    if len(shape) == 1:
+        return ex, None
+    eta = 2 * np.pi * sfft.fftfreq(shape[0], spacing[1])
+    return ex, np.exp(1j * np.outer(eta, points[:, 1] + (shape[0] // 2) * spacing[1]))
+
+
+def periodic_outputs(skin, load: SurfaceLoad, depths, comps, quantity: str, points=None) -> np.ndarray:
+    """Outputs of one period, shape ``(n_depth, n_out, *load.shape)``, or ``(n_depth, n_out, n)`` at
+    ``points`` (m, shape (n, ndim): the exact trigonometric interpolant there)."""
     shape = load.shape
     axes = tuple(range(-load.ndim, 0))
     names = tuple(sorted(load.components))
     spectra = {n: sfft.rfftn(load.components[n], axes=axes) for n in names}
-    out = np.empty((len(depths), len(comps), *shape))
+    phases = None if points is None else _phases(shape, load.spacing, points)
+    out = np.empty((len(depths), len(comps), *(shape if points is None else (len(points),))))
     for d, z in enumerate(depths):
         table = output_multipliers(skin, shape, load.spacing, float(z), output_weights(skin, quantity, comps, z), names)
         for o in range(len(comps)):
             acc = table[names[0]][o] * spectra[names[0]]
             for n in names[1:]:
                 acc += table[n][o] * spectra[n]
-            out[d, o] = sfft.irfftn(acc, s=shape, axes=axes)
+            if phases is None:
+                out[d, o] = sfft.irfftn(acc, s=shape, axes=axes)
+            elif phases[1] is None:
+                out[d, o] = (acc @ phases[0]).real / shape[-1]
+            else:
+                out[d, o] = np.einsum("yp,yp->p", phases[1], acc @ phases[0]).real / (shape[0] * shape[-1])
     return out
 
 
@@ -114,8 +137,8 @@ def _labelled(values: np.ndarray, quantity: str, comps, depths, load: SurfaceLoa
     return ds
 
 
-def _points_index(points, load: SurfaceLoad):
-    """Grid indices of sensor points, which must sit on nodes of the load grid."""
+def _check_points(points, load: SurfaceLoad):
+    """Sensor points (m, shape (n, ndim)) and their grid indices when every one sits on a node (else None)."""
     pts = np.asarray(points, dtype=float)
     pts = pts[:, None] if pts.ndim == 1 else pts
     if pts.ndim != 2 or pts.shape[1] != load.ndim or len(pts) == 0 or not np.all(np.isfinite(pts)):
@@ -125,11 +148,13 @@ def _points_index(points, load: SurfaceLoad):
         idx.insert(0, pts[:, 1] / load.dy + load.shape[0] // 2)
     idx = np.array(idx)
     rounded = np.rint(idx)
-    if np.any(np.abs(idx - rounded) > 1e-6) or np.any(rounded < 0) or \
-            np.any(rounded > np.array(load.shape)[:, None] - 1):
-        raise ValueError("points: a layered skin evaluates sensors on grid nodes; put the points on nodes of the "
-                         "load grid (x = (j - nx // 2) dx) or refine the grid")
-    return pts, tuple(rounded.astype(int))
+    inside = np.all(idx >= -1e-9) and np.all(idx <= np.array(load.shape)[:, None] - 1 + 1e-9)
+    if not load.periodic and not inside:
+        raise ValueError("points: an isolated load's sensors must lie within its grid (the truncation estimate "
+                         "covers that region); enlarge the grid with zero tractions")
+    if inside and np.all(np.abs(idx - rounded) <= 1e-9):
+        return pts, tuple(rounded.astype(int))
+    return pts, None
 
 
 def _load_error(skin, load: SurfaceLoad, values: np.ndarray, depths, quantity: str) -> float:
@@ -158,17 +183,21 @@ def layered_field(skin, load, depth, points, components, tol, padding, quantity:
         check_plausible_at_entry(float(z), "depth", "m", stacklevel=3)  # 1.25 meant as mm warns
         skin.material_at(float(z))  # refuses a depth in the rigid base
     comps = check.components(components)
-    pts, index = (None, None) if points is None else _points_index(points, load)
+    pts, index = (None, None) if points is None else _check_points(points, load)
     if padding != "auto" and (isinstance(padding, bool) or not isinstance(padding, (int, np.integer)) or padding < 1):
         raise ValueError(f"padding: must be 'auto' or an integer >= 1 (padded grid over load grid per axis), "
                          f"got {padding!r}")
+    off_grid = pts if (pts is not None and index is None) else None
     if load.periodic:
-        values, method, err, factor = periodic_outputs(skin, load, depths, comps, quantity), "layered-periodic", 0.0, 1
+        values = periodic_outputs(skin, load, depths, comps, quantity, off_grid)
+        method, err, factor = "layered-periodic", 0.0, 1
     else:
         factor = 2 if padding == "auto" else int(padding)
         while True:
             big, where = padded_load(load, factor)
-            values = periodic_outputs(skin, big, depths, comps, quantity)[(slice(None), slice(None), *where)]
+            values = periodic_outputs(skin, big, depths, comps, quantity, off_grid)
+            if off_grid is None:
+                values = values[(slice(None), slice(None), *where)]
             err = truncation_error(skin, load, depths, comps, quantity, factor, float(np.abs(values).max()))
             if padding != "auto" or err <= tol or factor >= MAX_PADDING:
                 break
