@@ -470,3 +470,26 @@ def test_sensors_off_the_nodes_read_the_exact_field_of_a_plane_wave(rng):
     grid = skin.stress(iso, 0.5e-3, components=("zz",), tol=1e-3, padding=4).data["stress"].values[0, 0]
     assert at[1] == pytest.approx(grid[n // 2 + 2, n // 2 + 3], rel=1e-12)
     assert abs(at[0]) <= np.abs(grid).max()
+
+
+@pytest.mark.parametrize("periodic", [True, False])
+@pytest.mark.parametrize("shape", [(10, 12), (12,)])
+def test_operator_at_sensors_on_and_off_the_nodes(periodic, shape, rng):
+    """Off the nodes: the exact interpolant with its exact adjoint (the transpose of the rfft); on nodes:
+    a selection of the grid. Both equal the field at those points and pass the dot test."""
+    skin = LayeredHalfSpace([Layer(0.5e-3, 2 * E, 0.45), Layer(1e-3, E, 0.5)])
+    h = 1e-4
+    x = (np.arange(shape[-1]) - shape[-1] // 2) * h
+    off = rng.uniform(x[0], x[-1], (5, len(shape)))
+    on = np.column_stack([x[[1, 4, 7]], ((np.arange(shape[0]) - shape[0] // 2) * h)[[2, 0, 5]]])[:, :len(shape)]
+    for sensors in (off, on):
+        op = skin.operator(shape, h, sensors=sensors, depth=0.8e-3, components=("zz", "xx"), loads=("p", "qx"),
+                           quantity="strain", periodic=periodic, padding=4)
+        assert dottest(op, rng=rng)
+        model = rng.standard_normal(op.model_shape)
+        load = SurfaceLoad(p=model[0], qx=model[1], spacing=h, periodic=periodic)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # a random load fills its grid: the estimate says the images are near
+            field = skin.strain(load, 0.8e-3, points=sensors, components=("zz", "xx"), padding=4)
+        ref = field.data["strain"].values[0]
+        assert np.allclose(op @ model.ravel(), ref.ravel(), rtol=0, atol=1e-12 * np.abs(ref).max())

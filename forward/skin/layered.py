@@ -234,7 +234,7 @@ class LayeredHalfSpace:
 
         return layered_field(self, load, depth, points, components, tol, padding, "strain")
 
-    def operator(self, shape, spacing, depth: float = 1e-3, components=("zz",), loads=("p",),
+    def operator(self, shape, spacing, sensors=None, depth: float = 1e-3, components=("zz",), loads=("p",),
                  quantity: str = "stress", periodic: bool = False, padding: int = 4):
         """The load-to-grid map at one depth as a ``scipy.sparse.linalg.LinearOperator`` with its adjoint.
 
@@ -242,5 +242,5 @@ class LayeredHalfSpace:
         """
         from .layered_operator import LayeredOperator
 
-        return LayeredOperator(self, shape, spacing, depth=depth, components=components, loads=loads,
+        return LayeredOperator(self, shape, spacing, sensors=sensors, depth=depth, components=components, loads=loads,
                                quantity=quantity, periodic=periodic, padding=padding)

@@ -48,20 +48,37 @@ def output_weights(skin, quantity: str, comps: tuple[str, ...], z: float) -> np.
     raise ValueError(f"quantity: must be 'stress' or 'strain', got {quantity!r}")
 
 
-def _phases(shape, spacing, points: np.ndarray):
-    """Fourier phases of off-grid points for an rfft half spectrum: ``(Ex (n_kx, n), Ey (ny, n) or None)``."""
+def point_phases(shape, spacing, points: np.ndarray):
+    """Fourier phases of off-grid points for an rfft half spectrum of a grid of ``shape`` (node ``j`` at
+    ``(j - n // 2) h``): ``(Ex (n_kx, n), Ey (ny, n) or None)``, the rfft weights and ``1 / N`` in ``Ex``."""
     nx = shape[-1]
     xi = 2 * np.pi * sfft.rfftfreq(nx, spacing[0])
-    ex = np.exp(1j * np.outer(xi, points[:, 0] + (nx // 2) * spacing[0]))  # node j sits at (j - nx // 2) dx
+    ex = np.exp(1j * np.outer(xi, points[:, 0] + (nx // 2) * spacing[0]))
     weight = np.full(len(xi), 2.0)
     weight[0] = 1.0
     if nx % 2 == 0:
         weight[-1] = 1.0  # the Nyquist column: its real part only (the average of +-k)
-    ex *= weight[:, None]
+    ex *= (weight / math.prod(shape))[:, None]
     if len(shape) == 1:
         return ex, None
     eta = 2 * np.pi * sfft.fftfreq(shape[0], spacing[1])
     return ex, np.exp(1j * np.outer(eta, points[:, 1] + (shape[0] // 2) * spacing[1]))
+
+
+def evaluate_at_points(spectrum: np.ndarray, phases, shape) -> np.ndarray:
+    """The exact trigonometric interpolant of an rfft half spectrum at the points of ``phases``."""
+    ex, ey = phases
+    if ey is None:
+        return (spectrum @ ex).real
+    return np.einsum("yp,yp->p", ey, spectrum @ ex).real
+
+
+def rfft_transpose(half: np.ndarray, shape) -> np.ndarray:
+    """``Re(sum over the half spectrum of v_k exp(-i k . x_j))`` at every node ``j``: the transpose of the
+    rfft (a real-linear map), by one full inverse FFT of ``conj(v)`` placed on its half of the spectrum."""
+    full = np.zeros(shape, dtype=complex)
+    full[..., :half.shape[-1]] = np.conj(half)
+    return (sfft.ifftn(full) * math.prod(shape)).real
 
 
 def periodic_outputs(skin, load: SurfaceLoad, depths, comps, quantity: str, points=None) -> np.ndarray:
@@ -71,7 +88,7 @@ def periodic_outputs(skin, load: SurfaceLoad, depths, comps, quantity: str, poin
     axes = tuple(range(-load.ndim, 0))
     names = tuple(sorted(load.components))
     spectra = {n: sfft.rfftn(load.components[n], axes=axes) for n in names}
-    phases = None if points is None else _phases(shape, load.spacing, points)
+    phases = None if points is None else point_phases(shape, load.spacing, points)
     out = np.empty((len(depths), len(comps), *(shape if points is None else (len(points),))))
     for d, z in enumerate(depths):
         table = output_multipliers(skin, shape, load.spacing, float(z), output_weights(skin, quantity, comps, z), names)
@@ -79,12 +96,8 @@ def periodic_outputs(skin, load: SurfaceLoad, depths, comps, quantity: str, poin
             acc = table[names[0]][o] * spectra[names[0]]
             for n in names[1:]:
                 acc += table[n][o] * spectra[n]
-            if phases is None:
-                out[d, o] = sfft.irfftn(acc, s=shape, axes=axes)
-            elif phases[1] is None:
-                out[d, o] = (acc @ phases[0]).real / shape[-1]
-            else:
-                out[d, o] = np.einsum("yp,yp->p", phases[1], acc @ phases[0]).real / (shape[0] * shape[-1])
+            out[d, o] = sfft.irfftn(acc, s=shape, axes=axes) if phases is None else \
+                evaluate_at_points(acc, phases, shape)
     return out
 
 
@@ -137,7 +150,7 @@ def _labelled(values: np.ndarray, quantity: str, comps, depths, load: SurfaceLoa
     return ds
 
 
-def _check_points(points, load: SurfaceLoad):
+def check_points(points, load: SurfaceLoad):
     """Sensor points (m, shape (n, ndim)) and their grid indices when every one sits on a node (else None)."""
     pts = np.asarray(points, dtype=float)
     pts = pts[:, None] if pts.ndim == 1 else pts
@@ -183,7 +196,7 @@ def layered_field(skin, load, depth, points, components, tol, padding, quantity:
         check_plausible_at_entry(float(z), "depth", "m", stacklevel=3)  # 1.25 meant as mm warns
         skin.material_at(float(z))  # refuses a depth in the rigid base
     comps = check.components(components)
-    pts, index = (None, None) if points is None else _check_points(points, load)
+    pts, index = (None, None) if points is None else check_points(points, load)
     if padding != "auto" and (isinstance(padding, bool) or not isinstance(padding, (int, np.integer)) or padding < 1):
         raise ValueError(f"padding: must be 'auto' or an integer >= 1 (padded grid over load grid per axis), "
                          f"got {padding!r}")
