@@ -236,7 +236,7 @@ class LayeredHalfSpace:
 
     def operator(self, shape, spacing, sensors=None, depth: float = 1e-3, components=("zz",), loads=("p",),
                  quantity: str = "stress", periodic: bool = False, padding: int = 4):
-        """The load-to-grid map at one depth as a ``scipy.sparse.linalg.LinearOperator`` with its adjoint.
+        """The load-to-sensor map at one depth as a ``scipy.sparse.linalg.LinearOperator`` with its adjoint.
 
         See :class:`tactilab.forward.skin.layered_operator.LayeredOperator`.
         """
