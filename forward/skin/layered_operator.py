@@ -1,13 +1,14 @@
-"""The load-to-grid map of a layered skin at one depth, as a ``scipy.sparse.linalg.LinearOperator``.
+"""The load-to-sensor map of a layered skin at one depth, as a ``scipy.sparse.linalg.LinearOperator``.
 
 The conventions of :class:`tactilab.forward.halfspace.LoadToSensor`: the model is load-major
 (``(len(loads), *dims)`` flattened), the data component-major (``(n_comp, n_sensors)`` flattened);
 sensors at every node of the grid (default), at some of them, or anywhere (the exact trigonometric
-interpolant, whose adjoint is the transpose of the rfft). Periodic: the exact multipliers of :mod:`.layered_multipliers`;
-isolated: the same on a grid zero-padded ``padding`` times per axis, cropped (the adjoint pads,
-multiplies by the conjugate multiplier and crops), with :attr:`error_estimate` the truncation
-estimate of :func:`.layered_fields.truncation_error` for a uniform unit traction of each load
-over the whole grid (the load whose images weigh most against its own field).
+interpolant, whose adjoint is the transpose of the rfft). Periodic: the exact multipliers of
+:mod:`.layered_multipliers`; isolated: the same on a grid zero-padded ``padding`` times per axis,
+cropped (the adjoint pads, multiplies by the conjugate multiplier and crops), with
+:attr:`error_estimate` the truncation estimate of :func:`.layered_fields.truncation_error` for a
+uniform unit traction of each load over the whole grid (the load whose images weigh most against
+its own field).
 """
 
 from __future__ import annotations
