@@ -230,7 +230,7 @@ def surface_amplitudes(k: np.ndarray, stack: Stack) -> dict[str, np.ndarray]:
     ``u_perp = V``)."""
     inplane = solve_inplane(k, stack)
     antiplane = solve_antiplane(k, stack)
-    vals = layer_values(k, stack, 0, 0.0)
+    vals = layer_values(k, stack, 0, 0.0)[:, :2, :]  # Ug, Wg only
     amp = np.einsum("kqc,kcl->kql", vals, inplane[:, 0:4, :])
     gk = stack.G[0] * k
     ap = _antiplane_values(k, stack, 0, 0.0)
