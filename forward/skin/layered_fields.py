@@ -7,9 +7,9 @@ An isolated load (zero outside its grid) is placed on a zero-padded grid ``paddi
 per axis and solved as periodic: the field then carries the load's periodic images, one padded
 period away. Their effect is estimated from the load itself: the field of a coarsened copy of the
 load (blocks of nodes summed, the total force and its low moments kept) is computed on the padded
-period ``P`` and on ``2 P``; their difference is the change in the images' field, and
-``error <= 2 max|f_P - f_2P| / max|f|`` (the images' field falls at least like 1/r, so the images
-at ``2 P`` carry at most half of those at ``P``). ``padding="auto"`` doubles the padding, from 2
+period ``P`` and on ``2 P``; their difference is the change in the images' field, and the estimate
+is ``2 max|f_P - f_2P| / max|f|`` (the images' field falls at least like 1/r, so the images at
+``2 P`` carry at most half of those at ``P``; tests find it 1x to 5x the true error). ``padding="auto"`` doubles the padding, from 2
 up to :data:`MAX_PADDING`, until that estimate meets ``tol``. On a rigid base the images fall off
 exponentially with their distance over the layer thickness; on a half-space base like the
 half-space's own images (``~ (depth / padded length)^2``).
