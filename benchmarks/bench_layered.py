@@ -28,23 +28,14 @@ import scipy.fft as sfft
 from tactilab.forward import HalfSpace, Layer, LayeredHalfSpace, SurfaceLoad, optimal_half_spacing
 from tactilab.forward.skin import receptive_field
 
+from bench_forward import interleaved  # the timer of bench_forward (this folder is on sys.path when run)
+
 E_PA, DEPTH, SPACING = 0.5e6, 1e-3, 1e-4
 
 
 def _load(n: int, rng) -> SurfaceLoad:
     return SurfaceLoad(p=rng.standard_normal((n, n)), qx=rng.standard_normal((n, n)),
                        qy=rng.standard_normal((n, n)), spacing=SPACING, periodic=True)
-
-
-def interleaved(funcs: dict, repeats: int) -> dict[str, tuple[float, float]]:
-    """(median, min) wall time per function, the functions run in turn within each repeat."""
-    times = {name: [] for name in funcs}
-    for _ in range(repeats):
-        for name, f in funcs.items():
-            t0 = time.perf_counter()
-            f()
-            times[name].append(time.perf_counter() - t0)
-    return {name: (float(np.median(t)), float(np.min(t))) for name, t in times.items()}
 
 
 def section_cost(sizes, repeats: int) -> None:

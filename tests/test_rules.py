@@ -245,7 +245,7 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.LayeredHalfSpace.strain", "components"): lambda v: LAYERED.strain(LOAD, 1e-4, components=v),
     ("forward.LayeredHalfSpace.operator", "spacing"): lambda v: LAYERED.operator((N,), v, depth=1e-4),
     ("forward.LayeredHalfSpace.operator", "depth"): lambda v: LAYERED.operator((N,), H, depth=v),
-    ("forward.LayeredHalfSpace.operator", "components"): lambda v: LAYERED.operator((N,), H, 1e-4, components=v),
+    ("forward.LayeredHalfSpace.operator", "components"): lambda v: LAYERED.operator((N,), H, depth=1e-4, components=v),
     ("forward.LayeredHalfSpace.material_at", "depth"): lambda v: LAYERED.material_at(v),
     ("forward.LayeredHalfSpace.transfer", "depth"): lambda v: LAYERED.transfer(1e3, 0.0, v),
     ("forward.skin.receptive_field", "depth"): (
@@ -353,6 +353,8 @@ EXEMPT = {
     ("forward.halfspace.pixel_influence", "E"): "the unchecked formula behind HalfSpace.surface_influence",
     ("forward.halfspace.pixel_influence", "nu"): "the unchecked formula behind HalfSpace.surface_influence",
     ("forward.halfspace.pixel_influence", "spacing"): "the unchecked formula behind HalfSpace.surface_influence",
+    ("forward.halfspace.label", "components"): "labels a computed field: the solver (half-space or skin model) "
+                                               "checked its components",
 }
 
 

@@ -31,7 +31,10 @@ Two operators, chosen by ``periodic``:
   the skin's ``surface_influence`` (the exact pixel integrals of Boussinesq and Cerruti: Love's
   closed form for the normal entry), by FFT on a grid zero-padded to twice the size (DC-FFT). In
   plane strain the displacement of a line load is defined up to a constant: it is taken as zero
-  at a distance of one grid length ``nx dx`` from the load.
+  at a distance of one grid length ``nx dx`` from the load. A skin without ``surface_influence``
+  (a layered skin) gets its influence coefficients from its ``surface_compliance`` on a periodic
+  grid ``PADDED_PERIODS`` times the zero-padded one per axis (nodal tractions, not pixels; the
+  images' error is discussed in docs/theory.md section 6).
 
 Each block's spectrum is computed on first use and kept (complex128, ``prod(padded)/2`` entries).
 FFTs are ``scipy.fft`` with ``workers=1``, float64.

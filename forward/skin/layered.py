@@ -13,6 +13,8 @@ only, docs/theory.md section 6); ``nu = 1/2`` is exact in every layer. The faces
 
 from __future__ import annotations
 
+import collections
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +24,9 @@ from tactilab.forward.halfspace import HalfSpace, compliance_matrix
 
 from .layered_multipliers import transfer_matrix
 from .propagator import Stack, surface_amplitudes
+
+#: memory for the surface amplitudes of recent wavenumber arrays (a contact grid's bands, reused per block)
+AMPLITUDE_CACHE_BYTES = 128 * 2**20
 
 
 @dataclass(frozen=True)
@@ -82,6 +87,7 @@ class LayeredHalfSpace:
                              "use base='rigid' for bone, HalfSpace(E, nu) for a deeper soft tissue")
         self.layers = layers
         self.base = base
+        self._amplitude_cache: collections.OrderedDict = collections.OrderedDict()
         self._stack = Stack(np.array([layer.thickness for layer in layers]), np.array([layer.G for layer in layers]),
                             np.array([layer.nu for layer in layers]),
                             None if base == "rigid" else (base.E / (2.0 * (1.0 + base.nu)), base.nu))
@@ -145,11 +151,7 @@ class LayeredHalfSpace:
             with np.errstate(invalid="ignore", divide="ignore"):
                 nx, ny = np.where(k > 0, kx / k, 0.0), np.where(k > 0, ky / k, 0.0)
         live = k > 0
-        amp = {name: np.zeros(k.shape) for name in ("Wp", "Up", "Wq", "Uq", "V")}
-        if live.any():
-            unique, inverse = np.unique(k[live], return_inverse=True)
-            for name, values in surface_amplitudes(unique, self._stack).items():
-                amp[name][live] = values[inverse]
+        amp = self._amplitudes(k, live)
         out = np.zeros(k.shape + (3, 3), dtype=complex)
         n = (nx, ny)
         t = (-ny, nx)
@@ -195,6 +197,26 @@ class LayeredHalfSpace:
             return np.einsum("ij,...jl->...il", compliance_matrix(E, nu), T)
         raise ValueError(f"quantity: must be 'stress' or 'strain', got {quantity!r}")
 
+    def _amplitudes(self, k: np.ndarray, live: np.ndarray) -> dict[str, np.ndarray]:
+        """Surface amplitudes on the wavenumbers ``k`` (one solve per distinct value), remembered for the
+        last arrays asked (a contact grid asks the same bands once per compliance block) within
+        :data:`AMPLITUDE_CACHE_BYTES`."""
+        key = (k.shape, hashlib.blake2b(np.ascontiguousarray(k).tobytes(), digest_size=16).hexdigest())
+        cache = self._amplitude_cache
+        if key in cache:
+            cache.move_to_end(key)
+            return cache[key]
+        amp = {name: np.zeros(k.shape) for name in ("Wp", "Up", "Wq", "Uq", "V")}
+        if live.any():
+            unique, inverse = np.unique(k[live], return_inverse=True)
+            for name, values in surface_amplitudes(unique, self._stack).items():
+                amp[name][live] = values[inverse]
+        cache[key] = amp
+        while len(cache) > 1 and sum(a.nbytes for entry in cache.values() for a in entry.values()) > \
+                AMPLITUDE_CACHE_BYTES:
+            cache.popitem(last=False)
+        return amp
+
     # -- fields ----------------------------------------------------------------------------------
     def stress(self, load, depth, points=None, components=None, tol: float = 1e-6, padding="auto"):
         """Stress (Pa, tension positive) at depth, as :meth:`HalfSpace.stress`.
@@ -210,7 +232,8 @@ class LayeredHalfSpace:
         depth : float or sequence of float
             Depths in m, within the layers on a rigid base.
         points : ndarray, shape (n, 2) or (n,), optional
-            Sensor positions (x, y) in m on grid nodes; default the load grid.
+            Sensor positions (x, y) in m; default the load grid. Off the nodes the exact trigonometric
+            interpolant is summed there; an isolated load's sensors must lie within its grid.
         components : sequence of str, optional
             Voigt names; default all six.
         tol : float
@@ -233,13 +256,13 @@ class LayeredHalfSpace:
 
         return layered_field(self, load, depth, points, components, tol, padding, "strain")
 
-    def operator(self, shape, spacing, depth: float = 1e-3, components=("zz",), loads=("p",),
+    def operator(self, shape, spacing, sensors=None, depth: float = 1e-3, components=("zz",), loads=("p",),
                  quantity: str = "stress", periodic: bool = False, padding: int = 4):
-        """The load-to-grid map at one depth as a ``scipy.sparse.linalg.LinearOperator`` with its adjoint.
+        """The load-to-sensor map at one depth as a ``scipy.sparse.linalg.LinearOperator`` with its adjoint.
 
         See :class:`tactilab.forward.skin.layered_operator.LayeredOperator`.
         """
         from .layered_operator import LayeredOperator
 
-        return LayeredOperator(self, shape, spacing, depth=depth, components=components, loads=loads,
+        return LayeredOperator(self, shape, spacing, sensors=sensors, depth=depth, components=components, loads=loads,
                                quantity=quantity, periodic=periodic, padding=padding)

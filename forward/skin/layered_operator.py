@@ -1,12 +1,14 @@
-"""The load-to-grid map of a layered skin at one depth, as a ``scipy.sparse.linalg.LinearOperator``.
+"""The load-to-sensor map of a layered skin at one depth, as a ``scipy.sparse.linalg.LinearOperator``.
 
 The conventions of :class:`tactilab.forward.halfspace.LoadToSensor`: the model is load-major
-(``(len(loads), *dims)`` flattened), the data component-major (``(n_comp, n_nodes)`` flattened),
-sensors at every node of the grid. Periodic: the exact multipliers of :mod:`.layered_multipliers`;
-isolated: the same on a grid zero-padded ``padding`` times per axis, cropped (the adjoint pads,
-multiplies by the conjugate multiplier and crops), with :attr:`error_estimate` the truncation
-estimate of :func:`.layered_fields.truncation_error` for a uniform unit traction of each load
-over the whole grid (the load whose images weigh most against its own field).
+(``(len(loads), *dims)`` flattened), the data component-major (``(n_comp, n_sensors)`` flattened);
+sensors at every node of the grid (default), at some of them, or anywhere (the exact trigonometric
+interpolant, whose adjoint is the transpose of the rfft). Periodic: the exact multipliers of
+:mod:`.layered_multipliers`; isolated: the same on a grid zero-padded ``padding`` times per axis,
+cropped (the adjoint pads, multiplies by the conjugate multiplier and crops), with
+:attr:`error_estimate` the truncation estimate of :func:`.layered_fields.truncation_error` for a
+uniform unit traction of each load over the whole grid (the load whose images weigh most against
+its own field).
 """
 
 from __future__ import annotations
@@ -18,12 +20,13 @@ from scipy.sparse.linalg import LinearOperator
 from tactilab.core import rules as check
 from tactilab.forward.halfspace import LOAD_COMPONENTS, SurfaceLoad
 
-from .layered_fields import output_weights, padded_load, periodic_outputs, truncation_error
+from .layered_fields import (check_points, evaluate_at_points, output_weights, padded_load, periodic_outputs,
+                             point_phases, rfft_transpose, truncation_error)
 from .layered_multipliers import output_multipliers
 
 
 class LayeredOperator(LinearOperator):
-    """Surface tractions (Pa) on a grid to stress (Pa) or TENSOR strain at every node at one depth.
+    """Surface tractions (Pa) on a grid to stress (Pa) or TENSOR strain at sensors at one depth.
 
     Parameters
     ----------
@@ -32,6 +35,10 @@ class LayeredOperator(LinearOperator):
         Load grid shape.
     spacing : float or (dx, dy)
         Grid spacing in m.
+    sensors : ndarray, shape (n, 2) or (n,), optional
+        Sensor (x, y) positions in m (x only in 1-D); default every grid node (in node order). On
+        nodes they are read from the inverse FFT; off the nodes the exact trigonometric interpolant is
+        summed at them (cost sensors x modes per output). An isolated grid's sensors lie within it.
     depth : float
         Depth in m (within the layers on a rigid base).
     components : sequence of str
@@ -45,7 +52,7 @@ class LayeredOperator(LinearOperator):
         Isolated grids: the padded grid per axis over the load grid (>= 2).
     """
 
-    def __init__(self, skin, shape, spacing, depth: float = 1e-3, components=("zz",), loads=("p",),
+    def __init__(self, skin, shape, spacing, sensors=None, depth: float = 1e-3, components=("zz",), loads=("p",),
                  quantity: str = "stress", periodic: bool = False, padding: int = 4):
         shape = tuple(int(s) for s in np.atleast_1d(shape))
         if len(shape) not in (1, 2) or min(shape) < 1:
@@ -72,7 +79,18 @@ class LayeredOperator(LinearOperator):
         weights = output_weights(skin, quantity, self.components, self.depth)
         self._table = output_multipliers(skin, self.fft_shape, self.spacing, self.depth, weights, loads)
         self._axes = tuple(range(-len(shape), 0))
-        self.dimsd = (len(self.components), int(np.prod(shape)))
+        self._select, self._phases = None, None
+        if sensors is None:
+            n_sensors = int(np.prod(shape))
+        else:
+            template = SurfaceLoad(p=np.zeros(shape), spacing=self.spacing, periodic=self.periodic)
+            pts, index = check_points(sensors, template)
+            n_sensors = len(pts)
+            if index is not None:
+                self._select = index
+            else:  # node coordinates of the (padded) periodic grid: the load grid's own
+                self._phases = point_phases(self.fft_shape, self.spacing, pts)
+        self.dimsd = (len(self.components), n_sensors)
         super().__init__(dtype=np.float64, shape=(int(np.prod(self.dimsd)), len(loads) * int(np.prod(shape))))
 
     @property
@@ -102,23 +120,55 @@ class LayeredOperator(LinearOperator):
         big[self._where] = grid
         return big
 
-    def _apply(self, x: np.ndarray, adjoint: bool) -> np.ndarray:
-        n_in = len(self.components) if adjoint else len(self.loads)
-        grids = np.asarray(x, dtype=float).reshape((n_in, *self.dims))
+    def _read(self, spectrum: np.ndarray) -> np.ndarray:
+        """Output spectrum (padded grid) -> values at the sensors."""
+        if self._phases is not None:
+            return evaluate_at_points(spectrum, self._phases, self.fft_shape)
+        field = sfft.irfftn(spectrum, s=self.fft_shape, axes=self._axes)
+        field = field if self.periodic else field[self._where]
+        return field.ravel() if self._select is None else field[self._select]
+
+    def _read_adjoint(self, values: np.ndarray) -> np.ndarray:
+        """The transpose of :meth:`_read` as a (half) spectrum to be multiplied by the multiplier: for grid
+        sensors the rfft of the values placed on the grid (with :meth:`_spread_adjoint` it makes the exact
+        adjoint with the conjugate multiplier); for off-grid sensors the phases summed over the sensors."""
+        if self._phases is not None:
+            ex, ey = self._phases
+            return (ex @ values) if ey is None else (ey * values) @ ex.T
+        grid = np.zeros(self.dims)
+        if self._select is None:
+            grid = values.reshape(self.dims)
+        else:
+            np.add.at(grid, self._select, values)
+        return sfft.rfftn(self._spread(grid), axes=self._axes)
+
+    def _apply(self, x: np.ndarray) -> np.ndarray:
+        grids = np.asarray(x, dtype=float).reshape((len(self.loads), *self.dims))
         spectra = [sfft.rfftn(self._spread(g), axes=self._axes) for g in grids]
         outs = []
-        for o in range(len(self.loads) if adjoint else len(self.components)):
-            acc = None
-            for i, spec in enumerate(spectra):
-                m = self._table[self.loads[o]][i] if adjoint else self._table[self.loads[i]][o]
-                term = (np.conj(m) if adjoint else m) * spec
-                acc = term if acc is None else acc + term
-            field = sfft.irfftn(acc, s=self.fft_shape, axes=self._axes)
+        for o in range(len(self.components)):
+            acc = self._table[self.loads[0]][o] * spectra[0]
+            for i in range(1, len(self.loads)):
+                acc += self._table[self.loads[i]][o] * spectra[i]
+            outs.append(self._read(acc))
+        return np.concatenate(outs)
+
+    def _apply_adjoint(self, y: np.ndarray) -> np.ndarray:
+        values = np.asarray(y, dtype=float).reshape(self.dimsd)
+        sums = [self._read_adjoint(v) for v in values]
+        outs = []
+        for name in self.loads:
+            if self._phases is None:  # the grid path: irfft of the conjugate multiplier times the rfft
+                acc = sum(np.conj(self._table[name][o]) * sums[o] for o in range(len(self.components)))
+                field = sfft.irfftn(acc, s=self.fft_shape, axes=self._axes)
+            else:  # off-grid sensors: the transpose of the rfft, Re(sum over half k of v_k exp(-i k x_j))
+                acc = sum(self._table[name][o] * sums[o] for o in range(len(self.components)))
+                field = rfft_transpose(acc, self.fft_shape)
             outs.append(field if self.periodic else field[self._where])
         return np.concatenate([f.ravel() for f in outs])
 
     def _matvec(self, x: np.ndarray) -> np.ndarray:
-        return self._apply(x, adjoint=False)
+        return self._apply(x)
 
     def _rmatvec(self, y: np.ndarray) -> np.ndarray:
-        return self._apply(y, adjoint=True)
+        return self._apply_adjoint(y)

@@ -12,7 +12,10 @@ from the layer's top, ``exp(-k (z - z_top))``, one from its bottom, ``exp(-k (z_
 with two constants ``(A, B)``. The constants of every layer are found together from the surface
 tractions, the continuity of displacement and traction at each interface, and the base (zero
 displacement on a rigid base; the decaying family of a half-space). No growing exponential ever
-appears, so a layer thousands of wavelengths thick is as accurate as a thin one.
+appears, so a layer thousands of wavelengths thick is as accurate as a thin one. Where a layer is
+thinner than ``THIN / k`` the two families nearly coincide, and the layer uses instead the
+propagator basis, its state at the top carried down by ``exp(A k z)`` (:func:`_propagator`), which
+keeps full precision as ``k h -> 0``.
 
 Amplitudes (real; the physical fields carry the factors of docs/theory.md 6): ``Ug = G k U``,
 ``Wg = G k W`` with ``u_x' = i U``, ``u_z = W``; ``N = sigma_zz``, ``X = sigma_x'x'``,
@@ -22,6 +25,7 @@ Amplitudes (real; the physical fields carry the factors of docs/theory.md 6): ``
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,15 +76,53 @@ def _family(x: np.ndarray, nu: float, up: bool) -> np.ndarray:
     return out
 
 
+#: layers thinner than this many inverse wavenumbers (k h below it) use the propagator basis
+THIN = 1.0
+
+
+def _state_matrix(nu: float) -> np.ndarray:
+    """``d/ds (Ug, Wg, S, N) = A (Ug, Wg, S, N)`` with ``s = k z`` (docs/theory.md 6); finite at nu = 1/2."""
+    return np.array([[0.0, -1.0, 1.0, 0.0],
+                     [nu / (1 - nu), 0.0, 0.0, (1 - 2 * nu) / (2 * (1 - nu))],
+                     [2.0 / (1 - nu), 0.0, 0.0, -nu / (1 - nu)],
+                     [0.0, 0.0, 1.0, 0.0]])
+
+
+def _propagator(s: np.ndarray, nu: float) -> np.ndarray:
+    """Amplitudes at ``s = k z`` (from the layer's top) per unit state ``(Ug, Wg, S, N)`` at the top:
+    ``exp(A s) = c0 I + c1 A + c2 A^2 + c3 A^3`` (A's eigenvalues are +-1, each twice), shape
+    ``(*s.shape, 6, 4)`` with ``X, Y`` from Hooke's law. For ``s <= 1`` only: bounded, and ``c3``, of
+    order ``s^3``, is summed as a series where the closed form would cancel."""
+    A = _state_matrix(nu)
+    A2 = A @ A
+    ch, sh = np.cosh(s), np.sinh(s)
+    c0, c1, c2 = ch - 0.5 * s * sh, 0.5 * (3 * sh - s * ch), 0.5 * s * sh
+    series = sum(n * s ** (2 * n + 1) / math.factorial(2 * n + 1) for n in range(1, 9))  # (s ch - sh) / 2
+    c3 = np.where(s < 0.5, series, 0.5 * (s * ch - sh))
+    phi = (c0[..., None, None] * np.eye(4) + c1[..., None, None] * A + c2[..., None, None] * A2
+           + c3[..., None, None] * (A2 @ A))
+    out = np.empty(s.shape + (6, 4))
+    out[..., :4, :] = phi
+    out[..., 4, :] = (nu * phi[..., 3, :] - 2 * phi[..., 0, :]) / (1 - nu)  # sigma_x'x'
+    out[..., 5, :] = nu * (out[..., 4, :] + phi[..., 3, :])  # sigma_y'y' = nu (sigma_x'x' + sigma_zz)
+    return out
+
+
 def layer_values(k: np.ndarray, stack: Stack, j: int, z_local: float) -> np.ndarray:
     """Amplitudes per unit constant of layer ``j`` at ``z_local`` m below its top (the base: below
-    the last interface): shape ``(K, 6, 4)`` (columns ``A_d, B_d, A_u, B_u``; the base has 2)."""
+    the last interface): shape ``(K, 6, 4)``. Columns ``A_d, B_d, A_u, B_u`` (the base has 2) where
+    ``k h >= THIN``; where the layer is thinner, the state ``(Ug, Wg, S, N)`` at its top (the
+    propagator basis, whose columns stay independent as ``k h -> 0``)."""
     if j == len(stack.thickness):
         return _family(k * z_local, stack.base[1], up=False)
     h, nu = stack.thickness[j], stack.nu[j]
     down = _family(k * z_local, nu, up=False)
     up = _family(k * max(h - z_local, 0.0), nu, up=True)
-    return np.concatenate([down, up], axis=-1)
+    out = np.concatenate([down, up], axis=-1)
+    thin = k * h < THIN
+    if thin.any():
+        out[thin] = _propagator(k[thin] * z_local, nu)
+    return out
 
 
 def _antiplane_values(k: np.ndarray, stack: Stack, j: int, z_local: float) -> np.ndarray:
@@ -188,7 +230,7 @@ def surface_amplitudes(k: np.ndarray, stack: Stack) -> dict[str, np.ndarray]:
     ``u_perp = V``)."""
     inplane = solve_inplane(k, stack)
     antiplane = solve_antiplane(k, stack)
-    vals = layer_values(k, stack, 0, 0.0)
+    vals = layer_values(k, stack, 0, 0.0)[:, :2, :]  # Ug, Wg only
     amp = np.einsum("kqc,kcl->kql", vals, inplane[:, 0:4, :])
     gk = stack.G[0] * k
     ap = _antiplane_values(k, stack, 0, 0.0)
