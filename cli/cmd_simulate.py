@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from .common import RunReport, add_report_options, choose_out, staged_outputs
+from .material_option import add_material_option, describe_material, read_material_option
 
 NAME = "simulate"
 HELP = ("simulate a finger scene file (TOML, units like 0.8N, 3mm, 20mm/s): write the sensors' recording "
@@ -26,6 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "contact, the sensor depth and the surface relief)")
     parser.add_argument("--seed", type=int, default=None,
                         help="seed of the sensor noise (noise_std of the scene's sensors); default: noise-free")
+    add_material_option(parser)
     parser.add_argument("--no-plots", action="store_true", help="write the recording only")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     add_report_options(parser)
@@ -44,8 +46,16 @@ def run(args: argparse.Namespace) -> int:
         if spacing <= 0:
             raise ValueError(f"--grid-spacing: must be > 0, got {args.grid_spacing!r}; e.g. 50um")
     scene = load_scene(args.scene)
+    material = read_material_option(args, replaces=())
     report = RunReport("simulate")
     created = args.out is None or not args.out.exists()
+    if material is not None:
+        if material.is_layered:
+            raise ValueError("--material: a scene simulation takes an elastic or viscoelastic material, got a layered "
+                             "one; solve a layered skin with the stress and contact commands")
+        scene = scene.model_copy(update={"material": material})
+        note = "; the scan is quasi-static: it uses the relaxed modulus" if material.is_viscoelastic else ""
+        report.computed.append(f"skin from --material (replaces the scene's): {describe_material(material)}{note}")
     out = report.watch(choose_out(args.out, Path(f"{scene.name or args.scene.stem}-simulation"), args.force))
     rng = np.random.default_rng(args.seed) if args.seed is not None else None
     with report.collecting_warnings(), staged_outputs(out, created) as stage:  # no partial output if a warning is an error

@@ -35,6 +35,9 @@ _EXPORTS = {
     "to_engineering": "halfspace",
     "invariants": "halfspace",
     "ReceptorHypothesis": "receptors",
+    # skin models beyond the half-space (their own door)
+    "Layer": "skin",
+    "LayeredHalfSpace": "skin",
     # contacts and surfaces
     "solve_contact": "contact",
     "ContactSolution": "contact",
@@ -46,6 +49,11 @@ _EXPORTS = {
     "stick_radius": "contact",
     "ContactLoad": "contact",
     "ContinuousLoad": "halfspace",
+    # skin models with time (viscoelastic)
+    "Prony": "skin",
+    "ViscoelasticHalfSpace": "skin",
+    "solve_viscoelastic_contact": "skin",
+    "skin_from_material": "skin",
     "TractionField": "halfspace",
     "DeflectionLoad": "halfspace",
     "Surface": "surfaces",

@@ -24,8 +24,8 @@ import pytest
 import tactilab.forward as fwd
 import tactilab.inversion as inv
 from tactilab.core import rules
-from tactilab.data_schemas import (Recording, SensorArray, SkinMaterial, load_example, random_rough_surface,
-                                  read_height_map)
+from tactilab.data_schemas import (ElasticBase, Recording, SensorArray, SkinLayer, SkinMaterial, load_example,
+                                  random_rough_surface, read_height_map)
 
 
 class Rule(NamedTuple):
@@ -51,6 +51,7 @@ QUANTITY = {"depth": "depth", "spacing": "spacing", "E": "young_modulus", "young
 N = 8
 H = 1e-4
 HS = fwd.HalfSpace(1e6, 0.5)
+LAYERED = fwd.LayeredHalfSpace([fwd.Layer(2e-3, 1e6, 0.5)], base=HS)  # deep enough for every good depth
 LOAD = fwd.SurfaceLoad(p=1e3 * np.cos(2 * np.pi * np.arange(N) / N)[None, :].repeat(N, 0), spacing=H, periodic=True)
 SCENE = load_example("tractor_display")
 DISPLAY = SCENE.display
@@ -59,6 +60,8 @@ X = np.linspace(-2e-3, 2e-3, 5)
 DESIGNS = {d: fwd.optimal_half_spacing(d, grid_points=20) for d in (1e-3, 2.5e-4)}
 ROW = np.zeros(DISPLAY.tractor_x_m.shape[-1])  # one line load per tractor of a row, N/m
 CONTACT = fwd.HertzContact(0.5, finger_radius=0.01, young_modulus=1e6)
+SLS = fwd.Prony.sls(1e6, 3e6, 0.07)
+VS = fwd.ViscoelasticHalfSpace(SLS)
 _HEIGHT_MAP: list = []
 
 
@@ -122,6 +125,9 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("core.rules.components", "value"): lambda v: rules.components(v),
     # records
     ("data_schemas.SkinMaterial", "poisson_ratio"): lambda v: SkinMaterial(young_modulus_pa=1e6, poisson_ratio=v),
+    ("data_schemas.SkinLayer", "poisson_ratio"): lambda v: SkinLayer(thickness_m=1e-3, young_modulus_pa=1e5,
+                                                                     poisson_ratio=v),
+    ("data_schemas.ElasticBase", "poisson_ratio"): lambda v: ElasticBase(young_modulus_pa=1e6, poisson_ratio=v),
     ("data_schemas.SensorArray", "components"): lambda v: SensorArray(positions_m=[[0, 0]], depth_m=1e-3, components=v),
     ("data_schemas.Recording", "components"): _recording,
     ("data_schemas.Recording.from_dataframe", "components"): _from_dataframe,
@@ -166,6 +172,42 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.solve_contact", "spacing"): lambda v: fwd.solve_contact(HS, np.linspace(-1, 1, N) ** 2 * 1e-6, v,
                                                                       normal_force=1.0),
     ("forward.HalfSpace.surface_influence", "spacing"): lambda v: HS.surface_influence(X, X, v),
+    # the viscoelastic skin (forward.skin)
+    ("forward.ViscoelasticHalfSpace", "nu"): lambda v: fwd.ViscoelasticHalfSpace(SLS, v),
+    ("forward.ViscoelasticHalfSpace.stress", "depth"): lambda v: VS.stress(LOAD, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.stress", "components"): lambda v: VS.stress(LOAD, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticHalfSpace.strain", "depth"): lambda v: VS.strain(LOAD, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.strain", "components"): lambda v: VS.strain(LOAD, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticHalfSpace.pressure_from_deflection", "spacing"):
+        lambda v: VS.pressure_from_deflection(np.zeros(N), v, [0.0]),
+    ("forward.ViscoelasticHalfSpace.stress_from_deflection", "spacing"):
+        lambda v: VS.stress_from_deflection(np.zeros(N), v, 1e-3, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.stress_from_deflection", "depth"):
+        lambda v: VS.stress_from_deflection(np.zeros(N), H, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.stress_from_deflection", "components"):
+        lambda v: VS.stress_from_deflection(np.zeros(N), H, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticHalfSpace.strain_from_deflection", "spacing"):
+        lambda v: VS.strain_from_deflection(np.zeros(N), v, 1e-3, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.strain_from_deflection", "depth"):
+        lambda v: VS.strain_from_deflection(np.zeros(N), H, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.strain_from_deflection", "components"):
+        lambda v: VS.strain_from_deflection(np.zeros(N), H, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticHalfSpace.sliding_pressure", "spacing"): lambda v: VS.sliding_pressure(np.zeros(N), v, 0.1),
+    ("forward.ViscoelasticHalfSpace.steady_sliding", "spacing"):
+        lambda v: VS.steady_sliding(np.zeros(N), v, 0.1, 1e-3, components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.steady_sliding", "depth"):
+        lambda v: VS.steady_sliding(np.zeros(N), H, 0.1, v, components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.steady_sliding", "components"):
+        lambda v: VS.steady_sliding(np.zeros(N), H, 0.1, 1e-3, components=v),
+    ("forward.ViscoelasticHalfSpace.surface_influence", "spacing"): lambda v: VS.surface_influence(X, X, v),
+    ("forward.ViscoelasticHalfSpace.operator", "spacing"): lambda v: VS.operator((N,), v, [0.0]),
+    ("forward.ViscoelasticHalfSpace.operator", "depth"): lambda v: VS.operator((N,), H, [0.0], depth=v),
+    ("forward.ViscoelasticHalfSpace.operator", "components"): lambda v: VS.operator((N,), H, [0.0], components=v),
+    ("forward.Prony.shear_relaxation_modulus", "nu"): lambda v: SLS.shear_relaxation_modulus(0.1, v),
+    ("forward.Prony.shear_creep_compliance", "nu"): lambda v: SLS.shear_creep_compliance(0.1, v),
+    ("forward.solve_viscoelastic_contact", "spacing"):
+        lambda v: fwd.solve_viscoelastic_contact(VS, np.linspace(-1, 1, N) ** 2 * 1e-6, v, [0.0, 0.1],
+                                                 normal_force=1.0),
     ("forward.ContactLoad.sample", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=H).sample((N, N), v),
     ("forward.angular_wavenumbers", "spacing"): lambda v: fwd.angular_wavenumbers((N, N), v),
     ("forward.pressure_from_deflection", "spacing"): lambda v: fwd.pressure_from_deflection(np.zeros(N), v, 1e6, 0.5),
@@ -198,6 +240,25 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.halfspace.dcfft_kernel_spectrum", "depth"): (
         lambda v: _kernel_spectrum(depth=v)),
     ("forward.halfspace.dcfft_kernel_spectrum", "nu"): lambda v: _kernel_spectrum(nu=v),
+    # the layered skin
+    ("forward.Layer", "E"): lambda v: fwd.Layer(1e-3, v),
+    ("forward.Layer", "nu"): lambda v: fwd.Layer(1e-3, 1e6, v),
+    ("forward.LayeredHalfSpace.stress", "depth"): lambda v: LAYERED.stress(LOAD, v, components=("zz",)),
+    ("forward.LayeredHalfSpace.stress", "components"): lambda v: LAYERED.stress(LOAD, 1e-4, components=v),
+    ("forward.LayeredHalfSpace.strain", "depth"): lambda v: LAYERED.strain(LOAD, v, components=("zz",)),
+    ("forward.LayeredHalfSpace.strain", "components"): lambda v: LAYERED.strain(LOAD, 1e-4, components=v),
+    ("forward.LayeredHalfSpace.operator", "spacing"): lambda v: LAYERED.operator((N,), v, depth=1e-4),
+    ("forward.LayeredHalfSpace.operator", "depth"): lambda v: LAYERED.operator((N,), H, depth=v),
+    ("forward.LayeredHalfSpace.operator", "components"): lambda v: LAYERED.operator((N,), H, depth=1e-4, components=v),
+    ("forward.LayeredHalfSpace.material_at", "depth"): lambda v: LAYERED.material_at(v),
+    ("forward.LayeredHalfSpace.transfer", "depth"): lambda v: LAYERED.transfer(1e3, 0.0, v),
+    ("forward.skin.receptive_field", "depth"): (
+        lambda v: fwd.skin.receptive_field(LAYERED, v, spacing=H, half_extent=4 * H)),
+    ("forward.skin.receptive_field", "spacing"): (
+        lambda v: fwd.skin.receptive_field(LAYERED, 1e-3, spacing=v, half_extent=4 * (v if v > 0 else H))),
+    ("forward.skin.tangential_line_strain", "depth"): (
+        lambda v: fwd.skin.tangential_line_strain(LAYERED, X, [0.0], [1.0], v)),
+    ("forward.skin.tractor_phi_psi", "depth"): lambda v: fwd.skin.tractor_phi_psi(LAYERED, X, [0.0], [1.0], v),
     # scenes, displays, tractors, receptors
     ("forward.rigid_surface_pressure", "spacing"): lambda v: fwd.rigid_surface_pressure(np.zeros(N), v, 1e6),
     ("forward.rigid_surface_pressure", "young_modulus"): lambda v: fwd.rigid_surface_pressure(np.zeros(N), H, v),
@@ -296,6 +357,8 @@ EXEMPT = {
     ("forward.halfspace.pixel_influence", "E"): "the unchecked formula behind HalfSpace.surface_influence",
     ("forward.halfspace.pixel_influence", "nu"): "the unchecked formula behind HalfSpace.surface_influence",
     ("forward.halfspace.pixel_influence", "spacing"): "the unchecked formula behind HalfSpace.surface_influence",
+    ("forward.halfspace.label", "components"): "labels a computed field: the solver (half-space or skin model) "
+                                               "checked its components",
 }
 
 

@@ -31,7 +31,10 @@ Two operators, chosen by ``periodic``:
   the skin's ``surface_influence`` (the exact pixel integrals of Boussinesq and Cerruti: Love's
   closed form for the normal entry), by FFT on a grid zero-padded to twice the size (DC-FFT). In
   plane strain the displacement of a line load is defined up to a constant: it is taken as zero
-  at a distance of one grid length ``nx dx`` from the load.
+  at a distance of one grid length ``nx dx`` from the load. A skin without ``surface_influence``
+  (a layered skin) gets its influence coefficients from its ``surface_compliance`` on a periodic
+  grid ``PADDED_PERIODS`` times the zero-padded one per axis (nodal tractions, not pixels; the
+  images' error is discussed in docs/theory.md section 6).
 
 Each block's spectrum is computed on first use and kept (complex128, ``prod(padded)/2`` entries).
 FFTs are ``scipy.fft`` with ``workers=1``, float64.
@@ -49,6 +52,8 @@ _ROW = {"uz": 0, "ux": 1, "uy": 2}
 _COL = {"p": 0, "qx": 1, "qy": 2}
 #: rows of the kernel evaluated at a time (bounds the temporaries of a large grid)
 _BAND = 128
+#: isolated grids of skins without surface_influence: periodic grid per axis over the zero-padded one
+PADDED_PERIODS = 4
 
 
 class ContactCompliance:
@@ -74,10 +79,16 @@ class ContactCompliance:
             raise ValueError(f"shape: expected (nx,) or (ny, nx) with at least one node per axis, got {shape}")
         if not isinstance(periodic, (bool, np.bool_)):
             raise ValueError(f"periodic: must be True or False, got {periodic!r}")
-        need = "surface_compliance" if periodic else "surface_influence"
-        if not callable(getattr(skin, need, None)):
-            raise ValueError(f"skin: {'a periodic' if periodic else 'an isolated'} contact needs a skin with "
-                             f"{need}(...), got {type(skin).__name__}; use HalfSpace(E, nu)")
+        has = {name: callable(getattr(skin, name, None)) for name in ("surface_compliance", "surface_influence")}
+        if periodic and not has["surface_compliance"]:
+            raise ValueError(f"skin: a periodic contact needs a skin with surface_compliance(...), got "
+                             f"{type(skin).__name__}; use HalfSpace(E, nu)")
+        if not periodic and not (has["surface_influence"] or has["surface_compliance"]):
+            raise ValueError(f"skin: an isolated contact needs a skin with surface_influence(...) or "
+                             f"surface_compliance(...), got {type(skin).__name__}; use HalfSpace(E, nu)")
+        #: isolated grid of a skin without surface_influence: its influence comes from a periodic grid
+        #: PADDED_PERIODS times the zero-padded one per axis (see _padded_influence)
+        self.padded_periodic = not periodic and not has["surface_influence"]
         self.skin = skin
         self.shape = shape
         self.ndim = len(shape)
@@ -100,25 +111,10 @@ class ContactCompliance:
     def _block(self, key: tuple[int, int]) -> np.ndarray:
         """One entry of the compliance on the FFT grid: spectral symbol (periodic) or real-space
         influence coefficients (isolated), evaluated in bands of rows to bound the temporaries."""
-        i, j = key
-        odd = i != j  # the cross terms and xy are odd in k
         if self.periodic:
-            kx = 2 * np.pi * sfft.rfftfreq(self.shape[-1], self.spacing[0])
-            if self.ndim == 1:
-                m = np.array(np.asarray(self.skin.surface_compliance(kx, None))[..., i, j], dtype=complex)
-                if odd and self.shape[0] % 2 == 0:
-                    m[-1] = 0.0
-                return m
-            ky = 2 * np.pi * sfft.fftfreq(self.shape[0], self.spacing[1])
-            m = np.empty((len(ky), len(kx)), dtype=complex)
-            for lo in range(0, len(ky), _BAND):
-                band = self.skin.surface_compliance(kx[None, :], ky[lo:lo + _BAND, None])
-                m[lo:lo + _BAND] = np.asarray(band)[..., i, j]
-            if odd and self.shape[-1] % 2 == 0:
-                m[:, -1] = 0.0
-            if odd and self.shape[0] % 2 == 0:
-                m[self.shape[0] // 2] = 0.0
-            return m
+            return self._symbol(key, self.shape)
+        if self.padded_periodic:
+            return self._padded_influence(key)
         offsets = []
         for n, h in zip(self.shape, self.spacing[::-1] if self.ndim == 2 else self.spacing):
             idx = np.arange(2 * n)
@@ -132,6 +128,47 @@ class ContactCompliance:
             m[lo:lo + _BAND] = self.skin.surface_influence(offsets[1][None, :], offsets[0][lo:lo + _BAND, None],
                                                            self.spacing, entry=key)
         return m
+
+    def _symbol(self, key: tuple[int, int], shape: tuple[int, ...]) -> np.ndarray:
+        """One entry of the skin's ``surface_compliance`` on the rfft half spectrum of a periodic grid of
+        ``shape`` (this grid's spacing), with the odd terms 0 on the Nyquist column and row."""
+        i, j = key
+        odd = i != j  # the cross terms and xy are odd in k
+        kx = 2 * np.pi * sfft.rfftfreq(shape[-1], self.spacing[0])
+        if self.ndim == 1:
+            m = np.array(np.asarray(self.skin.surface_compliance(kx, None))[..., i, j], dtype=complex)
+            if odd and shape[0] % 2 == 0:
+                m[-1] = 0.0
+            return m
+        ky = 2 * np.pi * sfft.fftfreq(shape[0], self.spacing[1])
+        m = np.empty((len(ky), len(kx)), dtype=complex)
+        for lo in range(0, len(ky), _BAND):
+            band = self.skin.surface_compliance(kx[None, :], ky[lo:lo + _BAND, None])
+            m[lo:lo + _BAND] = np.asarray(band)[..., i, j]
+        if odd and shape[-1] % 2 == 0:
+            m[:, -1] = 0.0
+        if odd and shape[0] % 2 == 0:
+            m[shape[0] // 2] = 0.0
+        return m
+
+    def _padded_influence(self, key: tuple[int, int]) -> np.ndarray:
+        """Influence coefficients of an isolated grid for a skin known only by its ``surface_compliance``.
+
+        The periodic influence of one node (the spectral symbol on a grid :data:`PADDED_PERIODS` times the
+        zero-padded grid per axis, inverse-transformed), read at the offsets the aperiodic convolution
+        uses (``|offset| < n`` nodes per axis). Its error is that of the periodic images, at least
+        ``(2 PADDED_PERIODS - 1) n`` nodes away: exponentially small for layers on a rigid base (their
+        influence decays over the layer thickness); for a skin on a half-space the ``k = 0`` entry is 0, so
+        the coefficients are shifted by a constant (absorbed in the approach) plus a smooth remainder of
+        relative size about ``(n / (2 PADDED_PERIODS n))^2`` (docs/contact.md, layered skins).
+        """
+        big = tuple(PADDED_PERIODS * m for m in self.fft_shape)
+        g = sfft.irfftn(self._symbol(key, big), s=big, axes=self._axes, workers=1)
+        index = []
+        for n in self.shape:
+            idx = np.arange(2 * n)
+            index.append(np.where(idx < n, idx, idx - 2 * n))  # wrapped offsets, read from the big periodic grid
+        return g[np.ix_(*index)] if self.ndim == 2 else g[index[0]]
 
     def spectrum(self, row: str, col: str) -> np.ndarray:
         """Cached rfft spectrum of one block (``row`` in uz, ux, uy; ``col`` in p, qx, qy)."""

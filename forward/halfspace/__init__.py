@@ -27,6 +27,7 @@ _EXPORTS = {
     "HalfSpace": "facade",
     "INVARIANTS": "fields",
     "invariants": "fields",
+    "label": "fields",  # the labelled (xarray) field with cached coordinates, for skin models' results
     "largest_strain": "fields",
     "line_green": "kernels",
     "line_load_stress": "kernels",
