@@ -128,10 +128,8 @@ class LayeredHalfSpace:
 
         Parameters
         ----------
-        kx : array_like
-            Angular wavenumbers along x, rad/m.
-        ky : array_like, optional
-            Angular wavenumbers along y, rad/m (broadcast with ``kx``); ``None`` for plane strain.
+        kx, ky : array_like
+            Angular wavenumbers (rad/m) along x and y, broadcast together; ``ky=None``: plane strain.
 
         Returns
         -------

@@ -21,8 +21,9 @@ from tactilab.forward.halfspace import angular_wavenumbers
 
 from .propagator import Stack, radial_stress
 
-#: multiplier tables kept (least recently used out first): grids x depths x output sets
+#: multiplier tables kept (least recently used out first): grids x depths x output sets, within a memory budget
 _CACHE_ENTRIES = 16
+CACHE_BYTES = 256 * 2**20
 _CACHE: collections.OrderedDict = collections.OrderedDict()
 _LOCK = threading.Lock()
 _NAMES = ("Np", "Xp", "Yp", "Sp", "Nq", "Xq", "Yq", "Sq", "T", "R")
@@ -128,9 +129,13 @@ def output_multipliers(skin, shape: tuple[int, ...], spacing: tuple[float, ...],
     table = {name: np.tensordot(weights, per_load[name], axes=(1, 0)) for name in loads}
     with _LOCK:
         _CACHE[key] = table
-        while len(_CACHE) > _CACHE_ENTRIES:
+        while len(_CACHE) > 1 and (len(_CACHE) > _CACHE_ENTRIES or _cache_bytes() > CACHE_BYTES):
             _CACHE.popitem(last=False)
     return table
+
+
+def _cache_bytes() -> int:
+    return sum(a.nbytes for table in _CACHE.values() for a in table.values())
 
 
 def clear_cache() -> None:
