@@ -124,6 +124,18 @@ def test_one_half_space_code_refuses_layers_and_warns_for_relaxation():
         layered.half_space_constants("the scan")
 
 
+def test_half_space_from_material_refuses_layers_and_warns_for_relaxation():
+    """HalfSpace.from_material used to return a plain half-space for any material, layers included."""
+    assert HalfSpace.from_material(SkinMaterial(young_modulus_pa=1e6, poisson_ratio=0.45)).E == 1e6
+    layered = SkinMaterial(layers=[dict(thickness_m=4e-3, young_modulus_pa=1e5)])
+    with pytest.raises(ValueError, match=r"material: HalfSpace.from_material .*skin_from_material.* models the skin "
+                                         r"as one elastic half-space, but the material has 1 layer"):
+        HalfSpace.from_material(layered)
+    sls = SkinMaterial(young_modulus_pa=1e5, model="sls", instantaneous_modulus_pa=3e5, relaxation_time_s=0.05)
+    with pytest.warns(UserWarning, match=r"quasi-static: .* relaxed modulus E_inf = 100000 Pa"):
+        assert HalfSpace.from_material(sls).E == 1e5
+
+
 def test_a_scene_with_a_layered_material_is_refused_by_the_finger_scan():
     from tactilab.data_schemas import load_example
     from tactilab.forward import BiomimeticFinger

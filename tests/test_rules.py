@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 import tactilab.forward as fwd
+import tactilab.forward.skin as fskin
 import tactilab.inversion as inv
 from tactilab.core import rules
 from tactilab.data_schemas import (ElasticBase, Recording, SensorArray, SkinLayer, SkinMaterial, load_example,
@@ -63,6 +64,15 @@ CONTACT = fwd.HertzContact(0.5, finger_radius=0.01, young_modulus=1e6)
 SLS = fwd.Prony.sls(1e6, 3e6, 0.07)
 VS = fwd.ViscoelasticHalfSpace(SLS)
 _HEIGHT_MAP: list = []
+_HISTORY: list = []
+
+
+def _viscoelastic_history():
+    """A small solved viscoelastic contact (two steps), once per session."""
+    if not _HISTORY:
+        _HISTORY.append(fwd.solve_viscoelastic_contact(VS, np.linspace(-1, 1, 32) ** 2 * 1e-5, 2.5e-5, [0.0, 0.1],
+                                                       normal_force=1.0))
+    return _HISTORY[0]
 
 
 def _height_map_file():
@@ -208,6 +218,14 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.solve_viscoelastic_contact", "spacing"):
         lambda v: fwd.solve_viscoelastic_contact(VS, np.linspace(-1, 1, N) ** 2 * 1e-6, v, [0.0, 0.1],
                                                  normal_force=1.0),
+    ("forward.skin.HistoryOperator", "spacing"): lambda v: fskin.HistoryOperator(VS, (N,), v, [0.0, 0.1], [0.0]),
+    ("forward.skin.HistoryOperator", "depth"): lambda v: fskin.HistoryOperator(VS, (N,), H, [0.0, 0.1], [0.0], depth=v),
+    ("forward.skin.HistoryOperator", "components"):
+        lambda v: fskin.HistoryOperator(VS, (N,), H, [0.0, 0.1], [0.0], components=v),
+    ("forward.skin.ViscoelasticContactHistory.strain", "depth"):
+        lambda v: _viscoelastic_history().strain(VS, v, components=("zz",)),
+    ("forward.skin.ViscoelasticContactHistory.strain", "components"):
+        lambda v: _viscoelastic_history().strain(VS, 1e-3, components=v),
     ("forward.ContactLoad.sample", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=H).sample((N, N), v),
     ("forward.angular_wavenumbers", "spacing"): lambda v: fwd.angular_wavenumbers((N, N), v),
     ("forward.pressure_from_deflection", "spacing"): lambda v: fwd.pressure_from_deflection(np.zeros(N), v, 1e6, 0.5),
@@ -390,7 +408,8 @@ def test_every_entry_point_refuses_the_bad_values_with_the_rule(call, param, val
 
 
 # ----------------------------------------------------------------------------- the walker
-FACES = ("core", "data_schemas", "forward", "forward.halfspace", "inversion", "experiments", "demo")
+FACES = ("core", "data_schemas", "forward", "forward.halfspace", "forward.contact", "forward.skin", "inversion",
+         "experiments", "demo")
 
 
 def _public_callables():
