@@ -19,7 +19,7 @@ from tactilab.data_schemas.recording_io import FORMATS, write_recording
 from .finger_plots import plot_field_maps, plot_receptive_fields, plot_spectrum, plot_time_series
 from .halfspace import largest_strain
 from .scanning import check_scan, reference_height, scan_outputs, scanned_surface, scene_finger
-from .scene_recording import recording_attrs
+from .scene_metadata import recording_attrs
 from .surfaces import RecordFeature
 
 

@@ -1,4 +1,4 @@
-"""A scene and a recording that belong together: what ``simulate`` writes about the scene, and the
+"""A scene and the recording it made: what ``simulate`` writes about the scene (the recording's metadata), and the
 check that a scene given to ``invert`` is the one that produced the recording.
 
 :func:`recording_attrs` is the one list of the scene's scalar parameters a recording carries (SI, the
