@@ -144,3 +144,14 @@ def test_a_window_must_lie_inside_the_grid():
     sens = SensorArray.grid(1, 1, 0.5e-3, 1e-3, components=("zz",))
     with pytest.raises(ValueError, match="window: expected 2 slices"):
         SensorReadout(SKIN, (N, N), DX, sens, window=(slice(-8, 20), slice(0, 20)))
+
+
+def test_plane_strain_finger_scan_reads_the_line_kernels():
+    n, dx = 256, 20e-6
+    gaps = finger_gap((n,), dx, 10e-3)[None]
+    sens = SensorArray(positions_m=[[0.0, 0.0], [0.3e-3, 0.0]], depth_m=0.5e-3, components=("zz", "xx"))
+    sc = solve_scan(SKIN, gaps, dx, normal_force=100.0, friction=0.5, sensors=sens)
+    sol = solve_contact(SKIN, gaps[0], dx, normal_force=100.0, friction=0.5, condition="sliding")
+    field = SKIN.stress(sol.load(), [0.5e-3], points=np.array([[0.0], [0.3e-3]]), components=("zz", "xx"))
+    want = field.data["stress"].values.reshape(2, 2).T
+    assert np.abs(sc.outputs[0][0] - want).max() <= 1e-9 * np.abs(want).max()
