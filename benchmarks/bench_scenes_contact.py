@@ -36,8 +36,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from tactilab.data_schemas import SensorArray, random_rough_surface  # noqa: E402
-from tactilab.forward import HalfSpace, HertzContact, SensorReadout, finger_gap, solve_scan  # noqa: E402
-from tactilab.forward.scene_frames import full_contact_pressure  # noqa: E402
+from tactilab.forward import (HalfSpace, HertzContact, SensorReadout, finger_gap,  # noqa: E402
+                              pressure_from_deflection, solve_scan)
 from tactilab.forward.scene_models import signal_error  # noqa: E402
 
 E_PA, NU, FORCE, RADIUS, MU = 1e6, 0.5, 0.5, 10e-3, 0.5
@@ -61,7 +61,7 @@ def _linear(skin, plate, g0, arrays, n, frames, spacing, batch=64):
     X, Y = np.meshgrid(x, x)
     p_hertz = HertzContact(FORCE, RADIUS, E_PA, NU).pressure(X, Y)
     inside = p_hertz > 0
-    p_plate = full_contact_pressure(plate, (spacing, spacing), E_STAR)  # the strip is one period of the plate
+    p_plate = pressure_from_deflection(plate, spacing, E_PA, NU).p  # E* |k| H~ / 2: the strip is one period
     half = int(np.count_nonzero(inside[n // 2]) // 2) + 8
     window = (slice(max(0, n // 2 - half), min(n, n // 2 + half)),) * 2
     readout = SensorReadout(skin, (n, n), spacing, arrays, window=window, loads=("p", "qx", "qy"),

@@ -25,10 +25,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.fft as sfft
 
 from .finger import BiomimeticFinger, Fingerprint
-from .halfspace import HalfSpace
+from .halfspace import HalfSpace, pressure_from_deflection
 from .scanning import reference_height, scanned_surface, scene_finger
 from .scene_contact import finger_gap, ridge_heights
 from .scene_readout import SensorReadout
@@ -200,11 +199,14 @@ class SceneFrames:
         """The full-contact pressure of the texture and the ridges, ``E* |k| H~ / 2`` (Pa, zero mean)."""
         h = self.heights(i) + self.ridges()
         if self.periodic:
-            return full_contact_pressure(h, self.spacing, self.e_star)
+            return self._deflection_pressure(h)
         pad = [(n // 2, n - n // 2) for n in h.shape]  # mirrored margins: no wrap-around of an isolated window
-        big = np.pad(h, pad, mode="reflect")
-        p = full_contact_pressure(big, self.spacing, self.e_star)
+        p = self._deflection_pressure(np.pad(h, pad, mode="reflect"))
         return p[tuple(slice(a, a + n) for (a, _), n in zip(pad, h.shape))]
+
+    def _deflection_pressure(self, h: np.ndarray) -> np.ndarray:
+        spacing = self.spacing[0] if len(self.spacing) == 1 else self.spacing
+        return pressure_from_deflection(h, spacing, self.skin.E, self.skin.nu).p
 
     def _finger_tractions(self, ratio: float, fingerprint: bool):
         key = ("finger", ratio, fingerprint)
@@ -274,24 +276,3 @@ def _shifts(u: np.ndarray, h: float) -> np.ndarray | None:
     if np.allclose(steps, np.round(steps), rtol=0.0, atol=1e-6):
         return -np.round(steps).astype(np.int64)
     return None
-
-
-def full_contact_pressure(h: np.ndarray, spacing, e_star: float) -> np.ndarray:
-    """``E* |k| H~ / 2`` of a periodic grid of heights: the zero-mean pressure (Pa) that presses the skin
-    into a rigid texture everywhere (the linear model's texture pressure; pi E* A / L for a sinusoid).
-
-    Parameters
-    ----------
-    h : ndarray, shape (nx,) or (ny, nx)
-        Heights in m, one period of the texture.
-    spacing : tuple of float
-        ``(dx,)`` or ``(dx, dy)`` in m.
-    e_star : float
-        E / (1 - nu^2), Pa.
-    """
-    axes = tuple(range(h.ndim))
-    k = 2 * np.pi * sfft.rfftfreq(h.shape[-1], spacing[0])
-    if h.ndim == 2:
-        ky = 2 * np.pi * sfft.fftfreq(h.shape[0], spacing[1])
-        k = np.hypot(k[None, :], ky[:, None])
-    return sfft.irfftn(0.5 * e_star * k * sfft.rfftn(h, axes=axes), s=h.shape, axes=axes)
