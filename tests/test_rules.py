@@ -161,6 +161,13 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.ContactCompliance", "spacing"): lambda v: fwd.ContactCompliance(HS, (N, N), v, periodic=True),
     ("forward.solve_contact", "spacing"): lambda v: fwd.solve_contact(HS, np.linspace(-1, 1, N) ** 2 * 1e-6, v,
                                                                       normal_force=1.0),
+    ("forward.WestergaardContact", "E"): lambda v: fwd.WestergaardContact(1e-6, 1e-3, 1e3, v),
+    ("forward.WestergaardContact", "nu"): lambda v: fwd.WestergaardContact(1e-6, 1e-3, 1e3, 1e6, nu=v),
+    ("forward.harmonic_field", "depth"): lambda v: fwd.harmonic_field([1e3, 1e3], 1e-3, X, v, 1e6),
+    ("forward.harmonic_field", "E"): lambda v: fwd.harmonic_field([1e3, 1e3], 1e-3, X, 1e-3, v),
+    ("forward.harmonic_field", "nu"): lambda v: fwd.harmonic_field([1e3, 1e3], 1e-3, X, 1e-3, 1e6, nu=v),
+    ("forward.harmonic_field", "components"): (
+        lambda v: fwd.harmonic_field([1e3, 1e3], 1e-3, X, 1e-3, 1e6, components=v)),
     ("forward.HalfSpace.surface_influence", "spacing"): lambda v: HS.surface_influence(X, X, v),
     ("forward.ContactLoad.sample", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=H).sample((N, N), v),
     ("forward.angular_wavenumbers", "spacing"): lambda v: fwd.angular_wavenumbers((N, N), v),
