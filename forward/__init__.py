@@ -66,6 +66,7 @@ _EXPORTS = {
     "scan_recording": "scanning",
     "scene_finger": "scanning",
     "scene_recording": "scanning",
+    "scanned_surface": "scanning",
     "simulate_scene": "scene_simulation",
     "read_load": "load_files",
     "write_field": "load_files",
