@@ -168,6 +168,19 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.harmonic_field", "nu"): lambda v: fwd.harmonic_field([1e3, 1e3], 1e-3, X, 1e-3, 1e6, nu=v),
     ("forward.harmonic_field", "components"): (
         lambda v: fwd.harmonic_field([1e3, 1e3], 1e-3, X, 1e-3, 1e6, components=v)),
+    ("forward.interface_model_errors", "spacing"): lambda v: fwd.interface_model_errors(np.zeros(N), v, 1e3, 1e6),
+    ("forward.interface_model_errors", "E"): lambda v: fwd.interface_model_errors(np.zeros(N), H, 1e3, v),
+    ("forward.interface_model_errors", "nu"): lambda v: fwd.interface_model_errors(np.zeros(N), H, 1e3, 1e6, nu=v),
+    ("forward.interface_model_errors", "depth"): (
+        lambda v: fwd.interface_model_errors(np.zeros(N), H, 1e3, 1e6, depth=v)),
+    ("forward.interface_model_errors", "components"): (
+        lambda v: fwd.interface_model_errors(np.zeros(N), H, 1e3, 1e6, components=v)),
+    ("forward.linear_pressure", "spacing"): lambda v: fwd.linear_pressure(np.zeros(N), v, 1e3, 1e6),
+    ("forward.linear_pressure", "E"): lambda v: fwd.linear_pressure(np.zeros(N), H, 1e3, v),
+    ("forward.linear_pressure", "nu"): lambda v: fwd.linear_pressure(np.zeros(N), H, 1e3, 1e6, nu=v),
+    ("forward.full_contact_pressure", "spacing"): lambda v: fwd.full_contact_pressure(np.zeros(N), v, 1e6),
+    ("forward.full_contact_pressure", "E"): lambda v: fwd.full_contact_pressure(np.zeros(N), H, v),
+    ("forward.full_contact_pressure", "nu"): lambda v: fwd.full_contact_pressure(np.zeros(N), H, 1e6, nu=v),
     ("forward.HalfSpace.surface_influence", "spacing"): lambda v: HS.surface_influence(X, X, v),
     ("forward.ContactLoad.sample", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=H).sample((N, N), v),
     ("forward.angular_wavenumbers", "spacing"): lambda v: fwd.angular_wavenumbers((N, N), v),
