@@ -184,6 +184,11 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.HalfSpace.surface_influence", "spacing"): lambda v: HS.surface_influence(X, X, v),
     ("forward.ContactLoad.sample", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=H).sample((N, N), v),
     ("forward.angular_wavenumbers", "spacing"): lambda v: fwd.angular_wavenumbers((N, N), v),
+    ("forward.finger_gap", "spacing"): lambda v: fwd.finger_gap((N, N), v, 0.01),
+    ("forward.solve_scan", "spacing"): lambda v: fwd.solve_scan(HS, (np.linspace(-1, 1, N) ** 2 * 1e-6)[None], v,
+                                                                normal_force=1.0),
+    ("forward.SensorReadout", "spacing"): lambda v: fwd.SensorReadout(
+        HS, (N,), v, SensorArray(positions_m=[[0.0, 0.0]], depth_m=1e-3, components=("zz",))),
     ("forward.pressure_from_deflection", "spacing"): lambda v: fwd.pressure_from_deflection(np.zeros(N), v, 1e6, 0.5),
     ("forward.pressure_from_deflection", "young_modulus"): (
         lambda v: fwd.pressure_from_deflection(np.zeros(N), H, v, 0.5)),
