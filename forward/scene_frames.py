@@ -8,8 +8,9 @@ world point ``x + u_i``. Two kinds of scene:
   3 Hertz radii, the spacing of :func:`~.scanning.scene_finger` (it resolves the contact, the depth
   and the surface's relief); the gap is ``r^2 / (2 R) - h(x + u, y) - ridges(x)``;
 - a **periodic cell** (``mean_pressure``): the nominally flat skin on one period of the surface
-  (256 nodes per period unless a spacing is given), in plane strain when the surface does not vary
-  across the scan; the gap is ``-h(x + u) - ridges(x)``.
+  (a sinusoid or a regular square wave: 256 nodes per period unless a spacing is given, in plane
+  strain; a ``random_rough`` plate: its own 2-D period on its own nodes); the gap is
+  ``-h(x + u) - ridges(x)``.
 
 The cheap models' tractions (SI, on the skin; ``D`` is the scenes' friction direction, +1):
 
@@ -37,8 +38,8 @@ from .surfaces import Surface
 GRID_RADII = 1.5
 #: nodes per period of a periodic cell when no spacing is given
 CELL_NODES = 256
-#: the surface kinds a periodic cell accepts, with their period along x
-_PERIODIC = {"sinusoidal_grating": "period_m", "square_wave_grating": "period_m"}
+#: the surface kinds a periodic cell accepts, with their period along x (random_rough: its size, 2-D)
+_PERIODIC = {"sinusoidal_grating": "period_m", "square_wave_grating": "period_m", "random_rough": "size_m"}
 
 
 @dataclass
@@ -113,6 +114,13 @@ class SceneFrames:
             raise ValueError(f"contact.mean_pressure: a periodic cell needs a periodic surface ({sorted(_PERIODIC)}, "
                              f"square waves regular), got kind {rec.kind!r}; press a finger (normal_force, "
                              "finger_radius) on it instead")
+        if rec.kind == "random_rough":  # a 2-D cell: the plate's own period, on its own nodes unless a spacing is given
+            lx, ly = (float(v) for v in rec.size_m)
+            step = rec.spacing_m if grid_spacing is None else grid_spacing
+            nx, ny = (max(8, 2 * int(round(length / step / 2))) for length in (lx, ly))
+            peak = float(np.abs(rec.heights_m).max())
+            return cls(scene, skin, True, (ny, nx), (lx / nx, ly / ny), u, _shifts(u, lx / nx), ratios, e_star, None,
+                       rec, peak)
         period = float(getattr(rec, attr))
         n = CELL_NODES if grid_spacing is None else max(8, 2 * int(round(period / grid_spacing / 2)))
         h = period / n
@@ -176,7 +184,7 @@ class SceneFrames:
         """The surface's heights under the grid at frame ``i`` (m, positive towards the skin)."""
         X, Y = self._world(i)
         if self.periodic:
-            return self._surface.height_at(X)
+            return self._surface.height_at(X) if Y is None else self._surface.height_at(X, Y)
         return self._surface.height(X, Y)
 
     def ridges(self) -> np.ndarray:

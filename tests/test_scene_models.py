@@ -190,3 +190,31 @@ def test_contact_record_refusals(fields, match):
 def test_scan_onset_refuses_a_negative_ramp():
     with pytest.raises(ValueError, match="onset"):
         Scan(speed_m_per_s=0.01, duration_s=0.01, sampling_rate_hz=100, onset_s=-1.0)
+
+
+def _rough_cell(mean_pressure, model="auto"):
+    from tactilab.data_schemas.lab_surfaces import RandomRoughSurface
+
+    plate = RandomRoughSurface(rms_height_m=0.2e-6, hurst=0.8, seed=2, spacing_m=20e-6, size_m=(0.64e-3, 0.64e-3))
+    return Scene(material=SkinMaterial(young_modulus_pa=E, poisson_ratio=NU), surface=plate,
+                 contact=Contact(mean_pressure_pa=mean_pressure, friction_coefficient=MU, model=model),
+                 sensors=SensorArray.grid(2, 2, 0.2e-3, 0.2e-3, quantity="strain", components=("zz", "zx")),
+                 scan=Scan(speed_m_per_s=0.02, duration_s=0.004, sampling_rate_hz=1000))
+
+
+def test_a_random_rough_cell_in_full_contact_is_the_linear_model_and_auto_picks_it():
+    frames = SceneFrames.from_scene(_rough_cell(1e3))
+    p_star = max(-frames.texture_pressure(0).min(), 1.0)
+    scene = _rough_cell(2 * p_star)
+    values, info = scene_signals(scene)
+    exact, _ = scene_signals(scene, "exact")
+    assert frames.shape == (32, 32) and info["model"] == "linear", info["reason"]
+    assert signal_error(values, exact) <= 1e-8
+    assert "periodic-cell estimate (interface_model_errors)" in info["reason"]
+
+
+def test_a_random_rough_cell_in_partial_contact_needs_the_exact_model():
+    frames = SceneFrames.from_scene(_rough_cell(1e3))
+    p_star = -frames.texture_pressure(0).min()
+    values, info = scene_signals(_rough_cell(0.2 * p_star))
+    assert info["model"] == "exact" and min(info["errors"].values()) > 1e-2
