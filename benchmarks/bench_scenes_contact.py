@@ -37,8 +37,7 @@ import numpy as np  # noqa: E402
 
 from tactilab.data_schemas import SensorArray, random_rough_surface  # noqa: E402
 from tactilab.forward import (HalfSpace, HertzContact, SensorReadout, finger_gap,  # noqa: E402
-                              pressure_from_deflection, solve_scan)
-from tactilab.forward.scene_models import signal_error  # noqa: E402
+                              pressure_from_deflection, signal_error, solve_scan)
 
 E_PA, NU, FORCE, RADIUS, MU = 1e6, 0.5, 0.5, 10e-3, 0.5
 E_STAR = E_PA / (1 - NU**2)
@@ -79,8 +78,7 @@ def auto_table() -> None:
     import math
 
     from tactilab.data_schemas import Contact, Scan, Scene, SinusoidalGrating, SkinMaterial
-    from tactilab.forward.scene_frames import SceneFrames
-    from tactilab.forward.scene_models import choose_model, run_model
+    from tactilab.forward import SceneFrames, choose_model, run_model
 
     length, amplitude = 1e-3, 2e-6
     p_star = math.pi * E_STAR * amplitude / length

@@ -27,6 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tactilab.core import rules as check
+
 from .finger import BiomimeticFinger, Fingerprint
 from .halfspace import HalfSpace, pressure_from_deflection
 from .scanning import reference_height, scanned_surface, scene_finger
@@ -78,6 +80,9 @@ class SceneFrames:
     _surface: object = None
     _h_ref: float = 1.0
     _cache: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self):
+        self.spacing = check.spacing(self.spacing, len(self.shape))
 
     # ---------------------------------------------------------------- construction
     @classmethod

@@ -185,6 +185,8 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.ContactLoad.sample", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=H).sample((N, N), v),
     ("forward.angular_wavenumbers", "spacing"): lambda v: fwd.angular_wavenumbers((N, N), v),
     ("forward.finger_gap", "spacing"): lambda v: fwd.finger_gap((N, N), v, 0.01),
+    ("forward.SceneFrames", "spacing"): lambda v: fwd.SceneFrames(None, HS, True, (N,), v, np.zeros(1), None,
+                                                                  np.ones(1), 1e6),
     ("forward.solve_scan", "spacing"): lambda v: fwd.solve_scan(HS, (np.linspace(-1, 1, N) ** 2 * 1e-6)[None], v,
                                                                 normal_force=1.0),
     ("forward.SensorReadout", "spacing"): lambda v: fwd.SensorReadout(
