@@ -107,6 +107,8 @@ def main(argv=None) -> int:
     parser.add_argument("--cold-frames", type=int, default=100, help="frames solved cold for the iteration count")
     parser.add_argument("--n", type=int, default=256, help="nodes per axis")
     parser.add_argument("--quick", action="store_true", help="128^2 nodes, 40 frames")
+    parser.add_argument("--contact-tol", type=float, default=1e-6,
+                        help="solve_contact's relative gap residual (default 1e-6: what a scene at tol 1e-2 uses)")
     parser.add_argument("--auto-table", action="store_true", help="what auto estimates on a periodic sinusoid")
     args = parser.parse_args(argv)
     if args.auto_table:
@@ -117,16 +119,17 @@ def main(argv=None) -> int:
     skin = HalfSpace(E=E_PA, nu=NU)
     load0 = os.getloadavg()
     print(f"bench_scenes_contact: {os.cpu_count()} CPUs, load average {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}, "
-          f"numpy {np.__version__}, one thread; {n}^2 nodes of {spacing * 1e6:g} um, {frames} frames")
+          f"numpy {np.__version__}, one thread; {n}^2 nodes of {spacing * 1e6:g} um, {frames} frames, contact tol "
+          f"{args.contact_tol:g}")
     plate, g0, arrays = _scene(n, frames, spacing)
     gap = lambda i: g0 - plate[:, i:i + n]  # noqa: E731  (frame i: the plate moved i nodes towards -x)
     cpu0, t0 = time.process_time(), time.perf_counter()
     warm = solve_scan(skin, gap, spacing, n_frames=frames, normal_force=FORCE, friction=MU, slide_direction=DIRECTION,
-                      shifts=-1, sensors=arrays, keep_tractions=False)
+                      shifts=-1, sensors=arrays, keep_tractions=False, tol=args.contact_tol)
     t_exact, cpu_exact = time.perf_counter() - t0, time.process_time() - cpu0
     t0 = time.perf_counter()
     cold = solve_scan(skin, gap, spacing, n_frames=cold_frames, normal_force=FORCE, friction=MU,
-                      slide_direction=DIRECTION, warm_start=False, keep_tractions=False)
+                      slide_direction=DIRECTION, warm_start=False, keep_tractions=False, tol=args.contact_tol)
     t_cold = time.perf_counter() - t0
     linear, t_linear = _linear(skin, plate, g0, arrays, n, frames, spacing)
     errors = [signal_error(lin, ex) for lin, ex in zip(linear, warm.outputs)]
