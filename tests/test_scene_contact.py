@@ -155,3 +155,17 @@ def test_plane_strain_finger_scan_reads_the_line_kernels():
     field = SKIN.stress(sol.load(), [0.5e-3], points=np.array([[0.0], [0.3e-3]]), components=("zz", "xx"))
     want = field.data["stress"].values.reshape(2, 2).T
     assert np.abs(sc.outputs[0][0] - want).max() <= 1e-9 * np.abs(want).max()
+
+
+def test_more_refusals(monkeypatch):
+    g0 = finger_gap((N, N), DX, 10e-3)
+    with pytest.raises(ValueError, match="slide_direction: expected a finite non-zero"):
+        solve_scan(SKIN, g0[None], DX, normal_force=0.5, friction=0.5, slide_direction=(0.0, 0.0))
+    with pytest.raises(ValueError, match="every frame shares one grid"):
+        solve_scan(SKIN, lambda i: g0 if i == 0 else g0[:-2], DX, n_frames=2, normal_force=0.5)
+    import tactilab.forward.scene_readout as readout
+
+    monkeypatch.setattr(readout, "MAX_WEIGHT_VALUES", 10)
+    sens = SensorArray.grid(1, 1, 0.5e-3, 1e-3, components=("zz",))
+    with pytest.raises(ValueError, match="GiB of weights, above the limit"):
+        SensorReadout(SKIN, (N, N), DX, sens)

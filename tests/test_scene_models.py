@@ -218,3 +218,12 @@ def test_a_random_rough_cell_in_partial_contact_needs_the_exact_model():
     p_star = -frames.texture_pressure(0).min()
     values, info = scene_signals(_rough_cell(0.2 * p_star))
     assert info["model"] == "exact" and min(info["errors"].values()) > 1e-2
+
+
+def test_a_cell_has_no_finger_and_a_display_scene_no_interface():
+    from tactilab.forward import BiomimeticFinger
+
+    with pytest.raises(ValueError, match="a periodic cell \\(mean_pressure\\) has no finger"):
+        BiomimeticFinger.from_scene(_cell(0.5))
+    with pytest.raises(ValueError, match="the interface models need a finger or a periodic cell"):
+        SceneFrames.from_scene(_cell(0.5).model_construct(**{**dict(_cell(0.5)), "contact": None}))
