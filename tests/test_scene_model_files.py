@@ -100,3 +100,8 @@ def test_invert_warns_in_one_line_naming_both_models_and_the_error():
 def test_a_mismatch_without_an_error_says_so():
     line = model_mismatch({"model": "exact", "tol": 0.01, "errors": {}, "basis": ""}, "modulation", "the inversion")
     assert "gives no error of the modulation model" in line
+
+
+def test_tactilab_contact_refuses_a_periodic_cell_scene(tmp_path, capsys):
+    assert main(["contact", str(_cell(tmp_path))]) == 2
+    assert "is a periodic cell (mean_pressure) without a finger" in capsys.readouterr().err
