@@ -105,3 +105,14 @@ def test_a_mismatch_without_an_error_says_so():
 def test_tactilab_contact_refuses_a_periodic_cell_scene(tmp_path, capsys):
     assert main(["contact", str(_cell(tmp_path))]) == 2
     assert "is a periodic cell (mean_pressure) without a finger" in capsys.readouterr().err
+
+
+def test_a_batch_inversion_warns_once_for_its_recordings(tmp_path, capsys):
+    from tactilab.cli.batch_options import _warn_models
+
+    for i, model in enumerate(("exact", "exact", "modulation")):
+        errors = {"modulation": 0.3 + i / 10} if model == "exact" else {}
+        _recording("scan " + model_statement(model, 0.01, errors, "measured")).save(tmp_path / f"r{i}.json")
+    _warn_models(tmp_path)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "2 recording(s)" in err[0] and "2 with 'exact'" in err[0] and "0.4 of the signal" in err[0]
