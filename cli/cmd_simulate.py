@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import RunReport, add_report_options, choose_out
+from .common import RunReport, add_report_options, choose_out, staged_outputs
 
 NAME = "simulate"
 HELP = ("simulate a finger scene file (TOML, units like 0.8N, 3mm, 20mm/s): write the sensors' recording "
@@ -45,10 +45,11 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"--grid-spacing: must be > 0, got {args.grid_spacing!r}; e.g. 50um")
     scene = load_scene(args.scene)
     report = RunReport("simulate")
+    created = args.out is None or not args.out.exists()
     out = report.watch(choose_out(args.out, Path(f"{scene.name or args.scene.stem}-simulation"), args.force))
     rng = np.random.default_rng(args.seed) if args.seed is not None else None
-    with report.collecting_warnings():
-        lines = simulate_scene(scene, out, fmt=args.format, rng=rng, progress=not (args.quiet or args.json),
+    with report.collecting_warnings(), staged_outputs(out, created) as stage:  # no partial output if a warning is an error
+        lines = simulate_scene(scene, stage, fmt=args.format, rng=rng, progress=not (args.quiet or args.json),
                                grid_spacing=spacing, plots=not args.no_plots)
     for line in lines:
         if line.startswith("method: "):

@@ -151,6 +151,10 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.HertzContact", "young_modulus"): lambda v: fwd.HertzContact(0.5, young_modulus=v),
     ("forward.HertzContact", "poisson_ratio"): lambda v: fwd.HertzContact(0.5, poisson_ratio=v),
     ("forward.HertzContact.load", "spacing"): lambda v: CONTACT.load(spacing=v),
+    ("experiments.modelling.FingerContact", "young_modulus"): (
+        lambda v: importlib.import_module("tactilab.experiments.modelling").FingerContact(young_modulus=v)),
+    ("experiments.modelling.FingerContact", "poisson_ratio"): (
+        lambda v: importlib.import_module("tactilab.experiments.modelling").FingerContact(poisson_ratio=v)),
     ("forward.ContactLoad", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=v),
     ("data_schemas.random_rough_surface", "spacing"): lambda v: random_rough_surface((N, N), v, rms_height=1e-6,
                                                                                      rng=np.random.default_rng(0)),

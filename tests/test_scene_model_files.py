@@ -3,12 +3,10 @@ invert` warns in one line when it assumes another (data_schemas/interface_model.
 
 from __future__ import annotations
 
-import warnings
-
 import pytest
 
 from tactilab.cli.cmd_invert import _warn_model
-from tactilab.cli.common import RunReport
+from tactilab.cli.common import PRINTED_WARNINGS, RunReport
 from tactilab.cli.main import main
 from tactilab.data_schemas import Recording, read_recording
 from tactilab.data_schemas.interface_model import model_mismatch, model_statement, recording_model
@@ -82,15 +80,16 @@ def test_the_statement_round_trips_through_the_description():
     assert recording_model(_recording("no statement")) is None
 
 
-def test_invert_warns_in_one_line_naming_both_models_and_the_error():
+def test_invert_warns_in_one_line_naming_both_models_and_the_error(capsys):
+    PRINTED_WARNINGS.clear()
     rec = _recording(model_statement("exact", 0.01, {"linear": 0.31, "modulation": 0.5}, "measured on every frame"))
     report = RunReport("invert")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        _warn_model(report, rec, None)
-    assert len(report.warnings) == 1 and "\n" not in report.warnings[0]
+    _warn_model(report, rec, None)
+    assert len(report.warnings) == 1 and "\n" not in report.warnings[0]  # the summary repeats it
     line = report.warnings[0]
     assert "'exact'" in line and "'modulation'" in line and "0.5 of the signal" in line
+    assert capsys.readouterr().err.strip() == f"tactilab invert: warning: {line}"
+    PRINTED_WARNINGS.clear()
     quiet = RunReport("invert")
     _warn_model(quiet, _recording(model_statement("modulation", 0.01, {}, "not estimated")), None)
     _warn_model(quiet, _recording("an older recording"), None)
