@@ -115,3 +115,11 @@ def test_a_batch_inversion_warns_once_for_its_recordings(tmp_path, capsys):
     _warn_models(tmp_path)
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "2 recording(s)" in err[0] and "2 with 'exact'" in err[0] and "0.4 of the signal" in err[0]
+
+
+def test_an_explicit_exact_model_states_the_cheap_models_errors(tmp_path):
+    out = tmp_path / "out"
+    assert main(["simulate", str(_cell(tmp_path, 'model = "exact"')), "--out", str(out), "--quiet", "--no-plots"]) == 0
+    stated = recording_model(read_recording(out / "recording.nc"), out / "recording.nc")
+    assert stated["model"] == "exact" and stated["basis"] == "measured on every frame against the exact model"
+    assert set(stated["errors"]) == {"linear", "modulation"}
