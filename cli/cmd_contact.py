@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from .common import RunReport, add_report_options, choose_out
+from .common import RunReport, add_report_options, choose_out, staged_outputs
 
 NAME = "contact"
 HELP = ("solve the frictional contact of the skin with a rigid surface (height map, scene or built-in): "
@@ -83,15 +83,15 @@ def run(args: argparse.Namespace) -> int:
     from tactilab.forward.contact_files import write_contact
 
     depths = opts["depths"]
-    folder = args.out if args.out is not None else Path(f"{problem.label}-contact")
-    new_folder = not folder.exists() if args.out is not None else True
+    created = args.out is None or not args.out.exists()
     out = report.watch(choose_out(args.out, Path(f"{problem.label}-contact"), args.force))
     skin = HalfSpace(E=settings["young_modulus"], nu=settings["nu"])
     shape = " x ".join(str(n) for n in problem.gap.shape[::-1])
     if not (args.quiet or args.json):
         print(f"tactilab contact: solving on {shape} nodes ({settings['memory_bytes'] / 2**20:.0f} MiB estimated)",
               file=sys.stderr, flush=True)
-    with report.collecting_warnings():
+    # staged: a refusal, or a warning that --strict makes an error, leaves no partial output
+    with report.collecting_warnings(), staged_outputs(out, created) as stage:
         t0 = time.perf_counter()
         try:
             sol = solve_contact(skin, problem.gap, problem.spacing, periodic=problem.periodic,
@@ -99,12 +99,9 @@ def run(args: argparse.Namespace) -> int:
                                 tangential_force=opts["tangential_force"], slide_direction=opts["slide_direction"],
                                 method=args.method, tol=args.tol, **settings["load"])
         except ValueError as exc:
-            if new_folder and not any(out.iterdir()):
-                out.rmdir()  # refused: leave no empty folder behind
             raise ValueError(as_option(str(exc))) from None
         elapsed = time.perf_counter() - t0
-        write_contact(sol, out, skin=skin, depths=depths, friction=settings["friction"],
-                              title=problem.label)
+        write_contact(sol, stage, skin=skin, depths=depths, friction=settings["friction"], title=problem.label)
     _summarise(report, sol, problem, settings, elapsed, depths)
     report.data["time_s"] = float(np.round(elapsed, 6))
     report.emit(args.json)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import RunReport, add_report_options, choose_out
+from .common import RunReport, add_report_options, choose_out, staged_outputs
 
 NAME = "simulate"
 HELP = ("simulate a finger scene file (TOML, units like 0.8N, 3mm, 20mm/s): write the sensors' recording "
@@ -45,21 +45,25 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"--grid-spacing: must be > 0, got {args.grid_spacing!r}; e.g. 50um")
     scene = load_scene(args.scene)
     report = RunReport("simulate")
+    created = args.out is None or not args.out.exists()
     out = report.watch(choose_out(args.out, Path(f"{scene.name or args.scene.stem}-simulation"), args.force))
     rng = np.random.default_rng(args.seed) if args.seed is not None else None
-    with report.collecting_warnings():
-        lines = simulate_scene(scene, out, fmt=args.format, rng=rng, progress=not (args.quiet or args.json),
+    with report.collecting_warnings(), staged_outputs(out, created) as stage:  # no partial output if a warning is an error
+        lines = simulate_scene(scene, stage, fmt=args.format, rng=rng, progress=not (args.quiet or args.json),
                                grid_spacing=spacing, plots=not args.no_plots)
     for line in lines:
         if line.startswith("method: "):
             report.method = line.removeprefix("method: ")
+        elif line.startswith("model errors: "):
+            report.error_estimate = "interface " + line
         elif not line.startswith(("recording: ", "plots")):  # the files are listed below
             report.computed.append(line)
     if not report.method and scene.display is not None:
         report.method = ("display plane model: tractor line loads on the half-space, rows uniform in y; "
                          "compared with the real sliding surface where the scene has one")
-    report.error_estimate = ("not estimated by this command (grid quadrature; refine --grid-spacing and compare "
-                             "to check convergence)")
+    if not report.error_estimate:
+        report.error_estimate = ("not estimated by this command (grid quadrature; refine --grid-spacing and compare "
+                                 "to check convergence)")
     if args.seed is None and float(scene.sensors.noise_std) > 0:
         report.dropped.append(f"sensor noise (noise_std {scene.sensors.noise_std:g} in the recording's unit): "
                               "not added without --seed")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import RunReport, add_report_options, choose_out
+from .common import RunReport, add_report_options, choose_out, staged_outputs
 
 NAME = "stress"
 HELP = ("strain (default; dimensionless, tensor shear) or stress (Pa) at given depths (mm) under a load file "
@@ -43,13 +43,14 @@ def run(args: argparse.Namespace) -> int:
     depths = [to_si(d, "length", name="--depth") for d in args.depth]
     young = to_si(args.young_modulus, "pressure", name="--young-modulus")
     load = read_load(args.load)
+    created = args.out is None or not args.out.exists()
     out = report.watch(choose_out(args.out, Path(f"{args.load.stem}-stress"), args.force))
     components = [c.strip() for c in args.components.split(",") if c.strip()]
-    with report.collecting_warnings():
+    with report.collecting_warnings(), staged_outputs(out, created) as stage:  # no partial output if a warning is an error
         hs = HalfSpace(E=young, nu=args.nu)
         compute = hs.stress if args.quantity == "stress" else hs.strain
         result = compute(load, depths, components=components, method=args.method, tol=args.tol)
-        write_field(result, out)
+        write_field(result, stage)
     what = "stress (Pa)" if args.quantity == "stress" else "strain (dimensionless, tensor shear)"
     grid = " x ".join(str(n) for n in load.shape) + f" grid, spacing {load.dx * 1e3:g} mm"
     report.computed.append(f"{what}, components {', '.join(components)}, at depths "

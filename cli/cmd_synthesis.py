@@ -53,6 +53,8 @@ def _lengths(text: str, name: str) -> list[float]:
 
 
 def _integers(text: str, name: str) -> list[int]:
+    from tactilab.forward.tractors import check_pairs
+
     out = []
     for item in str(text).split(","):
         try:
@@ -61,7 +63,7 @@ def _integers(text: str, name: str) -> list[int]:
             raise ValueError(f"{name}: expected integers >= 1 (e.g. 5 or 3,5,7), got {text!r}") from None
         if value < 1:
             raise ValueError(f"{name}: the number of tractor pairs must be >= 1, got {value}; e.g. 5")
-        out.append(value)
+        out.append(check_pairs(value, name))  # the memory rule, before any array exists
     return out
 
 

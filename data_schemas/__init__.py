@@ -32,6 +32,7 @@ _EXPORTS = {
     "SkinMaterial": "material",
     "Recording": "recording",
     "read_recording": "recording_io",
+    "read_recording_metadata": "recording_io",
     "write_recording": "recording_io",
     "recording_dataset": "recording_io",
     "Contact": "scene",

@@ -28,7 +28,7 @@ from .scene_readout import SensorReadout
 
 #: nodes added around frame 0's contact for the readout's window (and a fraction of its width)
 WINDOW_MARGIN_NODES = 8
-WINDOW_MARGIN_FRACTION = 0.3
+WINDOW_MARGIN_FRACTION = 0.15
 
 
 @dataclass(frozen=True)
@@ -231,7 +231,10 @@ def solve_scan(skin, gaps, spacing, *, n_frames: int | None = None, normal_force
                          "step or give None")
     if int(batch) < 1:
         raise ValueError(f"batch: frames per readout product must be >= 1, got {batch!r}")
-    direction = np.asarray(slide_direction, dtype=float)
+    direction = np.asarray(slide_direction, dtype=float).ravel()
+    if direction.size not in (1, 2) or not np.all(np.isfinite(direction)) or not np.any(direction):
+        raise ValueError(f"slide_direction: expected a finite non-zero (dx, dy), got {slide_direction!r}; e.g. (1, 0)")
+    direction = direction / np.linalg.norm(direction)
     first = np.asarray(gap_of(0), dtype=float)
     shape = first.shape
     spacing = check.spacing(spacing, len(shape))
@@ -255,7 +258,7 @@ def solve_scan(skin, gaps, spacing, *, n_frames: int | None = None, normal_force
         if pending:
             t = time.perf_counter()
             rows = np.stack([r for _, r in pending])
-            values = rows @ readout.weights
+            values = readout.apply(rows)
             for k, (i, _) in enumerate(pending):
                 outputs[i] = values[k]
             pending.clear()
@@ -291,9 +294,13 @@ def solve_scan(skin, gaps, spacing, *, n_frames: int | None = None, normal_force
         loads_read = ("p", "qx") if len(shape) == 1 else ("p", "qx", "qy")
         if readout is None or (not periodic and not _inside(sol.contact, readout.window)):
             flush()
+            sliding = None if readout is None else readout.sliding
+            if readout is None and (ratio is None or np.all(ratio >= 1)):  # every frame slides: fold q = mu p
+                sliding = (float(friction), (float(direction[0]), float(direction[1]) if direction.size > 1 else 0.0))
             arrays = sensors if readout is None else readout.arrays
             window = None if (periodic or readout is not None) else _window(sol.contact)
-            readout = SensorReadout(skin, shape, spacing, arrays, periodic=periodic, window=window, loads=loads_read)
+            readout = SensorReadout(skin, shape, spacing, arrays, periodic=periodic, window=window, loads=loads_read,
+                                    sliding=sliding)
             outputs = np.zeros((n, readout.n_outputs)) if outputs is None else outputs
         pending.append((i, readout.stack(sol.pressure[None], sol.qx[None],
                                          None if sol.qy is None else sol.qy[None])[0]))

@@ -151,6 +151,10 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.HertzContact", "young_modulus"): lambda v: fwd.HertzContact(0.5, young_modulus=v),
     ("forward.HertzContact", "poisson_ratio"): lambda v: fwd.HertzContact(0.5, poisson_ratio=v),
     ("forward.HertzContact.load", "spacing"): lambda v: CONTACT.load(spacing=v),
+    ("experiments.modelling.FingerContact", "young_modulus"): (
+        lambda v: importlib.import_module("tactilab.experiments.modelling").FingerContact(young_modulus=v)),
+    ("experiments.modelling.FingerContact", "poisson_ratio"): (
+        lambda v: importlib.import_module("tactilab.experiments.modelling").FingerContact(poisson_ratio=v)),
     ("forward.ContactLoad", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=v),
     ("data_schemas.random_rough_surface", "spacing"): lambda v: random_rough_surface((N, N), v, rms_height=1e-6,
                                                                                      rng=np.random.default_rng(0)),
@@ -185,6 +189,8 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.ContactLoad.sample", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=H).sample((N, N), v),
     ("forward.angular_wavenumbers", "spacing"): lambda v: fwd.angular_wavenumbers((N, N), v),
     ("forward.finger_gap", "spacing"): lambda v: fwd.finger_gap((N, N), v, 0.01),
+    ("forward.SceneFrames", "spacing"): lambda v: fwd.SceneFrames(None, HS, True, (N,), v, np.zeros(1), None,
+                                                                  np.ones(1), 1e6),
     ("forward.solve_scan", "spacing"): lambda v: fwd.solve_scan(HS, (np.linspace(-1, 1, N) ** 2 * 1e-6)[None], v,
                                                                 normal_force=1.0),
     ("forward.SensorReadout", "spacing"): lambda v: fwd.SensorReadout(

@@ -126,3 +126,46 @@ def test_refusals_of_the_gap_and_the_readout():
     ro = SensorReadout(SKIN, (N, N), DX, sens, window=(slice(10, 20), slice(10, 20)))
     with pytest.raises(ValueError, match="outside the readout's window"):
         ro.read(np.ones((1, N, N)))
+
+
+def test_a_sliding_readout_folds_the_friction_into_the_weights(rng):
+    sens = SensorArray.grid(2, 2, 0.5e-3, 1e-3, quantity="strain", components=("zz", "zx", "yy"))
+    p = np.abs(rng.standard_normal((3, N, N)))
+    full = SensorReadout(SKIN, (N, N), DX, sens, loads=("p", "qx", "qy"))
+    folded = SensorReadout(SKIN, (N, N), DX, sens, loads=("p", "qx", "qy"), sliding=(0.4, (0.6, 0.8)))
+    want = full.read(p, 0.4 * 0.6 * p, 0.4 * 0.8 * p)[0]
+    assert np.allclose(folded.read(p)[0], want, rtol=0, atol=1e-12 * np.abs(want).max())
+    sparse = p * (rng.random(p.shape) < 0.05)  # few loaded nodes: the sparse product
+    assert np.allclose(folded.read(sparse)[0], full.read(sparse, 0.24 * sparse, 0.32 * sparse)[0],
+                       rtol=0, atol=1e-12 * np.abs(want).max())
+
+
+def test_a_window_must_lie_inside_the_grid():
+    sens = SensorArray.grid(1, 1, 0.5e-3, 1e-3, components=("zz",))
+    with pytest.raises(ValueError, match="window: expected 2 slices"):
+        SensorReadout(SKIN, (N, N), DX, sens, window=(slice(-8, 20), slice(0, 20)))
+
+
+def test_plane_strain_finger_scan_reads_the_line_kernels():
+    n, dx = 256, 20e-6
+    gaps = finger_gap((n,), dx, 10e-3)[None]
+    sens = SensorArray(positions_m=[[0.0, 0.0], [0.3e-3, 0.0]], depth_m=0.5e-3, components=("zz", "xx"))
+    sc = solve_scan(SKIN, gaps, dx, normal_force=100.0, friction=0.5, sensors=sens)
+    sol = solve_contact(SKIN, gaps[0], dx, normal_force=100.0, friction=0.5, condition="sliding")
+    field = SKIN.stress(sol.load(), [0.5e-3], points=np.array([[0.0], [0.3e-3]]), components=("zz", "xx"))
+    want = field.data["stress"].values.reshape(2, 2).T
+    assert np.abs(sc.outputs[0][0] - want).max() <= 1e-9 * np.abs(want).max()
+
+
+def test_more_refusals(monkeypatch):
+    g0 = finger_gap((N, N), DX, 10e-3)
+    with pytest.raises(ValueError, match="slide_direction: expected a finite non-zero"):
+        solve_scan(SKIN, g0[None], DX, normal_force=0.5, friction=0.5, slide_direction=(0.0, 0.0))
+    with pytest.raises(ValueError, match="every frame shares one grid"):
+        solve_scan(SKIN, lambda i: g0 if i == 0 else g0[:-2], DX, n_frames=2, normal_force=0.5)
+    import tactilab.forward.scene_readout as readout
+
+    monkeypatch.setattr(readout, "MAX_WEIGHT_VALUES", 10)
+    sens = SensorArray.grid(1, 1, 0.5e-3, 1e-3, components=("zz",))
+    with pytest.raises(ValueError, match="GiB of weights, above the limit"):
+        SensorReadout(SKIN, (N, N), DX, sens)

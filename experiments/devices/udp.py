@@ -366,7 +366,9 @@ class UdpDisplay(Display):
                     collect()
                     if np.count_nonzero(ack_ns[:sent]) > before:
                         deadline = time.perf_counter_ns() + self.ack_timeout_s * 1e9
-        except BaseException:
+        except BaseException as exc:
+            if isinstance(exc, DisplayError) and exc.frames_sent is None:
+                exc.frames_sent = sent  # the session reports the frames the device was sent before the loss
             if self._session is not None:
                 self._abandon()  # ZERO and DISARM, no wait: the caller may be unwinding a signal
             raise

@@ -28,6 +28,7 @@ _EXPORTS = {
     "sigmoid_core": "psychometric",
     "TransductionFit": "models",
     "TransductionModel": "models",
+    "FingerContact": "contact_stimulus",
     "compare_models": "comparison",
     "elpd_mcse": "comparison",
     "VERDICTS": "comparison",
