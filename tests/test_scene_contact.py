@@ -169,3 +169,15 @@ def test_more_refusals(monkeypatch):
     sens = SensorArray.grid(1, 1, 0.5e-3, 1e-3, components=("zz",))
     with pytest.raises(ValueError, match="GiB of weights, above the limit"):
         SensorReadout(SKIN, (N, N), DX, sens)
+
+
+def test_a_folded_readout_refuses_a_scan_it_cannot_read():
+    sens = SensorArray.grid(1, 1, 0.5e-3, 1e-3, components=("zz",))
+    folded = SensorReadout(SKIN, (N, N), DX, sens, loads=("p", "qx", "qy"), sliding=(0.5, (1.0, 0.0)))
+    gaps = finger_gap((N, N), DX, 10e-3)[None]
+    with pytest.raises(ValueError, match="and partial-slip frames"):
+        solve_scan(SKIN, gaps, DX, normal_force=0.5, friction=0.5, slip_ratio=0.5, sensors=folded)
+    with pytest.raises(ValueError, match="folds q = 0.5 p along"):
+        solve_scan(SKIN, gaps, DX, normal_force=0.5, friction=0.3, sensors=folded)
+    sc = solve_scan(SKIN, gaps, DX, normal_force=0.5, friction=0.5, sensors=folded)
+    assert sc.outputs[0].shape == (1, 1, 1)
