@@ -123,3 +123,12 @@ def test_an_explicit_exact_model_states_the_cheap_models_errors(tmp_path):
     stated = recording_model(read_recording(out / "recording.nc"), out / "recording.nc")
     assert stated["model"] == "exact" and stated["basis"] == "measured on every frame against the exact model"
     assert set(stated["errors"]) == {"linear", "modulation"}
+
+
+def test_simulate_json_summary_carries_the_model(tmp_path, capsys):
+    import json
+
+    assert main(["simulate", str(_cell(tmp_path)), "--out", str(tmp_path / "o"), "--no-plots", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["interface_model"] == "exact" and data["interface_model_tol"] == 0.01
+    assert set(data["interface_model_errors"]) == {"linear", "modulation"}
