@@ -53,7 +53,7 @@ def scene_description(scene) -> dict[str, Any]:
                                components=tuple(scene.sensors.components), n_sensors=scene.sensors.n_sensors,
                                sensor_positions_m=np.asarray(scene.sensors.positions_m, dtype=float),
                                contact_x_m=np.asarray(s.positions_m, dtype=float))
-    if scene.contact is not None and scene.display is None:
+    if scene.contact is not None and scene.display is None and not scene.contact.periodic:  # a finger
         from .finger import BiomimeticFinger
 
         out.update({k: v for k, v in recording_attrs(BiomimeticFinger.from_scene(scene)).items() if k not in NUMERICS})
