@@ -1,6 +1,6 @@
 """The founding papers' studies redone with the solved contact (issue 27): defects, fingerprints, Wiener kernels.
 
-Run: ``python benchmarks/bench_scene_studies.py`` (10 to 20 minutes: every frame's contact is solved);
+Run: ``python benchmarks/bench_scene_studies.py`` (about 11 minutes: every frame's contact is solved);
 ``--quick`` for the reduced sizes the test suite uses; ``--sections a b c d`` to run part of it.
 
 Scene: a fingertip (R = 10 mm, E = 1 MPa, nu = 1/2, friction 0.5, full sliding) over raised-cosine
