@@ -21,7 +21,7 @@ import numpy as np
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from .base import Record, at_least, finite, in_range, positive
-from .conditions import file_inside
+from .paths import file_inside
 
 Length = Annotated[float, positive()]
 
@@ -143,7 +143,7 @@ class DisplayDescription(Record):
             raise ValueError(f"pairing_key_file: {self.pairing_key_file!r} is relative to the description's JSON file, "
                              "but this description was not read from one (e.g. a session's recorded copy); give "
                              "the description file (`--device FILE`)")
-        return file_inside(self._folder, self.pairing_key_file, field="pairing_key_file", owner="description",
+        return file_inside(self._folder, self.pairing_key_file, key="pairing_key_file", owner="description",
                            what="key file")
 
     @field_validator("display_id")

@@ -33,7 +33,7 @@ from typing import Literal
 import numpy as np
 
 from tactilab.core import rules
-from tactilab.core.memory import check_memory
+from tactilab.core.memory import MEMORY_LIMIT_BYTES, check_memory
 
 from .display_limits import check_frames, limit_violations, resolve_command
 from .display_strain import strain_gain_line_load
@@ -52,7 +52,16 @@ DEFAULT_YOUNG_MODULUS_PA = 1.0e6
 
 
 class DisplayError(RuntimeError):
-    """A display could not do what was asked (no device answer, nothing loaded, ...)."""
+    """A display could not do what was asked (no device answer, nothing loaded, ...).
+
+    Attributes
+    ----------
+    frames_sent : int or None
+        For an error during ``play()``: the frames sent before it (count), so the session reports
+        what the display actually played; None where unknown or not during playback.
+    """
+
+    frames_sent: int | None = None
 
 
 @dataclass(frozen=True)
@@ -372,10 +381,13 @@ def render_drive(description, *, amplitude_m: float, pitch_m: float, speed_m_per
         raise ValueError(f"gain: must be finite, got {gain!r}; give a number or None for the default")
 
     n_frames = max(2, int(round(duration * rate)))
-    # the memory rule, before any frame exists (a few arrays of this size are alive at once)
-    check_memory(4 * 8 * n_frames * int(description.n_tractors), "frame_rate_hz",
-                 f"the drive ({n_frames} frames x {description.n_tractors} tractors)",
-                 f"lower the frame rate (got {rate!r} Hz) or the duration (got {duration!r} s)")
+    # the memory rule, before any frame exists (a few arrays of this size are alive at once); it names
+    # the largest frame rate that fits at this duration
+    frame_bytes = 4 * 8 * int(description.n_tractors)
+    fits_hz = MEMORY_LIMIT_BYTES // frame_bytes / duration
+    check_memory(frame_bytes * n_frames, "frame_rate_hz",
+                 f"the drive ({n_frames} frames = {rate!r} Hz x {duration!r} s, x {description.n_tractors} tractors)",
+                 f"give frame_rate_hz at most {fits_hz:.6g} Hz at duration_s = {duration!r} s, or a shorter duration_s")
     t = np.arange(n_frames) / rate
     command = resolve_command(description, command)
     x_columns = np.asarray(description.tractor_x_m, dtype=float)

@@ -55,7 +55,7 @@ import numpy as np
 from tactilab.data_schemas.display import DisplayDescription
 
 from .emulator_device import DEFAULT_TICK_HZ, LOOPBACK, Device
-from .link import KEY_SIZE
+from .link import KEY_SIZE, MAX_VALUES
 
 __all__ = ["LOOPBACK", "DEFAULT_TICK_HZ", "EmulatorSummary", "emulate", "read_record"]
 
@@ -156,6 +156,9 @@ def emulate(port: int = 0, *, watchdog_s: float = 0.05, record: str | pathlib.Pa
     if n_tractors is not None and (isinstance(n_tractors, bool) or not isinstance(n_tractors, int)
                                    or n_tractors < 1):
         raise ValueError(f"n_tractors: must be an integer >= 1, got {n_tractors!r}; give the display's tractor count")
+    if n_tractors is not None and n_tractors > MAX_VALUES:  # the size rule: no FRAME can carry more (64 KiB datagram)
+        raise ValueError(f"n_tractors: a FRAME carries at most {MAX_VALUES} values (the UDP datagram limit), got "
+                         f"{n_tractors}; give at most {MAX_VALUES}, the display's tractor count")
     if isinstance(fifo_frames, bool) or not isinstance(fifo_frames, int) or not 1 <= fifo_frames < 2**16:
         raise ValueError(f"fifo_frames: must be an integer in 1..65535, got {fifo_frames!r}; give e.g. 1000")
     if not isinstance(pairing_key, (bytes, bytearray)) or len(pairing_key) != KEY_SIZE:

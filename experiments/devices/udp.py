@@ -296,7 +296,9 @@ class UdpDisplay(Display):
                         end = max(end, time.perf_counter_ns() + patience_ns)
         except _EndedBeforeOnset:
             raise
-        except BaseException:
+        except BaseException as exc:
+            if isinstance(exc, DisplayError) and exc.frames_sent is None:
+                exc.frames_sent = sent  # the session reports the frames the device was sent before the loss
             link.send_zero()  # no wait: the caller may be unwinding a signal; it zeroes again
             raise
         link.own_sent -= int(np.count_nonzero((status[:sent] >= 0) & (status[:sent] != STATUS_CODE["applied"])))
