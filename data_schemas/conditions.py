@@ -42,14 +42,7 @@ _HEADER = re.compile(r"\s*([a-z_]+)\s*(?:\[\s*([^\]]+?)\s*\])?\s*")
 
 
 def conditions_path(folder: str | Path, name: str) -> Path:
-    """``folder / name``, checked: relative, inside ``folder``, a regular file, no symlink on the way.
-
-    Raises
-    ------
-    ValueError
-        For an absolute name, a path that leaves the folder or passes a symlink, or a missing
-        or non-regular file (:func:`.paths.file_inside`).
-    """
+    """``folder / name``, checked by :func:`.paths.file_inside` (the conditions CSV next to a protocol)."""
     return file_inside(folder, name, key="procedure.conditions", owner="protocol", what="CSV")
 
 

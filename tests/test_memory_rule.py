@@ -51,7 +51,17 @@ def test_receptor_memory_boundary():
 ])
 def test_cli_sizes_are_refused_before_allocation(tmp_path, capsys, monkeypatch, argv, message):
     monkeypatch.chdir(tmp_path)
-    assert main(argv) == 2
+    key = None
+    if argv[:2] == ["device", "emulate"]:  # the emulator needs its pairing key (frame format 3) before any size
+        from tactilab.experiments.devices import create_pairing_key
+
+        key = create_pairing_key(tmp_path.parent / f"{tmp_path.name}.key")
+        argv = [*argv, "--pairing-key", str(key)]
+    try:
+        assert main(argv) == 2
+    finally:
+        if key is not None:
+            key.unlink()
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1, err
     import re

@@ -25,8 +25,6 @@ position x_n follows the height of the virtual surface as the display scans it,
 from __future__ import annotations
 
 import abc
-import hashlib
-import json
 import math
 import threading
 from dataclasses import dataclass, field
@@ -41,8 +39,7 @@ from .display_limits import check_frames, limit_violations, resolve_command
 from .display_strain import strain_gain_line_load
 
 __all__ = [
-    "Display", "DisplayError", "PlaybackReport", "render_drive", "virtual_height", "description_record",
-    "description_differences",
+    "Display", "DisplayError", "PlaybackReport", "render_drive", "virtual_height",
     "DEFAULT_DEPTH_M", "DEFAULT_YOUNG_MODULUS_PA",
 ]
 
@@ -93,7 +90,8 @@ class PlaybackReport:
     send_intervals_s : ndarray, shape (frames_sent - 1,)
         Intervals between consecutive frame sends, s (empty for non-real-time playback).
     ack_rtt_s : ndarray, shape (acked,)
-        Round-trip time of each acknowledgement, s (empty when there are none).
+        Delay of each acknowledgement, s: from the frame's due time to its ACK's arrival (UDP,
+        frames sent ahead of time), empty when there are none.
     rejected : int
         Frames acknowledged with a status other than ``applied`` (stale, disarmed, ...);
         ``missing - rejected`` frames got no acknowledgement at all.
@@ -101,8 +99,8 @@ class PlaybackReport:
         Frames acknowledged ``stale``: the device had already applied a newer sequence number
         (another sender is ahead: an alarm).
     skipped : int
-        Frames not sent because their time had passed by more than half a period (the host never
-        sends a burst of late frames).
+        Frames not sent because their due time had passed by more than half a period before the
+        host could send them (the host never sends a burst of late frames).
     foreign : int
         Frames the device applied that this host did not send, since its previous look at the
         device's ``frames_applied`` counter (another process drove the display); 0 for a display
@@ -229,6 +227,12 @@ class Display(abc.ABC):
         return 0
 
     @property
+    def onset_delay_s(self) -> float:
+        """How long after ``play()`` is called the first frame is due, s (0: at once; a display that
+        sends frames ahead of their due times, such as UDP, says how far)."""
+        return 0.0
+
+    @property
     def stop_requested(self) -> bool:
         """Whether ``stop()`` was called since playback started."""
         return self._stop.is_set()
@@ -256,22 +260,6 @@ class Display(abc.ABC):
     @abc.abstractmethod
     def _zero(self) -> None:
         """Set the outputs to zero."""
-
-
-def description_record(description) -> tuple[dict, str]:
-    """The full display description as JSON data and its SHA-256 (hex) over canonical JSON.
-
-    A session records both, so that a resume on a display with other limits is refused.
-    """
-    data = description.model_dump(mode="json")
-    canonical = json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
-    return data, hashlib.sha256(canonical.encode()).hexdigest()
-
-
-def description_differences(recorded: dict, given: dict) -> list[str]:
-    """``"field: recorded X, given Y"`` for every field that differs between two descriptions."""
-    return [f"{key}: recorded {recorded.get(key)!r}, given {given.get(key)!r}"
-            for key in sorted(set(recorded) | set(given)) if recorded.get(key) != given.get(key)]
 
 
 def virtual_height(x_m: np.ndarray, *, surface: Literal["sinusoid", "square"], amplitude_m: float,

@@ -200,8 +200,8 @@ class Runner:
                 self.sleep(plan.gap_s)
             frames = render_drive(self.display.description, **stimulus.model_dump())
             self.display.load(frames, stimulus.frame_rate_hz)
-            if k == 0:  # the response clock starts at the first stimulus onset
-                onset_ns = time.monotonic_ns()
+            if k == 0:  # the response clock starts at the first stimulus onset (its first frame's due time)
+                onset_ns = time.monotonic_ns() + round(self.display.onset_delay_s * 1e9)
                 self.responses.arm(plan, onset_ns)
             try:
                 report = self.display.play()
