@@ -77,7 +77,7 @@ def uniform_amplitudes(stack: Stack, z: float) -> dict[str, float]:
         return out
     g_b, nu_b = stack.base
     strain = -(1 - 2 * nu_b) / (2 * g_b)  # the base surface's eps_x'x' under P = 1 (plane strain)
-    x = -nu / (1 - nu) + 2 * float(stack.G[j]) / (1 - nu) * strain  # E / (1 - nu^2) = 2 G / (1 - nu)
+    x = -nu / (1 - nu) + 2 * stack.G[j] / (1 - nu) * strain  # E / (1 - nu^2) = 2 G / (1 - nu)
     out.update(Xp=x, Yp=nu * (x - 1.0))
     return out
 
@@ -90,7 +90,7 @@ def radial_grid(stack: Stack, d: Directions, z: float) -> dict[str, np.ndarray]:
     zero = uniform_amplitudes(stack, z)
     out = {}
     for name in _NAMES:
-        grid = np.full(d.rho.shape, zero[name])
+        grid = np.full(d.rho.shape, zero[name], dtype=stack.dtype)
         if unique.size:
             grid[live] = radial[name][inverse]
         out[name] = grid
