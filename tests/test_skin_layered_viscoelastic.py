@@ -256,3 +256,12 @@ def test_bad_inputs_are_refused_with_the_rule(tmp_path, capsys):
     assert main(["stress", "examples/fingertip_load.toml", "--depth", "1mm", "--material", str(path)]) == 2
     assert "a layer has Prony terms (a viscoelastic layer), which the command line does not compute" in \
         capsys.readouterr().err
+
+
+def test_a_depth_meant_in_mm_warns_at_the_users_line():
+    from tactilab.data_schemas.plausibility import PlausibilityWarning
+
+    skin = ViscoelasticLayeredHalfSpace([Layer(4.0, SLS, 0.5)])
+    with pytest.warns(PlausibilityWarning, match=r"depth = 1.5 m is outside the usual range") as record:
+        skin.steady_sliding(np.zeros(8), 1e-4, 0.1, 1.5)
+    assert record[0].filename == __file__

@@ -109,8 +109,8 @@ class LayeredHalfSpace:
                              "e.g. [Layer(4e-3, 1e5, 0.5)]")
         viscous = [n for n, layer in enumerate(layers) if layer.is_viscoelastic]
         if viscous:
-            raise ValueError(f"layers[{viscous[0]}]: a LayeredHalfSpace is elastic, but this layer's modulus is a Prony "
-                             "series; use ViscoelasticLayeredHalfSpace(layers, base) for viscoelastic layers")
+            raise ValueError(f"layers[{viscous[0]}]: a LayeredHalfSpace is elastic, but this layer's modulus is a "
+                             "Prony series; use ViscoelasticLayeredHalfSpace(layers, base) for viscoelastic layers")
         if not (isinstance(base, HalfSpace) or (isinstance(base, str) and base == "rigid")):
             raise ValueError(f"base: must be 'rigid' or a HalfSpace(E, nu), got {base!r}; "
                              "use base='rigid' for bone, HalfSpace(E, nu) for a deeper soft tissue")

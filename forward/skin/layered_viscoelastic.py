@@ -27,6 +27,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from tactilab.core import rules as check
+from tactilab.data_schemas.plausibility import check_plausible_at_entry
 
 from ..halfspace import HalfSpace, SurfaceLoad, angular_wavenumbers
 from .hereditary import check_times
@@ -153,7 +154,8 @@ class ViscoelasticLayeredHalfSpace:
         return point_multipliers(self, kx, ky, depth, omega, per_deflection, quantity == "strain")
 
     def surface_compliance(self, kx, ky=None, omega=None) -> np.ndarray:
-        """Surface tractions to surface displacements per wavenumber (m/Pa), as :meth:`LayeredHalfSpace.surface_compliance`.
+        """Surface tractions to surface displacements per wavenumber (m/Pa), as
+        :meth:`LayeredHalfSpace.surface_compliance`.
 
         ``omega=None`` (default): the instantaneous (glassy) elastic skin, which :func:`solve_contact`
         then sees; a frequency in rad/s: the harmonic steady state's complex compliance (not Hermitian).
@@ -212,8 +214,8 @@ class ViscoelasticLayeredHalfSpace:
         :meth:`steady_sliding`.
         """
         if not isinstance(load, SurfaceLoad) or not load.periodic:
-            raise ValueError(f"load: a moving load is one period of a periodic pattern, SurfaceLoad(..., periodic=True), "
-                             f"got {load!r}")
+            raise ValueError(f"load: a moving load is one period of a periodic pattern, "
+                             f"SurfaceLoad(..., periodic=True), got {load!r}")
         speed = check.finite(speed, "speed", "m/s")
         axes = tuple(range(-load.ndim, 0))
         spectra = {n: sfft.rfftn(a, axes=axes) for n, a in load.components.items()}
@@ -241,6 +243,7 @@ class ViscoelasticLayeredHalfSpace:
         _quantity(quantity)
         depths = check.depths(depth)
         for z in depths:
+            check_plausible_at_entry(float(z), "depth", "m", stacklevel=3)  # 1.25 meant as mm warns
             self.instantaneous.material_at(float(z))
         comps = check.components(components)
         names = tuple(sorted(spectra))
@@ -282,10 +285,11 @@ class ViscoelasticLayeredHalfSpace:
                 np.allclose(m.moduli / m.E_inf, ratios, rtol=SHAPE_RTOL, atol=0)
             if not same:
                 where = f"layers[{n}]" if n < len(self.layers) else "base"
-                raise ValueError(f"{where}: a time history under prescribed tractions needs every material to relax "
-                                 f"with one shape (E_j(t) = c_j E(t): the same relaxation times and the same E_i / "
-                                 f"E_inf), but {m!r} differs from {first!r}; give proportional Prony series, or use the "
-                                 "harmonic steady states (steady_sliding, moving_load, transfer), which take any layers")
+                raise ValueError(f"{where}: a time history under prescribed tractions needs every material to "
+                                 f"relax with one shape (E_j(t) = c_j E(t): the same relaxation times and the same "
+                                 f"E_i / E_inf), but {m!r} differs from {first!r}; give proportional Prony series, "
+                                 "or use the harmonic steady states (steady_sliding, moving_load, transfer), which "
+                                 "take any layers")
         return first
 
     def stress(self, load, depth, times, history=None, points=None, components=None):
