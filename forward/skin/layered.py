@@ -84,6 +84,21 @@ class Layer:
         return Layer(self.thickness, self.E.E_0 if limit == "instantaneous" else self.E.E_inf, self.nu)
 
 
+def as_layers(layers) -> tuple[Layer, ...]:
+    """A non-empty tuple of :class:`Layer` (one Layer is a list of one), or a clear error."""
+    if isinstance(layers, Layer):
+        layers = [layers]
+    try:
+        layers = tuple(layers)
+    except TypeError:
+        raise ValueError(f"layers: expected a list of Layer(thickness, E, nu), got {type(layers).__name__}; "
+                         "e.g. [Layer(4e-3, 1e5, 0.5)]") from None
+    if not layers or not all(isinstance(layer, Layer) for layer in layers):
+        raise ValueError(f"layers: expected a non-empty list of Layer(thickness, E, nu), got {layers!r}; "
+                         "e.g. [Layer(4e-3, 1e5, 0.5)]")
+    return layers
+
+
 class LayeredHalfSpace:
     """Elastic layers, top first, bonded to each other and to a base.
 
@@ -97,16 +112,7 @@ class LayeredHalfSpace:
     """
 
     def __init__(self, layers, base="rigid"):
-        if isinstance(layers, Layer):
-            layers = [layers]
-        try:
-            layers = tuple(layers)
-        except TypeError:
-            raise ValueError(f"layers: expected a list of Layer(thickness, E, nu), got {type(layers).__name__}; "
-                             "e.g. [Layer(4e-3, 1e5, 0.5)]") from None
-        if not layers or not all(isinstance(layer, Layer) for layer in layers):
-            raise ValueError(f"layers: expected a non-empty list of Layer(thickness, E, nu), got {layers!r}; "
-                             "e.g. [Layer(4e-3, 1e5, 0.5)]")
+        layers = as_layers(layers)
         viscous = [n for n, layer in enumerate(layers) if layer.is_viscoelastic]
         if viscous:
             raise ValueError(f"layers[{viscous[0]}]: a LayeredHalfSpace is elastic, but this layer's modulus is a "

@@ -105,14 +105,8 @@ def point_multipliers(skin, kx, ky, z: float, omega, per_deflection: bool, strai
     """Exact multipliers at wavenumbers ``(kx, ky)`` (rad/m) and frequencies ``omega`` (rad/s), broadcast;
     no Nyquist rule. Shape ``(..., 6, 3)`` per unit traction, ``(..., 6)`` per unit deflection."""
     kx, ky, omega = np.broadcast_arrays(np.asarray(kx, float), np.asarray(ky, float), np.asarray(omega, float))
-    d = Directions.__new__(Directions)
-    rho = np.hypot(kx, ky)
-    live = rho > 0
-    safe = np.where(live, rho, 1.0)
-    c, s = np.where(live, kx / safe, 0.0), np.where(live, ky / safe, 0.0)
-    d.rho, d.c, d.s, d.cs = rho, c, s, c * s
-    d.c2, d.s2 = np.where(live, c * c, 0.5), np.where(live, s * s, 0.5)
-    per_load = voigt_multipliers(radial_amplitudes(skin, rho, omega, z, per_deflection, strain), d)
+    d = Directions.at_points(kx, ky)
+    per_load = voigt_multipliers(radial_amplitudes(skin, d.rho, omega, z, per_deflection, strain), d)
     out = np.stack([np.moveaxis(per_load[n], 0, -1) for n in ("p", "qx", "qy")], axis=-1)
     if strain:
         out = np.einsum("ij,...jl->...il", compliance_matrix(1.0, skin.nu_at(z)), out)

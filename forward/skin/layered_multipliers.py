@@ -57,6 +57,18 @@ class Directions:
             s[shape[0] // 2, :] = 0.0
         self.c, self.s, self.cs = c, s, c * s
 
+    @classmethod
+    def at_points(cls, kx: np.ndarray, ky: np.ndarray) -> "Directions":
+        """The monomials at arbitrary wavenumbers (rad/m, same shape), without the Nyquist rule."""
+        d = cls.__new__(cls)
+        rho = np.hypot(kx, ky)
+        live = rho > 0
+        safe = np.where(live, rho, 1.0)
+        c, s = np.where(live, kx / safe, 0.0), np.where(live, ky / safe, 0.0)
+        d.rho, d.c, d.s, d.cs = rho, c, s, c * s
+        d.c2, d.s2 = np.where(live, c * c, 0.5), np.where(live, s * s, 0.5)
+        return d
+
 
 def uniform_amplitudes(stack: Stack, z: float) -> dict[str, float]:
     """The ``k = 0`` amplitudes at depth ``z`` (m): the response to uniform tractions.
@@ -148,13 +160,7 @@ def transfer_matrix(skin, kx, ky, z: float) -> np.ndarray:
     """The exact stress multipliers at wavenumbers ``(kx, ky)`` (rad/m, no Nyquist rule), shape
     ``(*broadcast, 6, 3)``: Voigt stress (Pa) per unit load spectrum of ``(p, qx, qy)`` at depth ``z`` (m)."""
     kx, ky = np.broadcast_arrays(np.asarray(kx, float), np.asarray(ky, float))
-    d = Directions.__new__(Directions)
-    rho = np.hypot(kx, ky)
-    live = rho > 0
-    safe = np.where(live, rho, 1.0)
-    c, s = np.where(live, kx / safe, 0.0), np.where(live, ky / safe, 0.0)
-    d.rho, d.c, d.s, d.cs = rho, c, s, c * s
-    d.c2, d.s2 = np.where(live, c * c, 0.5), np.where(live, s * s, 0.5)
+    d = Directions.at_points(kx, ky)
     per_load = voigt_multipliers(radial_grid(skin._stack, d, z), d)
     return np.stack([np.moveaxis(per_load[n], 0, -1) for n in ("p", "qx", "qy")], axis=-1)
 

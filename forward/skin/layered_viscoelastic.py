@@ -29,15 +29,15 @@ import scipy.fft as sfft
 from tactilab.core import rules as check
 from tactilab.data_schemas.plausibility import check_plausible_at_entry
 
-from ..halfspace import HalfSpace, SurfaceLoad, angular_wavenumbers
+from ..halfspace import HalfSpace, SurfaceLoad
 from .hereditary import check_times
-from .layered import Layer, LayeredHalfSpace
+from .layered import Layer, LayeredHalfSpace, as_layers
 from .layered_fields import _labelled
 from .layered_harmonic import point_multipliers, sliding_multipliers
 from .prony import Prony
 from .propagator import Stack
 from .time_field import TimeFieldResult
-from .viscoelastic import ViscoelasticHalfSpace, _convolve, _loads_and_history
+from .viscoelastic import ViscoelasticHalfSpace, _convolve, _loads_and_history, sliding_spectrum
 
 #: relative tolerance within which two Prony series count as one relaxation shape
 SHAPE_RTOL = 1e-12
@@ -55,15 +55,7 @@ class ViscoelasticLayeredHalfSpace:
     """
 
     def __init__(self, layers, base="rigid"):
-        if isinstance(layers, Layer):
-            layers = [layers]
-        try:
-            layers = tuple(layers)
-        except TypeError:
-            raise ValueError(f"layers: expected a list of Layer(thickness, E or Prony, nu), got "
-                             f"{type(layers).__name__}") from None
-        if not layers or not all(isinstance(layer, Layer) for layer in layers):
-            raise ValueError(f"layers: expected a non-empty list of Layer(thickness, E or Prony, nu), got {layers!r}")
+        layers = as_layers(layers)
         if not (isinstance(base, (HalfSpace, ViscoelasticHalfSpace)) or (isinstance(base, str) and base == "rigid")):
             raise ValueError(f"base: must be 'rigid', a HalfSpace(E, nu) or a ViscoelasticHalfSpace(prony, nu), got "
                              f"{base!r}")
@@ -222,22 +214,8 @@ class ViscoelasticLayeredHalfSpace:
         return self._field(spectra, load.shape, load.spacing, depth, components, quantity, speed, False)
 
     def _sliding_spectrum(self, height, spacing, speed, time):
-        h = check.finite_array(height, "height", "m")
-        if h.ndim not in (1, 2):
-            raise ValueError(f"height: expected shape (nx,) or (ny, nx), got {h.shape}")
-        speed = check.finite(speed, "speed", "m/s")
-        time = check.finite(time, "time", "s")
-        spacing = check.spacing(spacing, h.ndim)
-        waves = angular_wavenumbers(h.shape, spacing, half=True)
-        kx = waves[0]
-        rho = np.abs(kx) if h.ndim == 1 else np.hypot(kx, waves[1])
-        spectrum = sfft.rfftn(h, axes=tuple(range(-h.ndim, 0)))
-        if time != 0.0:  # moved by speed * time along +x: exact for the trigonometric interpolant
-            shift = np.exp(-1j * kx * speed * time)
-            if h.shape[-1] % 2 == 0:
-                shift = np.where(np.arange(kx.shape[-1]) == kx.shape[-1] - 1, np.cos(kx * speed * time), shift)
-            spectrum = spectrum * shift
-        return h, spacing, spectrum, kx, rho, np.broadcast_to(-kx * speed, rho.shape)
+        h, spacing, spectrum, kx, rho = sliding_spectrum(height, spacing, speed, time)
+        return h, spacing, spectrum, kx, rho, np.broadcast_to(-kx * float(speed), rho.shape)
 
     def _field(self, spectra, shape, spacing, depth, components, quantity, speed, per_deflection):
         _quantity(quantity)
