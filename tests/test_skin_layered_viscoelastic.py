@@ -19,7 +19,7 @@ import pytest
 
 from tactilab.cli.main import main
 from tactilab.data_schemas import SkinMaterial, read_material
-from tactilab.forward import HalfSpace, SurfaceLoad, ViscoelasticHalfSpace, skin_from_material
+from tactilab.forward import HalfSpace, SurfaceLoad, ViscoelasticHalfSpace, angular_wavenumbers, skin_from_material
 from tactilab.forward.skin import Layer, LayeredHalfSpace, Prony, ViscoelasticLayeredHalfSpace
 from tactilab.forward.skin.layered_multipliers import transfer_matrix
 
@@ -265,3 +265,41 @@ def test_a_depth_meant_in_mm_warns_at_the_users_line():
     with pytest.warns(PlausibilityWarning, match=r"depth = 1.5 m is outside the usual range") as record:
         skin.steady_sliding(np.zeros(8), 1e-4, 0.1, 1.5)
     assert record[0].filename == __file__
+
+
+@pytest.mark.parametrize("shape", [(15, 17), (17,)])
+def test_grid_fields_of_layers_that_relax_differently_are_the_point_multipliers_mode_by_mode(shape, rng):
+    """On an odd grid (no Nyquist mode) every Fourier mode of a travelling traction's field, and of a sliding
+    grating's, is the per-wavenumber multiplier at omega = -kx V times the load's mode: two routes, one
+    column-grouped on the grid, one per point."""
+    skin = _two_layers(ViscoelasticHalfSpace(SLS, 0.5))
+    h, speed, z = 1e-4, 0.04, 1.5e-3
+    axes = tuple(range(-len(shape), 0))
+    load = SurfaceLoad(p=rng.standard_normal(shape), qx=rng.standard_normal(shape), qy=rng.standard_normal(shape),
+                       spacing=h, periodic=True) if len(shape) == 2 else \
+        SurfaceLoad(p=rng.standard_normal(shape), qx=rng.standard_normal(shape), spacing=h, periodic=True)
+    waves = angular_wavenumbers(shape, h, half=True)
+    kx, ky = (waves[0], np.zeros_like(waves[0])) if len(shape) == 1 else np.broadcast_arrays(*waves)
+    for quantity in ("stress", "strain"):
+        field = np.fft.rfftn(skin.moving_load(load, speed, z, quantity).data[quantity].values[0], axes=axes)
+        T = skin.transfer(kx, ky, z, -kx * speed, quantity)
+        names = ("p", "qx", "qy")[:len(load.components)]
+        expected = sum(np.moveaxis(T[..., i], -1, 0) * np.fft.rfftn(load.components[n], axes=axes)
+                       for i, n in enumerate(names))
+        assert np.abs(field - expected).max() <= 1e-10 * np.abs(expected).max()
+        height = 1e-6 * rng.standard_normal(shape)
+        field = np.fft.rfftn(skin.steady_sliding(height, h, speed, z, quantity).data[quantity].values[0], axes=axes)
+        expected = np.moveaxis(skin.deflection_transfer(kx, ky, z, -kx * speed, quantity), -1, 0) * \
+            np.fft.rfftn(height, axes=axes)
+        assert np.abs(field - expected).max() <= 1e-10 * np.abs(expected).max()
+
+
+def test_layers_on_a_viscoelastic_halfspace_of_their_own_material_are_that_halfspace(rng):
+    half = ViscoelasticHalfSpace(SLS, 0.45)
+    skin = ViscoelasticLayeredHalfSpace([Layer(3e-4, SLS, 0.45), Layer(5e-4, SLS, 0.45)], base=half)
+    height = 1e-6 * rng.standard_normal((16, 16))
+    for speed in (0.0, 0.01, 1.0):
+        for depth in (2e-4, 1e-3):
+            a = skin.steady_sliding(height, 1e-4, speed, depth).data["stress"].values
+            b = half.steady_sliding(height, 1e-4, speed, depth).data["stress"].values
+            assert np.abs(a - b).max() <= 1e-10 * np.abs(b).max()
