@@ -303,3 +303,16 @@ def test_layers_on_a_viscoelastic_halfspace_of_their_own_material_are_that_halfs
             a = skin.steady_sliding(height, 1e-4, speed, depth).data["stress"].values
             b = half.steady_sliding(height, 1e-4, speed, depth).data["stress"].values
             assert np.abs(a - b).max() <= 1e-10 * np.abs(b).max()
+
+
+def test_the_nyquist_mode_of_an_even_grid_is_the_average_of_the_two_directions_of_travel():
+    """A load on the Nyquist mode alone cannot travel one way: its field is the same at +V and -V, the real
+    part of the multiplier (the mean of omega and -omega)."""
+    skin = _two_layers()
+    n, h, z = 16, 1e-4, 1e-3
+    load = SurfaceLoad(p=(-1.0) ** np.arange(n), spacing=h, periodic=True)
+    kx = np.pi / h
+    plus, minus = (skin.moving_load(load, v, z, components=("zz",)).data["stress"].values[0, 0] for v in (0.05, -0.05))
+    expected = np.real(skin.transfer(kx, 0.0, z, -kx * 0.05)[2, 0]) * load.p
+    assert np.abs(plus - minus).max() <= 1e-12 * np.abs(plus).max()
+    assert np.abs(plus - expected).max() <= 1e-10 * np.abs(expected).max()
