@@ -295,6 +295,10 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.ViscoelasticLayeredHalfSpace.strain", "depth"): lambda v: VLAYERED.strain(LOAD, v, [0.0], components=("zz",)),
     ("forward.ViscoelasticLayeredHalfSpace.strain", "components"):
         lambda v: VLAYERED.strain(LOAD, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticLayeredHalfSpace.operator", "spacing"): lambda v: VLAYERED.operator((N,), v, [0.0]),
+    ("forward.ViscoelasticLayeredHalfSpace.operator", "depth"): lambda v: VLAYERED.operator((N,), H, [0.0], depth=v),
+    ("forward.ViscoelasticLayeredHalfSpace.operator", "components"):
+        lambda v: VLAYERED.operator((N,), H, [0.0], components=v),
     ("forward.skin.receptive_field", "depth"): (
         lambda v: fwd.skin.receptive_field(LAYERED, v, spacing=H, half_extent=4 * H)),
     ("forward.skin.receptive_field", "spacing"): (

@@ -316,3 +316,21 @@ def test_the_nyquist_mode_of_an_even_grid_is_the_average_of_the_two_directions_o
     expected = np.real(skin.transfer(kx, 0.0, z, -kx * 0.05)[2, 0]) * load.p
     assert np.abs(plus - minus).max() <= 1e-12 * np.abs(plus).max()
     assert np.abs(plus - expected).max() <= 1e-10 * np.abs(expected).max()
+
+
+@pytest.mark.parametrize("quantity", ["stress", "strain"])
+def test_the_history_operator_of_one_shape_passes_the_dot_test_and_equals_the_field(quantity, rng):
+    from tactilab.forward import dottest
+
+    law = Prony(1e5, [(2e5, 0.01)])
+    skin = ViscoelasticLayeredHalfSpace([Layer(5e-4, Prony(3e5, [(6e5, 0.01)]), 0.5), Layer(1.5e-3, law, 0.5)])
+    times, shape, h = np.array([0.0, 0.004, 0.02, 0.1]), (12,), 1e-4
+    op = skin.operator(shape, h, times, depth=1e-3, components=("zz", "zx"), loads=("p", "qx"), quantity=quantity,
+                       periodic=True)
+    assert dottest(op, rng=rng) <= 1e-10  # raises above its rtol; the mismatch itself is returned
+    load = SurfaceLoad(p=rng.standard_normal(shape), qx=rng.standard_normal(shape), spacing=h, periodic=True)
+    model = np.tile(np.concatenate([load.p, load.qx]), len(times))  # a step, then held
+    field = getattr(skin, quantity)(load, 1e-3, times, components=("zz", "zx")).values[:, 0]
+    assert np.abs(op @ model - field.ravel()).max() <= 1e-10 * np.abs(field).max()
+    with pytest.raises(ValueError, match=r"layers\[1\]: a time history .* one shape"):
+        _two_layers().operator(shape, h, times)

@@ -283,6 +283,16 @@ class ViscoelasticLayeredHalfSpace:
         ``E(0) J(t)`` of the shared relaxation shape; under a step, the instantaneous strain times ``J(t) / J(0)``."""
         return self._traction_field(load, depth, times, history, points, components, "strain")
 
+    def operator(self, shape, spacing, times, sensors=None, depth: float = 1e-3, components=("zz",), loads=("p",),
+                 quantity: str = "stress", periodic: bool = False):
+        """The map from a traction history to a sensor history (``scipy.sparse.linalg.LinearOperator``), as
+        :meth:`ViscoelasticHalfSpace.operator`: the instantaneous layers' map on every frame, then for strain
+        the creep convolution of the shared relaxation shape (:meth:`relaxation_shape`)."""
+        from .viscoelastic_operator import HistoryOperator
+
+        return HistoryOperator(self, shape, spacing, times, sensors=sensors, depth=depth, components=components,
+                               loads=loads, quantity=quantity, periodic=periodic)
+
     def _traction_field(self, load, depth, times, history, points, components, quantity):
         shape = self.relaxation_shape()
         times = check_times(times)
