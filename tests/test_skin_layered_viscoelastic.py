@@ -334,3 +334,9 @@ def test_the_history_operator_of_one_shape_passes_the_dot_test_and_equals_the_fi
     assert np.abs(op @ model - field.ravel()).max() <= 1e-10 * np.abs(field).max()
     with pytest.raises(ValueError, match=r"layers\[1\]: a time history .* one shape"):
         _two_layers().operator(shape, h, times)
+
+
+def test_the_example_file_is_the_speed_benchmarks_fingertip():
+    skin = skin_from_material(read_material("examples/dermis_on_pulp.toml"))
+    assert skin.layers == (Layer(1e-3, Prony(0.6e6, [(0.6e6, 2e-3)]), 0.5), Layer(3e-3, PULP, 0.5))
+    assert skin.base == "rigid"
