@@ -340,3 +340,16 @@ def test_the_example_file_is_the_speed_benchmarks_fingertip():
     skin = skin_from_material(read_material("examples/dermis_on_pulp.toml"))
     assert skin.layers == (Layer(1e-3, Prony(0.6e6, [(0.6e6, 2e-3)]), 0.5), Layer(3e-3, PULP, 0.5))
     assert skin.base == "rigid"
+
+
+def test_contact_refuses_a_scenes_viscoelastic_layers(tmp_path, capsys):
+    from tactilab.data_schemas import example_path
+
+    text = example_path("fingertip_defect").read_text()
+    scene = tmp_path / "scene.toml"
+    scene.write_text(text.replace('young_modulus = "1MPa"\npoisson_ratio = 0.5',
+                                  'layers = [{thickness = "2mm", young_modulus = "1MPa", terms = [["1MPa", "50ms"]]}]'),
+                     encoding="utf-8")
+    assert main(["contact", str(scene), "--grid", "32", "--quiet", "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the scene's [material]: a layer has Prony terms" in err
