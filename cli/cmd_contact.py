@@ -83,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
 
     report = RunReport("contact")
     material = read_material_option(args)
+    held_s = _time_option(args)  # its unit is checked with the other options, before the problem is built
     opts = parse_options(args)
     if material is not None:  # its modulus sizes the default grid (the relaxed one: the largest contact)
         opts["young_modulus"], args.nu = material.young_modulus_pa, material.poisson_ratio
@@ -93,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--young-modulus, --nu: the scene's material is viscoelastic or layered, which they "
                              "cannot describe; drop them, or give an elastic --material")
         material = refuse_viscoelastic_layers(problem.scene.material, "the scene's [material]")  # as --material
-    held = _held_time(args, material)
+    held = _held_time(held_s, material, args.time)
     from tactilab.forward import HalfSpace, skin_from_material, solve_contact
     from tactilab.forward.contact_files import write_contact
 
@@ -127,17 +128,23 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _held_time(args: argparse.Namespace, material) -> float | None:
-    """``--time`` in s (>= 0), only with a viscoelastic material."""
+def _time_option(args: argparse.Namespace) -> float | None:
+    """``--time`` in s (None when not given); a bare number or a wrong unit is refused here."""
     if args.time is None:
         return None
     from tactilab.data_schemas.units import to_si
 
-    held = to_si(args.time, "time", name="--time")
+    return to_si(args.time, "time", name="--time")
+
+
+def _held_time(held: float | None, material, given: str | None) -> float | None:
+    """``--time`` in s (>= 0), only with a viscoelastic material."""
+    if held is None:
+        return None
     if material is None or not material.is_viscoelastic:
         raise ValueError("--time: only a viscoelastic --material (model prony or sls) depends on time; drop --time")
     if not held >= 0:
-        raise ValueError(f"--time: must be >= 0 (0 is the instant the load is applied), got {args.time!r}; e.g. 200ms")
+        raise ValueError(f"--time: must be >= 0 (0 is the instant the load is applied), got {given!r}; e.g. 200ms")
     return held
 
 

@@ -84,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
                           allow_mismatch=args.allow_scene_mismatch, name="--scene")
     report = RunReport("invert")
     out = report.watch(choose_out(args.out, Path(f"{args.recording.stem}-inversion"), args.force))
+    _warn_model(report, recording, args.recording)
     rng = np.random.default_rng(args.seed)
     problem = defect_problem(scene, recording, max_data=args.max_data)  # prepared once, used by both methods
     _report_selection(report, recording, problem[2], args.max_data)
@@ -127,6 +128,18 @@ def run(args: argparse.Namespace) -> int:
     report.error_estimate = "; ".join(errors)
     report.emit(args.json)
     return 0
+
+
+def _warn_model(report: RunReport, recording, path: Path) -> None:
+    """One warning line (repeated in the summary) when the recording was made with another interface
+    model than the modulation the defect inversion assumes, with that model's error the recording states."""
+    from tactilab.data_schemas.interface_model import model_mismatch, recording_model
+
+    from .common import print_warning
+
+    line = model_mismatch(recording_model(recording, path), "modulation", "the defect inversion")
+    if line is not None:
+        print_warning(report.command, line)
 
 
 DISPLAY_UNITS = {"x0": ("mm", 1e3), "y0": ("mm", 1e3), "depth": ("mm", 1e3), "amplitude": ("mm^2", 1e6),

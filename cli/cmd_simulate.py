@@ -62,15 +62,20 @@ def run(args: argparse.Namespace) -> int:
         lines = simulate_scene(scene, stage, fmt=args.format, rng=rng, progress=not (args.quiet or args.json),
                                grid_spacing=spacing, plots=not args.no_plots)
     for line in lines:
+        if line.startswith("recording: ") and scene.display is None:
+            _model_data(report, out / Path(line.removeprefix("recording: ")).name)  # the stage moved into out
         if line.startswith("method: "):
             report.method = line.removeprefix("method: ")
+        elif line.startswith("model errors: "):
+            report.error_estimate = "interface " + line
         elif not line.startswith(("recording: ", "plots")):  # the files are listed below
             report.computed.append(line)
     if not report.method and scene.display is not None:
         report.method = ("display plane model: tractor line loads on the half-space, rows uniform in y; "
                          "compared with the real sliding surface where the scene has one")
-    report.error_estimate = ("not estimated by this command (grid quadrature; refine --grid-spacing and compare "
-                             "to check convergence)")
+    if not report.error_estimate:
+        report.error_estimate = ("not estimated by this command (grid quadrature; refine --grid-spacing and compare "
+                                 "to check convergence)")
     if args.seed is None and float(scene.sensors.noise_std) > 0:
         report.dropped.append(f"sensor noise (noise_std {scene.sensors.noise_std:g} in the recording's unit): "
                               "not added without --seed")
@@ -78,3 +83,14 @@ def run(args: argparse.Namespace) -> int:
         report.dropped.append("plots: --no-plots")
     report.emit(args.json)
     return 0
+
+
+def _model_data(report: RunReport, path: Path) -> None:
+    """The interface model the recording states, machine-readable in the summary (``--json``)."""
+    from tactilab.data_schemas import read_recording
+    from tactilab.data_schemas.interface_model import recording_model
+
+    stated = recording_model(read_recording(path), path)
+    if stated is not None:
+        report.data.update(interface_model=stated["model"], interface_model_tol=stated["tol"],
+                           interface_model_errors=stated["errors"], interface_model_error_basis=stated["basis"])

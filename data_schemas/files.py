@@ -62,7 +62,7 @@ def read_toml_record(path: str | pathlib.Path, model: type[R], *, table: str | N
                 raise ValueError(f"{path}: table [{table}] is missing; add it or name another table")
             data = data[part]
         where = f"{path} [{table}]"
-    return record_from_dict(model, data, where)
+    return record_from_dict(model, data, where, context={"folder": path.parent})
 
 
 def read_json_record(path: str | pathlib.Path, model: type[R]) -> R:

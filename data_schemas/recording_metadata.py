@@ -6,7 +6,7 @@ the sensors' positions (finger frame, m) and the contact position of each sample
 :func:`tactilab.data_schemas.read_recording_metadata` (in ``recording_io``, the file format's one
 reader) returns them grouped; :func:`scene_fields` flattens them with the record's own sampling rate,
 components and sensor count, so a check can compare any field a writer adds
-(``forward.scene_recording`` does) without a list of names here.
+(``forward.scene_metadata`` does) without a list of names here.
 """
 
 from __future__ import annotations

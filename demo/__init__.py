@@ -5,9 +5,9 @@ Each module is one section of the report, in pipeline order (:data:`SECTIONS`); 
 to print.
 """
 
-from . import analysis, contact, display, experiments, forward, inversion, metameres, records, scenes
+from . import analysis, contact, display, experiments, forward, inversion, metameres, records, scene_models, scenes
 
 #: The report's sections in pipeline order.
-SECTIONS = (records, forward, contact, scenes, display, inversion, metameres, experiments, analysis)
+SECTIONS = (records, forward, contact, scenes, scene_models, display, inversion, metameres, experiments, analysis)
 
 __all__ = ["SECTIONS"]

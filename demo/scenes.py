@@ -29,7 +29,7 @@ def demo_scene() -> Scene:
         description="biomimetic finger sliding over one 0.3 mm, 30 µm bump",
         material=SkinMaterial(young_modulus_pa=2e6, poisson_ratio=0.5, name="elastomer fingertip"),
         surface=IsolatedDefect(shape="bump", size_m=0.3e-3, height_m=30e-6, position_m=(0.0, 0.0)),
-        contact=Contact(normal_force_n=0.8, finger_radius_m=0.1, friction_coefficient=0.5),
+        contact=Contact(normal_force_n=0.8, finger_radius_m=0.1, friction_coefficient=0.5, model="modulation"),
         sensors=SensorArray.grid(5, 5, 1.0e-3, 3e-3, components=("zz", "zx"), noise_std=5.0),
         scan=Scan(speed_m_per_s=0.02, duration_s=0.5, sampling_rate_hz=1000.0, start_position_m=-5e-3),
     )

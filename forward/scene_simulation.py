@@ -12,6 +12,7 @@ import time
 
 import numpy as np
 
+from tactilab.data_schemas.interface_model import model_attrs, model_statement
 from tactilab.data_schemas.plausibility import check_small_strain
 from tactilab.data_schemas.recording import Recording
 from tactilab.data_schemas.recording_io import FORMATS, write_recording
@@ -19,7 +20,8 @@ from tactilab.data_schemas.recording_io import FORMATS, write_recording
 from .finger_plots import plot_field_maps, plot_receptive_fields, plot_spectrum, plot_time_series
 from .halfspace import largest_strain
 from .scanning import check_scan, reference_height, scan_outputs, scanned_surface, scene_finger
-from .scene_recording import recording_attrs
+from .scene_metadata import recording_attrs
+from .scene_model_files import simulate_contact_model as _simulate_contact_model
 from .surfaces import RecordFeature
 
 
@@ -49,6 +51,8 @@ def simulate_scene(scene, out_dir, *, fmt: str = "netcdf", rng: np.random.Genera
         return _simulate_display(scene, pathlib.Path(out_dir), fmt, rng, plots)
     s = scene.scan
     n = check_scan(s.speed_m_per_s, s.sampling_rate_hz, s.duration_s)
+    if scene.contact.model != "modulation" or scene.contact.periodic or s.onset_s > 0:
+        return _simulate_contact_model(scene, pathlib.Path(out_dir), fmt, rng, progress, grid_spacing, plots)
     finger = scene_finger(scene, grid_spacing)
     u = s.start_position_m + s.speed_m_per_s * np.arange(n) / s.sampling_rate_hz
     surface = scanned_surface(scene.surface, u, finger)
@@ -63,18 +67,24 @@ def simulate_scene(scene, out_dir, *, fmt: str = "netcdf", rng: np.random.Genera
     noise = float(scene.sensors.noise_std)
     if rng is not None and noise > 0:
         values = values + noise * rng.standard_normal(values.shape)
+    tol = float(scene.contact.tol)
+    basis = "not estimated: the scene sets model = modulation"
     rec = Recording.from_sensors(finger.sensors, values, s.sampling_rate_hz,
-                                 description=f"tactilab simulate: {scene.name or 'scene'}. {scene.description}")
+                                 description=f"tactilab simulate: {scene.name or 'scene'}. {scene.description} "
+                                             + model_statement("modulation", tol, {}, basis))
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    path = write_recording(rec, out, fmt, positions_m=u, sensor_positions_m=finger.sensors.positions_m,
-                           attrs=recording_attrs(finger))  # what invert checks the scene against
+    # what invert checks the scene against, and the interface model the recording was made with
+    attrs = dict(recording_attrs(finger), **model_attrs("modulation", tol, {}, basis, "the scene's [contact] model"))
+    path = write_recording(rec, out, fmt, positions_m=u, sensor_positions_m=finger.sensors.positions_m, attrs=attrs)
     scale = 1e-3 if rec.quantity == "stress" else 1.0
     unit = "kPa" if rec.quantity == "stress" else "strain"
     lines = [
         f"scene {scene.name or '(unnamed)'}: Hertz contact a = {c.contact_radius * 1e3:.2f} mm, "
         f"p0 = {c.peak_pressure * 1e-3:.1f} kPa at {c.normal_force:g} N; mu = {finger.friction:g}, "
         f"adhesion = {finger.adhesion:g}",
+        "interface model: modulation (the scene's [contact] model; docs/theory.md 4b, M = 1 + h / h_ref)",
+        f"model errors: {basis}",
         f"scan: {n} frames at {s.sampling_rate_hz:g} Hz, {s.speed_m_per_s * 1e3:g} mm/s, contact centre "
         f"{u[0] * 1e3:.2f} -> {u[-1] * 1e3:.2f} mm; {finger.sensors.n_sensors} sensors x "
         f"{finger.sensors.n_components} components at {finger.depth * 1e3:.2f} mm depth",

@@ -1,7 +1,7 @@
 """The scene given to a defect inversion must be the one that produced the recording.
 
 :func:`check_scene_recording` compares the scene with what the recording file carries about the scene
-that made it (:func:`tactilab.forward.scene_recording.scene_mismatches`) and refuses a mismatch in one
+that made it (:func:`tactilab.forward.scene_metadata.scene_mismatches`) and refuses a mismatch in one
 line naming every field that differs; ``allow_mismatch`` (``tactilab invert --allow-scene-mismatch``)
 turns the refusal into a warning, for real data whose metadata are known to differ from the model
 scene. Parameters the inversion samples are not compared: their scene value is only a prior's centre.
@@ -47,7 +47,7 @@ def check_scene_recording(scene, path, *, sample=(), allow_mismatch: bool = Fals
         On a mismatch, unless ``allow_mismatch``.
     """
     from tactilab.data_schemas.recording_metadata import scene_fields
-    from tactilab.forward.scene_recording import scene_mismatches
+    from tactilab.forward.scene_metadata import scene_mismatches
 
     ignore = [field for s in sample for field in SAMPLED_FIELDS.get(s, ())]
     differ = scene_mismatches(scene, scene_fields(path), ignore)

@@ -28,6 +28,7 @@ position = ["0mm", "0.5mm"]
 normal_force = "0.8N"
 finger_radius = "100mm"
 friction_coefficient = 0.5
+model = "modulation"
 [sensors]
 quantity = "{quantity}"
 components = ["zz", "zx"]

@@ -99,7 +99,7 @@ def test_allow_scene_mismatch_inverts_with_a_counted_warning(recording, tmp_path
 def test_a_parquet_recording_carries_what_the_check_compares(tmp_path):
     """The check reads Parquet recordings through the same metadata reader as netCDF ones."""
     from tactilab.data_schemas.recording_metadata import scene_fields
-    from tactilab.forward.scene_recording import scene_mismatches
+    from tactilab.forward.scene_metadata import scene_mismatches
 
     pytest.importorskip("pyarrow")
     (tmp_path / "scene.toml").write_text(SCENE.format(**SAME))

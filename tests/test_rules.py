@@ -182,6 +182,26 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.ContactCompliance", "spacing"): lambda v: fwd.ContactCompliance(HS, (N, N), v, periodic=True),
     ("forward.solve_contact", "spacing"): lambda v: fwd.solve_contact(HS, np.linspace(-1, 1, N) ** 2 * 1e-6, v,
                                                                       normal_force=1.0),
+    ("forward.WestergaardContact", "E"): lambda v: fwd.WestergaardContact(1e-6, 1e-3, 1e3, v),
+    ("forward.WestergaardContact", "nu"): lambda v: fwd.WestergaardContact(1e-6, 1e-3, 1e3, 1e6, nu=v),
+    ("forward.harmonic_field", "depth"): lambda v: fwd.harmonic_field([1e3, 1e3], 1e-3, X, v, 1e6),
+    ("forward.harmonic_field", "E"): lambda v: fwd.harmonic_field([1e3, 1e3], 1e-3, X, 1e-3, v),
+    ("forward.harmonic_field", "nu"): lambda v: fwd.harmonic_field([1e3, 1e3], 1e-3, X, 1e-3, 1e6, nu=v),
+    ("forward.harmonic_field", "components"): (
+        lambda v: fwd.harmonic_field([1e3, 1e3], 1e-3, X, 1e-3, 1e6, components=v)),
+    ("forward.interface_model_errors", "spacing"): lambda v: fwd.interface_model_errors(np.zeros(N), v, 1e3, 1e6),
+    ("forward.interface_model_errors", "E"): lambda v: fwd.interface_model_errors(np.zeros(N), H, 1e3, v),
+    ("forward.interface_model_errors", "nu"): lambda v: fwd.interface_model_errors(np.zeros(N), H, 1e3, 1e6, nu=v),
+    ("forward.interface_model_errors", "depth"): (
+        lambda v: fwd.interface_model_errors(np.zeros(N), H, 1e3, 1e6, depth=v)),
+    ("forward.interface_model_errors", "components"): (
+        lambda v: fwd.interface_model_errors(np.zeros(N), H, 1e3, 1e6, components=v)),
+    ("forward.linear_pressure", "spacing"): lambda v: fwd.linear_pressure(np.zeros(N), v, 1e3, 1e6),
+    ("forward.linear_pressure", "E"): lambda v: fwd.linear_pressure(np.zeros(N), H, 1e3, v),
+    ("forward.linear_pressure", "nu"): lambda v: fwd.linear_pressure(np.zeros(N), H, 1e3, 1e6, nu=v),
+    ("forward.full_contact_pressure", "spacing"): lambda v: fwd.full_contact_pressure(np.zeros(N), v, 1e6),
+    ("forward.full_contact_pressure", "E"): lambda v: fwd.full_contact_pressure(np.zeros(N), H, v),
+    ("forward.full_contact_pressure", "nu"): lambda v: fwd.full_contact_pressure(np.zeros(N), H, 1e6, nu=v),
     ("forward.HalfSpace.surface_influence", "spacing"): lambda v: HS.surface_influence(X, X, v),
     # the viscoelastic skin (forward.skin)
     ("forward.ViscoelasticHalfSpace", "nu"): lambda v: fwd.ViscoelasticHalfSpace(SLS, v),
@@ -229,6 +249,13 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
         lambda v: _viscoelastic_history().strain(VS, 1e-3, components=v),
     ("forward.ContactLoad.sample", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=H).sample((N, N), v),
     ("forward.angular_wavenumbers", "spacing"): lambda v: fwd.angular_wavenumbers((N, N), v),
+    ("forward.finger_gap", "spacing"): lambda v: fwd.finger_gap((N, N), v, 0.01),
+    ("forward.SceneFrames", "spacing"): lambda v: fwd.SceneFrames(None, HS, True, (N,), v, np.zeros(1), None,
+                                                                  np.ones(1), 1e6),
+    ("forward.solve_scan", "spacing"): lambda v: fwd.solve_scan(HS, (np.linspace(-1, 1, N) ** 2 * 1e-6)[None], v,
+                                                                normal_force=1.0),
+    ("forward.SensorReadout", "spacing"): lambda v: fwd.SensorReadout(
+        HS, (N,), v, SensorArray(positions_m=[[0.0, 0.0]], depth_m=1e-3, components=("zz",))),
     ("forward.pressure_from_deflection", "spacing"): lambda v: fwd.pressure_from_deflection(np.zeros(N), v, 1e6, 0.5),
     ("forward.pressure_from_deflection", "young_modulus"): (
         lambda v: fwd.pressure_from_deflection(np.zeros(N), H, v, 0.5)),

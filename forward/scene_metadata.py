@@ -1,4 +1,4 @@
-"""A scene and a recording that belong together: what ``simulate`` writes about the scene, and the
+"""A scene and the recording it made: what ``simulate`` writes about the scene (the recording's metadata), and the
 check that a scene given to ``invert`` is the one that produced the recording.
 
 :func:`recording_attrs` is the one list of the scene's scalar parameters a recording carries (SI, the
@@ -53,7 +53,7 @@ def scene_description(scene) -> dict[str, Any]:
                                components=tuple(scene.sensors.components), n_sensors=scene.sensors.n_sensors,
                                sensor_positions_m=np.asarray(scene.sensors.positions_m, dtype=float),
                                contact_x_m=np.asarray(s.positions_m, dtype=float))
-    if scene.contact is not None and scene.display is None:
+    if scene.contact is not None and scene.display is None and not scene.contact.periodic:  # a finger
         from .finger import BiomimeticFinger
 
         out.update({k: v for k, v in recording_attrs(BiomimeticFinger.from_scene(scene)).items() if k not in NUMERICS})
