@@ -10,7 +10,8 @@ Run: ``python benchmarks/bench_skin_models.py [--sizes 256 512] [--repeats 15] [
    reference. The table is the list ``FIELD_CASES``: a skin model adds a row. Rows: a rigid random
    surface sliding at 10 cm/s over a standard linear solid in full contact (goal 1.2x), and a
    random traction on a 4 mm pulp on bone (goal 1.5x; its first call builds the layered tables,
-   ``benchmarks/bench_layered.py`` times that).
+   ``benchmarks/bench_layered.py`` times that), and a rigid random surface sliding at 10 cm/s over
+   viscoelastic layers (a dermis on a pulp on bone; goal 1.5x, its sliding tables cached per speed).
 2. A time-stepped viscoelastic contact at 128^2 (isolated; a standard linear solid, tau = 50 ms):
    a sphere pressed with 0.1 N, held, then slid at 1 cm/s, ``--steps`` steps of 0.5 ms; the time
    per step against one elastic ``solve_contact`` of the same grid.
@@ -28,7 +29,8 @@ import numpy as np
 import scipy.fft as sfft
 
 from tactilab.forward import (AccuracyWarning, HalfSpace, Layer, LayeredHalfSpace, Prony, SurfaceLoad,
-                              ViscoelasticHalfSpace, solve_contact, solve_viscoelastic_contact)
+                              ViscoelasticHalfSpace, ViscoelasticLayeredHalfSpace, angular_wavenumbers, solve_contact,
+                              solve_viscoelastic_contact)
 
 DEPTH, SPACING = 1e-3, 1e-4
 SLS = Prony.sls(1e5, 3e5, 0.05)  # Pa, Pa, s
@@ -91,10 +93,35 @@ def _layered(n: int, rng):
     return model, elastic, check
 
 
+def _viscoelastic_layers(n: int, rng):
+    """A rigid random surface sliding at 10 cm/s over a viscoelastic dermis (1 mm) on a viscoelastic pulp
+    (3 mm) on bone, in full contact, against the elastic half-space's field of the same surface;
+    agreement: at speed 0 the elastic layered skin of the relaxed moduli."""
+    h = _grating(n, rng)
+    skin = ViscoelasticLayeredHalfSpace([Layer(1e-3, Prony(0.6e6, [(0.6e6, 2e-3)]), 0.5),
+                                         Layer(3e-3, Prony(0.2e6, [(1e6, 4e-3), (0.5e6, 0.07), (0.3e6, 1.4)]), 0.5)])
+    hs = HalfSpace(0.6e6, 0.5)
+    model = lambda: skin.steady_sliding(h, SPACING, 0.1, DEPTH)  # noqa: E731
+    elastic = lambda: hs.stress(hs.pressure_from_deflection(h, SPACING), DEPTH, method="spectral")  # noqa: E731
+
+    def check() -> float:
+        relaxed = skin.relaxed
+        compliance = relaxed.surface_compliance(*angular_wavenumbers(h.shape, SPACING, half=True))[..., 0, 0]
+        compliance[0, 0] = np.inf  # the mean deflection is an approach (0 compliance at nu = 1/2 on bone)
+        gain = 1.0 / compliance
+        p = sfft.irfft2(sfft.rfft2(h) * gain, s=h.shape)
+        ref = relaxed.stress(SurfaceLoad(p=p, spacing=SPACING, periodic=True), DEPTH).data["stress"].values
+        got = skin.steady_sliding(h, SPACING, 0.0, DEPTH).data["stress"].values
+        return float(np.abs(got - ref).max() / np.abs(ref).max())
+
+    return model, elastic, check
+
+
 #: the field rows: (name, goal, build)
 FIELD_CASES: list[FieldCase] = [
     FieldCase("viscoelastic steady sliding", 1.2, _viscoelastic_steady),
     FieldCase("layered: 4 mm pulp on bone", 1.5, _layered),
+    FieldCase("viscoelastic layers sliding", 1.5, _viscoelastic_layers),
 ]
 
 

@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 from .common import RunReport, add_report_options, choose_out, staged_outputs
-from .material_option import add_material_option, describe_material, read_material_option
+from .material_option import add_material_option, describe_material, read_material_option, refuse_viscoelastic_layers
 
 NAME = "contact"
 HELP = ("solve the frictional contact of the skin with a rigid surface (height map, scene or built-in): "
@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         if args.young_modulus is not None or args.nu is not None:
             raise ValueError("--young-modulus, --nu: the scene's material is viscoelastic or layered, which they "
                              "cannot describe; drop them, or give an elastic --material")
-        material = problem.scene.material  # the scene's own skin, as a --material would give it
+        material = refuse_viscoelastic_layers(problem.scene.material, "the scene's [material]")  # as --material
     held = _held_time(held_s, material, args.time)
     from tactilab.forward import HalfSpace, skin_from_material, solve_contact
     from tactilab.forward.contact_files import write_contact

@@ -37,7 +37,17 @@ def read_material_option(args: argparse.Namespace, replaces: tuple[str, ...] = (
                          f"{' and '.join(given)}, or drop --material")
     from tactilab.data_schemas import read_material
 
-    return read_material(args.material)
+    return refuse_viscoelastic_layers(read_material(args.material), "--material")
+
+
+def refuse_viscoelastic_layers(material, where: str):
+    """The material, unless a layer is viscoelastic: the commands compute elastic layers or a viscoelastic
+    half-space; viscoelastic layers live in Python (``ViscoelasticLayeredHalfSpace``)."""
+    if material is not None and material.has_viscoelastic_layers:
+        raise ValueError(f"{where}: a layer has Prony terms (a viscoelastic layer), which the command line does not "
+                         "compute; use tactilab.forward.ViscoelasticLayeredHalfSpace in Python (docs/viscoelastic.md), "
+                         "or drop the layers' terms (their relaxed moduli) for an elastic layered skin")
+    return material
 
 
 def describe_material(material) -> str:

@@ -25,6 +25,10 @@ layer's (filled from it when omitted). In a scene file::
     [material]                # a 4 mm pulp on bone
     layers = [{thickness = "4mm", young_modulus = "0.1MPa", poisson_ratio = 0.5}]
     base = "rigid"
+
+    [material]                # a viscoelastic dermis on a viscoelastic pulp, on bone
+    layers = [{thickness = "1mm", young_modulus = "0.4MPa", terms = [["0.8MPa", "10ms"]]},
+              {thickness = "3mm", young_modulus = "0.2MPa", terms = [["1MPa", "4ms"], ["0.5MPa", "70ms"]]}]
 """
 
 from __future__ import annotations
@@ -63,13 +67,39 @@ class PronyTerm(Record):
     relaxation_time_s: Annotated[float, positive("a relaxation time", "e.g. \"70ms\"")]
 
 
+def _term_pairs(data: dict) -> dict:
+    """Prony terms given as pairs ``["1MPa", "70ms"]`` become tables."""
+    terms = data.get("terms")
+    if isinstance(terms, list):
+        data = dict(data)
+        data["terms"] = [{"modulus": t[0], "relaxation_time": t[1]} if isinstance(t, list) and len(t) == 2 else t
+                         for t in terms]
+    return data
+
+
 class SkinLayer(Record):
-    """One elastic layer: thickness (m), Young's modulus (Pa), Poisson's ratio."""
+    """One layer: thickness (m), Young's modulus (Pa), Poisson's ratio, and optionally Prony terms.
+
+    With ``terms`` the layer is viscoelastic (a Prony series, docs/theory.md section 7):
+    ``young_modulus_pa`` is its relaxed modulus and each term ``(modulus_pa, relaxation_time_s)``
+    adds ``E_i exp(-t / tau_i)``; Poisson's ratio stays constant in time.
+    """
 
     thickness_m: Annotated[float, positive("a layer of zero thickness is no layer", "e.g. \"4mm\"")]
     young_modulus_pa: _Modulus
     poisson_ratio: _Nu = 0.5
     name: str = ""
+    terms: tuple[PronyTerm, ...] = ()
+
+    @classmethod
+    def _edge_prepare(cls, data: dict, where: str) -> tuple[dict, dict[str, str]]:
+        """File-edge hook: Prony terms may be pairs ``["1MPa", "70ms"]``."""
+        return _term_pairs(data), {}
+
+    @property
+    def is_viscoelastic(self) -> bool:
+        """True when the layer has Prony terms."""
+        return bool(self.terms)
 
 
 class ElasticBase(Record):
@@ -98,7 +128,7 @@ class SkinMaterial(Record):
     instantaneous_modulus_pa, relaxation_time_s : float, optional
         The standard linear solid's glassy modulus (Pa, above the relaxed one) and relaxation time (s).
     layers : tuple of SkinLayer
-        Elastic layers, top first (``model = "elastic"`` only).
+        Layers, top first (``model = "elastic"`` only); a layer with Prony ``terms`` is viscoelastic.
     base : "rigid" or ElasticBase, optional
         What the last layer is bonded to (with ``layers``; default ``"rigid"``).
     """
@@ -116,12 +146,7 @@ class SkinMaterial(Record):
     @classmethod
     def _edge_prepare(cls, data: dict, where: str) -> tuple[dict, dict[str, str]]:
         """File-edge hook: Prony terms may be pairs ``["1MPa", "70ms"]``."""
-        terms = data.get("terms")
-        if isinstance(terms, list):
-            data = dict(data)
-            data["terms"] = [{"modulus": t[0], "relaxation_time": t[1]} if isinstance(t, list) and len(t) == 2 else t
-                             for t in terms]
-        return data, {}
+        return _term_pairs(data), {}
 
     @model_validator(mode="before")
     @classmethod
@@ -156,8 +181,9 @@ class SkinMaterial(Record):
             raise ValueError(f"instantaneous_modulus_pa, relaxation_time_s: only model 'sls' takes them, got model "
                              f"{self.model!r}; set model = 'sls' or drop them")
         if self.layers and self.model != "elastic":
-            raise ValueError(f"layers: the layers are elastic; a layered skin takes model 'elastic', got "
-                             f"{self.model!r}; drop layers or the viscoelastic model")
+            raise ValueError(f"layers: a layered skin takes model 'elastic' (the default), got {self.model!r}; give a "
+                             "viscous layer its own Prony terms, e.g. layers = [{thickness = \"4mm\", young_modulus = "
+                             "\"0.2MPa\", terms = [[\"1MPa\", \"70ms\"]]}], and drop model")
         if self.base is not None and not self.layers:
             raise ValueError(f"base: is what the layers lie on, but there are no layers, got base {self.base!r}; "
                              "add layers or drop base")
@@ -188,6 +214,11 @@ class SkinMaterial(Record):
     def is_viscoelastic(self) -> bool:
         """True for ``model`` ``"prony"`` or ``"sls"``."""
         return self.model != "elastic"
+
+    @property
+    def has_viscoelastic_layers(self) -> bool:
+        """True when a layer has Prony terms (a :class:`ViscoelasticLayeredHalfSpace` in forward)."""
+        return any(layer.is_viscoelastic for layer in self.layers)
 
     @property
     def is_layered(self) -> bool:

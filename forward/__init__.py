@@ -38,6 +38,7 @@ _EXPORTS = {
     # skin models beyond the half-space (their own door)
     "Layer": "skin",
     "LayeredHalfSpace": "skin",
+    "ViscoelasticLayeredHalfSpace": "skin",
     # contacts and surfaces
     "solve_contact": "contact",
     "ContactSolution": "contact",

@@ -89,7 +89,7 @@ def test_material_model_rules(fields, match):
     (dict(layers=[dict(thickness_m=1e-3, young_modulus_pa=1e5)], young_modulus_pa=2e5),
      r"young_modulus_pa, poisson_ratio: with layers they are the top layer's"),
     (dict(layers=[dict(thickness_m=1e-3, young_modulus_pa=1e5)], model="sls", instantaneous_modulus_pa=3e5,
-          relaxation_time_s=0.1, young_modulus_pa=1e5), r"layers: the layers are elastic"),
+          relaxation_time_s=0.1, young_modulus_pa=1e5), r"layers: a layered skin takes model .elastic.*own Prony terms"),
     (dict(layers=[dict(thickness_m=1e-3, young_modulus_pa=1e5)], base="bone"), r"base"),
     (dict(layers=[dict(thickness_m=1e-3, young_modulus_pa=1e5)], base=dict(young_modulus_pa=-1.0)),
      r"young_modulus_pa must be > 0"),

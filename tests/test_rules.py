@@ -63,6 +63,7 @@ ROW = np.zeros(DISPLAY.tractor_x_m.shape[-1])  # one line load per tractor of a 
 CONTACT = fwd.HertzContact(0.5, finger_radius=0.01, young_modulus=1e6)
 SLS = fwd.Prony.sls(1e6, 3e6, 0.07)
 VS = fwd.ViscoelasticHalfSpace(SLS)
+VLAYERED = fwd.ViscoelasticLayeredHalfSpace([fwd.Layer(2e-3, SLS, 0.5)], base=VS)  # any depth lies in it
 _HEIGHT_MAP: list = []
 _HISTORY: list = []
 
@@ -297,6 +298,34 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.LayeredHalfSpace.operator", "components"): lambda v: LAYERED.operator((N,), H, depth=1e-4, components=v),
     ("forward.LayeredHalfSpace.material_at", "depth"): lambda v: LAYERED.material_at(v),
     ("forward.LayeredHalfSpace.transfer", "depth"): lambda v: LAYERED.transfer(1e3, 0.0, v),
+    # viscoelastic layers
+    ("forward.ViscoelasticLayeredHalfSpace.transfer", "depth"): lambda v: VLAYERED.transfer(1e3, 0.0, v, 10.0),
+    ("forward.ViscoelasticLayeredHalfSpace.deflection_transfer", "depth"):
+        lambda v: VLAYERED.deflection_transfer(1e3, 0.0, v, 10.0),
+    ("forward.ViscoelasticLayeredHalfSpace.complex_modulus_at", "depth"): lambda v: VLAYERED.complex_modulus_at(v, 1.0),
+    ("forward.ViscoelasticLayeredHalfSpace.nu_at", "depth"): lambda v: VLAYERED.nu_at(v),
+    ("forward.ViscoelasticLayeredHalfSpace.sliding_pressure", "spacing"):
+        lambda v: VLAYERED.sliding_pressure(np.zeros(N), v, 0.1),
+    ("forward.ViscoelasticLayeredHalfSpace.steady_sliding", "spacing"):
+        lambda v: VLAYERED.steady_sliding(np.zeros(N), v, 0.1, 1e-3, components=("zz",)),
+    ("forward.ViscoelasticLayeredHalfSpace.steady_sliding", "depth"):
+        lambda v: VLAYERED.steady_sliding(np.zeros(N), H, 0.1, v, components=("zz",)),
+    ("forward.ViscoelasticLayeredHalfSpace.steady_sliding", "components"):
+        lambda v: VLAYERED.steady_sliding(np.zeros(N), H, 0.1, 1e-3, components=v),
+    ("forward.ViscoelasticLayeredHalfSpace.moving_load", "depth"):
+        lambda v: VLAYERED.moving_load(LOAD, 0.1, v, components=("zz",)),
+    ("forward.ViscoelasticLayeredHalfSpace.moving_load", "components"):
+        lambda v: VLAYERED.moving_load(LOAD, 0.1, 1e-3, components=v),
+    ("forward.ViscoelasticLayeredHalfSpace.stress", "depth"): lambda v: VLAYERED.stress(LOAD, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticLayeredHalfSpace.stress", "components"):
+        lambda v: VLAYERED.stress(LOAD, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticLayeredHalfSpace.strain", "depth"): lambda v: VLAYERED.strain(LOAD, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticLayeredHalfSpace.strain", "components"):
+        lambda v: VLAYERED.strain(LOAD, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticLayeredHalfSpace.operator", "spacing"): lambda v: VLAYERED.operator((N,), v, [0.0]),
+    ("forward.ViscoelasticLayeredHalfSpace.operator", "depth"): lambda v: VLAYERED.operator((N,), H, [0.0], depth=v),
+    ("forward.ViscoelasticLayeredHalfSpace.operator", "components"):
+        lambda v: VLAYERED.operator((N,), H, [0.0], components=v),
     ("forward.skin.receptive_field", "depth"): (
         lambda v: fwd.skin.receptive_field(LAYERED, v, spacing=H, half_extent=4 * H)),
     ("forward.skin.receptive_field", "spacing"): (

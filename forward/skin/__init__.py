@@ -14,6 +14,7 @@ _EXPORTS: dict[str, str] = {
     # layered skin (structure)
     "Layer": "layered",
     "LayeredHalfSpace": "layered",
+    "ViscoelasticLayeredHalfSpace": "layered_viscoelastic",
     "tractor_phi_psi": "line_loads",
     "tangential_line_strain": "line_loads",
     "receptive_field": "receptive",

@@ -23,6 +23,7 @@ from tactilab.core import rules as check
 from tactilab.forward.halfspace import HalfSpace, compliance_matrix
 
 from .layered_multipliers import transfer_matrix
+from .prony import Prony
 from .propagator import Stack, surface_amplitudes
 
 #: memory for the surface amplitudes of recent wavenumber arrays (a contact grid's bands, reused per block)
@@ -31,32 +32,71 @@ AMPLITUDE_CACHE_BYTES = 128 * 2**20
 
 @dataclass(frozen=True)
 class Layer:
-    """One elastic layer of a skin.
+    """One layer of a skin: elastic, or viscoelastic when its modulus is a :class:`Prony` series.
 
     Parameters
     ----------
     thickness : float
         Thickness in m (finite, > 0).
-    E : float
-        Young's modulus in Pa.
+    E : float or Prony
+        Young's modulus in Pa, or the layer's relaxation modulus E(t) (Pa, s) as a Prony series;
+        a viscoelastic layer goes into a :class:`ViscoelasticLayeredHalfSpace`.
     nu : float
-        Poisson's ratio in (-1, 0.5]; 0.5 (incompressible) is exact.
+        Poisson's ratio in (-1, 0.5], constant in time; 0.5 (incompressible) is exact.
     """
 
     thickness: float
-    E: float
+    E: float | Prony
     nu: float = 0.5
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "thickness", check.positive(self.thickness, "thickness", "m",
                                                              "give the layer's thickness in m (e.g. 4e-3 for pulp)"))
-        object.__setattr__(self, "E", check.young_modulus(self.E, "E"))
+        if not isinstance(self.E, Prony):
+            object.__setattr__(self, "E", check.young_modulus(self.E, "E"))
         object.__setattr__(self, "nu", check.poisson_ratio(self.nu, "nu"))
 
     @property
+    def is_viscoelastic(self) -> bool:
+        """True when the modulus is a Prony series."""
+        return isinstance(self.E, Prony)
+
+    @property
     def G(self) -> float:
-        """Shear modulus in Pa."""
+        """Shear modulus in Pa (an elastic layer's; a viscoelastic one has :meth:`complex_modulus`)."""
+        if self.is_viscoelastic:
+            raise ValueError(f"E: a viscoelastic layer ({self.E!r}) has no single shear modulus; use "
+                             "complex_modulus(omega) or elastic('instantaneous' | 'relaxed')")
         return self.E / (2.0 * (1.0 + self.nu))
+
+    def complex_modulus(self, omega) -> np.ndarray:
+        """E*(omega) in Pa (complex) at angular frequencies ``omega`` (rad/s); the constant E when elastic."""
+        if self.is_viscoelastic:
+            return self.E.complex_modulus(omega)
+        return np.full(np.shape(omega), complex(self.E))
+
+    def elastic(self, limit: str) -> "Layer":
+        """The elastic layer of the ``"instantaneous"`` (E(0)) or ``"relaxed"`` (E_inf) modulus."""
+        if limit not in ("instantaneous", "relaxed"):
+            raise ValueError(f"limit: must be 'instantaneous' or 'relaxed', got {limit!r}")
+        if not self.is_viscoelastic:
+            return self
+        return Layer(self.thickness, self.E.E_0 if limit == "instantaneous" else self.E.E_inf, self.nu)
+
+
+def as_layers(layers) -> tuple[Layer, ...]:
+    """A non-empty tuple of :class:`Layer` (one Layer is a list of one), or a clear error."""
+    if isinstance(layers, Layer):
+        layers = [layers]
+    try:
+        layers = tuple(layers)
+    except TypeError:
+        raise ValueError(f"layers: expected a list of Layer(thickness, E, nu), got {type(layers).__name__}; "
+                         "e.g. [Layer(4e-3, 1e5, 0.5)]") from None
+    if not layers or not all(isinstance(layer, Layer) for layer in layers):
+        raise ValueError(f"layers: expected a non-empty list of Layer(thickness, E, nu), got {layers!r}; "
+                         "e.g. [Layer(4e-3, 1e5, 0.5)]")
+    return layers
 
 
 class LayeredHalfSpace:
@@ -72,16 +112,11 @@ class LayeredHalfSpace:
     """
 
     def __init__(self, layers, base="rigid"):
-        if isinstance(layers, Layer):
-            layers = [layers]
-        try:
-            layers = tuple(layers)
-        except TypeError:
-            raise ValueError(f"layers: expected a list of Layer(thickness, E, nu), got {type(layers).__name__}; "
-                             "e.g. [Layer(4e-3, 1e5, 0.5)]") from None
-        if not layers or not all(isinstance(layer, Layer) for layer in layers):
-            raise ValueError(f"layers: expected a non-empty list of Layer(thickness, E, nu), got {layers!r}; "
-                             "e.g. [Layer(4e-3, 1e5, 0.5)]")
+        layers = as_layers(layers)
+        viscous = [n for n, layer in enumerate(layers) if layer.is_viscoelastic]
+        if viscous:
+            raise ValueError(f"layers[{viscous[0]}]: a LayeredHalfSpace is elastic, but this layer's modulus is a "
+                             "Prony series; use ViscoelasticLayeredHalfSpace(layers, base) for viscoelastic layers")
         if not (isinstance(base, HalfSpace) or (isinstance(base, str) and base == "rigid")):
             raise ValueError(f"base: must be 'rigid' or a HalfSpace(E, nu), got {base!r}; "
                              "use base='rigid' for bone, HalfSpace(E, nu) for a deeper soft tissue")
@@ -161,8 +196,8 @@ class LayeredHalfSpace:
                 out[..., a + 1, b + 1] = -amp["Uq"] * n[a] * n[b] + amp["V"] * t[a] * t[b]
         if self.rigid_base:
             st = self._stack
-            normal = float(np.sum(st.thickness * (1 - 2 * st.nu) / (2 * st.G * (1 - st.nu))))
-            shear = float(np.sum(st.thickness / st.G))
+            normal = np.sum(st.thickness * (1 - 2 * st.nu) / (2 * st.G * (1 - st.nu)))  # complex moduli too
+            shear = np.sum(st.thickness / st.G)
             out[~live] = np.diag([normal, shear, shear])
         return out[..., :2, :2] if plane else out
 
@@ -204,7 +239,7 @@ class LayeredHalfSpace:
         if key in cache:
             cache.move_to_end(key)
             return cache[key]
-        amp = {name: np.zeros(k.shape) for name in ("Wp", "Up", "Wq", "Uq", "V")}
+        amp = {name: np.zeros(k.shape, dtype=self._stack.dtype) for name in ("Wp", "Up", "Wq", "Uq", "V")}
         if live.any():
             unique, inverse = np.unique(k[live], return_inverse=True)
             for name, values in surface_amplitudes(unique, self._stack).items():

@@ -57,6 +57,18 @@ class Directions:
             s[shape[0] // 2, :] = 0.0
         self.c, self.s, self.cs = c, s, c * s
 
+    @classmethod
+    def at_points(cls, kx: np.ndarray, ky: np.ndarray) -> "Directions":
+        """The monomials at arbitrary wavenumbers (rad/m, same shape), without the Nyquist rule."""
+        d = cls.__new__(cls)
+        rho = np.hypot(kx, ky)
+        live = rho > 0
+        safe = np.where(live, rho, 1.0)
+        c, s = np.where(live, kx / safe, 0.0), np.where(live, ky / safe, 0.0)
+        d.rho, d.c, d.s, d.cs = rho, c, s, c * s
+        d.c2, d.s2 = np.where(live, c * c, 0.5), np.where(live, s * s, 0.5)
+        return d
+
 
 def uniform_amplitudes(stack: Stack, z: float) -> dict[str, float]:
     """The ``k = 0`` amplitudes at depth ``z`` (m): the response to uniform tractions.
@@ -77,7 +89,7 @@ def uniform_amplitudes(stack: Stack, z: float) -> dict[str, float]:
         return out
     g_b, nu_b = stack.base
     strain = -(1 - 2 * nu_b) / (2 * g_b)  # the base surface's eps_x'x' under P = 1 (plane strain)
-    x = -nu / (1 - nu) + 2 * float(stack.G[j]) / (1 - nu) * strain  # E / (1 - nu^2) = 2 G / (1 - nu)
+    x = -nu / (1 - nu) + 2 * stack.G[j] / (1 - nu) * strain  # E / (1 - nu^2) = 2 G / (1 - nu)
     out.update(Xp=x, Yp=nu * (x - 1.0))
     return out
 
@@ -90,7 +102,7 @@ def radial_grid(stack: Stack, d: Directions, z: float) -> dict[str, np.ndarray]:
     zero = uniform_amplitudes(stack, z)
     out = {}
     for name in _NAMES:
-        grid = np.full(d.rho.shape, zero[name])
+        grid = np.full(d.rho.shape, zero[name], dtype=stack.dtype)
         if unique.size:
             grid[live] = radial[name][inverse]
         out[name] = grid
@@ -148,13 +160,7 @@ def transfer_matrix(skin, kx, ky, z: float) -> np.ndarray:
     """The exact stress multipliers at wavenumbers ``(kx, ky)`` (rad/m, no Nyquist rule), shape
     ``(*broadcast, 6, 3)``: Voigt stress (Pa) per unit load spectrum of ``(p, qx, qy)`` at depth ``z`` (m)."""
     kx, ky = np.broadcast_arrays(np.asarray(kx, float), np.asarray(ky, float))
-    d = Directions.__new__(Directions)
-    rho = np.hypot(kx, ky)
-    live = rho > 0
-    safe = np.where(live, rho, 1.0)
-    c, s = np.where(live, kx / safe, 0.0), np.where(live, ky / safe, 0.0)
-    d.rho, d.c, d.s, d.cs = rho, c, s, c * s
-    d.c2, d.s2 = np.where(live, c * c, 0.5), np.where(live, s * s, 0.5)
+    d = Directions.at_points(kx, ky)
     per_load = voigt_multipliers(radial_grid(skin._stack, d, z), d)
     return np.stack([np.moveaxis(per_load[n], 0, -1) for n in ("p", "qx", "qy")], axis=-1)
 

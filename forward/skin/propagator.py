@@ -37,7 +37,12 @@ QUANTITIES = ("Ug", "Wg", "S", "N", "X", "Y")
 @dataclass(frozen=True)
 class Stack:
     """Layer arrays of a skin, top first: thickness (m), shear modulus (Pa), Poisson's ratio;
-    ``base`` None for a rigid base, else ``(G, nu)`` of the base half-space."""
+    ``base`` None for a rigid base, else ``(G, nu)`` of the base half-space.
+
+    The shear moduli may be complex (a viscoelastic layer's ``G*(omega)`` in a harmonic steady
+    state, docs/theory.md section 7): they enter only the ratios ``G_top / G_layer`` that scale the
+    displacement rows and ``G k`` in the displacements, never the families, which depend on ``nu``
+    and ``k`` alone; so ``nu = 1/2`` stays exact and ``G -> conj(G)`` conjugates every amplitude."""
 
     thickness: np.ndarray
     G: np.ndarray
@@ -48,6 +53,12 @@ class Stack:
     def tops(self) -> np.ndarray:
         """Depth of each layer's top, m."""
         return np.concatenate([[0.0], np.cumsum(self.thickness)[:-1]])
+
+    @property
+    def dtype(self) -> np.dtype:
+        """float64, or complex128 when a modulus is complex."""
+        base = () if self.base is None else (self.base[0],)
+        return np.result_type(self.G, *base, float)
 
     @property
     def total(self) -> float:
@@ -147,12 +158,12 @@ def solve_inplane(k: np.ndarray, stack: Stack) -> np.ndarray:
     n_layers = len(stack.thickness)
     n = 4 * n_layers + (0 if stack.base is None else 2)
     K = k.shape[0]
-    M = np.zeros((K, n, n))
+    M = np.zeros((K, n, n), dtype=stack.dtype)
     g0 = stack.G[0]
     top = layer_values(k, stack, 0, 0.0)
     M[:, 0:2, 0:4] = top[:, [2, 3], :]
     row = 2
-    scale = np.array([1.0, 1.0, 1.0, 1.0])
+    scale = np.ones(4, dtype=stack.dtype)
     for j in range(n_layers):
         below = j + 1
         bottom = layer_values(k, stack, j, stack.thickness[j])
@@ -178,7 +189,7 @@ def solve_antiplane(k: np.ndarray, stack: Stack) -> np.ndarray:
     n_layers = len(stack.thickness)
     n = 2 * n_layers + (0 if stack.base is None else 1)
     K = k.shape[0]
-    M = np.zeros((K, n, n))
+    M = np.zeros((K, n, n), dtype=stack.dtype)
     g0 = stack.G[0]
     M[:, 0, 0:2] = _antiplane_values(k, stack, 0, 0.0)[:, 1, :]
     row = 1

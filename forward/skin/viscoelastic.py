@@ -195,22 +195,7 @@ class ViscoelasticHalfSpace:
         return SurfaceLoad(p=p, spacing=spacing, periodic=True)
 
     def _sliding_spectrum(self, height, spacing, speed, time):
-        h = check.finite_array(height, "height", "m")
-        if h.ndim not in (1, 2):
-            raise ValueError(f"height: expected shape (nx,) or (ny, nx), got {h.shape}")
-        speed = check.finite(speed, "speed", "m/s")
-        time = check.finite(time, "time", "s")
-        spacing = check.spacing(spacing, h.ndim)
-        waves = angular_wavenumbers(h.shape, spacing, half=True)
-        kx = waves[0]  # (nx//2 + 1,) or (1, nx//2 + 1): broadcast with eta's (ny, 1)
-        rho = np.abs(kx) if h.ndim == 1 else np.hypot(kx, waves[1])
-        axes = tuple(range(-h.ndim, 0))
-        spectrum = sfft.rfftn(h, axes=axes)
-        if time != 0.0:  # the profile moved by speed * time along +x: exact for its trigonometric interpolant
-            shift = np.exp(-1j * kx * speed * time)
-            if h.shape[-1] % 2 == 0:
-                shift = np.where(np.arange(kx.shape[-1]) == kx.shape[-1] - 1, np.cos(kx * speed * time), shift)
-            spectrum = spectrum * shift
+        _, _, spectrum, kx, rho = sliding_spectrum(height, spacing, speed, time)
         return spectrum, kx, rho
 
     def steady_sliding(self, height, spacing, speed: float, depth, quantity: str = "stress", time: float = 0.0,
@@ -265,6 +250,30 @@ class ViscoelasticHalfSpace:
         return HistoryOperator(self, shape, spacing, times, sensors=sensors, depth=depth, components=components,
                                loads=loads, quantity=quantity, periodic=periodic)
 
+
+
+def sliding_spectrum(height, spacing, speed: float, time: float):
+    """The rfft half spectrum of a periodic deflection (m) moved by ``speed * time`` along +x.
+
+    Returns ``(h, spacing, spectrum, kx, rho)``: the checked height array and spacing (m), the shifted
+    spectrum, and the half grid's ``kx`` and ``|k|`` (rad/m; ``kx`` of shape (nx//2 + 1,) or
+    (1, nx//2 + 1), broadcasting with ``rho``)."""
+    h = check.finite_array(height, "height", "m")
+    if h.ndim not in (1, 2):
+        raise ValueError(f"height: expected shape (nx,) or (ny, nx), got {h.shape}")
+    speed = check.finite(speed, "speed", "m/s")
+    time = check.finite(time, "time", "s")
+    spacing = check.spacing(spacing, h.ndim)
+    waves = angular_wavenumbers(h.shape, spacing, half=True)
+    kx = waves[0]  # (nx//2 + 1,) or (1, nx//2 + 1): broadcast with eta's (ny, 1)
+    rho = np.abs(kx) if h.ndim == 1 else np.hypot(kx, waves[1])
+    spectrum = sfft.rfftn(h, axes=tuple(range(-h.ndim, 0)))
+    if time != 0.0:  # the profile moved by speed * time along +x: exact for its trigonometric interpolant
+        shift = np.exp(-1j * kx * speed * time)
+        if h.shape[-1] % 2 == 0:
+            shift = np.where(np.arange(kx.shape[-1]) == kx.shape[-1] - 1, np.cos(kx * speed * time), shift)
+        spectrum = spectrum * shift
+    return h, spacing, spectrum, kx, rho
 
 # ------------------------------------------------------------------------------------ histories
 def _amplitude(history, times: np.ndarray) -> np.ndarray:

@@ -1,4 +1,5 @@
-"""The load-history-to-sensor-history map of a viscoelastic half-space as a LinearOperator.
+"""The load-history-to-sensor-history map of a viscoelastic half-space (or of viscoelastic layers of one
+relaxation shape) as a LinearOperator.
 
 It is a Kronecker product: the elastic map of one time (:class:`LoadToSensor` of the glassy skin,
 E(0)) on every frame, then, for strain, the creep convolution over the frames (the lower
@@ -20,7 +21,8 @@ class HistoryOperator(LinearOperator):
 
     Parameters
     ----------
-    skin : ViscoelasticHalfSpace
+    skin : ViscoelasticHalfSpace or ViscoelasticLayeredHalfSpace
+        The layered skin needs one relaxation shape (``relaxation_shape()``); its creep is that shape's.
     shape, spacing, sensors, depth, components, loads, quantity, periodic
         As :class:`tactilab.forward.halfspace.LoadToSensor`.
     times : sequence of float
@@ -41,8 +43,9 @@ class HistoryOperator(LinearOperator):
                                                    components=components, loads=loads, quantity=quantity,
                                                    periodic=periodic)
         n_t = len(self.times)
-        if quantity == "strain":
-            self.time_matrix = skin.prony.E_0 * convolution_matrix(skin.prony.kernel("creep"), self.times)
+        law = skin.relaxation_shape() if hasattr(skin, "relaxation_shape") else skin.prony  # refuses mixed layers
+        if quantity == "strain" and law is not None:
+            self.time_matrix = law.E_0 * convolution_matrix(law.kernel("creep"), self.times)
         else:
             self.time_matrix = np.eye(n_t)
         self.n_model, self.n_data = self.spatial.shape[1], self.spatial.shape[0]
