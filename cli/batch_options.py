@@ -60,6 +60,33 @@ def batch_where(args: argparse.Namespace) -> dict:
                 scheduler=args.scheduler)
 
 
+def _warn_models(folder: Path) -> None:
+    """One warning line when recordings of the batch were made with another interface model than the
+    modulation the defect inversion assumes (the largest modulation error they state)."""
+    from tactilab.data_schemas import read_recording
+    from tactilab.data_schemas.interface_model import recording_model
+
+    from .common import print_warning
+    from tactilab.inversion.batch import RECORDING_SUFFIXES
+
+    other, errors = {}, []
+    for path in sorted(p for p in folder.rglob("*") if p.is_file() and p.suffix in RECORDING_SUFFIXES):
+        try:
+            stated = recording_model(read_recording(path), path)
+        except (OSError, ValueError):  # invert_many reports unreadable files itself
+            continue
+        if stated is not None and stated["model"] != "modulation":
+            other[stated["model"]] = other.get(stated["model"], 0) + 1
+            errors.append(stated["errors"].get("modulation"))
+    if other:
+        known = [e for e in errors if e is not None]
+        size = (f"the largest modulation error they state is {max(known):.2g} of the signal" if known
+                else "they state no modulation error")
+        made = ", ".join(f"{n} with {model!r}" for model, n in sorted(other.items()))
+        print_warning("invert", f"{sum(other.values())} recording(s) were made with another interface model ({made}) "
+                                f"but the defect inversion assumes the 'modulation' model; {size}")
+
+
 def run_invert_batch(args: argparse.Namespace) -> int:
     """Run the batch inversion for parsed ``tactilab invert --batch`` arguments; print a closing summary.
 
@@ -75,12 +102,17 @@ def run_invert_batch(args: argparse.Namespace) -> int:
     max_steps = getattr(args, "max_steps", 20000)
     if max_steps < 1:
         raise ValueError(f"--max-steps: must be >= 1 step, got {max_steps}; e.g. 20000")
-    out = args.out if getattr(args, "out", None) is not None else Path(f"{Path(args.batch).resolve().name}-batch")
+    from tactilab.inversion import check_max_steps
+
     sample = tuple(q.strip() for q in getattr(args, "sample", "").split(",") if q.strip())
+    check_max_steps(max_steps, 2 + len(sample), name="--max-steps")  # the memory rule, before any task runs
+    out = args.out if getattr(args, "out", None) is not None else Path(f"{Path(args.batch).resolve().name}-batch")
+    _warn_models(Path(args.batch))
     tree = invert_many(args.batch, args.scene, seed=getattr(args, "seed", 0), out_dir=out, workers=args.workers,
                        scheduler=args.scheduler, sample=sample, max_data=getattr(args, "max_data", 1500),
                        criterion=getattr(args, "criterion", "evidence"), sampler_options={"max_steps": max_steps},
-                       progress=not getattr(args, "quiet", False))
+                       progress=not getattr(args, "quiet", False),
+                       allow_scene_mismatch=getattr(args, "allow_scene_mismatch", False))
     a = tree.attrs
     print(f"batch: {a['n_run']} recording(s) inverted, {a['n_skipped']} skipped (done before), "
           f"{a['n_failed']} failed, {a['wall_s']:.1f} s (+ {a['gather_s']:.1f} s reading the results back)")

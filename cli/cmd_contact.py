@@ -7,7 +7,8 @@ import sys
 import time
 from pathlib import Path
 
-from .common import RunReport, add_report_options, choose_out
+from .common import RunReport, add_report_options, choose_out, staged_outputs
+from .material_option import add_material_option, describe_material, read_material_option, refuse_viscoelastic_layers
 
 NAME = "contact"
 HELP = ("solve the frictional contact of the skin with a rigid surface (height map, scene or built-in): "
@@ -46,6 +47,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sk.add_argument("--young-modulus", help="skin Young's modulus with unit (default: the scene's, else 1MPa)")
     sk.add_argument("--nu", type=float, default=None,
                     help="Poisson's ratio in (-1, 0.5], dimensionless (default: the scene's, else 0.5)")
+    add_material_option(sk)
+    sk.add_argument("--time", default=None,
+                    help="with a viscoelastic --material: how long the load is held, with unit, e.g. 200ms (default "
+                         "0: the instantaneous contact); solved in time steps, frictionless")
     sk.add_argument("--finger-radius", help="press a surface with a finger of this radius, e.g. 10mm "
                                             "(isolated contact); without it a surface is a periodic cell")
     sk.add_argument("--periodic", action="store_true", help="the grid is one period of an endless surface")
@@ -77,21 +82,34 @@ def run(args: argparse.Namespace) -> int:
     from .contact_inputs import build_problem, parse_options
 
     report = RunReport("contact")
+    material = read_material_option(args)
+    held_s = _time_option(args)  # its unit is checked with the other options, before the problem is built
     opts = parse_options(args)
+    if material is not None:  # its modulus sizes the default grid (the relaxed one: the largest contact)
+        opts["young_modulus"], args.nu = material.young_modulus_pa, material.poisson_ratio
     problem, settings = build_problem(args, opts)
-    from tactilab.forward import HalfSpace, solve_contact
+    if material is None and problem.scene is not None and (problem.scene.material.is_viscoelastic
+                                                            or problem.scene.material.is_layered):
+        if args.young_modulus is not None or args.nu is not None:
+            raise ValueError("--young-modulus, --nu: the scene's material is viscoelastic or layered, which they "
+                             "cannot describe; drop them, or give an elastic --material")
+        material = refuse_viscoelastic_layers(problem.scene.material, "the scene's [material]")  # as --material
+    held = _held_time(held_s, material, args.time)
+    from tactilab.forward import HalfSpace, skin_from_material, solve_contact
     from tactilab.forward.contact_files import write_contact
 
     depths = opts["depths"]
-    folder = args.out if args.out is not None else Path(f"{problem.label}-contact")
-    new_folder = not folder.exists() if args.out is not None else True
+    created = args.out is None or not args.out.exists()
     out = report.watch(choose_out(args.out, Path(f"{problem.label}-contact"), args.force))
-    skin = HalfSpace(E=settings["young_modulus"], nu=settings["nu"])
+    skin = HalfSpace(E=settings["young_modulus"], nu=settings["nu"]) if material is None else skin_from_material(material)
+    if material is not None and material.is_viscoelastic:
+        return _viscoelastic(args, report, problem, settings, skin, held, depths, out, material, created)
     shape = " x ".join(str(n) for n in problem.gap.shape[::-1])
     if not (args.quiet or args.json):
         print(f"tactilab contact: solving on {shape} nodes ({settings['memory_bytes'] / 2**20:.0f} MiB estimated)",
               file=sys.stderr, flush=True)
-    with report.collecting_warnings():
+    # staged: a refusal, or a warning that --strict makes an error, leaves no partial output
+    with report.collecting_warnings(), staged_outputs(out, created) as stage:
         t0 = time.perf_counter()
         try:
             sol = solve_contact(skin, problem.gap, problem.spacing, periodic=problem.periodic,
@@ -99,14 +117,78 @@ def run(args: argparse.Namespace) -> int:
                                 tangential_force=opts["tangential_force"], slide_direction=opts["slide_direction"],
                                 method=args.method, tol=args.tol, **settings["load"])
         except ValueError as exc:
-            if new_folder and not any(out.iterdir()):
-                out.rmdir()  # refused: leave no empty folder behind
             raise ValueError(as_option(str(exc))) from None
         elapsed = time.perf_counter() - t0
-        write_contact(sol, out, skin=skin, depths=depths, friction=settings["friction"],
-                              title=problem.label)
+        write_contact(sol, stage, skin=skin, depths=depths, friction=settings["friction"], title=problem.label)
     _summarise(report, sol, problem, settings, elapsed, depths)
+    if material is not None:
+        report.computed.append(describe_material(material))
     report.data["time_s"] = float(np.round(elapsed, 6))
+    report.emit(args.json)
+    return 0
+
+
+def _time_option(args: argparse.Namespace) -> float | None:
+    """``--time`` in s (None when not given); a bare number or a wrong unit is refused here."""
+    if args.time is None:
+        return None
+    from tactilab.data_schemas.units import to_si
+
+    return to_si(args.time, "time", name="--time")
+
+
+def _held_time(held: float | None, material, given: str | None) -> float | None:
+    """``--time`` in s (>= 0), only with a viscoelastic material."""
+    if held is None:
+        return None
+    if material is None or not material.is_viscoelastic:
+        raise ValueError("--time: only a viscoelastic --material (model prony or sls) depends on time; drop --time")
+    if not held >= 0:
+        raise ValueError(f"--time: must be >= 0 (0 is the instant the load is applied), got {given!r}; e.g. 200ms")
+    return held
+
+
+def _viscoelastic(args, report, problem, settings, skin, held, depths, out, material, created) -> int:
+    """The load applied at t = 0 and held for ``--time``: a time-stepped viscoelastic contact
+    (frictionless), written as the last step's solution and the strain of its pseudo-pressure."""
+    import numpy as np
+
+    from tactilab.forward import solve_viscoelastic_contact, write_field
+    from tactilab.forward.contact_files import write_contact
+
+    if settings["condition"] != "frictionless" and args.condition is not None:
+        raise ValueError(f"--condition: a viscoelastic --material is solved frictionless, got --condition "
+                         f"{args.condition}; drop --condition (or use --condition frictionless)")
+    held = held or 0.0
+    fastest = float(skin.prony.taus.min())
+    times = np.array([0.0]) if held == 0 else np.unique(np.concatenate(
+        [[0.0], np.geomspace(min(held, fastest / 10), held, 40)]))
+    with report.collecting_warnings(), staged_outputs(out, created) as stage:  # no partial output on a refusal
+        t0 = time.perf_counter()
+        try:
+            history = solve_viscoelastic_contact(skin, problem.gap, problem.spacing, times, periodic=problem.periodic,
+                                                 tol=args.tol, keep_every=None, **settings["load"])
+        except ValueError as exc:
+            raise ValueError(as_option(str(exc))) from None
+        elapsed = time.perf_counter() - t0
+        sol = history.last
+        write_contact(sol, stage, title=problem.label)
+        if depths:
+            write_field(history.strain(skin, list(depths), tol=max(1e-6, float(sol.error_estimate))), stage,
+                        stem="strain")
+    if settings["condition"] != "frictionless":
+        report.dropped.append(f"friction (mu = {settings['friction']:g}, the scene's): a viscoelastic contact is "
+                              "solved frictionless")
+    settings = {**settings, "condition": "frictionless", "friction": 0.0}
+    _summarise(report, sol, problem, settings, elapsed, depths)
+    report.computed[0] = report.computed[0].replace("; E = ", "; relaxed E = ", 1)
+    unit, scale = ("mm", 1e3) if problem.gap.ndim == 1 else ("mm^2", 1e6)
+    report.computed.append(f"{describe_material(material)}; load held for {held * 1e3:g} ms in {len(times)} time "
+                           f"steps: contact area {history.area[0] * scale:.4g} -> {history.area[-1] * scale:.4g} {unit}")
+    report.method = ("solve_viscoelastic_contact: one elastic contact per time step, the relaxation history in the "
+                     "gap (generalised Maxwell, exact for piecewise linear histories); " + report.method)
+    report.data["time_s"] = float(np.round(elapsed, 6))
+    report.data["held_s"] = held
     report.emit(args.json)
     return 0
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from tactilab.core.outputs import printable
 
-from .common import RunReport, make_out
+from .common import PRINTED_WARNINGS, RunReport, make_out, print_warning
 
 from .experiment_analysis import add_subcommands as add_analysis_subcommands
 
@@ -63,6 +63,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="output folder; for bids the dataset root, to which the session is added (default: "
                              "<session's folder>/bids); for the others default the session's folder")
     export.add_argument("--force", action="store_true", help="replace the session's files if they were exported before")
+    export.add_argument("--author", action="append", default=None, dest="authors", metavar="NAME",
+                        help="bids: an author of the dataset (repeat for each; written to a new "
+                             "dataset_description.json as Authors)")
     export.add_argument("--json", action="store_true", help="print only the files written, as one JSON object")
 
     status = sub.add_parser("status", help="progress, status, safety interventions, frame timing and the fitted "
@@ -198,8 +201,8 @@ def _zero_and_close(display, responses, report: bool) -> None:
             display.zero()
         except Exception as exc:  # noqa: BLE001 - the device may be what failed
             if report:
-                print(f"tactilab experiment: warning: final ZERO failed ({' '.join(str(exc).split())}); "
-                      "the device's watchdog zeroes it when frames stop", file=sys.stderr)
+                print_warning("experiment", f"final ZERO failed ({exc}); the device's watchdog zeroes it when "
+                              "frames stop")
     finally:
         try:
             responses.close()
@@ -228,7 +231,7 @@ def run(args: argparse.Namespace) -> int:
     except DisplayError as exc:
         path = getattr(args, "session_path", None)
         if path is not None and Path(path).is_file():  # the run's summary first: what was done, what failed
-            _print_summary(path, f"experiment {args.action}", args.json)
+            _print_summary(path, f"experiment {args.action}", args.json, list(PRINTED_WARNINGS))
         print(f"tactilab experiment: display error: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_DISPLAY_FAULT
 
@@ -331,8 +334,8 @@ def _run(args: argparse.Namespace) -> int:
             out = args.session.parent / "bids" if args.format == "bids" else args.session.parent
         if args.session.is_file():  # a missing session is reported by export_session
             make_out(out)
-        with _flags({"format": "--format", "out": "--out"}):
-            written = export_session(args.session, out, args.format, overwrite=args.force)
+        with _flags({"format": "--format", "out": "--out", "authors": "--author"}):
+            written = export_session(args.session, out, args.format, overwrite=args.force, authors=args.authors)
         if args.json:
             print(json.dumps({"command": "experiment export", "format": args.format, "out": str(out),
                               "files": [str(p) for p in written]}))

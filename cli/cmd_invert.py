@@ -42,6 +42,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="output folder (default: a new folder ./<recording stem>-inversion, then -2, -3, ...); "
                              "an existing non-empty one needs --force (with --batch, the same --out resumes)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the samplers (integer)")
+    parser.add_argument("--allow-scene-mismatch", action="store_true",
+                        help="invert although the scene differs from the one the recording says produced it "
+                             "(contact radius, sensor positions, depth, sampling, material); for real data whose "
+                             "metadata differ from the model scene; prints a warning naming what differs")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     add_surface_arguments(parser)
     add_report_options(parser)
@@ -68,6 +72,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.max_steps < 1:
         raise ValueError(f"--max-steps: must be >= 1 step, got {args.max_steps}; e.g. 20000")
+    from tactilab.inversion import check_max_steps
+
+    if args.method in ("all", "mcmc"):  # x0, y0 and the extra parameters (the defect area is integrated out)
+        check_max_steps(args.max_steps, 2 + len([q for q in args.sample.split(",") if q.strip()]), name="--max-steps")
     if args.max_data < 10:
         raise ValueError(f"--max-data: must be >= 10 values, got {args.max_data}; e.g. 1500")
     scene = load_scene(args.scene)
@@ -75,6 +83,10 @@ def run(args: argparse.Namespace) -> int:
         recording = read_recording(args.recording)
     except (OSError, ValueError) as err:  # name the command-line argument
         raise type(err)(f"RECORDING: {str(err).removeprefix('path: ')}") from None
+    from tactilab.inversion import check_scene_recording
+
+    check_scene_recording(scene, args.recording, sample=[q.strip() for q in args.sample.split(",") if q.strip()],
+                          allow_mismatch=args.allow_scene_mismatch, name="--scene")
     report = RunReport("invert")
     out = report.watch(choose_out(args.out, Path(f"{args.recording.stem}-inversion"), args.force))
     if args.target == "surface":
@@ -128,14 +140,13 @@ def run(args: argparse.Namespace) -> int:
 def _warn_model(report: RunReport, recording, path: Path) -> None:
     """One warning line (repeated in the summary) when the recording was made with another interface
     model than the modulation the defect inversion assumes, with that model's error the recording states."""
-    import warnings
-
     from tactilab.data_schemas.interface_model import model_mismatch, recording_model
+
+    from .common import print_warning
 
     line = model_mismatch(recording_model(recording, path), "modulation", "the defect inversion")
     if line is not None:
-        with report.collecting_warnings():
-            warnings.warn(line, UserWarning, stacklevel=2)
+        print_warning(report.command, line)
 
 
 DISPLAY_UNITS = {"x0": ("mm", 1e3), "y0": ("mm", 1e3), "depth": ("mm", 1e3), "amplitude": ("mm^2", 1e6),

@@ -11,7 +11,7 @@ import json
 from pathlib import Path
 
 from .batch_options import add_worker_options, batch_where, wants_batch
-from .common import check_hypothesis, make_out
+from .common import check_hypothesis, choose_out, make_out
 
 NAME = "metamer"
 HELP = ("tactile metamer of a sinusoidal surface on a tractor display: residual, d' and tractor loads (N/mm) "
@@ -37,7 +37,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--receptors", default="201", help="number of receptors in the window, an integer >= 2 (default 201)")
     parser.add_argument("--scan", default="32", help="frames of a travelling scan over one pitch, an integer >= 1 (default 32)")
     parser.add_argument("--unbounded", action="store_true", help="ignore the display's load limits")
-    parser.add_argument("--out", type=Path, default=None, help="folder for the PNGs (default: metamer-<display>)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="folder for the PNGs (default: a new folder metamer-<display>, then -2, -3, ...); an "
+                             "existing non-empty one needs --force; with --scan-* the batch folder (default "
+                             "metamer-scan; the same folder resumes)")
+    parser.add_argument("--force", action="store_true",
+                        help="write into an existing, non-empty --out folder (files of the same name are replaced)")
     parser.add_argument("--json", action="store_true", help="print one JSON object (SI units) instead of text")
     scan = add_worker_options(parser, default_help="serial in-process")
     scan.add_argument("--scan-pitch", default=None, metavar="LIST",
@@ -80,6 +85,28 @@ def _display(spec: str):
     raise ValueError(f"--display: must be one of {', '.join(PRESETS)} or an existing .json display description, got {spec!r}")
 
 
+#: bytes per frame of a travelling scan: its phase and its relative residual (float64 each)
+SCAN_FRAME_BYTES = 16
+
+
+def _receptors(args, n_tractors: int, hypothesis) -> "np.ndarray":
+    """The receptor x positions (m), after the memory rule (before the array exists)."""
+    import numpy as np
+
+    from tactilab.inversion import check_receptor_memory
+
+    window = _quantity(args.window, "length", "--window")
+    n = check_receptor_memory(_count(args.receptors, "--receptors", 2), n_tractors, hypothesis.n_depths, "--receptors")
+    return np.linspace(-window / 2, window / 2, n)
+
+
+def _scan_frames(args) -> int:
+    from tactilab.core.memory import check_count
+
+    return check_count(_count(args.scan, "--scan", 1), SCAN_FRAME_BYTES, "--scan",
+                       "frames (a phase and a residual each)")
+
+
 def _count(text: str, name: str, minimum: int) -> int:
     try:
         value = int(text)
@@ -120,13 +147,13 @@ def _scan(args: argparse.Namespace) -> int:
               if args.scan_phase is not None else [target["phase"]])
     displays = [_display(t.strip()) for t in (args.scan_display or args.display).split(",") if t.strip()]
     hypothesis = check_hypothesis(args.hypothesis, "--hypothesis").with_noise(_quantity(args.noise, "dimensionless", "--noise"))
-    window = _quantity(args.window, "length", "--window")
-    x = np.linspace(-window / 2, window / 2, _count(args.receptors, "--receptors", 2))
+    x = _receptors(args, max(np.size(d.tractor_x_m) for d in displays), hypothesis)
+    frames = _scan_frames(args)
     out = make_out(args.out if args.out is not None else Path("metamer-scan"))
     scan = metamer_scan(pitches, phases, displays, hypothesis, amplitude=target["amplitude"],
                         young_modulus=_young_modulus(args.young_modulus), receptors=x,
                         out_dir=out, bounds=None if args.unbounded else "family",
-                        scan_frames=_count(args.scan, "--scan", 1), progress=not args.json,
+                        scan_frames=frames, progress=not args.json,
                         echo=(lambda _: None) if args.json else print, **batch_where(args))
     a = scan.attrs
     points = []
@@ -172,10 +199,10 @@ def run(args: argparse.Namespace) -> int:
     noise = _quantity(args.noise, "dimensionless", "--noise")
     hypothesis = check_hypothesis(args.hypothesis, "--hypothesis").with_noise(noise)
     young = _young_modulus(args.young_modulus)
-    window = _quantity(args.window, "length", "--window")
-    x = np.linspace(-window / 2, window / 2, _count(args.receptors, "--receptors", 2))
-    frames = _count(args.scan, "--scan", 1)
-    out = make_out(args.out if args.out is not None else Path(f"metamer-{description.display_id}"))
+    x = _receptors(args, np.size(description.tractor_x_m), hypothesis)
+    window = float(x[-1] - x[0])
+    frames = _scan_frames(args)
+    out = choose_out(args.out, Path(f"metamer-{description.display_id}"), args.force)
 
     tractors = TractorFamily.from_display(description, young)
     grating = SinusoidFamily(target_spec["pitch"], target_spec["phase"])

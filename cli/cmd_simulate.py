@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import RunReport, add_report_options, choose_out
+from .common import RunReport, add_report_options, choose_out, staged_outputs
+from .material_option import add_material_option, describe_material, read_material_option
 
 NAME = "simulate"
 HELP = ("simulate a finger scene file (TOML, units like 0.8N, 3mm, 20mm/s): write the sensors' recording "
@@ -26,6 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "contact, the sensor depth and the surface relief)")
     parser.add_argument("--seed", type=int, default=None,
                         help="seed of the sensor noise (noise_std of the scene's sensors); default: noise-free")
+    add_material_option(parser)
     parser.add_argument("--no-plots", action="store_true", help="write the recording only")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     add_report_options(parser)
@@ -44,13 +46,24 @@ def run(args: argparse.Namespace) -> int:
         if spacing <= 0:
             raise ValueError(f"--grid-spacing: must be > 0, got {args.grid_spacing!r}; e.g. 50um")
     scene = load_scene(args.scene)
+    material = read_material_option(args, replaces=())
     report = RunReport("simulate")
+    created = args.out is None or not args.out.exists()
+    if material is not None:
+        if material.is_layered:
+            raise ValueError("--material: a scene simulation takes an elastic or viscoelastic material, got a layered "
+                             "one; solve a layered skin with the stress and contact commands")
+        scene = scene.model_copy(update={"material": material})
+        note = "; the scan is quasi-static: it uses the relaxed modulus" if material.is_viscoelastic else ""
+        report.computed.append(f"skin from --material (replaces the scene's): {describe_material(material)}{note}")
     out = report.watch(choose_out(args.out, Path(f"{scene.name or args.scene.stem}-simulation"), args.force))
     rng = np.random.default_rng(args.seed) if args.seed is not None else None
-    with report.collecting_warnings():
-        lines = simulate_scene(scene, out, fmt=args.format, rng=rng, progress=not (args.quiet or args.json),
+    with report.collecting_warnings(), staged_outputs(out, created) as stage:  # no partial output if a warning is an error
+        lines = simulate_scene(scene, stage, fmt=args.format, rng=rng, progress=not (args.quiet or args.json),
                                grid_spacing=spacing, plots=not args.no_plots)
     for line in lines:
+        if line.startswith("recording: ") and scene.display is None:
+            _model_data(report, out / Path(line.removeprefix("recording: ")).name)  # the stage moved into out
         if line.startswith("method: "):
             report.method = line.removeprefix("method: ")
         elif line.startswith("model errors: "):
@@ -70,3 +83,14 @@ def run(args: argparse.Namespace) -> int:
         report.dropped.append("plots: --no-plots")
     report.emit(args.json)
     return 0
+
+
+def _model_data(report: RunReport, path: Path) -> None:
+    """The interface model the recording states, machine-readable in the summary (``--json``)."""
+    from tactilab.data_schemas import read_recording
+    from tactilab.data_schemas.interface_model import recording_model
+
+    stated = recording_model(read_recording(path), path)
+    if stated is not None:
+        report.data.update(interface_model=stated["model"], interface_model_tol=stated["tol"],
+                           interface_model_errors=stated["errors"], interface_model_error_basis=stated["basis"])

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import RunReport, add_report_options, choose_out
+from .common import RunReport, add_report_options, choose_out, staged_outputs
+from .material_option import add_material_option, describe_material, read_material_option
 
 NAME = "stress"
 HELP = ("strain (default; dimensionless, tensor shear) or stress (Pa) at given depths (mm) under a load file "
@@ -26,8 +27,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", default="auto", choices=("auto", "spectral", "dcfft", "closed_form"),
                         help="solution method (default: auto, chosen from the scene and --tol)")
     parser.add_argument("--tol", type=float, default=1e-6, help="requested relative error, dimensionless (default 1e-6)")
-    parser.add_argument("--young-modulus", default="1MPa", help="skin Young's modulus with unit (default 1MPa)")
-    parser.add_argument("--nu", type=float, default=0.5, help="Poisson's ratio, dimensionless, in (-1, 0.5] (default 0.5)")
+    parser.add_argument("--young-modulus", default=None, help="skin Young's modulus with unit (default 1MPa)")
+    parser.add_argument("--nu", type=float, default=None, help="Poisson's ratio, dimensionless, in (-1, 0.5] (default 0.5)")
+    add_material_option(parser)
+    parser.add_argument("--time", default=None,
+                        help="with a viscoelastic --material: how long the load has been held, with unit, e.g. 70ms "
+                             "(default 0: the instantaneous response); the strain creeps, the stress does not")
     parser.add_argument("--out", type=Path, default=None,
                         help="output folder for field.nc (SI) and field.png (mm, kPa or strain); default: a new "
                              "folder <load stem>-stress (then -2, -3, ...); an existing non-empty one needs --force")
@@ -41,24 +46,61 @@ def run(args: argparse.Namespace) -> int:
 
     report = RunReport("stress")
     depths = [to_si(d, "length", name="--depth") for d in args.depth]
-    young = to_si(args.young_modulus, "pressure", name="--young-modulus")
+    material = read_material_option(args)
+    skin, skin_text = _skin(args, material)
     load = read_load(args.load)
+    created = args.out is None or not args.out.exists()
     out = report.watch(choose_out(args.out, Path(f"{args.load.stem}-stress"), args.force))
     components = [c.strip() for c in args.components.split(",") if c.strip()]
-    with report.collecting_warnings():
-        hs = HalfSpace(E=young, nu=args.nu)
-        compute = hs.stress if args.quantity == "stress" else hs.strain
-        result = compute(load, depths, components=components, method=args.method, tol=args.tol)
-        write_field(result, out)
+    with report.collecting_warnings(), staged_outputs(out, created) as stage:  # no partial output if a warning is an error
+        compute = skin.stress if args.quantity == "stress" else skin.strain
+        elastic = isinstance(skin, HalfSpace)
+        if not elastic and args.method != "auto":
+            raise ValueError(f"--method: a layered --material has its own solver, got --method {args.method}; "
+                             "drop --method")
+        options = {"method": args.method} if elastic else {}
+        result = compute(load, depths, components=components, tol=args.tol, **options)
+        write_field(result, stage)
     what = "stress (Pa)" if args.quantity == "stress" else "strain (dimensionless, tensor shear)"
     grid = " x ".join(str(n) for n in load.shape) + f" grid, spacing {load.dx * 1e3:g} mm"
     report.computed.append(f"{what}, components {', '.join(components)}, at depths "
                            f"{', '.join(f'{z * 1e3:g}' for z in depths)} mm on a {grid}; "
-                           f"E = {young * 1e-3:g} kPa, nu = {args.nu:g}")
-    report.method = f"{result.method} ({result.reason})"
+                           f"{skin_text}")
+    report.method = f"{result.method} ({getattr(result, 'reason', 'the layered solver')})"
     report.error_estimate = (f"estimated relative error {result.error_estimate:.1e} (max error relative to the field's peak; "
                              f"requested --tol {args.tol:g})")
     report.data.update(quantity=args.quantity, components=components, depths_mm=[z * 1e3 for z in depths],
                        method_name=result.method, relative_error=float(result.error_estimate))
     report.emit(args.json)
     return 0
+
+
+def _skin(args: argparse.Namespace, material):
+    """The elastic skin the field is computed on, and its line for the report.
+
+    A viscoelastic material under tractions held for ``--time`` t has the elastic stress and the
+    strain of the elastic skin of modulus 1 / J(t) (the correspondence principle at constant nu)."""
+    from tactilab.core import rules
+    from tactilab.data_schemas.units import to_si
+    from tactilab.forward import HalfSpace, skin_from_material
+
+    time = None
+    if args.time is not None:
+        time = to_si(args.time, "time", name="--time")
+        if not time >= 0:
+            raise ValueError(f"--time: must be >= 0 (0 is the instant the load is applied), got {args.time!r}; e.g. 70ms")
+    if material is None or not material.is_viscoelastic:
+        if time is not None:
+            raise ValueError("--time: only a viscoelastic --material (model prony or sls) depends on time; drop --time")
+    if material is None:
+        young = to_si(args.young_modulus or "1MPa", "pressure", name="--young-modulus")
+        nu = 0.5 if args.nu is None else rules.poisson_ratio(args.nu, "--nu")
+        return HalfSpace(E=young, nu=nu), f"E = {young * 1e-3:g} kPa, nu = {nu:g}"
+    skin = skin_from_material(material)
+    text = describe_material(material)
+    if material.is_viscoelastic:
+        held = time or 0.0
+        skin = skin.at(held)
+        text += (f"; tractions held for {held * 1e3:g} ms: the strain of the elastic skin of modulus 1/J(t) = "
+                 f"{skin.E * 1e-3:g} kPa (the stress does not depend on the modulus)")
+    return skin, text

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from .batch_options import add_worker_options, batch_where, wants_batch
 from .common import RunReport, add_report_options, make_out
+from .material_option import add_material_option, describe_material, read_material_option
 
 NAME = "synthesis"
 HELP = ("design a laterotactile display: optimal tractor half spacing d (mm) for receptors at a depth, "
@@ -24,6 +26,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--amplitude", default=None,
                         help="virtual sinusoid amplitude A, a length such as 50um (needs --young-modulus)")
     parser.add_argument("--young-modulus", default=None, help="skin Young's modulus E, a pressure such as 200kPa")
+    add_material_option(parser)
+    parser.add_argument("--drive-frequency", default=None,
+                        help="with a viscoelastic --material: the display's drive frequency, e.g. 100Hz; the traction "
+                             "is matched with |E*(2 pi f)| (default: the relaxed modulus, a quasi-static drive)")
     parser.add_argument("--traction-limit", default=None,
                         help="per-tractor traction limit, a pressure such as 5kPa (needs --young-modulus)")
     parser.add_argument("--footprint", default=None,
@@ -53,6 +59,8 @@ def _lengths(text: str, name: str) -> list[float]:
 
 
 def _integers(text: str, name: str) -> list[int]:
+    from tactilab.forward.tractors import check_pairs
+
     out = []
     for item in str(text).split(","):
         try:
@@ -61,7 +69,7 @@ def _integers(text: str, name: str) -> list[int]:
             raise ValueError(f"{name}: expected integers >= 1 (e.g. 5 or 3,5,7), got {text!r}") from None
         if value < 1:
             raise ValueError(f"{name}: the number of tractor pairs must be >= 1, got {value}; e.g. 5")
-        out.append(value)
+        out.append(check_pairs(value, name))  # the memory rule, before any array exists
     return out
 
 
@@ -86,6 +94,35 @@ class _Options:
                              "give its size, e.g. 50um (a sign only shifts the phase)")
         self.young = None if args.young_modulus is None else rules.young_modulus(
             to_si(args.young_modulus, "pressure", name="--young-modulus"), "--young-modulus")
+        self.material = read_material_option(args, replaces=("young_modulus",))
+        self.skin = None  # the closed-form half-space; a layered material designs on its layers
+        if self.material is not None and self.material.is_layered:
+            from tactilab.forward import skin_from_material
+
+            if args.amplitude is not None or args.traction_limit is not None:
+                raise ValueError("--material: a layered skin gets its optimal spacing here, not its matching traction "
+                                 "(the grating's strain on layers has no closed form); drop --amplitude and "
+                                 "--traction-limit")
+            self.skin = skin_from_material(self.material)
+        elif self.material is not None:
+            if self.material.poisson_ratio != 0.5:
+                raise ValueError(f"--material: the synthesis design assumes nu = 1/2 (plane strain, incompressible), "
+                                 f"got poisson_ratio {self.material.poisson_ratio!r}; set it to 0.5")
+            self.young = self.material.young_modulus_pa  # viscoelastic: the relaxed modulus (quasi-static)
+        self.drive = None if args.drive_frequency is None else to_si(args.drive_frequency, "frequency",
+                                                                      name="--drive-frequency")
+        if self.drive is not None:
+            if self.material is None or not self.material.is_viscoelastic:
+                raise ValueError("--drive-frequency: only a viscoelastic --material (model prony or sls) depends on "
+                                 "the drive frequency; drop --drive-frequency")
+            if not self.drive >= 0:
+                raise ValueError(f"--drive-frequency: must be >= 0 Hz, got {args.drive_frequency!r}; e.g. 100Hz")
+            from tactilab.forward import skin_from_material
+
+            # under given tractions the strain is J* times the stress: the matching traction scales with |E*|
+            self.complex_modulus = complex(skin_from_material(self.material).prony.complex_modulus(
+                2 * math.pi * self.drive))
+            self.young = abs(self.complex_modulus)
         self.limit = None if args.traction_limit is None else rules.positive(
             to_si(args.traction_limit, "pressure", name="--traction-limit"), "--traction-limit", "Pa", fix=_FIX)
         self.footprint = None if args.footprint is None else rules.positive(
@@ -139,6 +176,19 @@ def run(args: argparse.Namespace) -> int:
     say = (lambda *a: None) if args.json else print
     footprint = "d (half the tractor pitch)" if opts.footprint is None else f"{opts.footprint * 1e3:g} mm"
     say("tactile synthesis design (docs/theory.md 4a; plane strain, nu = 1/2, tractors as line loads)")
+    if opts.material is not None:
+        skin = describe_material(opts.material)
+        if opts.material.is_viscoelastic and opts.drive is None:
+            skin += ("; traction and amplitude use the relaxed modulus (quasi-static): under its tractions the "
+                     "display's strain lags and creeps (docs/theory.md section 7); --drive-frequency sets the rate")
+        elif opts.material.is_viscoelastic:
+            lag = math.degrees(math.atan2(opts.complex_modulus.imag, opts.complex_modulus.real))
+            skin += (f"; driven at {opts.drive:g} Hz: traction and amplitude use |E*| = {opts.young * 1e-3:.4g} kPa, "
+                     f"and the strain lags the traction by {lag:.3g} deg (docs/theory.md section 7)")
+        if opts.skin is not None:
+            skin += "; the tractors' strain shapes are the layered skin's (docs/layered_skin.md), slower to design"
+        say(f"skin from --material: {skin}")
+        report.computed.append(f"skin from --material: {skin}")
     say("objective J(d) over x in [-w/2, w/2]; optimum = lowest non-trivial local minimum, d in "
           "[0.2 Z, 5 Z]; k2 = max S_Psi, k2p = S_Psi(d)")
     if opts.amplitude is not None:
@@ -149,7 +199,7 @@ def run(args: argparse.Namespace) -> int:
     say()
     say("design")
     say(_header(opts))
-    designs = [synthesis.optimal_half_spacing(z, opts.width, opts.pairs) for z in opts.depths]
+    designs = [synthesis.optimal_half_spacing(z, opts.width, opts.pairs, skin=opts.skin) for z in opts.depths]
     for design in designs:
         say(_row(design, opts))
     _summarise(report, designs, opts)
@@ -160,13 +210,13 @@ def run(args: argparse.Namespace) -> int:
     say()
     say(f"sensitivity to the window width (depth {z * 1e3:g} mm, pairs {opts.pairs})")
     say(_header(opts))
-    by_width = [synthesis.optimal_half_spacing(z, w, opts.pairs) for w in opts.widths]
+    by_width = [synthesis.optimal_half_spacing(z, w, opts.pairs, skin=opts.skin) for w in opts.widths]
     for design in by_width:
         say(_row(design, opts))
     say()
     say(f"sensitivity to the number of pairs (depth {z * 1e3:g} mm, width {opts.width * 1e3:g} mm)")
     say(_header(opts))
-    by_pairs = [synthesis.optimal_half_spacing(z, opts.width, n) for n in opts.pairs_list]
+    by_pairs = [synthesis.optimal_half_spacing(z, opts.width, n, skin=opts.skin) for n in opts.pairs_list]
     for design in by_pairs:
         say(_row(design, opts))
     for label, group in (("width", by_width), ("pairs", by_pairs)):
@@ -213,6 +263,9 @@ def _run_batch(args: argparse.Namespace, opts: _Options) -> int:
 
     from tactilab.experiments.modelling import design_sweep
 
+    if opts.skin is not None:
+        raise ValueError("--workers/--scheduler: the batch design table is for the half-space; run a layered "
+                         "--material without --workers")
     if opts.amplitude is not None or opts.limit is not None:
         raise ValueError("--workers/--scheduler: the batch design table has no matching columns; drop --amplitude "
                          "and --traction-limit (run without --workers for them)")

@@ -4,10 +4,30 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import sys
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+
+
+#: every warning printed during the current command, one line each: ``main()`` empties it when a command starts
+#: and routes every warning through :func:`print_warning`, so a run summary counts all it printed
+PRINTED_WARNINGS: list[str] = []
+
+
+def print_warning(command: str, message) -> str:
+    """Print ``message`` as one ``tactilab COMMAND: warning: ...`` line on stderr and count it.
+
+    The one path for warnings: ``main()``'s ``warnings.showwarning``, :meth:`RunReport.collecting_warnings`
+    and a command's own notices all come here, so every warning printed is in the summary's count.
+    """
+    from tactilab.core.outputs import printable
+
+    text = printable(" ".join(str(message).split()))
+    print(f"tactilab {command}: warning: {text}", file=sys.stderr)
+    PRINTED_WARNINGS.append(text)
+    return text
 
 
 def make_out(folder: Path, option: str = "--out") -> Path:
@@ -50,6 +70,37 @@ def choose_out(out: Path | None, default: Path, force: bool = False, option: str
     return make_out(candidate, option)
 
 
+@contextlib.contextmanager
+def staged_outputs(out: Path, created: bool = False):
+    """Yield a hidden staging folder inside ``out``; move what was written there into ``out`` only when the
+    block succeeds.
+
+    A run that fails part-way (an error, or a warning that ``--strict`` turns into one) leaves no partial
+    output behind: the staging folder is removed, and ``out`` itself too when the run created it and it
+    is still empty. On success each file replaces its namesake in ``out`` (``--force`` was checked by
+    :func:`choose_out`).
+    """
+    import shutil
+    import tempfile
+
+    out = Path(out)
+    stage = Path(tempfile.mkdtemp(prefix=".tactilab-partial-", dir=out))
+    try:
+        yield stage
+        for path in sorted(stage.rglob("*")):
+            target = out / path.relative_to(stage)
+            if path.is_dir():
+                target.mkdir(exist_ok=True)
+            else:
+                os.replace(path, target)
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        if created and not any(out.iterdir()):
+            out.rmdir()  # refused: leave no empty folder behind
+        raise
+    shutil.rmtree(stage, ignore_errors=True)
+
+
 def _files_below(folder: Path) -> dict[str, float]:
     return {str(p): p.stat().st_mtime_ns for p in sorted(Path(folder).rglob("*")) if p.is_file()}
 
@@ -71,7 +122,8 @@ class RunReport:
     dropped : list of str
         What was left out and why (sensors, samples, components, ...); empty when nothing was.
     warnings : list of str
-        Warnings issued during the run (one line each).
+        Every warning printed during the command, one line each (read-only: :data:`PRINTED_WARNINGS`,
+        which also holds those printed before the report existed, e.g. while reading options).
     out : Path or None
         Output folder; ``files`` lists the files written there.
     data : dict
@@ -83,7 +135,6 @@ class RunReport:
     method: str = ""
     error_estimate: str = "not estimated"
     dropped: list[str] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
     out: Path | None = None
     files: list[str] = field(default_factory=list)
     data: dict = field(default_factory=dict)
@@ -95,14 +146,21 @@ class RunReport:
         self._before = _files_below(self.out)
         return self.out
 
+    @property
+    def warnings(self) -> list[str]:
+        """Every warning printed during this command (see :func:`print_warning`)."""
+        return list(PRINTED_WARNINGS)
+
     @contextlib.contextmanager
     def collecting_warnings(self):
-        """Collect warnings raised inside (each printed as one line on stderr and kept for the summary).
+        """Print every warning raised inside, repeated ones too, through :func:`print_warning` (so the
+        summary counts it).
 
         The caller's filters stay in force, so ``tactilab --strict`` still turns plausibility warnings
         into errors.
         """
-        with warnings.catch_warnings(record=True) as caught:
+        with warnings.catch_warnings():
+            warnings.showwarning = lambda message, *_, **__: print_warning(self.command, message)
             errors = [f for f in warnings.filters if f[0] == "error"]
             warnings.simplefilter("always", UserWarning)  # every run reports its own, repeated or not
             warnings.simplefilter("always", RuntimeWarning)
@@ -110,10 +168,6 @@ class RunReport:
                 warnings.filterwarnings("error", message.pattern if message else "", category,
                                         module.pattern if module else "", lineno)
             yield
-        for w in caught:
-            text = " ".join(str(w.message).split())
-            print(f"tactilab {self.command}: warning: {text}", file=sys.stderr)
-            self.warnings.append(text)
 
     def as_dict(self) -> dict:
         """The summary as a JSON-ready dict."""
@@ -154,6 +208,21 @@ def _json_default(value):
     if isinstance(value, Path):
         return str(value)
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+@contextlib.contextmanager
+def renamed(mapping: dict[str, str]):
+    """Re-word a library error that names a parameter (``max_steps: ...; give max_steps at most N``) so it
+    names the command-line option that sets it (``--max-steps``)."""
+    try:
+        yield
+    except ValueError as exc:
+        text = str(exc)
+        for parameter, option in mapping.items():
+            if text.startswith(parameter + ":"):
+                rest = text[len(parameter):].replace(f"give {parameter} at most", f"give {option} at most")
+                raise ValueError(option + rest) from None
+        raise
 
 
 def check_hypothesis(text: str, option: str):

@@ -205,6 +205,10 @@ def _scene_or_map(path: Path, args, spacing):
         if scene.contact is None:
             raise ValueError(f"{path}: the scene has no finger contact (a display drives the skin); give a scene "
                              "with a [contact] table")
+        if scene.contact.periodic:
+            raise ValueError(f"{path}: the scene is a periodic cell (mean_pressure) without a finger; simulate it with "
+                             "tactilab simulate, or press its surface here as a built-in (e.g. sinusoid:A=2um,p=1mm "
+                             "--periodic --plane-strain --mean-pressure 3kPa)")
         return scene, None
     from tactilab.data_schemas.height_map import read_height_map
 

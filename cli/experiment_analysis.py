@@ -12,9 +12,10 @@ import math
 from pathlib import Path
 
 from .batch_options import add_worker_options, batch_where, wants_batch
-from .common import check_hypothesis, make_out
+from .common import check_hypothesis, make_out, renamed
 
 _JSON_HELP = "print one JSON object (the summary, SI units or units in the key names) instead of text"
+_FORCE_HELP = "replace PNGs of the same name that an earlier run wrote (without it they are refused)"
 
 
 def add_subcommands(sub) -> None:
@@ -26,7 +27,10 @@ def add_subcommands(sub) -> None:
                      help="auto (default: weibull on log levels for amplitude, pitch and duration, norm for a signed "
                           "speed), weibull or lognorm (log levels), or norm, logistic, gumbel, rgumbel, tdist (linear "
                           "levels: signed quantities only)")
-    fit.add_argument("--out", type=Path, default=None, help="folder for the PNGs (default: the first session's folder)")
+    fit.add_argument("--out", type=Path, default=None,
+                     help="folder for the PNGs, fit_01.png, ... (default: the first session's folder, with the "
+                          "session's name first: <session>_fit_01.png, ...); an existing PNG needs --force")
+    fit.add_argument("--force", action="store_true", help=_FORCE_HELP)
     fit.add_argument("--seed", type=int, default=0, help="seed for posterior draws (default 0)")
     fit.add_argument("--json", action="store_true", help=_JSON_HELP)
     fit.set_defaults(_run=run_fit)
@@ -51,8 +55,10 @@ def add_subcommands(sub) -> None:
                      help="--method emcee only: step limit per ensemble (steps; default 20000); stops earlier once "
                           "converged")
     cmp.add_argument("--out", type=Path, default=None,
-                     help="folder for the PNG (default: the first session's folder); with --workers or --scheduler "
+                     help="folder for the PNG, compare.png (default: the first session's folder, as "
+                          "<session>_compare.png; an existing PNG needs --force); with --workers or --scheduler "
                           "the batch folder (default: <first session's folder>/compare-batch; the same folder resumes)")
+    cmp.add_argument("--force", action="store_true", help=_FORCE_HELP)
     cmp.add_argument("--json", action="store_true", help=_JSON_HELP)
     add_worker_options(cmp, default_help="one pooled fit per model in-process, no batch; with --workers or "
                                          "--scheduler the sessions are grouped by their subject and each "
@@ -74,7 +80,9 @@ def add_subcommands(sub) -> None:
     power.add_argument("--lapse", type=float, default=0.02, help="lapse rate in [0, 0.5) (default 0.02)")
     power.add_argument("--false-alarm", type=float, default=0.16, help="yes/no false-alarm rate (default 0.16)")
     power.add_argument("--out", type=Path, default=Path("."),
-                       help="folder for the PNG (default .); the simulated sweep's results go to <out>/power-batch")
+                       help="folder for the PNG, power.png (default .; an existing one needs --force); the simulated "
+                            "sweep's results go to <out>/power-batch (the same folder resumes)")
+    power.add_argument("--force", action="store_true", help=_FORCE_HELP)
     power.add_argument("--seeds", type=int, default=None, metavar="N",
                        help="also simulate: N independent power estimates per trial count (count), one batch task "
                             "each (with --trials)")
@@ -89,19 +97,29 @@ def add_subcommands(sub) -> None:
     power.set_defaults(_run=run_power)
 
 
-def _out(args) -> Path:
-    return make_out(args.out if args.out is not None else args.sessions[0].parent)
+def _figure(args, name: str, index: int | None = None) -> Path:
+    """Where a figure goes: ``--out/name`` or, by default, next to the first session with its name first
+    (``<session>_name``), so analysing a second session in the same folder never replaces the first's;
+    an existing file is refused without ``--force`` (:func:`tactilab.core.outputs.new_file`)."""
+    from tactilab.core.outputs import new_file
+
+    stem, suffix = name.rsplit(".", 1)
+    stem = stem if index is None else f"{stem}_{index:02d}"
+    if args.out is not None:
+        return new_file(make_out(args.out) / f"{stem}.{suffix}", args.force)
+    first = Path(args.sessions[0])
+    more = f"+{len(args.sessions) - 1}" if len(args.sessions) > 1 else ""
+    return new_file(make_out(first.parent) / f"{first.stem}{more}_{stem}.{suffix}", args.force)
 
 
 def run_fit(args: argparse.Namespace) -> int:
     from tactilab.experiments.modelling import fit_conditions
 
     fits = fit_conditions(args.sessions, sigmoid=args.sigmoid, rng=args.seed)
-    out = _out(args)
+    paths = [_figure(args, "fit.png", i + 1) for i in range(len(fits))]  # all checked before any is written
     if args.json:
         rows = []
-        for i, c in enumerate(fits):
-            path = out / f"fit_{i + 1:02d}.png"
+        for c, path in zip(fits, paths):
             c.fit.plot(path, xlabel=f"{c.parameter.rsplit('_', 1)[0]} ({c.unit.replace('um', 'µm')})", title=c.label)
             th = c.fit.params["threshold"]
             rows.append(dict(condition=c.label, parameter=c.parameter, unit=c.unit, n_trials=c.n_trials,
@@ -110,11 +128,10 @@ def run_fit(args: argparse.Namespace) -> int:
         print(json.dumps({"command": "experiment fit", "conditions": rows}))
         return 0
     print(f"{'condition':52s} {'trials':>6s} {'threshold [95 % interval]':>32s} {'width':>9s} {'lapse':>6s} {'gof p':>6s}")
-    for i, c in enumerate(fits):
+    for c, path in zip(fits, paths):
         th, w, lam = (c.fit.params[k] for k in ("threshold", "width", "lapse"))
         interval = f"{th.map:.3g} [{th.ci95[0]:.3g}, {th.ci95[1]:.3g}] {c.unit}"
         print(f"{c.label:52s} {c.n_trials:6d} {interval:>32s} {w.map:9.3g} {lam.map:6.3f} {c.fit.gof_p:6.2f}")
-        path = out / f"fit_{i + 1:02d}.png"
         c.fit.plot(path, xlabel=f"{c.parameter.rsplit('_', 1)[0]} ({c.unit.replace('um', 'µm')})", title=c.label)
         print(f"  wrote {path}")
     return 0
@@ -154,11 +171,11 @@ def run_compare(args: argparse.Namespace) -> int:
     from tactilab.experiments.modelling import compare_sessions, plot_comparison
 
     display = _recorded_display(args.sessions) if args.source == "display" else None
-    table, fits = compare_sessions(args.sessions, args.model, statistic=args.statistic, rng=args.seed,
-                                   method=args.method, sampler_options=_sampler(args), source=args.source,
-                                   display=display)
-    out = _out(args)
-    path = out / "compare.png"
+    path = _figure(args, "compare.png")  # checked before the fits
+    with renamed({"max_steps": "--max-steps"}):  # emcee's memory rule names the option
+        table, fits = compare_sessions(args.sessions, args.model, statistic=args.statistic, rng=args.seed,
+                                       method=args.method, sampler_options=_sampler(args), source=args.source,
+                                       display=display)
     plot_comparison(table, fits, path)
     if args.json:
         print(json.dumps({"command": "experiment compare", "models": {
@@ -246,13 +263,25 @@ def run_power(args: argparse.Namespace) -> int:
     from tactilab.experiments.modelling import plot_power, read_design
     from tactilab.experiments.modelling import TransductionModel, power_analysis
 
+    from tactilab.core.outputs import new_file
+
     ns = _counts(args.trials, "--trials") if args.trials is not None else None
     if args.seeds is None and (wants_batch(args) or args.trials is not None):
         raise ValueError("--seeds: --workers, --scheduler and --trials belong to the simulated sweep; give the number "
                          "of simulated power estimates per trial count, e.g. --seeds 4")
+    if args.seeds is not None and args.repeats < 1:
+        raise ValueError(f"--repeats: must be >= 1 simulated experiment, got {args.repeats}; e.g. 100")
     check_hypothesis(args.true_model, "--true")
     check_hypothesis(args.rival, "--rival")
     design = read_design(args.design)
+    if args.seeds is not None:  # the sweep's sizes and memory, before anything is computed or written
+        from tactilab.experiments.modelling import check_power_sweep
+
+        n_design = sum(n for _, n in design)
+        ns = ns if ns is not None else [n_design, 2 * n_design, 4 * n_design]
+        with renamed({"n_seeds": "--seeds", "n_repeats": "--repeats", "n_trials": "--trials"}):
+            check_power_sweep(ns, args.seeds, args.repeats)
+    path = new_file(args.out / "power.png", args.force)  # before the computation: an earlier run's PNG stays
     true_model, rival = TransductionModel(args.true_model), TransductionModel(args.rival)
     threshold = args.threshold
     if threshold is None:
@@ -264,19 +293,16 @@ def run_power(args: argparse.Namespace) -> int:
     result = power_analysis(true_model, params, rival, design, task=args.task)
     n_design = sum(n for _, n in design)
     make_out(args.out)
-    path = args.out / "power.png"
     plot_power(result, path, int(min(max(2 * result.trials_for(4.0), 4 * n_design), 1e6))
                if math.isfinite(result.trials_for(4.0)) else 4 * n_design)
     sweep = None
     if args.seeds is not None:
         from tactilab.experiments.modelling import power_sweep
 
-        ns = ns if ns is not None else [n_design, 2 * n_design, 4 * n_design]
-        if args.repeats < 1:
-            raise ValueError(f"--repeats: must be >= 1 simulated experiment, got {args.repeats}; e.g. 100")
         sweep = power_sweep(true_model, params, rival, design, ns, n_seeds=args.seeds, seed=args.seed,
-                            out_dir=args.out / "power-batch", task=args.task, n_repeats=args.repeats, progress=not args.json,
-                            echo=(lambda _: None) if args.json else print, **batch_where(args))
+                            out_dir=args.out / "power-batch", task=args.task, n_repeats=args.repeats,
+                            progress=not args.json, echo=(lambda _: None) if args.json else print,
+                            **batch_where(args))
     need = {z: result.trials_for(z) for z in (2.0, 4.0)}
     if args.json:
         summary = dict(command="experiment power", true=args.true_model, rival=args.rival, threshold_strain=threshold,

@@ -28,9 +28,11 @@ def add_observer_args(p: argparse.ArgumentParser) -> None:
                    help="with --observer: 'peak' (largest |readout|, default) or 'rms' of the readout")
     p.add_argument("--observer-threshold", default=None, help=_THRESHOLD_HELP)
     p.add_argument("--observer-strain", default=None,
-                   help="simulated observer feels 'surface' (the ideal virtual surface's strain) or 'display' (what "
-                        "the simulated display renders after the safety limits, clipping included); default display "
-                        "whenever the display is simulated, else surface; on resume the session's own")
+                   help="simulated observer feels 'surface' (the ideal virtual surface's strain), 'display' (what "
+                        "the simulated display renders after the safety limits, clipping included) or, with "
+                        "--observer, 'contact' (a physical grating pressed by the protocol's [finger], through the "
+                        "solved contact); default display whenever the display is simulated, else surface; on "
+                        "resume the session's own")
 
 
 def _simulated(display) -> bool:
@@ -68,8 +70,8 @@ def _hypothesis_observer(protocol, display, args, recorded, hypothesis, strain):
 
     check_hypothesis(hypothesis, "--observer")
     source = strain if strain is not None else recorded.get("strain", "surface")
-    if source not in ("surface", "display"):
-        raise ValueError(f"--observer-strain: must be 'surface' or 'display', got {source!r}")
+    if source not in ("surface", "display", "contact"):
+        raise ValueError(f"--observer-strain: must be 'surface', 'display' or 'contact', got {source!r}")
     if source == "display" and not _simulated(display):
         raise ValueError("--observer-strain: 'display' needs a simulated display (--display sim); use surface")
     if args.observer_threshold is not None:
@@ -82,6 +84,12 @@ def _hypothesis_observer(protocol, display, args, recorded, hypothesis, strain):
     if not threshold > 0:
         raise ValueError(f"--observer-threshold: must be a strain > 0, got {args.observer_threshold!r}; e.g. 1.4e-3")
     statistic = args.observer_statistic or recorded.get("statistic", "peak")
-    return hypothesis_observer(protocol, hypothesis, threshold_strain=threshold, statistic=statistic, source=source,
-                               display=display if source == "display" else None, seed=recorded.get("seed"),
-                               exponent=recorded.get("exponent", 1.0), lapse=recorded.get("lapse", 0.0))
+    try:
+        return hypothesis_observer(protocol, hypothesis, threshold_strain=threshold, statistic=statistic,
+                                   source=source, display=display if source == "display" else None,
+                                   seed=recorded.get("seed"), exponent=recorded.get("exponent", 1.0),
+                                   lapse=recorded.get("lapse", 0.0))
+    except ValueError as exc:
+        if str(exc).startswith("source:"):
+            raise ValueError("--observer-strain" + str(exc)[len("source"):]) from None
+        raise

@@ -104,10 +104,13 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_USER_ERROR
     from tactilab.data_schemas.plausibility import PlausibilityWarning
 
-    def one_line_warning(message, category, filename, lineno, file=None, line=None):
-        # users see one line per warning, never the warnings module's source line
-        print(f"tactilab {args.command}: warning: {one_line(Warning(str(message)))}", file=sys.stderr)
+    from .common import PRINTED_WARNINGS, print_warning
 
+    def one_line_warning(message, category, filename, lineno, file=None, line=None):
+        # users see one line per warning, never the warnings module's source line; each is counted
+        print_warning(args.command, message)
+
+    PRINTED_WARNINGS.clear()  # this command's summary counts this command's warnings
     with warnings.catch_warnings():
         warnings.showwarning = one_line_warning
         if args.strict:

@@ -32,6 +32,9 @@ _EXPORTS = {
     "stable_hash": "batch",
     "task_rng": "batch",
     "write_netcdf_atomic": "batch",
+    "write_netcdf": "netcdf",
+    "cf_ready": "netcdf",
+    "cf_problems": "netcdf",
 }
 
 __version__ = package_version()

@@ -46,6 +46,7 @@ import numpy as np
 
 from .batch_cluster import (BATCH_CLUSTER_CONFIG, CONNECT_TIMEOUT_S, ONE_THREAD_ENV, batch_client,  # noqa: F401
                             local_cluster, one_thread)
+from .netcdf import cf_ready
 
 __all__ = ["stable_hash", "task_rng", "result_path", "read_result", "write_netcdf_atomic", "BatchReport", "batch_client",
            "run_batch"]
@@ -116,6 +117,9 @@ def _local_write_lock() -> Iterator[None]:
 def write_netcdf_atomic(data, path) -> pathlib.Path:
     """Write an ``xarray.Dataset`` or ``DataTree`` to netCDF4 (h5netcdf) at ``path``, atomically.
 
+    The file carries the CF attributes of :func:`tactilab.core.netcdf.cf_ready` (``Conventions``,
+    ``tactilab_version``, ``long_name`` on every variable, ``positive = "down"`` on ``depth``).
+
     The data go to a unique temporary file beside ``path``, then ``os.replace`` renames it, so a
     killed process never leaves a half-written file under the final name. Safe to call inside a Dask
     worker's task or beside a ``Client`` (a process-local write lock, see :func:`_local_write_lock`).
@@ -135,7 +139,7 @@ def write_netcdf_atomic(data, path) -> pathlib.Path:
     tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex}.tmp")
     try:
         with _local_write_lock():
-            data.to_netcdf(tmp, engine="h5netcdf")
+            cf_ready(data).to_netcdf(tmp, engine="h5netcdf")
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)

@@ -18,7 +18,7 @@ import secrets
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["output_path", "printable", "write_atomic"]
+__all__ = ["new_file", "output_path", "printable", "write_atomic"]
 
 
 def output_path(out: str | Path, *parts: str, option: str = "--out") -> Path:
@@ -79,13 +79,7 @@ def write_atomic(target: str | Path, write: Callable[[Path], object], *, overwri
     ValueError
         If ``target`` is a symlink, or exists and ``overwrite`` is False.
     """
-    target = Path(target)
-    if os.path.islink(target):
-        raise ValueError(f"{option}: {printable(str(target))} is a symlink; tactilab never writes through a "
-                         "link, remove it or export to another folder")
-    if os.path.lexists(target) and not overwrite:
-        raise ValueError(f"{option}: {printable(str(target))} already exists; export to another folder, or add "
-                         "--force to replace it")
+    target = new_file(target, overwrite, option)
     temporary = target.with_name(f".{target.name}.{secrets.token_hex(8)}.tmp")
     # O_EXCL: never an existing file or link; mode 0o666 less the umask, as for any new file
     os.close(os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o666))
@@ -101,6 +95,27 @@ def write_atomic(target: str | Path, write: Callable[[Path], object], *, overwri
         with contextlib.suppress(OSError):
             os.unlink(temporary)
         raise
+    return target
+
+
+def new_file(target: str | Path, overwrite: bool = False, option: str = "--out") -> Path:
+    """``target``, checked before anything is written to it: no symlink, and no existing file unless ``overwrite``.
+
+    The one rule for a file a command writes into a folder that holds other files (a figure next to a
+    session): an earlier run's file is never replaced silently, ``--force`` replaces it.
+
+    Raises
+    ------
+    ValueError
+        If ``target`` is a symlink, or exists and ``overwrite`` is False.
+    """
+    target = Path(target)
+    if os.path.islink(target):
+        raise ValueError(f"{option}: {printable(str(target))} is a symlink; tactilab never writes through a "
+                         "link, remove it or export to another folder")
+    if os.path.lexists(target) and not overwrite:
+        raise ValueError(f"{option}: {printable(str(target))} already exists; export to another folder, or add "
+                         "--force to replace it")
     return target
 
 

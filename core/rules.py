@@ -7,7 +7,7 @@ one table of good and bad values against every public entry point). Each error n
 argument, the rule, the value it got and the fix::
 
     depth: every depth must be finite and > 0 m (z points into the skin), got -0.001 at
-    index 0; give depths below the surface as positive metres
+    index 0; give depths below the surface as positive values in m, e.g. 1.25e-3
 
 Rules
 -----
@@ -70,6 +70,20 @@ def _number(value, name: str, what: str, fix: str) -> float:
         raise ValueError(f"{name}: {what}, got {show(value)}; {fix}") from None
 
 
+#: an example value per SI unit: (at a Python entry point, in SI; at a command-line option, with its suffix)
+_EXAMPLE = {"m": ("1.25e-3", "1.25mm"), "Pa": ("1.5e6", "1.5MPa"), "N": ("0.8", "0.8N"), "s": ("5e-3", "5ms"),
+            "Hz": ("100", "100Hz"), "m/s": ("0.02", "20mm/s"), "N/m": ("5e3", "5N/mm")}
+
+
+def _say_unit(name: str, unit: str) -> str:
+    """How to give a value of ``unit``: in SI at a Python entry point, with a unit suffix at a command-line
+    option (a name that starts with ``--``), so the fix never names a unit the caller cannot type."""
+    python, option = _EXAMPLE.get(unit, (None, None))
+    if name.startswith("--"):
+        return f"with a unit, e.g. {option}" if option else "with its unit"
+    return f"in {unit}, e.g. {python}" if python else f"in {unit}"
+
+
 def positive(value, name: str, unit: str = "m", fix: str = "") -> float:
     """A finite number > 0 (a length, force, modulus, rate ...), returned as float.
 
@@ -90,7 +104,7 @@ def positive(value, name: str, unit: str = "m", fix: str = "") -> float:
         ``"<name>: must be finite and > 0 <unit>, got <value>; <fix>"``.
     """
     in_unit = "" if unit == "1" else f" {unit}"  # "1": dimensionless, no unit to name
-    fix = fix or "give a finite value > 0" + (f" in {unit}" if in_unit else "")
+    fix = fix or "give a finite value > 0" + (f" {_say_unit(name, unit)}" if in_unit else "")
     v = _number(value, name, f"must be finite and > 0{in_unit}", fix)
     if not math.isfinite(v) or v <= 0:
         raise ValueError(f"{name}: must be finite and > 0{in_unit}, got {show(value)}; {fix}")
@@ -99,7 +113,7 @@ def positive(value, name: str, unit: str = "m", fix: str = "") -> float:
 
 def finite(value, name: str, unit: str = "1") -> float:
     """A finite number (no NaN or inf), returned as float; ``unit`` is its SI unit ("1": none), for the message."""
-    fix = "give a finite number" + (f" in {unit}" if unit != "1" else "")
+    fix = "give a finite number" + (f" {_say_unit(name, unit)}" if unit != "1" else "")
     v = _number(value, name, "must be finite", fix)
     if not math.isfinite(v):
         raise ValueError(f"{name}: must be finite, got {show(value)}; {fix}")
@@ -108,7 +122,8 @@ def finite(value, name: str, unit: str = "1") -> float:
 
 def young_modulus(value, name: str = "young_modulus") -> float:
     """Young's modulus: finite and > 0 Pa."""
-    fix = "give E in Pa (skin is about 1e5 to 4e6 Pa)"
+    fix = (f"give E {_say_unit(name, 'Pa')}"
+           + (" (skin is about 0.1 to 4 MPa)" if name.startswith("--") else " (skin is about 1e5 to 4e6 Pa)"))
     v = _number(value, name, "Young's modulus must be finite and > 0 Pa", fix)
     if not math.isfinite(v) or v <= 0:
         raise ValueError(f"{name}: Young's modulus must be finite and > 0 Pa, got {show(value)}; {fix}")
@@ -145,7 +160,7 @@ def depths(value, name: str = "depth") -> np.ndarray:
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise ValueError(f"{name}: every depth must be finite and > 0 m (z points into the skin), got {show(d[i])} "
-                         f"at index {i}; give depths below the surface as positive metres")
+                         f"at index {i}; give depths below the surface as positive values {_say_unit(name, 'm')}")
     return d
 
 
@@ -201,7 +216,8 @@ def spacing(value, ndim: int, name: str = "spacing") -> tuple[float, ...]:
             f"{name}: expected one value or {ndim} values (dx{', dy' if ndim == 2 else ''}) in m, "
             f"got {np.size(value)}: {value!r}; give the grid spacing x first")
     if not np.all(np.isfinite(values)) or np.any(values <= 0):
-        raise ValueError(f"{name}: grid spacing must be finite and > 0 m, got {value!r}; give it in metres")
+        raise ValueError(f"{name}: grid spacing must be finite and > 0 m, got {value!r}; give it "
+                         f"{_say_unit(name, 'm')}")
     return tuple(float(v) for v in values)
 
 

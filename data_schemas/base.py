@@ -287,7 +287,7 @@ class Record(BaseModel):
         return self.model_dump_json(indent=indent)
 
     @classmethod
-    def from_json(cls, text: str | bytes, where: str = "") -> Self:
+    def from_json(cls, text: str | bytes, where: str = "", *, context: dict | None = None) -> Self:
         """Build and validate a record from JSON text (as written by :meth:`to_json`).
 
         SI JSON loads as is; quantities may also carry unit suffixes as in scene files
@@ -307,7 +307,7 @@ class Record(BaseModel):
         if not isinstance(data, dict):
             raise ValueError(f"{prefix}a {cls.__name__} must be a JSON object, got {type(data).__name__}; "
                              "write it with Record.save")
-        return record_from_dict(cls, data, where)
+        return record_from_dict(cls, data, where, context=context)
 
     def save(self, path: str | pathlib.Path) -> pathlib.Path:
         """Write the record as JSON (SI units) to ``path`` and return the path."""
@@ -329,7 +329,7 @@ class Record(BaseModel):
             in :meth:`from_json`.
         """
         path = pathlib.Path(path)
-        return cls.from_json(path.read_text(encoding="utf-8"), where=str(path))
+        return cls.from_json(path.read_text(encoding="utf-8"), where=str(path), context={"folder": path.parent})
 
     def replace(self, **changes: Any) -> Self:
         """Return a copy with some fields changed, validated again (unlike ``model_copy``)."""
@@ -341,7 +341,7 @@ class Record(BaseModel):
 R = TypeVar("R", bound=Record)
 
 
-def record_from_dict(model: type[R], data: dict, where: str = "") -> R:
+def record_from_dict(model: type[R], data: dict, where: str = "", *, context: dict | None = None) -> R:
     """Convert a raw file table to SI and validate it as ``model``.
 
     Used by :meth:`Record.from_json` and by the TOML readers of :mod:`.files`.
@@ -354,6 +354,9 @@ def record_from_dict(model: type[R], data: dict, where: str = "") -> R:
         The raw table, as read from TOML or JSON; quantities may carry units.
     where : str
         Where the table came from (file name, table path), put at the start of errors.
+    context : dict, optional
+        Passed to the validators; ``{"folder": ...}`` is the folder of the file the table came
+        from, against which records resolve the files they name (a ``measured`` surface).
 
     Raises
     ------
@@ -365,7 +368,7 @@ def record_from_dict(model: type[R], data: dict, where: str = "") -> R:
         raise ValueError(f"{prefix}a {model.__name__} must be a table, got {type(data).__name__}; "
                          "write key = value pairs")
     try:
-        return model.model_validate(convert_units(model, data))
+        return model.model_validate(convert_units(model, data), context=context)
     except ValidationError as err:
         raise ValueError(format_validation_error(err, where or model.__name__)) from None
     except ValueError as err:

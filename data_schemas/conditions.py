@@ -22,11 +22,11 @@ from __future__ import annotations
 
 import csv
 import io
-import os
 import re
 from pathlib import Path
 from typing import Any
 
+from .paths import file_inside
 from .units import to_si
 
 #: header name -> (stimulus field, dimension; "text" for the waveform)
@@ -42,32 +42,8 @@ _HEADER = re.compile(r"\s*([a-z_]+)\s*(?:\[\s*([^\]]+?)\s*\])?\s*")
 
 
 def conditions_path(folder: str | Path, name: str) -> Path:
-    """``folder / name``, checked: relative, inside ``folder``, a regular file, no symlink on the way.
-
-    Raises
-    ------
-    ValueError
-        For an absolute name, a path that leaves the folder or passes a symlink, or a missing
-        or non-regular file.
-    """
-    folder = Path(folder)
-    if not isinstance(name, str) or not name or Path(name).is_absolute() or "\x00" in name:
-        raise ValueError(f"procedure.conditions: must be a file name relative to the protocol's folder, got "
-                         f"{name!r}; put the CSV next to the protocol")
-    target = folder / name
-    walked = folder
-    for part in Path(name).parts:  # no symlink anywhere below the protocol's folder
-        walked = walked / part
-        if part == ".." or os.path.islink(walked):
-            raise ValueError(f"procedure.conditions: {name!r} must lie inside the protocol's folder with no "
-                             "'..' or symlink on the way; copy the CSV next to the protocol")
-    if not target.resolve().is_relative_to(folder.resolve()):
-        raise ValueError(f"procedure.conditions: {name!r} resolves outside the protocol's folder; copy the CSV "
-                         "next to the protocol")
-    if not target.is_file():
-        raise ValueError(f"procedure.conditions: {target} is not a regular file (missing, or a folder or "
-                         "device); give the CSV's name relative to the protocol")
-    return target
+    """``folder / name``, checked by :func:`.paths.file_inside` (the conditions CSV next to a protocol)."""
+    return file_inside(folder, name, key="procedure.conditions", owner="protocol", what="CSV")
 
 
 def read_conditions(folder: str | Path, name: str) -> list[dict[str, Any]]:

@@ -13,12 +13,15 @@ shape ``(rows, columns)``. In the plane model of docs/theory.md 4a a tractor pai
 
 from __future__ import annotations
 
+import pathlib
+from pathlib import PurePath
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from .base import Record, at_least, finite, in_range, positive
+from .paths import file_inside
 
 Length = Annotated[float, positive()]
 
@@ -26,6 +29,13 @@ Length = Annotated[float, positive()]
 # Nominal drive limits shared by the presets (not confirmed from a source; override per display).
 _NOMINAL_LIMITS = dict(motion_axes="x", max_traction_pa=50e3, max_deflection_m=0.1e-3,
                        max_slew_rate_per_s=2000.0, max_duty_cycle=1.0, frame_rate_hz=1000.0)
+#: How far ahead of its due time a UDP host sends each frame by default, s (docs/udp-frame-format.md).
+DEFAULT_LOOKAHEAD_S = 0.05
+#: The longest lookahead a description may ask for, s (a device's FIFO holds about 1 s).
+MAX_LOOKAHEAD_S = 0.5
+#: The link fields: how a host reaches the display, not what the display is (left out of a
+#: session's record of the description while they hold their defaults, so older records match).
+LINK_FIELDS = {"pairing_key_file": None, "lookahead_s": DEFAULT_LOOKAHEAD_S}
 
 
 class DisplayDescription(Record):
@@ -61,6 +71,15 @@ class DisplayDescription(Record):
         Position (x, y) of the array centre on the skin.
     description : str
         Free text: the source of the numbers.
+    pairing_key_file : str or None
+        The 32-byte pairing key shared with a UDP display (docs/udp-frame-format.md): a file name
+        relative to the folder of the description's JSON file (inside it, no symlink, readable
+        by its owner only). Only a host holding this key can arm the display.
+    lookahead_s : float, s
+        How far ahead of its due time a UDP host sends each frame into the device's FIFO, in
+        [0, 0.5] s (default 0.05; ``"lookahead_ms": 50`` in a file). Host jitter up to the
+        lookahead skips nothing; with the host dead, the device's outputs are zero at most
+        ``lookahead_s`` plus its watchdog time after the host's last message.
     """
 
     display_id: Annotated[str, Field(min_length=1)]
@@ -79,6 +98,53 @@ class DisplayDescription(Record):
     frame_rate_hz: Annotated[float, positive("the display refresh rate")]
     center_m: tuple[Annotated[float, finite()], Annotated[float, finite()]] = (0.0, 0.0)
     description: str = ""
+    pairing_key_file: str | None = None
+    lookahead_s: Annotated[float, in_range(0.0, MAX_LOOKAHEAD_S, reason="how far ahead frames are sent")] = \
+        DEFAULT_LOOKAHEAD_S
+    #: the folder of the JSON file this description was loaded from (None: built in Python)
+    _folder: pathlib.Path | None = PrivateAttr(default=None)
+
+    @field_validator("pairing_key_file")
+    @classmethod
+    def _key_file_name(cls, value: str | None) -> str | None:
+        if value is not None and (not value or "\x00" in value or PurePath(value).is_absolute()
+                                  or ".." in PurePath(value).parts):
+            raise ValueError(f"pairing_key_file must be a file name relative to the description's folder, with no "
+                             f"'..', got {value!r}; put the key file next to the description")
+        return value
+
+    @classmethod
+    def load(cls, path: str | pathlib.Path) -> DisplayDescription:
+        """Read a description saved as JSON; its ``pairing_key_file`` is relative to this file's folder."""
+        description = super().load(path)
+        description._folder = pathlib.Path(path).parent
+        return description
+
+    def replace(self, **changes) -> DisplayDescription:
+        """A copy with some fields changed, validated again; it keeps the folder of the file it was read from."""
+        copy = super().replace(**changes)
+        copy._folder = self._folder
+        return copy
+
+    def pairing_key_path(self) -> pathlib.Path:
+        """The checked path of ``pairing_key_file`` (inside the description's folder, a regular file, no symlink).
+
+        Raises
+        ------
+        ValueError
+            No ``pairing_key_file``, a description not read from a file (its folder is unknown),
+            or a path that leaves the folder, passes a symlink or is no regular file.
+        """
+        if self.pairing_key_file is None:
+            raise ValueError(f"pairing_key_file: display {self.display_id!r} names no pairing key; a UDP display "
+                             "(frame format version 3) needs one: create it with `tactilab device pair KEYFILE`, "
+                             "name it in the description's pairing_key_file and give the same file to the device")
+        if self._folder is None:
+            raise ValueError(f"pairing_key_file: {self.pairing_key_file!r} is relative to the description's JSON file, "
+                             "but this description was not read from one (e.g. a session's recorded copy); give "
+                             "the description file (`--device FILE`)")
+        return file_inside(self._folder, self.pairing_key_file, key="pairing_key_file", owner="description",
+                           what="key file")
 
     @field_validator("display_id")
     @classmethod

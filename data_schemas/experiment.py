@@ -25,6 +25,7 @@ from tactilab.core import rules
 
 from . import design_config  # noqa: F401 - registers the built-in adaptive design's [procedure] table
 from .base import format_validation_error
+from .finger_config import FingerConfig
 from .experiment_procedures import (  # noqa: F401 - the configs are part of this module's API
     LIKELIHOOD_FAMILIES, MAX_PLANNED_TRIALS, PARAMETERS, PROCEDURE_CONFIGS, TASKS, ConstantStimuliConfig,
     Frequency, Length, ProcedureConfigBase, PsiConfig, Speed, StaircaseConfig, StaircaseTrack, Time,
@@ -170,6 +171,8 @@ class Protocol(_Model):
     procedure: SerializeAsAny[ProcedureConfigBase] = Field(
         description="validated by the configuration class registered for its `method`")
     iti_s: Time = Field(0.5, description="inter-trial interval, s")
+    finger: FingerConfig | None = Field(None, description="the finger pressing physical gratings (contact-source "
+                                                          "models and observers)")
     clipped: str = Field("refuse", description="a planned stimulus the display would limit: 'refuse' the "
                          "protocol, 'drop' the stimulus, or 'allow' the safety layer to limit it (see CLIPPED)")
 

@@ -23,6 +23,7 @@ import pathlib
 import tomllib
 
 from .base import R, record_from_dict
+from .material import SkinMaterial
 from .scene import Scene
 
 _EXAMPLES_PACKAGE = "tactilab.data_schemas"
@@ -61,7 +62,7 @@ def read_toml_record(path: str | pathlib.Path, model: type[R], *, table: str | N
                 raise ValueError(f"{path}: table [{table}] is missing; add it or name another table")
             data = data[part]
         where = f"{path} [{table}]"
-    return record_from_dict(model, data, where)
+    return record_from_dict(model, data, where, context={"folder": path.parent})
 
 
 def read_json_record(path: str | pathlib.Path, model: type[R]) -> R:
@@ -86,6 +87,30 @@ def load_scene(path: str | pathlib.Path) -> Scene:
     if path.suffix.lower() == ".json":
         return Scene.load(path)
     return read_toml_record(path, Scene)
+
+
+def read_material(path: str | pathlib.Path) -> SkinMaterial:
+    """Read a :class:`~.material.SkinMaterial` from a TOML file (its ``[material]`` table, or the whole
+    file when it has none) or a JSON record, units converted to SI once.
+
+    Raises
+    ------
+    OSError
+        If the file cannot be read.
+    ValueError
+        A wrong suffix or an invalid material, in one line naming the file.
+    """
+    path = pathlib.Path(path)
+    if path.suffix.lower() not in (".toml", ".json"):
+        raise ValueError(f"{path}: a material file must end in .toml or .json, got {path.suffix!r}; write a "
+                         "[material] table in a .toml file")
+    if path.suffix.lower() == ".json":
+        return SkinMaterial.load(path)
+    try:
+        has_table = "material" in tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as err:
+        raise ValueError(f"{path}: not valid TOML ({err}); fix the syntax") from None
+    return read_toml_record(path, SkinMaterial, table="material" if has_table else None)
 
 
 def list_examples() -> list[str]:

@@ -1,4 +1,4 @@
-"""Measured height maps at the file edge: ``.npy``, ``.csv`` and netCDF, read into a :class:`HeightMap`.
+"""Measured height maps at the file edge: ``.npy``, ``.csv``, netCDF and profilometer files, read into a :class:`HeightMap`.
 
 One reader for every command that takes a measured surface (``tactilab contact``, the scenes).
 Files are data: ``.npy`` is read with ``allow_pickle=False``, netCDF through h5netcdf (HDF5), and a
@@ -22,6 +22,10 @@ Formats
     not be given (the file states them).
 ``.csv``, plain matrix (no header: the first cell is a number)
     Rows are y, columns x, heights in ``height_unit``, node spacing ``spacing``, as for ``.npy``.
+Profilometer formats (``.x3p``, ``.datx``, Gwyddion ``.gwy``, ``.sur``, ``.plu``, ``.opd``, ...)
+    Read through the SurfaceTopography package, the optional extra ``topography``
+    (``pip install 'tactilab[topography]'``; without it the error names the extra). The file
+    states its spacing and unit (:mod:`.topography_files`).
 ``.nc`` (netCDF-4 / HDF5)
     One height variable (named ``height``, or the file's only variable with dimensions) of
     dimensions (y, x) or (x,), with a ``units`` attribute (a length unit: ``m``, ``mm``, ``um``,
@@ -40,7 +44,8 @@ import numpy as np
 from tactilab.core import rules
 from tactilab.core.units import canonical_unit
 
-from .surface import HeightMap
+from .height_map_record import HeightMap
+from .topography_files import TOPOGRAPHY_SUFFIXES, read_topography_file
 from .units import UNITS, to_si
 
 MAX_HEIGHT_MAP_NODES = 2**24  # 4096 x 4096 heights (134 MB as float64): larger maps exhaust memory downstream
@@ -250,7 +255,7 @@ def _read_netcdf(path: pathlib.Path, spacing, height_unit) -> HeightMap:
 
 
 def read_height_map(path, *, spacing=None, height_unit: str | None = None) -> HeightMap:
-    """Read a measured height map (``.npy``, ``.csv`` or netCDF ``.nc``) into a :class:`HeightMap` in m.
+    """Read a measured height map (.npy, .csv, netCDF or a profilometer file) into a :class:`HeightMap` in m.
 
     Parameters
     ----------
@@ -275,19 +280,24 @@ def read_height_map(path, *, spacing=None, height_unit: str | None = None) -> He
     ValueError
         For an unknown suffix, NaN or inf heights, a missing or non-length unit, a missing spacing,
         a non-uniform or non-monotonic grid, a map above ``MAX_HEIGHT_MAP_NODES`` nodes, a pickled
-        ``.npy``, or a netCDF variable stored outside the file.
+        ``.npy``, a netCDF variable stored outside the file, or a profilometer file (``.x3p``,
+        ``.datx``, ``.gwy``, ...) when the optional extra ``topography`` is not installed.
     OSError
         When the file cannot be opened.
     """
     path = pathlib.Path(path)
     suffix = path.suffix.lower()
-    if suffix not in _SUFFIXES:
+    if suffix not in _SUFFIXES + TOPOGRAPHY_SUFFIXES:
         raise ValueError(f"{path}: unknown height-map format {path.suffix!r}; use .npy (with spacing and "
-                         "height_unit), .csv or .nc (netCDF-4 with x/y coordinates in m)")
+                         "height_unit), .csv, .nc (netCDF-4 with x/y coordinates in m) or a profilometer "
+                         "format (.x3p, .datx, .gwy, ...: the optional extra 'topography')")
     if not path.is_file():
         raise FileNotFoundError(2, "No such file", str(path))
     if suffix == ".npy":
         return _read_npy(path, spacing, height_unit)
     if suffix == ".csv":
         return _read_csv(path, spacing, height_unit)
-    return _read_netcdf(path, spacing, height_unit)
+    if suffix == ".nc":
+        return _read_netcdf(path, spacing, height_unit)
+    return read_topography_file(path, spacing, height_unit, where=str(path), length_factor=_length_factor,
+                                check_heights=_check_heights, to_metres=_to_metres)

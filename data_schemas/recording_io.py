@@ -6,6 +6,12 @@
 sampling rate, start time, quantity, unit, description, and the sensor and component order.
 :func:`recording_dataset` is the netCDF layout as an ``xarray.Dataset``. Parquet needs the
 optional package pyarrow (the ``parquet`` extra).
+
+Both files are self-describing: what the netCDF file keeps beside the values (the sensor
+positions, the contact position per sample, the scene's scalar attributes such as ``depth_m``,
+the writer's ``tactilab_version``) the Parquet file keeps in its schema metadata (pandas'
+``DataFrame.attrs``), and :func:`read_recording_metadata` reads it back from either. The netCDF
+file carries CF attributes (:func:`tactilab.core.netcdf.write_netcdf`).
 """
 
 from __future__ import annotations
@@ -16,6 +22,9 @@ from collections.abc import Mapping
 
 import numpy as np
 import xarray as xr
+
+from tactilab.core.netcdf import write_netcdf
+from tactilab.core.version import package_version
 
 from .netcdf_files import check_self_contained
 from .recording import Recording
@@ -47,9 +56,11 @@ def recording_dataset(recording: Recording, *, positions_m=None, sensor_position
         ``sampling_rate_hz``, ``start_time_s``, ``description``, ``shear_convention``.
     """
     ds = xr.Dataset(
-        {"values": (("time", "sensor", "component"), recording.values)},
-        coords={"time": ("time", recording.times_s, {"units": "s"}),
-                "sensor": list(recording.sensor_ids), "component": list(recording.components)},
+        {"values": (("time", "sensor", "component"), recording.values,
+                    {"long_name": f"{recording.quantity} read by each sensor (TENSOR shear for strain)"})},
+        coords={"time": ("time", recording.times_s, {"units": "s", "long_name": "time of the sample"}),
+                "sensor": ("sensor", list(recording.sensor_ids), {"long_name": "sensor id"}),
+                "component": ("component", list(recording.components), {"long_name": "Voigt component"})},
         attrs=dict(quantity=recording.quantity, unit=recording.unit, sampling_rate_hz=recording.sampling_rate_hz,
                    start_time_s=recording.start_time_s, description=recording.description,
                    shear_convention=_SHEAR_CONVENTION),
@@ -60,14 +71,16 @@ def recording_dataset(recording: Recording, *, positions_m=None, sensor_position
         if pos.shape != (recording.n_sensors, 2):
             raise ValueError(f"sensor_positions_m: need shape ({recording.n_sensors}, 2) (x, y per sensor, m), "
                              f"got {pos.shape}")
-        ds = ds.assign_coords(sensor_x=("sensor", pos[:, 0], {"units": "m", "frame": "finger"}),
-                              sensor_y=("sensor", pos[:, 1], {"units": "m", "frame": "finger"}))
+        ds = ds.assign_coords(
+            sensor_x=("sensor", pos[:, 0], {"units": "m", "frame": "finger", "long_name": "sensor x in the finger frame"}),
+            sensor_y=("sensor", pos[:, 1], {"units": "m", "frame": "finger", "long_name": "sensor y in the finger frame"}))
     if positions_m is not None:
         u = np.asarray(positions_m, dtype=float)
         if u.shape != (recording.n_times,):
             raise ValueError(f"positions_m: need one contact position per sample, shape ({recording.n_times},), "
                              f"got {u.shape}")
-        ds = ds.assign_coords(contact_x=("time", u, {"units": "m", "frame": "world"}))
+        ds = ds.assign_coords(contact_x=("time", u, {"units": "m", "frame": "world",
+                                                     "long_name": "contact centre x at each sample"}))
     if attrs:
         ds.attrs.update(attrs)
     return ds
@@ -83,10 +96,11 @@ def write_recording(recording: Recording, out_dir, fmt: str = "netcdf", *, posit
     out_dir : path
         An existing folder.
     fmt : {"netcdf", "parquet"}
-        Parquet needs pyarrow; it stores the tidy DataFrame (``Recording.to_dataframe``),
-        without the optional coordinates and attributes below.
+        Parquet needs pyarrow; it stores the tidy DataFrame (``Recording.to_dataframe``) with
+        the coordinates and attributes below in its schema metadata.
     positions_m, sensor_positions_m, attrs
-        Extra netCDF coordinates and attributes, as in :func:`recording_dataset`.
+        Extra coordinates and attributes, as in :func:`recording_dataset` (read back by
+        :func:`read_recording_metadata`).
 
     Returns
     -------
@@ -100,13 +114,82 @@ def write_recording(recording: Recording, out_dir, fmt: str = "netcdf", *, posit
         if importlib.util.find_spec("pyarrow") is None:
             raise ValueError("format: 'parquet' needs the optional package pyarrow (pip install pyarrow); "
                              "or write netcdf")
+        ds = recording_dataset(recording, positions_m=positions_m, sensor_positions_m=sensor_positions_m,
+                               attrs=attrs)  # validates the extras as for netCDF
+        df = recording.to_dataframe()
+        df.attrs.update(_parquet_extras(ds))
         path = out_dir / "recording.parquet"
-        recording.to_dataframe().to_parquet(path)
+        df.to_parquet(path)
         return path
     path = out_dir / "recording.nc"
     ds = recording_dataset(recording, positions_m=positions_m, sensor_positions_m=sensor_positions_m, attrs=attrs)
-    ds.to_netcdf(path, engine="h5netcdf")
+    write_netcdf(ds, path)
     return path
+
+
+#: the record's own attributes (read by read_recording), apart from the scene's extras
+_OWN = ("quantity", "unit", "sampling_rate_hz", "start_time_s", "description", "shear_convention")
+
+
+def _parquet_extras(ds: xr.Dataset) -> dict:
+    """What the netCDF file keeps beside the values, as JSON-ready Parquet metadata."""
+    extras = {"tactilab_version": package_version(), "shear_convention": _SHEAR_CONVENTION,
+              "scene_attrs": {k: (v.item() if isinstance(v, np.generic) else v)
+                              for k, v in ds.attrs.items() if k not in _OWN}}
+    if "sensor_x" in ds.coords:
+        extras["sensor_positions_m"] = np.column_stack([ds["sensor_x"].values, ds["sensor_y"].values]).tolist()
+    if "contact_x" in ds.coords:
+        extras["positions_m"] = ds["contact_x"].values.tolist()
+    return extras
+
+
+def read_recording_metadata(path) -> dict:
+    """What a recording file says about how it was made, beside its values.
+
+    Parameters
+    ----------
+    path : path
+        ``recording.nc`` or ``recording.parquet`` written by :func:`write_recording` (a JSON
+        record keeps none of it).
+
+    Returns
+    -------
+    dict
+        ``sensor_positions_m`` (ndarray, shape (n_sensors, 2), m, finger frame, or None),
+        ``positions_m`` (ndarray, shape (n_times,), contact centre x per sample, m, or None),
+        ``attrs`` (the scene's scalar attributes, SI with the unit in the name, e.g.
+        ``depth_m``, ``contact_radius_m``, ``normal_force_n``) and ``tactilab_version`` (of
+        the writer, or None for files written before it was kept).
+
+    Raises
+    ------
+    ValueError
+        For another suffix (the JSON record included), or Parquet without pyarrow.
+    """
+    path = pathlib.Path(path)
+    if path.suffix == ".nc":
+        check_self_contained(path)
+        with xr.open_dataset(path, engine="h5netcdf") as ds:
+            sensors = (np.column_stack([ds["sensor_x"].values, ds["sensor_y"].values])
+                       if "sensor_x" in ds.coords else None)
+            positions = ds["contact_x"].values.copy() if "contact_x" in ds.coords else None
+            attrs = {k: _number(v) for k, v in ds.attrs.items()
+                     if k not in (*_OWN, "Conventions", "tactilab_version")}
+            version = ds.attrs.get("tactilab_version")
+    elif path.suffix == ".parquet":
+        if importlib.util.find_spec("pyarrow") is None:
+            raise ValueError(f"path: reading {path} needs the optional package pyarrow (pip install pyarrow)")
+        import pandas as pd
+
+        extras = dict(pd.read_parquet(path, columns=[]).attrs)  # pandas keeps DataFrame.attrs in the schema
+        sensors = None if "sensor_positions_m" not in extras else np.asarray(extras["sensor_positions_m"], float)
+        positions = None if "positions_m" not in extras else np.asarray(extras["positions_m"], float)
+        attrs, version = dict(extras.get("scene_attrs", {})), extras.get("tactilab_version")
+    else:
+        raise ValueError(f"path: {path} is a {path.suffix!r} file; the metadata beside the values is kept in "
+                         "recording.nc or recording.parquet (write_recording)")
+    return {"sensor_positions_m": sensors, "positions_m": positions, "attrs": attrs,
+            "tactilab_version": None if version is None else str(version)}
 
 
 def read_recording(path) -> Recording:

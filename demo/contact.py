@@ -14,6 +14,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from tactilab.core import write_netcdf
 from tactilab.data_schemas import random_rough_surface
 from tactilab.forward import HalfSpace, HertzContact, plot_contact_pressure, solve_contact
 
@@ -71,5 +72,5 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
                "exact, and the area and the pressure map at scales of several nodes are what to read")
     png = plot_contact_pressure(sol, out / "rough_contact_pressure.png", title="fingertip on a rough plate")
     nc = out / "rough_contact.nc"
-    sol.to_dataset().to_netcdf(nc, engine="h5netcdf")
+    write_netcdf(sol.to_dataset(), nc)
     yield f"contact: wrote {png.name}, {nc.name} in {out}"

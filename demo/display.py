@@ -102,24 +102,24 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
            f"{array.pitch_y_m * 1e3:g} mm) vs the plane-strain row model on the centre line: "
            f"max |eps_zx| difference {diff:.3f} of the peak (gaps between rows and finite row length)")
 
-    fig = Figure(figsize=(8, 9))
+    fig = Figure(figsize=(8, 9.5), layout="constrained")
     axes = fig.subplots(3, 1, sharex=True)
     xmm = x * 1e3
-    for ax, (label, c) in zip(axes[:2], (("eps_xx", 0), ("eps_zx (tensor shear)", 4))):
+    # the shear convention is named only on the shear panel; legends sit outside the panels
+    for ax, (label, c, kind) in zip(axes[:2], (("eps_xx", 0, "strain"), ("eps_zx", 4, "strain, TENSOR shear"))):
         ax.plot(xmm, aligned[:, c], "k-", label="real sliding grating")
         ax.plot(xmm, rendered[0, :, c] / np.sqrt(2), "C0--", label="tractor row / sqrt(2), peak frame")
         ax.plot(xs3 * 1e3, strain3d[:, c] / np.sqrt(2), "C3.", label="6 x 10 array, 3-D / sqrt(2)")
         ax.plot(display.tractor_x_m * 1e3, 0 * display.tractor_x_m, "v", color="0.5", label="tractors")
-        ax.set_ylabel(f"{label} (strain)")
-        ax.set_title(f"{label} at depth {DEPTH * 1e3:g} mm (strain, TENSOR shear)")
-        ax.legend(fontsize=7, loc="upper right")
+        ax.set_ylabel(f"{label} ({kind})")
+        ax.set_title(f"{label} at depth {DEPTH * 1e3:g} mm ({kind})")
+    fig.legend(*axes[0].get_legend_handles_labels(), fontsize=7, ncols=4, loc="outside upper center")
     axes[2].plot(xmm, _rms(real[:, :, 4]), "k-", label="real: RMS eps_zx over a period")
     axes[2].plot(xmm, _rms(rendered[:, :, 4]), "C0--", label="tractor row: RMS eps_zx over a period")
     axes[2].set_xlabel("x (mm)")
     axes[2].set_ylabel("RMS eps_zx (strain, tensor shear)")
     axes[2].set_title("RMS tensor shear strain eps_zx over one drive period")
-    axes[2].legend(fontsize=7)
-    fig.tight_layout()
+    fig.legend(*axes[2].get_legend_handles_labels(), fontsize=7, ncols=2, loc="outside lower center")
     png = report_dir / "display_strain.png"
     fig.savefig(png, dpi=110)
     csv = report_dir / "display_strain.csv"

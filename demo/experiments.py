@@ -7,6 +7,10 @@ answers; two interleaved 1-up-2-down staircases (20 trials each, from 8 µm and 
 +2 % of the observer's true 70.7 % point on average, with a 29 % sd (docs/experiments.md).
 Everything goes through the durable SQLite recorder and the safety layer, then is exported to
 BIDS-style files, and the staircase track is plotted against the observer's true 70.7 % point.
+
+``experiment/`` is a BIDS dataset the bids-validator accepts: the session's SQLite log, its source,
+is in ``sourcedata/`` and the plot in ``derivatives/tactilab/`` (the two folders BIDS leaves to
+the lab), and the dataset names its authors.
 """
 
 from __future__ import annotations
@@ -64,8 +68,9 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
     out = pathlib.Path(report_dir) / "experiment"
     out.mkdir(parents=True, exist_ok=True)
     protocol = Protocol.model_validate(DEMO_PROTOCOL)
-    session = out / "sub-DEMO_ses-01_task-gratingdetection.sqlite"
-    for stale in (session, session.with_name(session.name + ".lock")):
+    session = out / "sourcedata" / "sub-DEMO_ses-01_task-gratingdetection.sqlite"
+    session.parent.mkdir(exist_ok=True)
+    for stale in (session, session.with_name(session.name + ".lock"), out / "dataset_description.json"):
         stale.unlink(missing_ok=True)  # the demo always starts afresh
     display = SimulatedDisplay(DisplayDescription.braille_row(), realtime=False)
     observer = SimulatedObserver(protocol)
@@ -78,8 +83,9 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
     log.close()
     truth = true_threshold_2ifc(observer, protocol)
     estimate = result.estimate["threshold"]
-    files = export_session(session, out, "bids")
-    plot = out / "staircase_track.png"
+    files = export_session(session, out, "bids", authors=["tactilab demo (simulated observer)"])
+    plot = out / "derivatives" / "tactilab" / "staircase_track.png"
+    plot.parent.mkdir(parents=True, exist_ok=True)
     plot_track(trials, truth, estimate, plot)
     n_safety = sum(e["kind"] == "safety_intervention" for e in events)
     yield (f"experiment: {result.n_completed} trials recorded durably ({len(events)} events, each committed "

@@ -13,6 +13,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from tactilab.core import write_netcdf
 from tactilab.forward import HalfSpace, HertzContact, SurfaceLoad, interfacial_traction, plot_field
 
 DEPTHS_M = (1.0e-3, 2.0e-3)  # receptor depths (Merkel ~1 mm, Ruffini/Meissner deeper)
@@ -55,5 +56,5 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
     yield ("forward: peak equivalent strain " + ", ".join(
         f"{v:.2e} at {z * 1e3:.1f} mm" for v, z in zip(peak, DEPTHS_M)))
     nc = out / "fingertip_strain.nc"
-    ds.to_netcdf(nc, engine="h5netcdf")
+    write_netcdf(ds, nc)
     yield f"forward: wrote {f1.name}, {f2.name}, {nc.name} in {out}"

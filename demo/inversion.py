@@ -40,8 +40,8 @@ def _profile_section(out: pathlib.Path, rng) -> Iterator[str]:
     el = time.perf_counter() - t
     yield f"  Tikhonov ({tik.method} path, curvature penalty) in {el * 1e3:.1f} ms; lam chosen by: " + ", ".join(
         f"{k} {v:.3g}" for k, v in tik.criteria.lam.items())
-    for w in caught:
-        yield f"  warning: {w.message}"
+    for w in caught:  # a warning, not a text line: the run summary counts every warning it printed
+        warnings.warn(f"[inversion] profile: {w.message}", w.category, stacklevel=2)
     plot_criteria(tik.criteria, out / "profile_criteria.png", title="Profile inversion: regularisation criteria",
                   data_unit="Pa")
     # Gaussian prior: Matern-3/2, 0.5 mm; its variance chosen by the evidence (marginal likelihood)

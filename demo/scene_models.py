@@ -17,8 +17,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from tactilab.data_schemas import Contact, Scan, Scene, SensorArray, SinusoidalGrating, SkinMaterial
-from tactilab.forward.scene_frames import SceneFrames
-from tactilab.forward.scene_models import choose_model, run_model, signal_error
+from tactilab.forward import SceneFrames, choose_model, run_model, signal_error
 
 MODELS = ("exact", "linear", "modulation")
 

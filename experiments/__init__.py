@@ -41,6 +41,7 @@ _EXPORTS = {
     "SimulatedDisplay": "devices",
     "UdpDisplay": "devices",
     # the display UDP frame format (docs/udp-frame-format.md)
+    "ARM": "devices",
     "FRAME": "devices",
     "encode": "devices",
     "decode": "devices",

@@ -10,6 +10,8 @@ import pathlib
 
 import numpy as np
 
+from tactilab.core.netcdf import write_netcdf
+
 from .plots import _figure
 
 
@@ -124,7 +126,7 @@ def write_contact(solution, folder: str | pathlib.Path, *, skin=None, depths=(),
     folder.mkdir(parents=True, exist_ok=True)
     written = []
     nc = folder / "contact.nc"
-    solution.to_dataset().to_netcdf(nc, engine="h5netcdf")
+    write_netcdf(solution.to_dataset(), nc)
     written.append(nc)
     written.append(plot_contact_pressure(solution, folder / "pressure.png", title))
     mu = float(solution.friction) if friction is None else friction

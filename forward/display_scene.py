@@ -76,7 +76,7 @@ def display_scene_outputs(scene) -> tuple[np.ndarray, np.ndarray, dict]:
         raise ValueError("scene.display: the scene has no display; use the finger simulation")
     if scan.speed_m_per_s <= 0:
         raise ValueError(f"speed: a rendered scan needs a speed > 0 m/s, got {scan.speed_m_per_s!r}")
-    E, nu, depth = material.young_modulus_pa, material.poisson_ratio, sensors.depth_m
+    (E, nu), depth = material.half_space_constants("the display scene"), sensors.depth_m
     gain, pitch = display_gain(display, depth, E)
     t = scan.times_s
     width = float(display.tractor_width_m)

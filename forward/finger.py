@@ -145,11 +145,12 @@ class BiomimeticFinger:
         if scene.contact is None:
             raise ValueError("scene.contact: the scene has no finger contact; a biomimetic-finger "
                              "simulation needs [contact] with normal_force and finger_radius")
-        c, m = scene.contact, scene.material
+        c = scene.contact
         if c.normal_force_n is None:
             raise ValueError("scene.contact: a periodic cell (mean_pressure) has no finger; a biomimetic-finger "
                              "simulation needs normal_force and finger_radius (tactilab.forward.scene_models runs cells)")
-        contact = HertzContact(c.normal_force_n, c.finger_radius_m, m.young_modulus_pa, m.poisson_ratio)
+        E, nu = scene.material.half_space_constants("the biomimetic finger's scan")
+        contact = HertzContact(c.normal_force_n, c.finger_radius_m, E, nu)
         fp = Fingerprint(c.fingerprint_period_m) if c.fingerprint_period_m is not None else None
         return cls(contact, scene.sensors, c.friction_coefficient, c.adhesion, fp, grid_spacing)
 

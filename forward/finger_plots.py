@@ -7,6 +7,7 @@ Figures are ``matplotlib.figure.Figure`` objects saved directly (no pyplot, no b
 from __future__ import annotations
 
 import pathlib
+import textwrap
 
 import numpy as np
 
@@ -109,23 +110,27 @@ def plot_receptive_fields(finger: BiomimeticFinger, path, *, strength: float = 1
         ax.set(title=f"{finger.sensors.ids[k]} {comp} ({unit})", xlabel="defect x, finger frame (mm)",
                ylabel="defect y (mm)")
         fig.colorbar(im, ax=ax, shrink=0.8, label=f"{comp} ({unit})")
-    fig.suptitle(f"exploratory receptive fields, defect strength S_d = {strength * 1e6:.3g} mm², "
-                 f"depth {finger.depth * 1e3:.2f} mm (+: sensor)")
+    # one line per ~36 characters of panel row: a one-sensor figure wraps its title instead of clipping it
+    title = (f"exploratory receptive fields, defect strength S_d = {strength * 1e6:.3g} mm², "
+             f"depth {finger.depth * 1e3:.2f} mm (+: sensor)")
+    fig.suptitle(textwrap.fill(title, width=int(36 * len(chosen))))
     path = pathlib.Path(path)
     fig.savefig(path, dpi=110)
     return path
 
 
 def plot_time_series(recording: Recording, path, *, max_lines: int = 8, positions=None) -> pathlib.Path:
-    """Sensor time series: a few sensors as lines and all sensors as an image (PNG).
+    """Sensor time series: a few sensors as lines and, with two sensors or more, all sensors as an
+    image (PNG; an image of one sensor would be a one-row heat map of the line above it).
 
     ``positions`` (m, world x of the contact centre per sample) adds a finger-position axis.
     """
     scale, unit = _unit(recording.quantity)
     t = recording.times_s * 1e3  # drawn in ms
     nc = recording.n_components
-    fig = _figure(figsize=(6 * nc, 6.5), layout="constrained")
-    axes = fig.subplots(2, nc, squeeze=False)
+    image = recording.n_sensors > 1
+    fig = _figure(figsize=(6 * nc, 6.5 if image else 3.6), layout="constrained")
+    axes = fig.subplots(2 if image else 1, nc, squeeze=False)
     chosen = np.unique(np.linspace(0, recording.n_sensors - 1, min(max_lines, recording.n_sensors)).round().astype(int))
     for c, comp in enumerate(recording.components):
         values = recording.values[:, :, c] * scale
@@ -135,7 +140,15 @@ def plot_time_series(recording: Recording, path, *, max_lines: int = 8, position
                             label=f"{recording.sensor_ids[k]} ({np.median(values[:, k]):.3g})")
         axes[0, c].set(title=f"{recording.quantity} {comp} minus its median (in legend) ({unit})",
                        xlabel="time (ms)", ylabel=f"{comp} change ({unit})")
-        axes[0, c].legend(fontsize=7, ncol=2)
+        # beside the panel (the lines fill the axes; a legend inside hides some of them)
+        axes[0, c].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+        if positions is not None:
+            top = axes[0, c].secondary_xaxis("top", functions=(
+                lambda ms, u=positions: 1e3 * np.interp(ms, t, u),
+                lambda mm, u=positions: np.interp(np.asarray(mm) * 1e-3, u, t)))
+            top.set_xlabel("contact centre x (mm)")
+        if not image:
+            continue
         change = values - np.median(values, axis=0)
         lim = np.abs(change).max() or 1.0
         im = axes[1, c].imshow(change.T, aspect="auto", origin="lower", cmap="RdBu_r",
@@ -143,11 +156,6 @@ def plot_time_series(recording: Recording, path, *, max_lines: int = 8, position
         axes[1, c].set(title=f"{comp} minus its median, all sensors ({unit})", xlabel="time (ms)",
                        ylabel="sensor index")
         fig.colorbar(im, ax=axes[1, c], label=f"{comp} change ({unit})")
-        if positions is not None:
-            top = axes[0, c].secondary_xaxis("top", functions=(
-                lambda ms, u=positions: 1e3 * np.interp(ms, t, u),
-                lambda mm, u=positions: np.interp(np.asarray(mm) * 1e-3, u, t)))
-            top.set_xlabel("contact centre x (mm)")
     path = pathlib.Path(path)
     fig.savefig(path, dpi=110)
     return path

@@ -26,6 +26,7 @@ import tomllib
 
 import numpy as np
 
+from tactilab.core.netcdf import write_netcdf
 from tactilab.data_schemas.units import to_si
 
 from .halfspace import SurfaceLoad
@@ -149,7 +150,7 @@ def write_field(result, folder: str | pathlib.Path, stem: str = "field") -> list
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     nc = folder / f"{stem}.nc"
-    result.data.to_netcdf(nc, engine="h5netcdf")
+    write_netcdf(result.data, nc)
     quantity = "stress" if "stress" in result.data and "strain" not in result.data else "strain"
     png = plot_field(result.data[quantity], folder / f"{stem}.png",
                      title=f"{quantity} by {result.method} (est. rel. error {result.error_estimate:.1e})")

@@ -65,6 +65,9 @@ def scanned_surface(record_or_features: SurfaceRecord | Feature | Iterable[Featu
     u = np.asarray(positions, dtype=float)
     x0, x1, half = float(u.min()) - reach, float(u.max()) + reach, (reach if width is None else width / 2)
     for f in feats:
+        known = f.coverage() if isinstance(f, RecordFeature) else None
+        if known is not None:
+            _check_coverage(known, (x0, x1, -half, half), getattr(f, "label", "measured"), u, reach)
         b = f.bounds() if isinstance(f, Feature) else None
         if b is None:
             continue
@@ -78,6 +81,20 @@ def scanned_surface(record_or_features: SurfaceRecord | Feature | Iterable[Featu
                 "the strip or change the scan's start position, speed or duration"
             )
     return Surface(length=x1 - x0, width=2 * half, features=feats, x_start=x0)
+
+
+def _check_coverage(known, strip, label: str, u: np.ndarray, reach: float) -> None:
+    """Refuse a scan whose strip leaves a measured map, naming both sizes (a larger map is cropped)."""
+    (kx0, kx1, ky0, ky1), (sx0, sx1, sy0, sy1) = known, strip
+    tol = 1e-9 * (sx1 - sx0)
+    if sx0 < kx0 - tol or sx1 > kx1 + tol or sy0 < ky0 - tol or sy1 > ky1 + tol:
+        ky = "every y" if not math.isfinite(ky0) else f"y in [{ky0:.6g}, {ky1:.6g}] m ({(ky1 - ky0) * 1e3:.4g} mm)"
+        raise ValueError(
+            f"surface: the {label} map covers x in [{kx0:.6g}, {kx1:.6g}] m ({(kx1 - kx0) * 1e3:.4g} mm), {ky}, "
+            f"smaller than the strip the scan touches, x in [{sx0:.6g}, {sx1:.6g}] m ({(sx1 - sx0) * 1e3:.4g} mm), "
+            f"y in [{sy0:.6g}, {sy1:.6g}] m ({(sy1 - sy0) * 1e3:.4g} mm: the contact centre moves from {u.min():.6g} "
+            f"to {u.max():.6g} m and reaches {reach:.4g} m around it); shorten the scan, move it with the "
+            "scan's start position or the map's origin_m, or measure a larger area")
 
 
 def reference_height(surface: Surface) -> float:
@@ -221,7 +238,8 @@ def scan_recording(finger: BiomimeticFinger, surface: SurfaceRecord | Feature | 
 def surface_spacing(record: SurfaceRecord) -> float | None:
     """Grid spacing (m) that resolves a surface record's relief, or None (flat): an isolated
     defect needs size / 6 (its load is integrated node by node), a random or regular square
-    wave element / 2, a sinusoid period / 8, a height map its own spacing."""
+    wave element / 2, a sinusoid period / 8, a height map, random rough or measured surface its
+    own spacing."""
     kind = getattr(record, "kind", None)
     if kind == "defect":
         return float(record.size_m) / 6
@@ -231,6 +249,10 @@ def surface_spacing(record: SurfaceRecord) -> float | None:
         return float(record.period_m) / 8
     if kind == "height_map":
         return float(record.spacing_x_m)
+    if kind == "random_rough":
+        return float(record.spacing_m)
+    if kind == "measured":
+        return float(record.height_map.spacing_x_m)
     return None
 
 

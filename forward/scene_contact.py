@@ -245,6 +245,15 @@ def solve_scan(skin, gaps, spacing, *, n_frames: int | None = None, normal_force
     stats = {k: np.zeros(n) for k in ("iterations", "contact_fraction", "normal_force", "error_estimate")}
     converged = np.zeros(n, dtype=bool)
     readout = sensors if isinstance(sensors, SensorReadout) else None
+    if readout is not None and readout.sliding is not None:  # a folded readout reads q = mu p and nothing else
+        mu, (fx, fy) = readout.sliding
+        partial = ratio is not None and bool(np.any(ratio < 1))
+        if partial or not np.isclose(mu, friction) or not np.allclose((fx, fy), (direction[0], direction[-1] * (
+                direction.size > 1))):
+            raise ValueError(f"sensors: the readout folds q = {mu:g} p along ({fx:g}, {fy:g}) into its weights, but the "
+                             f"scan has friction {friction!r} along {tuple(direction)}"
+                             + (" and partial-slip frames" if partial else "")
+                             + "; build the SensorReadout without sliding=, or with the scan's friction and direction")
     outputs, pending = (None if readout is None else np.zeros((n, readout.n_outputs))), []
     seconds = {"contact": 0.0, "readout": 0.0}
     frames = range(n)

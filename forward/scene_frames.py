@@ -8,8 +8,9 @@ world point ``x + u_i``. Two kinds of scene:
   3 Hertz radii, the spacing of :func:`~.scanning.scene_finger` (it resolves the contact, the depth
   and the surface's relief); the gap is ``r^2 / (2 R) - h(x + u, y) - ridges(x)``;
 - a **periodic cell** (``mean_pressure``): the nominally flat skin on one period of the surface
-  (256 nodes per period unless a spacing is given), in plane strain when the surface does not vary
-  across the scan; the gap is ``-h(x + u) - ridges(x)``.
+  (a sinusoid or a regular square wave: 256 nodes per period unless a spacing is given, in plane
+  strain; a ``random_rough`` plate: its own 2-D period on its own nodes); the gap is
+  ``-h(x + u) - ridges(x)``.
 
 The cheap models' tractions (SI, on the skin; ``D`` is the scenes' friction direction, +1):
 
@@ -25,10 +26,11 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.fft as sfft
+
+from tactilab.core import rules as check
 
 from .finger import BiomimeticFinger, Fingerprint
-from .halfspace import HalfSpace
+from .halfspace import HalfSpace, pressure_from_deflection
 from .scanning import reference_height, scanned_surface, scene_finger
 from .scene_contact import finger_gap, ridge_heights
 from .scene_readout import SensorReadout
@@ -38,8 +40,8 @@ from .surfaces import Surface
 GRID_RADII = 1.5
 #: nodes per period of a periodic cell when no spacing is given
 CELL_NODES = 256
-#: the surface kinds a periodic cell accepts, with their period along x
-_PERIODIC = {"sinusoidal_grating": "period_m", "square_wave_grating": "period_m"}
+#: the surface kinds a periodic cell accepts, with their period along x (random_rough: its size, 2-D)
+_PERIODIC = {"sinusoidal_grating": "period_m", "square_wave_grating": "period_m", "random_rough": "size_m"}
 
 
 @dataclass
@@ -79,6 +81,9 @@ class SceneFrames:
     _h_ref: float = 1.0
     _cache: dict = field(default_factory=dict, repr=False)
 
+    def __post_init__(self):
+        self.spacing = check.spacing(self.spacing, len(self.shape))
+
     # ---------------------------------------------------------------- construction
     @classmethod
     def from_scene(cls, scene, grid_spacing: float | None = None) -> "SceneFrames":
@@ -87,8 +92,9 @@ class SceneFrames:
         if c is None:
             raise ValueError("scene.contact: the interface models need a finger or a periodic cell ([contact]); "
                              "a display scene is simulated by the display model")
-        skin = HalfSpace(E=m.young_modulus_pa, nu=m.poisson_ratio)
-        e_star = m.young_modulus_pa / (1 - m.poisson_ratio**2)
+        E, nu = m.half_space_constants("the scene's interface models (contact and sensor readout)")
+        skin = HalfSpace(E=E, nu=nu)
+        e_star = E / (1 - nu**2)
         u = s.positions_m
         ratios = s.slip_ratios
         if s.speed_m_per_s == 0 and c.adhesion > 0:  # a static press: adhesion is Q / (mu F)
@@ -114,6 +120,13 @@ class SceneFrames:
             raise ValueError(f"contact.mean_pressure: a periodic cell needs a periodic surface ({sorted(_PERIODIC)}, "
                              f"square waves regular), got kind {rec.kind!r}; press a finger (normal_force, "
                              "finger_radius) on it instead")
+        if rec.kind == "random_rough":  # a 2-D cell: the plate's own period, on its own nodes unless a spacing is given
+            lx, ly = (float(v) for v in rec.size_m)
+            step = rec.spacing_m if grid_spacing is None else grid_spacing
+            nx, ny = (max(8, 2 * int(round(length / step / 2))) for length in (lx, ly))
+            peak = float(np.abs(rec.heights_m).max())
+            return cls(scene, skin, True, (ny, nx), (lx / nx, ly / ny), u, _shifts(u, lx / nx), ratios, e_star, None,
+                       rec, peak)
         period = float(getattr(rec, attr))
         n = CELL_NODES if grid_spacing is None else max(8, 2 * int(round(period / grid_spacing / 2)))
         h = period / n
@@ -177,7 +190,7 @@ class SceneFrames:
         """The surface's heights under the grid at frame ``i`` (m, positive towards the skin)."""
         X, Y = self._world(i)
         if self.periodic:
-            return self._surface.height_at(X)
+            return self._surface.height_at(X) if Y is None else self._surface.height_at(X, Y)
         return self._surface.height(X, Y)
 
     def ridges(self) -> np.ndarray:
@@ -200,11 +213,14 @@ class SceneFrames:
         """The full-contact pressure of the texture and the ridges, ``E* |k| H~ / 2`` (Pa, zero mean)."""
         h = self.heights(i) + self.ridges()
         if self.periodic:
-            return full_contact_pressure(h, self.spacing, self.e_star)
+            return self._deflection_pressure(h)
         pad = [(n // 2, n - n // 2) for n in h.shape]  # mirrored margins: no wrap-around of an isolated window
-        big = np.pad(h, pad, mode="reflect")
-        p = full_contact_pressure(big, self.spacing, self.e_star)
+        p = self._deflection_pressure(np.pad(h, pad, mode="reflect"))
         return p[tuple(slice(a, a + n) for (a, _), n in zip(pad, h.shape))]
+
+    def _deflection_pressure(self, h: np.ndarray) -> np.ndarray:
+        spacing = self.spacing[0] if len(self.spacing) == 1 else self.spacing
+        return pressure_from_deflection(h, spacing, self.skin.E, self.skin.nu).p
 
     def _finger_tractions(self, ratio: float, fingerprint: bool):
         key = ("finger", ratio, fingerprint)
@@ -274,24 +290,3 @@ def _shifts(u: np.ndarray, h: float) -> np.ndarray | None:
     if np.allclose(steps, np.round(steps), rtol=0.0, atol=1e-6):
         return -np.round(steps).astype(np.int64)
     return None
-
-
-def full_contact_pressure(h: np.ndarray, spacing, e_star: float) -> np.ndarray:
-    """``E* |k| H~ / 2`` of a periodic grid of heights: the zero-mean pressure (Pa) that presses the skin
-    into a rigid texture everywhere (the linear model's texture pressure; pi E* A / L for a sinusoid).
-
-    Parameters
-    ----------
-    h : ndarray, shape (nx,) or (ny, nx)
-        Heights in m, one period of the texture.
-    spacing : tuple of float
-        ``(dx,)`` or ``(dx, dy)`` in m.
-    e_star : float
-        E / (1 - nu^2), Pa.
-    """
-    axes = tuple(range(h.ndim))
-    k = 2 * np.pi * sfft.rfftfreq(h.shape[-1], spacing[0])
-    if h.ndim == 2:
-        ky = 2 * np.pi * sfft.fftfreq(h.shape[0], spacing[1])
-        k = np.hypot(k[None, :], ky[:, None])
-    return sfft.irfftn(0.5 * e_star * k * sfft.rfftn(h, axes=axes), s=h.shape, axes=axes)

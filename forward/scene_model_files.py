@@ -22,6 +22,7 @@ from .contact import solve_contact
 from .finger_plots import plot_field_maps, plot_receptive_fields, plot_spectrum, plot_time_series
 from .halfspace import largest_strain
 from .scene_models import scene_signals
+from .scene_metadata import recording_attrs
 from .surfaces import RecordFeature
 
 _MODEL_WORDS = {"exact": "every frame's contact solved (solve_contact, warm-started from the previous frame)",
@@ -53,9 +54,12 @@ def simulate_contact_model(scene, out: pathlib.Path, fmt: str, rng, progress: bo
                                  description=f"tactilab simulate: {scene.name or 'scene'}. {scene.description} "
                                              + statement)
     out.mkdir(parents=True, exist_ok=True)
-    attrs = dict(grid_spacing_m=float(frames.spacing[0]), depth_m=float(scene.sensors.depth_m),
-                 friction=frames.friction, mean_pressure_pa=frames.mean_pressure,
-                 **model_attrs(info["model"], info["tol"], info["errors"], info["error_basis"], info["reason"]))
+    # what invert checks the scene against (a cell: its sensors and skin), and the interface model
+    scene_attrs = recording_attrs(frames.finger) if not frames.periodic else dict(
+        depth_m=float(scene.sensors.depth_m), young_modulus_pa=m.young_modulus_pa, poisson_ratio=m.poisson_ratio,
+        mean_pressure_pa=frames.mean_pressure, friction=frames.friction, grid_spacing_m=float(frames.spacing[0]))
+    attrs = dict(scene_attrs, **model_attrs(info["model"], info["tol"], info["errors"], info["error_basis"],
+                                            info["reason"]))
     path = write_recording(rec, out, fmt, positions_m=frames.positions, sensor_positions_m=scene.sensors.positions_m,
                            attrs=attrs)
     n = frames.n_frames

@@ -8,8 +8,10 @@ Models (docs/scenes.md, "Interface models"; docs/theory.md 4c):
 
 ``"auto"`` (:func:`choose_model`) estimates each cheap model's error BEFORE simulating, from the
 surface's full-contact pressure ``E* |k| H~ / 2`` against the contact's pressure (the tension the
-linear model cannot carry, read at the sensors), confirms it on a few frames solved exactly, and
-picks the cheapest model whose error is within the scene's ``tol``.
+linear model cannot carry, read at the sensors; and, where the texture has a period, the contact
+room's periodic-cell estimate :func:`tactilab.forward.interface_model_errors`, the larger of the
+two), confirms it on a few frames solved exactly, and picks the cheapest model whose error is
+within the scene's ``tol``.
 
 Error (:func:`signal_error`): max over the scan of |error| / max |signal|, per sensor and component,
 then the largest over the sensors and components; a component whose signal is below 1e-3 of its
@@ -24,8 +26,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .contact import interface_model_errors
 from .scene_contact import solve_scan
-from .scene_frames import SceneFrames
+from .scene_frames import CELL_NODES, SceneFrames
 
 #: cheapest first: auto picks the first whose error is within tol
 CHEAP_FIRST = ("modulation", "linear", "exact")
@@ -37,6 +40,9 @@ CHECK_FRAMES = 3
 APRIORI_FACTOR = 2.0
 #: the error measured on the few frames solved exactly, times this, stands for the frames not solved
 POSTERIORI_FACTOR = 2.0
+#: the exact model's contact tolerance (solve_contact's relative gap residual) per unit of the scene's
+#: tol: on the benchmark scene a residual of 1e-6 moves the signal by 2.5e-4 of it, 1e-5 by 3.9e-3
+CONTACT_TOL_PER_TOL = 1e-4
 #: signals below this fraction of their array's largest are measured against the floor
 SIGNAL_FLOOR = 1e-3
 
@@ -84,7 +90,11 @@ class ModelRun:
 
 def run_model(frames: SceneFrames, model: str, indices=None, *, warm_start: bool = True, batch: int = 64,
               progress: bool = False) -> ModelRun:
-    """The sensor signals of ``model`` at the frames ``indices`` (default all) of ``frames``."""
+    """The sensor signals of ``model`` at the frames ``indices`` (default all) of ``frames``.
+
+    The exact model solves each contact to the relative gap residual ``1e-4 * tol`` (the scene's
+    ``tol``; at most 1e-6, at least 1e-10).
+    """
     if model not in ("exact", "linear", "modulation"):
         raise ValueError(f"model: must be 'exact', 'linear' or 'modulation' here ('auto' is choose_model), got {model!r}")
     idx = np.arange(frames.n_frames) if indices is None else np.asarray(indices, dtype=int)
@@ -97,7 +107,7 @@ def run_model(frames: SceneFrames, model: str, indices=None, *, warm_start: bool
                          periodic=frames.periodic, friction=frames.friction,
                          slide_direction=(frames.direction, 0.0), slip_ratio=frames.slip_ratios[idx],
                          shifts=shifts, warm_start=warm_start and consecutive, sensors=readout,
-                         keep_tractions=False, progress=progress, **frames.load)
+                         keep_tractions=False, progress=progress, tol=contact_tol(frames), **frames.load)
         return ModelRun(model, sol.outputs[0], idx, time.perf_counter() - t0, sol.iterations, sol.contact_fraction)
     out = np.empty((idx.size, readout.n_outputs))
     for start in range(0, idx.size, batch):
@@ -107,6 +117,11 @@ def run_model(frames: SceneFrames, model: str, indices=None, *, warm_start: bool
         out[start:start + chunk.size] = readout.apply(readout.stack(np.stack([t[0] for t in tr]),
                                                                     np.stack([t[1] for t in tr]), qy))
     return ModelRun(model, readout.split(out)[0], idx, time.perf_counter() - t0)
+
+
+def contact_tol(frames: SceneFrames) -> float:
+    """The exact model's contact tolerance for the scene's ``tol`` (:data:`CONTACT_TOL_PER_TOL`)."""
+    return float(min(1e-6, max(1e-10, CONTACT_TOL_PER_TOL * frames.scene.contact.tol)))
 
 
 def apriori_errors(frames: SceneFrames, indices, *, per_frame: bool = False):
@@ -156,6 +171,33 @@ def apriori_errors(frames: SceneFrames, indices, *, per_frame: bool = False):
     return (*out, lin_t + mod_t) if per_frame else out
 
 
+def cell_errors(frames: SceneFrames) -> dict | None:
+    """The contact room's estimate (:func:`tactilab.forward.interface_model_errors`) on one periodic
+    cell of the scene's texture, at the pressures that matter (a cell's mean pressure; a finger's mean
+    and peak Hertz pressures, the larger estimate), strain at the sensors' depth; None for a texture
+    without a period (a defect, a height map, a random square wave)."""
+    rec = frames.scene.surface
+    if frames.periodic:
+        cell, spacing = frames.heights(0) + frames.ridges(), frames.spacing
+        pressures = [frames.mean_pressure]
+    elif rec.kind == "sinusoidal_grating" or (rec.kind == "square_wave_grating" and rec.pattern == "regular"):
+        period = float(rec.period_m)
+        cell, spacing = rec.height_at(np.arange(CELL_NODES) * period / CELL_NODES), (period / CELL_NODES,)
+        pressures = [frames.mean_pressure, frames.finger.contact.peak_pressure]
+    elif rec.kind == "random_rough":
+        cell, spacing = np.asarray(rec.heights_m), (float(rec.spacing_m),) * 2
+        pressures = [frames.mean_pressure, frames.finger.contact.peak_pressure]
+    else:
+        return None
+    if any(n % 2 for n in cell.shape) or min(cell.shape) < 4:
+        return None
+    m = frames.scene.material
+    sp = spacing[0] if len(spacing) == 1 else spacing
+    found = [interface_model_errors(cell, sp, p, m.young_modulus_pa, m.poisson_ratio, frames.scene.sensors.depth_m,
+                                    components=frames.scene.sensors.components) for p in pressures]
+    return {name: max(f[name] for f in found) for name in ("linear", "modulation")}
+
+
 def _read(readout, rows) -> np.ndarray:
     qy = None if rows[0][2] is None else np.stack([r[2] for r in rows])
     stack = readout.stack(np.stack([r[0] for r in rows]), np.stack([r[1] for r in rows]), qy)
@@ -198,6 +240,9 @@ def choose_model(frames: SceneFrames, tol: float, *, n_check: int = CHECK_FRAMES
     n = frames.n_frames
     sample = np.unique(np.linspace(0, n - 1, min(n, APRIORI_FRAMES)).round().astype(int))
     apriori, pressures, per_frame = apriori_errors(frames, sample, per_frame=True)
+    cell = cell_errors(frames)
+    if cell is not None:  # the contact room's periodic-cell estimate, where the texture has a period
+        apriori = {m: max(apriori[m], cell[m]) for m in apriori}
     check = np.sort(sample[np.argsort(per_frame, kind="stable")[::-1][:n_check]])  # where the estimates are largest
     exact = run_model(frames, "exact", check, warm_start=False)
     post = {m: signal_error(run_model(frames, m, check).values, exact.values) for m in ("linear", "modulation")}
@@ -209,7 +254,9 @@ def choose_model(frames: SceneFrames, tol: float, *, n_check: int = CHECK_FRAMES
     reason = (f"p_bar/p* = {pressures['ratio']:.3g} ({state}); estimated error of modulation {errors['modulation']:.2g} "
               f"({verdict['modulation']} tol {tol:g}), linear {errors['linear']:.2g} ({verdict['linear']}); a priori "
               f"{apriori['modulation']:.2g} / {apriori['linear']:.2g}, measured on frames "
-              f"{', '.join(str(int(i)) for i in check)} solved exactly {post['modulation']:.2g} / {post['linear']:.2g}")
+              f"{', '.join(str(int(i)) for i in check)} solved exactly {post['modulation']:.2g} / {post['linear']:.2g}"
+              + ("" if cell is None else f"; the periodic-cell estimate (interface_model_errors) "
+                 f"{cell['modulation']:.2g} / {cell['linear']:.2g} is in the a-priori one"))
     return ModelChoice(chosen, reason, float(tol), apriori, post, errors, pressures, [int(i) for i in check])
 
 
@@ -224,7 +271,8 @@ def scene_signals(scene, model: str | None = None, *, grid_spacing: float | None
     info : dict
         ``"model"``, ``"reason"``, ``"tol"``, ``"errors"`` (per cheaper model: its estimated or
         measured error for this scene), ``"error_basis"`` (how they were obtained), ``"pressures"``,
-        ``"seconds"``, ``"iterations"`` (exact: median per frame), ``"frames"`` (the SceneFrames).
+        ``"seconds"`` (the model's run), ``"total_seconds"`` (with the choice and the error estimates),
+        ``"iterations"`` (exact: median per frame), ``"frames"`` (the SceneFrames).
     """
     model = scene.contact.model if model is None else model
     if model not in ("auto", "exact", "linear", "modulation"):
@@ -248,11 +296,18 @@ def scene_signals(scene, model: str | None = None, *, grid_spacing: float | None
         run = run_model(frames, model, progress=progress)
         info = dict(model=model, reason="the scene's [contact] model", errors={}, error_basis="not estimated",
                     pressures={})
-        if model != "exact":
+        if model == "exact":  # the cheap models cost little: their errors on the whole scan, for the record
+            info.update(errors={m: signal_error(run_model(frames, m).values, run.values)
+                                for m in ("linear", "modulation")},
+                        error_basis="measured on every frame against the exact model")
+        else:
             sample = np.unique(np.linspace(0, frames.n_frames - 1, min(frames.n_frames, APRIORI_FRAMES)).round())
             apriori, pressures = apriori_errors(frames, sample.astype(int))
+            cell = cell_errors(frames)
+            if cell is not None:
+                apriori = {m: max(apriori[m], cell[m]) for m in apriori}
             info.update(errors={model: apriori[model]}, error_basis="a priori (no frame solved exactly)",
                         pressures=pressures)
-    info.update(tol=tol, seconds=time.perf_counter() - t0, frames=frames,
+    info.update(tol=tol, seconds=run.seconds, total_seconds=time.perf_counter() - t0, frames=frames,
                 iterations=None if run.iterations is None else float(np.median(run.iterations)))
     return run.values, info

@@ -23,7 +23,7 @@ import numpy as np
 from tactilab.core import rules as check
 from tactilab.data_schemas.sensors import SensorArray
 
-from .halfspace import LoadToSensor
+from .halfspace import COMPONENTS, LoadToSensor, output_weights, point_geometry, point_unit
 
 #: the most weight values a readout may hold (2 GiB of float64)
 MAX_WEIGHT_VALUES = 2**28
@@ -91,28 +91,56 @@ class SensorReadout:
         # the window's own centre node sits at (start + n_win // 2 - n // 2) nodes from the grid's
         offset = [(s.start + (s.stop - s.start) // 2 - n // 2) * h
                   for s, n, h in zip(self.window[::-1], self.shape[::-1], self.spacing)]
+        coef = {name: 1.0 for name in self.loads}
+        self.sliding = None
+        if sliding is not None:  # q = mu p along (dx, dy): one block, its rows sum the loads' (zero ones skipped)
+            mu, (dx, dy) = float(sliding[0]), (float(v) for v in sliding[1])
+            coef = {name: c for name, c in {"p": 1.0, "qx": mu * dx, "qy": mu * dy}.items()
+                    if name in self.loads and c != 0}
+            self.sliding = (mu, (dx, dy))
         blocks = []
         for arr in self.arrays:
             pts = np.asarray(arr.positions_m, dtype=float)[:, :len(self.shape)] - np.array(offset)
-            op = LoadToSensor(skin, win_shape, self.spacing, sensors=pts, depth=arr.depth_m,
-                              components=arr.components, loads=self.loads, quantity=arr.quantity,
-                              periodic=self.periodic)
-            # rows of the operator are (component, sensor); order them (sensor, component) as recordings are
-            w = op.rmatmat(np.eye(op.shape[0]))
-            w = w.reshape(-1, arr.n_components, arr.n_sensors).transpose(0, 2, 1).reshape(w.shape[0], -1)
-            blocks.append(w)
-        weights = np.concatenate(blocks, axis=1)
-        self.sliding = None
-        if sliding is not None:
-            mu, (dx, dy) = float(sliding[0]), (float(v) for v in sliding[1])
-            n_nodes = math.prod(win_shape)
-            coef = {"p": 1.0, "qx": mu * dx, "qy": mu * dy}
-            folded = np.zeros((n_nodes, n_out))
-            for k, name in enumerate(self.loads):
-                folded += coef[name] * weights[k * n_nodes:(k + 1) * n_nodes]
-            weights, self.loads, self.sliding = folded, ("p",), (mu, (dx, dy))
-        self.weights = np.ascontiguousarray(weights)
+            if self.periodic or len(win_shape) == 1:  # the periodic Green's function; plane-strain line kernels
+                op = LoadToSensor(skin, win_shape, self.spacing, sensors=pts, depth=arr.depth_m,
+                                  components=arr.components, loads=tuple(coef), quantity=arr.quantity,
+                                  periodic=self.periodic)
+                # rows of the operator are (component, sensor); order them (sensor, component) as recordings are
+                w = op.rmatmat(np.eye(op.shape[0]))
+                w = w.reshape(len(coef), -1, arr.n_components, arr.n_sensors).transpose(0, 1, 3, 2)
+                w = w.reshape(len(coef), -1, arr.n_sensors * arr.n_components)
+                if self.sliding is not None:
+                    w = sum(c * w[k] for k, c in enumerate(coef.values()))[None]
+            else:
+                w = self._point_weights(skin, win_shape, offset, pts, arr, coef)
+            blocks.append(w.reshape(-1, arr.n_sensors * arr.n_components))
+        if self.sliding is not None:
+            self.loads = ("p",)
+        self.weights = np.ascontiguousarray(np.concatenate(blocks, axis=1))
         self.n_outputs = n_out
+
+    def _point_weights(self, skin, win_shape, offset, pts, arr, coef: dict) -> np.ndarray:
+        """Point-load weights of an isolated window, shape (n_blocks, n_nodes, n_sensors, n_components):
+        the Boussinesq (p) and Cerruti (qx, qy) stress per unit force at each sensor, times the cell
+        area, through Hooke's law for strain (the kernel the finger's node weights use). One block per
+        load, or one block of the loads summed with ``coef`` when the readout is sliding."""
+        cell = math.prod(self.spacing)
+        axes = [(np.arange(n) - n // 2) * h for n, h in zip(win_shape[::-1], self.spacing)]  # x, then y
+        X, Y = np.meshgrid(axes[0], axes[1])
+        dx = pts[None, :, 0] - X.reshape(-1, 1)
+        dy = pts[None, :, 1] - Y.reshape(-1, 1)
+        # the sensors' positions and depth were checked by SensorArray: the unchecked kernels, geometry once
+        geometry = point_geometry(dx, dy, np.full_like(dx, float(arr.depth_m)))
+        rows = output_weights(arr.quantity, arr.components, skin.E, skin.nu)  # (n_components, 6)
+        used = [v for v in range(len(COMPONENTS)) if np.any(rows[:, v])]
+        direction = {"p": "z", "qx": "x", "qy": "y"}
+        groups = [coef] if self.sliding is not None else [{name: 1.0} for name in coef]
+        out = np.empty((len(groups), dx.shape[0], arr.n_sensors, arr.n_components))
+        for k, group in enumerate(groups):
+            green = np.stack([sum(c * point_unit(COMPONENTS[v], direction[name], *geometry, skin.nu)
+                                  for name, c in group.items()) for v in used])
+            out[k] = np.einsum("vns,ov->nso", green, rows[:, used] * cell, optimize=True)
+        return out
 
     def stack(self, pressure, qx=None, qy=None) -> np.ndarray:
         """The window's tractions of a batch of frames as model rows.

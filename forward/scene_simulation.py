@@ -17,19 +17,12 @@ from tactilab.data_schemas.plausibility import check_small_strain
 from tactilab.data_schemas.recording import Recording
 from tactilab.data_schemas.recording_io import FORMATS, write_recording
 
-from .finger import BiomimeticFinger
 from .finger_plots import plot_field_maps, plot_receptive_fields, plot_spectrum, plot_time_series
 from .halfspace import largest_strain
 from .scanning import check_scan, reference_height, scan_outputs, scanned_surface, scene_finger
+from .scene_metadata import recording_attrs
 from .scene_model_files import simulate_contact_model as _simulate_contact_model
 from .surfaces import RecordFeature
-
-
-def _finger_attrs(finger: BiomimeticFinger) -> dict:
-    """The finger's scalar parameters, SI, for the recording file's attributes."""
-    return dict(depth_m=finger.depth, contact_radius_m=finger.contact.contact_radius,
-                normal_force_n=finger.contact.normal_force, friction=finger.friction,
-                adhesion=finger.adhesion, grid_spacing_m=finger.spacing)
 
 
 def simulate_scene(scene, out_dir, *, fmt: str = "netcdf", rng: np.random.Generator | None = None,
@@ -81,7 +74,8 @@ def simulate_scene(scene, out_dir, *, fmt: str = "netcdf", rng: np.random.Genera
                                              + model_statement("modulation", tol, {}, basis))
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    attrs = dict(_finger_attrs(finger), **model_attrs("modulation", tol, {}, basis, "the scene's [contact] model"))
+    # what invert checks the scene against, and the interface model the recording was made with
+    attrs = dict(recording_attrs(finger), **model_attrs("modulation", tol, {}, basis, "the scene's [contact] model"))
     path = write_recording(rec, out, fmt, positions_m=u, sensor_positions_m=finger.sensors.positions_m, attrs=attrs)
     scale = 1e-3 if rec.quantity == "stress" else 1.0
     unit = "kPa" if rec.quantity == "stress" else "strain"
@@ -132,7 +126,10 @@ def _simulate_display(scene, out: pathlib.Path, fmt: str, rng, plots: bool) -> l
     rec = Recording.from_sensors(scene.sensors, values, s.sampling_rate_hz,
                                  description=f"tactilab simulate (display): {scene.name or 'scene'}. {scene.description}")
     out.mkdir(parents=True, exist_ok=True)
-    path = write_recording(rec, out, fmt, positions_m=s.positions_m)
+    path = write_recording(rec, out, fmt, positions_m=s.positions_m,  # what invert checks the scene against
+                           attrs=dict(depth_m=float(scene.sensors.depth_m),
+                                      young_modulus_pa=scene.material.young_modulus_pa,
+                                      poisson_ratio=scene.material.poisson_ratio))
     d = scene.display
     limit = d.max_traction_pa
     lines = [

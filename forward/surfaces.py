@@ -1,7 +1,8 @@
 """The physics of touched surfaces: heights on the skin's scan strip, and the loads they make.
 
 The surface MODEL is the data_schemas records (:mod:`tactilab.data_schemas.surface`:
-``FlatSurface``, ``SinusoidalGrating``, ``SquareWaveGrating``, ``IsolatedDefect``, ``HeightMap``),
+``FlatSurface``, ``SinusoidalGrating``, ``SquareWaveGrating``, ``IsolatedDefect``, ``HeightMap``,
+``RandomRoughSurface``, ``MeasuredSurface``),
 heights in m in the world frame (x along the scan, y across it; positive heights stick out
 towards the skin). This module holds what the forward model does with them:
 
@@ -144,9 +145,16 @@ class RecordFeature(Feature):
             return float(r.amplitude_m)
         if r.kind == "defect":
             return abs(float(r.height_m))
-        if r.kind == "height_map":
+        if r.kind in ("height_map", "random_rough"):
             return float(np.max(np.abs(r.heights_m)))
+        if r.kind == "measured":
+            return float(np.max(np.abs(r.height_map.heights_m)))
         return 0.0
+
+    def coverage(self) -> tuple[float, float, float, float] | None:
+        """``(xmin, xmax, ymin, ymax)`` in m where a measured surface is known; None where heights are
+        defined everywhere (every other kind). A scan must stay inside it."""
+        return self.record.extent() if self.record.kind == "measured" else None
 
     def integral(self) -> float:
         """``iint h dA`` in m^3 of a bump or dot defect (0 for other kinds)."""
@@ -215,11 +223,11 @@ class Surface:
     def height(self, x, y=None) -> np.ndarray:
         """Total height in m at surface points (x, y) in m; 0 off the surface."""
         x, y = _xy(x, y)
-        total = np.zeros(x.shape)
-        for f in self.features:
-            total = total + f.height(x, y)
         on = (x >= self.x_start) & (x <= self.x_start + self.length) & (np.abs(y) <= self.width / 2)
-        return np.where(on, total, 0.0)
+        total = np.zeros(x.shape)
+        for f in self.features:  # evaluated on the surface only: a measured map need not cover more
+            total[on] += f.height(x[on], y[on])
+        return total
 
     def modulation(self, x, y=None, *, reference_height: float) -> np.ndarray:
         """Interfacial-stress factor ``max(0, 1 + h / h_ref)`` (dimensionless) at surface points.

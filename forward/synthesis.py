@@ -31,10 +31,35 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from .halfspace import HalfSpace
 from .halfspace import positive as _positive
-from .tractors import array_phi_psi, check_pairs
+from .skin import LayeredHalfSpace, tractor_phi_psi
+from .tractors import array_centres, array_phi_psi, check_pairs
 
 _GAUSS = np.polynomial.legendre.leggauss(8)
+#: the skin of the closed-form design
+HALF_SPACE = "half-space (closed form, nu = 1/2)"
+
+
+def _check_skin(skin):
+    """None for the closed-form half-space (``None`` or ``HalfSpace(E, 0.5)``), else a layered skin."""
+    if skin is None or (isinstance(skin, HalfSpace) and skin.nu == 0.5):
+        return None
+    if isinstance(skin, LayeredHalfSpace):
+        return skin
+    raise ValueError(f"skin: the design takes None or HalfSpace(E, 0.5) (the closed form) or a LayeredHalfSpace, "
+                     f"got {skin!r}; for another Poisson's ratio give LayeredHalfSpace([Layer(h, E, nu)], "
+                     "base=HalfSpace(E, nu))")
+
+
+def _phi_psi(x: np.ndarray, d: float, z: float, n: int, skin) -> tuple[np.ndarray, np.ndarray]:
+    """S_Phi, S_Psi of the array (1/m): the closed form, or the layered skin's (docs/theory.md 6)."""
+    if skin is None:
+        return array_phi_psi(x, d, z, n)
+    centres, sign = array_centres(d, n)
+    sources = np.concatenate([centres - d, centres + d])
+    weights = np.concatenate([-sign * np.ones(n), sign * np.ones(n)])  # each pair: -delta(x + d) + delta(x - d)
+    return tractor_phi_psi(skin, x, sources, weights, z)
 
 
 @dataclass(frozen=True)
@@ -64,6 +89,9 @@ class SpacingDesign:
         increasing d. Those with relative residual >= 1 (no better than zero strain) are trivial.
     grid_points : int
         Size of the scan grid.
+    skin : str
+        The skin the design was made for: the closed-form half-space at nu = 1/2, or a layered
+        skin's repr.
     """
 
     depth: float
@@ -77,6 +105,7 @@ class SpacingDesign:
     bracket: tuple[float, float]
     minima: tuple[tuple[float, float, float], ...]
     grid_points: int
+    skin: str = HALF_SPACE
 
     @property
     def pitch(self) -> float:
@@ -111,16 +140,18 @@ def _quadrature(width: float, panel: float) -> tuple[np.ndarray, np.ndarray]:
     return (mid[:, None] + half * t[None, :]).ravel(), np.tile(wt * half, n_panels)
 
 
-def amplitude_factor(half_spacing: float, depth: float, pairs: int = 5) -> tuple[float, float]:
-    """k2 = max of S_Psi over [-4d, 4d] (1/m), and where it is reached (m)."""
+def amplitude_factor(half_spacing: float, depth: float, pairs: int = 5, skin=None) -> tuple[float, float]:
+    """k2 = max of S_Psi over [-4d, 4d] (1/m), and where it is reached (m); ``skin`` as in
+    :func:`optimal_half_spacing`."""
     d = _positive(half_spacing, "half_spacing", fix="the tractor spacing must be > 0 (give d in m)")
     z, _, n = _check_inputs(depth, 1.0, pairs)
+    skin = _check_skin(skin)
     step = min(z, d) / 25.0
     xs = np.linspace(-4 * d, 4 * d, int(math.ceil(8 * d / step)) + 1)
-    psi = array_phi_psi(xs, d, z, n)[1]
+    psi = _phi_psi(xs, d, z, n, skin)[1]
     i = int(np.argmax(psi))
     lo, hi = xs[max(i - 1, 0)], xs[min(i + 1, xs.size - 1)]
-    res = minimize_scalar(lambda x: -array_phi_psi(np.array(x), d, z, n)[1], bounds=(lo, hi),
+    res = minimize_scalar(lambda x: -_phi_psi(np.array(x), d, z, n, skin)[1], bounds=(lo, hi),
                           method="bounded", options={"xatol": 1e-10 * z})
     if -res.fun >= psi[i]:
         return float(-res.fun), float(res.x)
@@ -128,7 +159,7 @@ def amplitude_factor(half_spacing: float, depth: float, pairs: int = 5) -> tuple
 
 
 def spacing_objective(half_spacing: float, depth: float, width: float = 10e-3, pairs: int = 5,
-                      panel_fraction: float = 0.5) -> dict:
+                      panel_fraction: float = 0.5, skin=None) -> dict:
     """The design objective J(d) of docs/theory.md 4a and its parts.
 
     Parameters
@@ -143,6 +174,8 @@ def spacing_objective(half_spacing: float, depth: float, width: float = 10e-3, p
         Number of tractor pairs (>= 1).
     panel_fraction : float
         Quadrature panel width in units of ``min(Z, d)`` (default 0.5; smaller is finer).
+    skin : None, HalfSpace or LayeredHalfSpace
+        As in :func:`optimal_half_spacing`.
 
     Returns
     -------
@@ -153,9 +186,10 @@ def spacing_objective(half_spacing: float, depth: float, width: float = 10e-3, p
     d = _positive(half_spacing, "half_spacing", fix="the tractor spacing must be > 0 (give d in m)")
     z, w, n = _check_inputs(depth, width, pairs)
     frac = _positive(panel_fraction, "panel_fraction", "1")
-    k2, _ = amplitude_factor(d, z, n)
+    skin = _check_skin(skin)
+    k2, _ = amplitude_factor(d, z, n, skin)
     xs, wq = _quadrature(w, frac * min(z, d))
-    s_phi, s_psi = array_phi_psi(xs, d, z, n)
+    s_phi, s_psi = _phi_psi(xs, d, z, n, skin)
     phase = np.pi * xs / (2.0 * d)
     target_phi = -0.5 * k2 * np.cos(phase)
     target_psi = k2 * np.sin(phase)
@@ -167,7 +201,7 @@ def spacing_objective(half_spacing: float, depth: float, width: float = 10e-3, p
 
 def optimal_half_spacing(depth: float, width: float = 10e-3, pairs: int = 5, *,
                          bracket: tuple[float, float] | None = None,
-                         grid_points: int = 200) -> SpacingDesign:
+                         grid_points: int = 200, skin=None) -> SpacingDesign:
     """The optimal half spacing d of a tractor array for receptors at depth Z.
 
     Parameters
@@ -183,6 +217,11 @@ def optimal_half_spacing(depth: float, width: float = 10e-3, pairs: int = 5, *,
         d -> 0 behaviour and the spurious minima below about 0.2 Z.
     grid_points : int
         Points of the geometric scan grid (>= 20).
+    skin : None, HalfSpace or LayeredHalfSpace
+        None or ``HalfSpace(E, 0.5)`` (default): the closed-form half-space at nu = 1/2. A
+        ``LayeredHalfSpace``: its exact plane-strain strain of the array (docs/theory.md 6,
+        :mod:`tactilab.forward.skin.line_loads`), normalised by the ``E`` of the layer at Z as the
+        closed form is by the half-space's (the optimum does not depend on that scale).
 
     Returns
     -------
@@ -194,6 +233,7 @@ def optimal_half_spacing(depth: float, width: float = 10e-3, pairs: int = 5, *,
         For a bad input, or when J has no interior local minimum in the bracket.
     """
     z, w, n = _check_inputs(depth, width, pairs)
+    skin = _check_skin(skin)
     if bracket is None:
         lo, hi = 0.2 * z, 5.0 * z
     else:
@@ -206,15 +246,15 @@ def optimal_half_spacing(depth: float, width: float = 10e-3, pairs: int = 5, *,
     if isinstance(grid_points, bool) or not isinstance(grid_points, (int, np.integer)) or grid_points < 20:
         raise ValueError(f"grid_points: need an integer >= 20 to locate the minima, got {grid_points!r}")
     grid = np.geomspace(lo, hi, int(grid_points))
-    values = np.array([spacing_objective(d, z, w, n)["objective"] for d in grid])
+    values = np.array([spacing_objective(d, z, w, n, skin=skin)["objective"] for d in grid])
     minima = []
     for i in range(1, grid.size - 1):
         if values[i] <= values[i - 1] and values[i] < values[i + 1]:
-            res = minimize_scalar(lambda d: spacing_objective(d, z, w, n)["objective"],
+            res = minimize_scalar(lambda d: spacing_objective(d, z, w, n, skin=skin)["objective"],
                                   bounds=(grid[i - 1], grid[i + 1]), method="bounded",
                                   options={"xatol": 1e-7 * z})
             d_best = float(res.x) if res.fun <= values[i] else float(grid[i])
-            parts = spacing_objective(d_best, z, w, n)
+            parts = spacing_objective(d_best, z, w, n, skin=skin)
             minima.append((d_best, parts["objective"], parts["relative_residual"]))
     # a minimum whose array fits the target no better than zero strain (relative residual >= 1)
     # is trivial: J is small there only because k2, and with it the target, is small
@@ -227,11 +267,12 @@ def optimal_half_spacing(depth: float, width: float = 10e-3, pairs: int = 5, *,
             "the width or the number of pairs"
         )
     d_opt = min(useful, key=lambda m: m[1])[0]
-    parts = spacing_objective(d_opt, z, w, n)
-    centres = array_phi_psi(np.array([d_opt]), d_opt, z, n)[1]
+    parts = spacing_objective(d_opt, z, w, n, skin=skin)
+    centres = _phi_psi(np.array([d_opt]), d_opt, z, n, skin)[1]
     return SpacingDesign(depth=z, width=w, pairs=n, d=d_opt, k2=parts["k2"], k2_prime=float(centres[0]),
                          objective=parts["objective"], relative_residual=parts["relative_residual"],
-                         bracket=(lo, hi), minima=tuple(minima), grid_points=int(grid_points))
+                         bracket=(lo, hi), minima=tuple(minima), grid_points=int(grid_points),
+                         skin=HALF_SPACE if skin is None else repr(skin))
 
 
 def _design_pitch_depth(design: SpacingDesign, pitch, depth) -> tuple[float, float]:

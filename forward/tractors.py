@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike
 # the input rules live on the ground floor, which loads no solver: ``tactilab --help`` loads this
 # module (through the display code) and must not load the solver
 from tactilab.core import rules as check
+from tactilab.core.memory import check_count
 from tactilab.core.rules import COMPONENTS
 
 #: Voigt order of the stress components (the one order, tactilab.core.rules.COMPONENTS)
@@ -48,11 +49,18 @@ def _non_negative(value, name: str, unit: str = "m") -> float:
     return v
 
 
-def check_pairs(pairs: int) -> int:
-    """Validate a number of tractor pairs (an integer >= 1) and return it as ``int``."""
+#: bytes per tractor pair of the arrays a tractor array allocates at once (centres, positions, signs and
+#: their sorted and temporary copies: five float64 arrays of 2 values per pair)
+PAIR_BYTES = 5 * 2 * 8
+
+
+def check_pairs(pairs: int, name: str = "pairs") -> int:
+    """Validate a number of tractor pairs (an integer >= 1, within the memory rule) and return it as ``int``.
+
+    ``name`` is the argument that set it (``--pairs`` on the command line)."""
     if isinstance(pairs, bool) or not isinstance(pairs, (int, np.integer)) or pairs < 1:
-        raise ValueError(f"pairs: the number of tractor pairs must be an integer >= 1, got {pairs!r}")
-    return int(pairs)
+        raise ValueError(f"{name}: the number of tractor pairs must be an integer >= 1, got {pairs!r}")
+    return check_count(int(pairs), PAIR_BYTES, name, "tractor pairs (their centres, positions and signs)")
 
 
 def to_engineering_shear(strain_voigt: np.ndarray) -> np.ndarray:

@@ -23,8 +23,10 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from tactilab.core.batch import batch_client, result_path, run_batch, write_netcdf_atomic
+from tactilab.core.netcdf import cf_ready
 from tactilab.data_schemas.recording import Recording
 
+from .scene_check import check_scene_recording
 from .scene_inversion import defect_problem, defect_profile, invert_defect_position
 
 __all__ = ["invert_many", "recording_keys"]
@@ -94,6 +96,8 @@ def _invert_recording(item, rng: np.random.Generator, *, scene, options: dict):
 
     from tactilab.data_schemas.recording_io import read_recording
 
+    if not isinstance(item, Recording):  # a file records the scene that made it: it must be this one
+        check_scene_recording(scene, item, sample=options["sample"], allow_mismatch=options["allow_scene_mismatch"])
     rec = item if isinstance(item, Recording) else read_recording(item)
     problem = defect_problem(scene, rec, max_data=options["max_data"])  # once, for the position and the profile
     res, info = invert_defect_position(scene, rec, rng, sample=options["sample"], problem=problem,
@@ -113,17 +117,23 @@ def _invert_recording(item, rng: np.random.Generator, *, scene, options: dict):
          "upper": ("parameter", [float(np.quantile(flat[n], 0.975)) for n in names]),
          "r_hat": ("parameter", [float(summary.loc[n, "r_hat"]) for n in names]),
          "ess_bulk": ("parameter", [float(summary.loc[n, "ess_bulk"]) for n in names])},
-        coords={"parameter": names},
+        coords={"parameter": names, "parameter_units": ("parameter", [_UNIT.get(n, "1") for n in names],
+                                                        {"long_name": "SI unit of each parameter"})},
         attrs={"units": "SI per parameter: x0, y0 and depth in m, amplitude in m^2, young_modulus in Pa, "
                         "normal_force in N, friction dimensionless",
                "interval": "2.5 % and 97.5 % posterior quantiles",
                "converged": int(res.converged), "message": res.message,
                "rhat_between_max": float(res.diagnostics["rhat_between_max"]),
                "n_steps": int(res.diagnostics["n_steps"])})
+    for name, text in _POSITION_NAMES.items():
+        position[name].attrs.update(long_name=text, units="see parameter_units" if name in _PER_PARAMETER else "1")
+    density = {"units": "m^2/m"}
     profile = xr.Dataset(
-        {"mean": ("x", post.mean), "std": ("x", post.std),
-         "lower": ("x", post.mean - BAND_Z * post.std), "upper": ("x", post.mean + BAND_Z * post.std)},
-        coords={"x": ("x", x, {"units": "m", "frame": "world"})},
+        {"mean": ("x", post.mean, {**density, "long_name": "posterior mean defect-load density"}),
+         "std": ("x", post.std, {**density, "long_name": "posterior sd of the defect-load density"}),
+         "lower": ("x", post.mean - BAND_Z * post.std, {**density, "long_name": "lower end of the 95 % band"}),
+         "upper": ("x", post.mean + BAND_Z * post.std, {**density, "long_name": "upper end of the 95 % band"})},
+        coords={"x": ("x", x, {"units": "m", "frame": "world", "long_name": "position along the scan line"})},
         attrs={"units": "m^2 of effective defect area per m of scan line (a load density, not a height)",
                "band": "95 % pointwise credible band (mean +- 1.96 std, Gaussian posterior)",
                "criterion": options["criterion"], **{f"lam_{k}": float(v) for k, v in crit.lam.items()}})
@@ -136,10 +146,18 @@ def _invert_recording(item, rng: np.random.Generator, *, scene, options: dict):
          "/position": position, "/profile": profile, "/posterior": draws})
 
 
+#: SI units of the sampled and integrated parameters (a stacked ``parameter`` dimension has one per entry)
+_UNIT = {"x0": "m", "y0": "m", "depth": "m", "amplitude": "m^2", "young_modulus": "Pa", "normal_force": "N"}
+_POSITION_NAMES = {"mean": "posterior mean", "sd": "posterior standard deviation", "lower": "2.5 % posterior quantile",
+                   "upper": "97.5 % posterior quantile", "r_hat": "R-hat (rank-normalised split)",
+                   "ess_bulk": "bulk effective sample size"}
+_PER_PARAMETER = ("mean", "sd", "lower", "upper")
+
+
 def invert_many(recordings, scene, *, client=None, seed: int, out_dir, workers: int | None = None,
                 scheduler: str | None = None, per_task: int = 1, sample=(), max_data: int = 1500, n_grid: int = 200,
                 criterion: str = "evidence", sampler_options: Mapping | None = None, progress: bool = True,
-                echo: Callable[[str], None] = print):
+                echo: Callable[[str], None] = print, allow_scene_mismatch: bool = False):
     """Defect position and load profile of many recordings of one scene, gathered along ``recording``.
 
     Parameters
@@ -166,6 +184,9 @@ def invert_many(recordings, scene, *, client=None, seed: int, out_dir, workers: 
         Further keywords of :func:`~.mcmc.sample_scene_posterior` (``max_steps``, ``n_walkers``, ...).
     progress : bool
         Progress bar over recordings.
+    allow_scene_mismatch : bool
+        Invert a recording file whose recorded scene differs from ``scene`` (with a warning) instead
+        of failing it (:func:`~.scene_check.check_scene_recording`).
 
     Returns
     -------
@@ -184,7 +205,7 @@ def invert_many(recordings, scene, *, client=None, seed: int, out_dir, workers: 
     if criterion not in ("gcv", "lcurve", "discrepancy", "evidence"):
         raise ValueError(f"criterion: must be one of gcv, lcurve, discrepancy, evidence, got {criterion!r}")
     items = recording_keys(recordings, exclude=out_dir)
-    options = dict(sample=tuple(sample), max_data=int(max_data), n_grid=int(n_grid), criterion=criterion,
+    options = dict(sample=tuple(sample), allow_scene_mismatch=bool(allow_scene_mismatch), max_data=int(max_data), n_grid=int(n_grid), criterion=criterion,
                    sampler=dict(sampler_options or {}, progress=False))
     with batch_client(workers, scheduler, client=client, echo=echo) as cl:
         report = run_batch(_invert_recording, items, seed=seed, out_dir=out_dir, client=cl,
@@ -198,6 +219,7 @@ def invert_many(recordings, scene, *, client=None, seed: int, out_dir, workers: 
                  failed=";".join(report.errors), out_dir=str(out_dir), wall_s=float(report.wall_s),
                  gather_s=float(gather_s))
     tree = _gather(parts, report.done, attrs) if parts else xr.DataTree(xr.Dataset(attrs=attrs))
+    tree = cf_ready(tree)  # the tree returned is the file's (CF attributes included)
     write_netcdf_atomic(tree, pathlib.Path(out_dir) / "invert_many.nc")
     return tree
 
@@ -216,12 +238,12 @@ def _gather(parts: list, done: list, attrs: dict):
     import xarray as xr
 
     keys = xr.DataArray(done, dims="recording", name="recording")
-    position = xr.concat([p for p, _, _ in parts], dim=keys, combine_attrs="drop")
+    position = xr.concat([p for p, _, _ in parts], dim=keys, combine_attrs="override")
     for name in ("converged", "n_steps", "rhat_between_max"):
-        position[name] = ("recording", [p.attrs[name] for p, _, _ in parts])
+        position[name] = ("recording", [p.attrs[name] for p, _, _ in parts], {"units": "1"})
     position["converged"] = position["converged"].astype(bool)
     position.attrs = {k: parts[0][0].attrs[k] for k in ("units", "interval")}
-    profile = xr.concat([q for _, q, _ in parts], dim=keys, join="exact", combine_attrs="drop")
+    profile = xr.concat([q for _, q, _ in parts], dim=keys, join="exact", combine_attrs="override")
     profile.attrs = {k: parts[0][1].attrs[k] for k in ("units", "band", "criterion")}
     root = xr.Dataset({"source": ("recording", [s for _, _, s in parts])}, coords={"recording": keys}, attrs=attrs)
     return xr.DataTree.from_dict({"/": root, "/position": position, "/profile": profile})

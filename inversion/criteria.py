@@ -409,11 +409,16 @@ def plot_criteria(result: CriteriaResult, path, title: str = "Regularisation cri
     ax.legend(fontsize=7)
     ax = axes[1, 1]
     if "log_evidence" in result.curves:
-        ax.semilogx(g, result.curves["log_evidence"], "k-")
+        # relative to its maximum on a symlog axis: the evidence falls by ~1e6 nats at large lambda, which
+        # would flatten the peak on a linear axis; within 1 nat of the top the axis is linear
+        ev = result.curves["log_evidence"]
+        top = float(np.nanmax(ev))
+        ax.semilogx(g, ev - top, "k-")
+        ax.set_yscale("symlog", linthresh=1.0)
         if "log_evidence" in result.errors:
-            ev, se = result.curves["log_evidence"], result.errors["log_evidence"]
-            ax.fill_between(g, ev - 2 * se, ev + 2 * se, color="0.8", label="+-2 s.e.")
-    ax.set(xlabel="lambda", ylabel="log evidence", title="Marginal likelihood")
+            se = result.errors["log_evidence"]
+            ax.fill_between(g, ev - top - 2 * se, ev - top + 2 * se, color="0.8", label="+-2 s.e.")
+    ax.set(xlabel="lambda", ylabel="log evidence - its maximum (nats, symlog)", title="Marginal likelihood")
     mark(ax, ["evidence"])
     ax.legend(fontsize=7)
     fig.suptitle(title if not result.errors else f"{title} (stochastic estimates, iterative path)")

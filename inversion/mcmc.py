@@ -88,8 +88,22 @@ class MCMCResult:
         return "<pre>" + html.escape(repr(self)) + "</pre>"
 
     def to_netcdf(self, path) -> None:
-        """Write the DataTree to a netCDF4/HDF5 file (h5netcdf engine)."""
-        self.tree.to_netcdf(path, engine="h5netcdf")
+        """Write the DataTree to a netCDF4/HDF5 file (h5netcdf engine; CF attributes, units on every parameter)."""
+        from tactilab.core.netcdf import write_netcdf
+
+        write_netcdf(self.tree, path)
+
+
+#: SI units and long names of the defect model's parameters
+_PARAMETER_ATTRS = {
+    "x0": {"units": "m", "long_name": "defect position x"},
+    "y0": {"units": "m", "long_name": "defect position y"},
+    "depth": {"units": "m", "long_name": "receptor depth below the skin surface"},
+    "young_modulus": {"units": "Pa", "long_name": "skin Young's modulus"},
+    "normal_force": {"units": "N", "long_name": "finger normal force"},
+    "friction": {"units": "1", "long_name": "friction coefficient"},
+    "amplitude": {"units": "m^2", "long_name": "effective point-defect area (linear amplitude)"},
+}
 
 
 class DefectPosterior:
@@ -124,6 +138,14 @@ class DefectPosterior:
     @property
     def param_names(self) -> tuple[str, ...]:
         return self.sampled
+
+    @property
+    def variable_attrs(self) -> dict:
+        """SI units and long names of the parameters and of the data (for the tree and its file)."""
+        quantity = getattr(self.model, "quantity", None)
+        return {**_PARAMETER_ATTRS, "data": {
+            "units": {"stress": "Pa", "strain": "1"}.get(quantity, "Pa or 1 (the recording's unit)"),
+            "long_name": f"observed sensor signal ({quantity or 'stress or strain'}, flattened)"}}
 
     @property
     def observed(self) -> np.ndarray:

@@ -19,15 +19,19 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 
 from tactilab.core.batch import read_result, run_batch, write_netcdf_atomic
+from tactilab.core.memory import check_count
+from tactilab.core.netcdf import cf_ready
 from tactilab.forward import ReceptorHypothesis
 
-from .metamer_families import SinusoidFamily, TractorFamily
+from .metamer_families import SinusoidFamily, TractorFamily, check_receptor_memory
 from .metameres import metamer_pair
 
 __all__ = ["metamer_scan"]
 
 #: scalar results of one scan point, gathered over (display, pitch, phase)
 SCAN_VARIABLES = ("relative_residual", "dprime", "p_correct_2ifc", "scan_rms", "n_at_limit")
+#: the scan's variables are ratios, probabilities, d' and counts: dimensionless
+_SCAN_UNITS = {name: "1" for name in SCAN_VARIABLES}
 
 
 def _scan_point(item, rng, *, families, hypothesis, receptors, amplitude, bounds, scan_frames, criterion):
@@ -128,6 +132,10 @@ def metamer_scan(pitches: Sequence[float], phases: Sequence[float], displays, hy
     h = hypothesis if isinstance(hypothesis, ReceptorHypothesis) else ReceptorHypothesis.parse(str(hypothesis))
     x = np.asarray(receptors, dtype=float).reshape(-1)
     families = {str(k): TractorFamily.from_display(d, float(young_modulus)) for k, d in named.items()}
+    # the memory rule, before any point runs (a failure per point would hide it in errors.tsv)
+    check_receptor_memory(x.size, max(f.n_params for f in families.values()), h.n_depths)
+    if scan_frames is not None:
+        check_count(int(scan_frames), 16, "scan_frames", "frames (a phase and a residual each)")
     items = {f"display={d}/pitch={p!r}m/phase={ph!r}rad": {"display": d, "pitch": p, "phase": ph, "at": (i, j, k)}
              for i, d in enumerate(families) for j, p in enumerate(ps) for k, ph in enumerate(phs)}
     shared = dict(families=families, hypothesis=h, receptors=x, amplitude=float(amplitude), bounds=bounds,
@@ -151,5 +159,8 @@ def metamer_scan(pitches: Sequence[float], phases: Sequence[float], displays, hy
                     attrs=dict(hypothesis=str(h), amplitude_m=float(amplitude), young_modulus_pa=float(young_modulus),
                                criterion=float(criterion), seed=int(seed), n_run=rep.n_run, n_skipped=rep.n_skipped,
                                n_failed=rep.n_failed, failed=";".join(rep.errors)))
+    for name, units in _SCAN_UNITS.items():
+        ds[name].attrs.update(units=units)
+    ds = cf_ready(ds)  # the dataset returned is the file's (CF attributes included)
     write_netcdf_atomic(ds, pathlib.Path(out_dir) / "metamer_scan.nc")
     return ds

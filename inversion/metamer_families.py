@@ -27,6 +27,7 @@ from scipy.sparse.linalg import LinearOperator, aslinearoperator
 
 from tactilab.forward import ReceptorHypothesis, sliding_sinusoid_strain, tractor_row_strain
 from tactilab.core import rules
+from tactilab.core.memory import check_count
 
 VOIGT = rules.COMPONENTS  # the one Voigt order
 
@@ -38,6 +39,43 @@ def _check_hypothesis(hypothesis) -> ReceptorHypothesis:
         raise ValueError(f"hypothesis: expected a ReceptorHypothesis or a string like 'xx,zx@1.25mm', "
                          f"got {type(hypothesis).__name__}")
     return hypothesis
+
+
+#: bytes per receptor, per depth and per family parameter, of the strain and readout arrays alive at once
+#: (6 strain components in float64, and two temporaries of that size: 144; measured peak 141 for
+#: xx,zx@1.25mm and 131 per depth for two depths with the wh2008 display's 10 tractors)
+RECEPTOR_BYTES = 3 * 6 * 8
+
+
+def check_receptor_memory(n_receptors: int, n_params: int, n_depths: int, name: str = "receptors") -> int:
+    """The memory rule for the receptor count of a dense family's readouts (before any is allocated).
+
+    Parameters
+    ----------
+    n_receptors : int
+        Receptors, count.
+    n_params, n_depths : int
+        The family's parameters (tractors) and the hypothesis's depths.
+    name : str
+        The argument that set ``n_receptors`` (``--receptors`` on the command line).
+
+    Raises
+    ------
+    ValueError
+        Above :data:`tactilab.core.memory.MEMORY_LIMIT_BYTES`, naming the largest count that fits.
+    """
+    per = RECEPTOR_BYTES * int(n_depths) * int(n_params) + 8
+    return check_count(n_receptors, per, name, f"receptors (readouts of {int(n_depths)} depth(s) x {int(n_params)} "
+                                                f"parameter(s), {per} bytes per receptor)",
+                       "fewer depths or a coarser receptor spacing")
+
+
+def check_families_memory(receptors, hypothesis, *families) -> None:
+    """:func:`check_receptor_memory` for the largest dense (1-D) family of a computation, before any of them
+    allocates, so the size it names fits them all (the grid families apply FFT operators, not matrices)."""
+    dense = [f for f in families if isinstance(f, _DenseFamily)]
+    if dense:
+        check_receptor_memory(int(np.size(receptors)), max(int(f.n_params) for f in dense), hypothesis.n_depths)
 
 
 def _x_receptors(receptors, name: str) -> np.ndarray:
@@ -171,6 +209,7 @@ class SinusoidFamily(_DenseFamily):
 
     def strain(self, params, depths, receptors) -> np.ndarray:
         x = _x_receptors(receptors, self.name)
+        check_receptor_memory(x.size, 1, len(depths))
         shift = self.phase * self.pitch / (2 * np.pi)  # H(x + shift) = A sin(2 pi x / p + phase)
         return np.stack([sliding_sinusoid_strain(x, z, float(params[0]), self.pitch, 1.0, shift, self.nu)
                          for z in depths])
@@ -219,6 +258,7 @@ class TractorFamily(_DenseFamily):
 
     def strain(self, params, depths, receptors) -> np.ndarray:
         x = _x_receptors(receptors, self.name)
+        check_receptor_memory(x.size, self.n_params, len(depths))
         return np.stack([tractor_row_strain(x, z, self.tractor_x, params, self.young_modulus, self.nu,
                                             self.footprint) for z in depths])
 
@@ -227,6 +267,7 @@ class TractorFamily(_DenseFamily):
         h = _check_hypothesis(hypothesis)
         require_linear(h)
         x = _x_receptors(receptors, self.name)
+        check_receptor_memory(x.size, self.n_params, h.n_depths)  # before the offsets and the strain exist
         # unit load of each tractor: one kernel evaluation at every receptor-tractor offset
         offsets = (x[None, :] - self.tractor_x[:, None]).ravel()
         strain = np.stack([tractor_row_strain(offsets, z, [0.0], [1.0], self.young_modulus, self.nu, self.footprint)

@@ -26,7 +26,7 @@ def plot_pair(pair, path) -> None:
     xlabel = "receptor x (mm)" if rec.ndim == 1 else "receptor index"
     t = pair.target_readout.reshape(h.n_depths, h.n_components, -1)
     m = pair.match_readout.reshape(h.n_depths, h.n_components, -1)
-    fig = _figure(5.5 * h.n_depths, 3.6)
+    fig = _figure(max(5.5 * h.n_depths, 6.5), 4.3)  # + the legend's rows below
     axes = np.atleast_1d(fig.subplots(1, h.n_depths, squeeze=False)[0])
     colours = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown", "tab:gray")
     for d, ax in enumerate(axes):
@@ -39,13 +39,20 @@ def plot_pair(pair, path) -> None:
             inside = tractors[(tractors >= rec.min()) & (tractors <= rec.max())]
             ax.plot(inside * 1e3, np.zeros_like(inside), "k^", ms=5, label="tractors")
         ax.set_xlabel(xlabel)
-        ax.set_ylabel(f"strain ({h.shear} shear)")
+        ax.set_ylabel(_strain_label(h))
         ax.set_title(f"depth {h.depths[d] * 1e3:.3g} mm")
         ax.grid(alpha=0.3)
     d_text = "" if pair.dprime is None else f", d' = {pair.dprime:.3g}"
     fig.suptitle(f"{h}: relative residual {pair.relative_residual:.3g}{d_text}")
-    axes[-1].legend(fontsize=7, loc="best")
+    # beside the panels, never over the curves or the tractors
+    fig.legend(*axes[0].get_legend_handles_labels(), fontsize=7, ncols=3, loc="outside lower center")
     fig.savefig(path, dpi=110)
+
+
+def _strain_label(h) -> str:
+    """The y label: strain, naming the shear convention only when a shear component is drawn."""
+    shear = [c for c in h.components if c[0] != c[1]]
+    return f"strain ({h.shear} shear in {', '.join(shear)})" if shear else "strain"
 
 
 def plot_spectrum(values, path, *, rho=None, mode_s=None, title: str = "") -> None:

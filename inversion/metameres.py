@@ -35,6 +35,7 @@ from .metamer_families import (
     SinusoidFamily,
     StimulusFamily,
     _check_hypothesis,
+    check_families_memory,
     resolve_receptors,
 )
 from .metamer_grids import GridLoadFamily
@@ -149,14 +150,17 @@ class MetamerPair:
 
         h = self.hypothesis
         shape = (h.n_depths, h.n_components, -1)
-        coords = {"depth": ("depth", np.array(h.depths), {"units": "m"}), "component": list(h.components)}
+        coords = {"depth": ("depth", np.array(h.depths), {"units": "m", "positive": "down"}),
+                  "component": list(h.components)}
         rec = np.asarray(self.receptors)
         if rec.ndim == 1:
-            coords["x"] = ("receptor", rec, {"units": "m"})
+            coords["x"] = ("receptor", rec, {"units": "m", "long_name": "receptor position x"})
         dims = ("depth", "component", "receptor")
         attrs = {"units": "1", "shear_convention": h.shear}
-        ds = xr.Dataset({"target": (dims, self.target_readout.reshape(shape), attrs),
-                         "match": (dims, self.match_readout.reshape(shape), attrs),
+        ds = xr.Dataset({"target": (dims, self.target_readout.reshape(shape),
+                                    {**attrs, "long_name": "readout of the target stimulus"}),
+                         "match": (dims, self.match_readout.reshape(shape),
+                                   {**attrs, "long_name": "readout of the matching stimulus"}),
                          "params": ("param", self.params, {"units": ",".join(sorted(set(self.match.family.param_units)))})},
                         coords=coords)
         ds.attrs.update(hypothesis=str(h), relative_residual=self.relative_residual,
@@ -245,6 +249,7 @@ def metamer_pair(target: FamilyStimulus, family: StimulusFamily, hypothesis: Rec
     if not 0 <= rc < 1:
         raise ValueError(f"rcond: must be in [0, 1), got {rcond!r}")
     r = resolve_receptors(receptors, family, target.family)
+    check_families_memory(r, h, family, target.family)  # the memory rule, for the largest of them
     bnds = _bounds(bounds, family)
     b = target.readout(h, r)
     if not np.any(b):  # 0/0: every stimulus would "match", and the residual would read 0

@@ -40,6 +40,7 @@ import emcee
 import numpy as np
 from scipy.optimize import minimize
 
+from .chain_memory import check_max_steps, default_walkers
 from .pointwise import loo_ready
 
 __all__ = ["PosteriorModel", "sample_posterior", "mcmc_diagnostics"]
@@ -79,6 +80,11 @@ class PosteriorModel(Protocol):
         The data, written to the tree's ``observed_data`` group.
     units : str
         Units of the parameters, written to ``attrs["units"]``.
+    variable_attrs : mapping name -> dict
+        Attributes of the tree's variables (``units`` in SI, ``long_name``), by name: the
+        parameters of the ``posterior`` group and ``data`` of ``observed_data``; they reach
+        ``az.summary`` users and the netCDF file (CF). The sampler's own variables (``obs``,
+        ``lp``) get theirs here.
     observation_groups : ndarray, shape (n_obs,)
         A group label per observation (e.g. the sensor channel); used to merge observations
         for LOO when some are informative in only some draws (see
@@ -350,10 +356,10 @@ def sample_posterior(model: PosteriorModel, rng: np.random.Generator, *, n_ensem
         except Exception as exc:  # noqa: BLE001 (any pickling failure)
             raise ValueError(f"model: must be picklable to be sent to pool workers, pickling failed with {exc!r}; "
                              "keep only data and module-level functions on the model") from exc
-    n_walkers = int(n_walkers) if n_walkers is not None else max(16, 4 * ndim)
-    n_walkers += n_walkers % 2
+    n_walkers = default_walkers(ndim) if n_walkers is None else int(n_walkers) + int(n_walkers) % 2
     if n_walkers < 2 * ndim:
         raise ValueError(f"n_walkers: emcee needs at least 2 x n_parameters = {2 * ndim} walkers, got {n_walkers}")
+    check_max_steps(max_steps, ndim, n_ensembles=k, n_walkers=n_walkers)  # before any chain grows
     has_initial = callable(getattr(model, "initial", None))
     starts_given = None
     if start is not None:
@@ -469,4 +475,31 @@ def sample_posterior(model: PosteriorModel, rng: np.random.Generator, *, n_ensem
     if getattr(model, "observed", None) is not None:
         groups["observed_data"] = {"data": np.asarray(model.observed, dtype=float).ravel()}
         dims["data"] = ["data_id"]
-    return azb.from_dict(groups, dims=dims, coords={"obs_id": labels}, attrs={"/": attrs})
+    tree = azb.from_dict(groups, dims=dims, coords={"obs_id": labels}, attrs={"/": attrs})
+    label_variables(tree, getattr(model, "variable_attrs", None))
+    return tree
+
+
+#: attributes of the variables every sampled tree has (log densities in nats: dimensionless)
+_OWN_ATTRS = {("log_likelihood", "obs"): {"units": "1", "long_name": "pointwise log-likelihood (nats)"},
+              ("sample_stats", "lp"): {"units": "1", "long_name": "log posterior density up to a constant (nats)"}}
+
+
+def label_variables(tree, variable_attrs=None) -> None:
+    """Set ``units`` and ``long_name`` on a sampled tree's variables, in place.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        An arviz tree (``posterior``, ``log_likelihood``, ``sample_stats``, ``observed_data``).
+    variable_attrs : mapping name -> dict, optional
+        Attributes per variable name, applied in every group that holds the name; the log
+        densities ``obs`` and ``lp`` are labelled in any case.
+    """
+    for (group, name), attrs in _OWN_ATTRS.items():
+        if group in tree.children and name in tree[group].dataset:
+            tree[group].dataset[name].attrs.update(attrs)
+    for name, attrs in dict(variable_attrs or {}).items():
+        for group in tree.children:
+            if name in tree[group].dataset:
+                tree[group].dataset[name].attrs.update(attrs)

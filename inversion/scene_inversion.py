@@ -74,14 +74,15 @@ def defect_problem(scene, recording: Recording, max_data: int = 1500, max_sensor
     stride = max(1, int(np.ceil(n * per_time / max_data)))
     u = scene.scan.positions_m[::stride]
     c = scene.contact
+    E, nu = scene.material.half_space_constants("the defect inversion")
     model = DefectScanModel(u, scene.sensors.positions_m[keep], recording.components,
-                            finger_radius=c.finger_radius_m, poisson_ratio=scene.material.poisson_ratio,
+                            finger_radius=c.finger_radius_m, poisson_ratio=nu,
                             quantity=recording.quantity,
                             footprint=defect_footprint(scene.surface) if footprint else None)
     from tactilab.forward.contact import HertzContact
 
     hertz = HertzContact(normal_force=c.normal_force_n, finger_radius=c.finger_radius_m,
-                         young_modulus=scene.material.young_modulus_pa, poisson_ratio=scene.material.poisson_ratio)
+                         young_modulus=E, poisson_ratio=nu)
     info = {"sensor_ids": [recording.sensor_ids[i] for i in keep], "time_stride": stride, "noise_std": noise,
             "quantity": recording.quantity,
             "truth": tuple(scene.surface.position_m), "contact_radius": hertz.contact_radius}

@@ -11,8 +11,10 @@ import threading
 from pathlib import Path
 
 import pytest
+from udp_pairing import KEY, paired_description
 
 from tactilab.cli.main import main as cli_main
+from tactilab.data_schemas.display import DisplayDescription
 from tactilab.experiments.devices.emulator import emulate, read_record
 
 PROTOCOL = """name = "bad"
@@ -66,7 +68,8 @@ def _free_port() -> int:
 def device_absent(tmp_path, session):
     port = _free_port()
     return (["experiment", "run", str(_protocol(tmp_path, "p")), "--subject", "S01", *_simulated(tmp_path),
-             "--display", f"udp://127.0.0.1:{port}"], [f"udp://127.0.0.1:{port}", "connection refused",
+             "--display", f"udp://127.0.0.1:{port}",
+             "--device", str(paired_description(tmp_path, DisplayDescription.braille_row()))], [f"udp://127.0.0.1:{port}", "connection refused",
                                                        f"tactilab device emulate --port {port}"])
 
 
@@ -190,7 +193,8 @@ def test_a_device_lost_mid_session_gives_one_line_and_a_resumable_session(tmp_pa
     fault), the trial in progress not scored, and the session resumable."""
     stop, logs, record = threading.Event(), [], tmp_path / "emu.jsonl"
     thread = threading.Thread(target=emulate, kwargs=dict(port=0, watchdog_s=1.0, record=record, max_seconds=60,
-                                                          log=logs.append, stop=stop, handle_signals=False),
+                                                          log=logs.append, stop=stop, handle_signals=False,
+                                                          pairing_key=KEY),
                               daemon=True)
     thread.start()
     while not logs:
@@ -211,7 +215,8 @@ def test_a_device_lost_mid_session_gives_one_line_and_a_resumable_session(tmp_pa
     path = _protocol(tmp_path, "lost", repeats="20")
     capsys.readouterr()
     code = cli_main(["experiment", "run", str(path), "--subject", "S01", *_simulated(tmp_path),
-                     "--display", f"udp://127.0.0.1:{port}", "--max-skipped", "1"])
+                     "--display", f"udp://127.0.0.1:{port}", "--max-skipped", "1",
+                     "--device", str(paired_description(tmp_path, DisplayDescription.braille_row()))])
     stop.set()
     thread.join(timeout=10)
     watcher.join(timeout=10)

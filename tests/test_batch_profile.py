@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from tactilab.core import read_result, run_batch, write_netcdf_atomic
+from tactilab.core import cf_ready, read_result, run_batch, write_netcdf_atomic
 from tactilab.core.batch import BATCH_CLUSTER_CONFIG, batch_client
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the workers cannot import this file
@@ -73,7 +73,7 @@ def test_writes_beside_a_client_take_no_cluster_lock(tmp_path, monkeypatch):
         path = write_netcdf_atomic(ds, tmp_path / "guarded.nc")
     assert made == []
     assert path == tmp_path / "guarded.nc" and sorted(p.name for p in tmp_path.iterdir()) == ["guarded.nc", "plain.nc"]
-    xr.testing.assert_identical(xr.load_dataset(path, engine="h5netcdf"), ds)
+    xr.testing.assert_identical(xr.load_dataset(path, engine="h5netcdf"), cf_ready(ds))  # CF attributes added
 
 
 def _count_cluster_locks() -> None:
@@ -109,14 +109,14 @@ def test_result_files_in_a_worker_take_no_cluster_lock(tmp_path):
     assert report.n_run == 2 and read_result(tmp_path, "b").attrs["item"] == "b"
 
 
-def test_a_failed_write_leaves_no_file(tmp_path):
-    class Broken:
-        def to_netcdf(self, path, engine):
-            open(path, "wb").write(b"half")
-            raise OSError("disk full")
+def test_a_failed_write_leaves_no_file(tmp_path, monkeypatch):
+    def broken(self, path, engine):
+        open(path, "wb").write(b"half")
+        raise OSError("disk full")
 
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", broken)
     with pytest.raises(OSError, match="disk full"):
-        write_netcdf_atomic(Broken(), tmp_path / "result.nc")
+        write_netcdf_atomic(xr.Dataset({"v": ("x", [1.0])}), tmp_path / "result.nc")
     assert list(tmp_path.iterdir()) == []
 
 

@@ -24,6 +24,7 @@ def test_bench_contact_sections_run(capsys):
     assert "(a) normal contact" in out and "Tamaas skipped (--no-peer)" in out
     assert "memory at 32^2" in out and "(b) partial slip" in out and "(c) sliding fingertip" in out and "(d) time and iterations" in out
     rows = [line.split() for line in out.splitlines() if line.strip().startswith(("16 ", "32 "))]
+    assert all(float(r[5]) > 0 and float(r[6]) > 0 for r in rows[:2])  # (a): iter/floor and loop/floor
     assert len(rows) == 4  # two sizes in (a) and in (d)
 
 

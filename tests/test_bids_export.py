@@ -157,3 +157,21 @@ def test_export_never_overwrites_without_force(sessions, tmp_path, capsys):
         assert cli_main(["experiment", "export", str(sessions[0]), "--format", fmt, "--out", str(tmp_path)]) == 0
         assert cli_main(["experiment", "export", str(sessions[0]), "--format", fmt, "--out", str(tmp_path)]) == 2
         assert "add --force" in capsys.readouterr().err
+
+
+def test_authors_go_into_the_dataset_description_and_bad_ones_are_refused(sessions, tmp_path, capsys):
+    from tactilab.experiments.session import export_session
+
+    out = tmp_path / "dataset"
+    assert cli_main(["experiment", "export", str(sessions[0]), "--out", str(out), "--author", "Ada Lovelace",
+                     "--author", "Alan Turing"]) == 0
+    assert json.loads((out / "dataset_description.json").read_text())["Authors"] == ["Ada Lovelace", "Alan Turing"]
+    with pytest.raises(ValueError, match="authors: must be a list of non-empty names"):
+        export_session(sessions[0], tmp_path / "b", "bids", authors="Ada Lovelace")
+    with pytest.raises(ValueError, match="authors: must be a list of non-empty names"):
+        export_session(sessions[0], tmp_path / "c", "bids", authors=["Ada", " "])
+    with pytest.raises(ValueError, match="authors: only a BIDS dataset has authors"):
+        export_session(sessions[0], tmp_path, "csv", authors=["Ada"])
+    capsys.readouterr()
+    assert cli_main(["experiment", "export", str(sessions[0]), "--out", str(tmp_path / "d"), "--author", ""]) != 0
+    assert "--author: must be a list of non-empty names" in capsys.readouterr().err

@@ -28,8 +28,9 @@ def test_frame_rate_is_capped_in_the_schema():
 
 def test_render_drive_applies_the_memory_rule_before_allocating():
     description = DisplayDescription.braille_row()
-    with pytest.raises(ValueError, match=r"frame_rate_hz: the drive \(6000000 frames x 10 tractors\) would need "
-                                         r"1.79 GiB, more than the 1 GiB limit"):
+    with pytest.raises(ValueError, match=r"frame_rate_hz: the drive \(6000000 frames = 100000.0 Hz x 60.0 s, x 10 "
+                                         r"tractors\) would need 1.79 GiB, more than the 1 GiB limit for one array; "
+                                         r"give frame_rate_hz at most 55924.1 Hz at duration_s = 60.0 s"):
         render_drive(description, amplitude_m=1e-6, pitch_m=2e-3, speed_m_per_s=0.04, duration_s=60.0,
                      frame_rate_hz=1e5, ramp_s=0.0)
     frames = render_drive(description, amplitude_m=1e-6, pitch_m=2e-3, speed_m_per_s=0.04, duration_s=0.02,

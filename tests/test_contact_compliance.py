@@ -183,3 +183,78 @@ def test_direct_summation_of_point_loads_equals_the_fft_product(shape, periodic,
     C.add_normal_point_loads(u, nodes, values)
     assert np.allclose(u, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
     assert C.direct_limit >= 1
+
+
+class _SpectralOnly:
+    """A skin known only by its surface_compliance (as a layered skin is)."""
+
+    def __init__(self, skin):
+        self.skin = skin
+
+    def __repr__(self) -> str:
+        return f"_SpectralOnly({self.skin!r})"
+
+    def surface_compliance(self, kx, ky=None):
+        return self.skin.surface_compliance(kx, ky)
+
+
+@pytest.mark.parametrize("shape", [(12,), (10, 12)])
+def test_isolated_grid_of_a_spectral_only_skin_is_the_padded_periodic_grid_cropped(shape, rng):
+    """The fallback's aperiodic convolution equals the periodic operator on the grid PADDED_PERIODS times
+    the zero-padded one, on tractions zero outside the grid, cropped; and it stays symmetric (Betti)."""
+    from tactilab.forward.contact.compliance import PADDED_PERIODS
+
+    skin = _SpectralOnly(HalfSpace(E, 0.3))
+    iso = ContactCompliance(skin, shape, 1e-4, False)
+    assert iso.padded_periodic
+    big_shape = tuple(2 * PADDED_PERIODS * n for n in shape)
+    big = ContactCompliance(skin, big_shape, 1e-4, True)
+    where = tuple(slice(0, n) for n in shape)
+    tractions = [rng.standard_normal(shape) for _ in range(len(shape) + 1)]
+    padded = []
+    for t in tractions:
+        b = np.zeros(big_shape)
+        b[where] = t
+        padded.append(b)
+    got = iso.apply(*tractions)
+    ref = big.apply(*padded)
+    for g, r in zip(got, ref):
+        if g is not None:
+            assert np.allclose(g, r[where], rtol=0, atol=1e-12 * np.abs(r).max())
+    other = [rng.standard_normal(shape) for _ in range(len(shape) + 1)]
+    lhs = sum(float(np.sum(u * t)) for u, t in zip(iso.apply(*tractions), other) if u is not None)
+    rhs = sum(float(np.sum(u * t)) for u, t in zip(iso.apply(*other), tractions) if u is not None)
+    assert lhs == pytest.approx(rhs, rel=1e-10)
+
+
+@pytest.mark.parametrize("periodic", [True, False])
+@pytest.mark.parametrize("shape", [(24, 32), (17, 10), (31,)])
+def test_fast_products_equal_the_padded_convolution(shape, periodic, rng):
+    """The pruned (isolated) and into-buffer (periodic) products equal the textbook transform:
+    rfftn of the (zero-padded) grid, times the block's spectrum, irfftn, cropped to the grid."""
+    if periodic and any(n % 2 for n in shape):
+        shape = tuple(n + n % 2 for n in shape)
+    spacing = (1e-5, 2e-5)[: len(shape)] if len(shape) == 2 else 1e-5
+    comp = ContactCompliance(HalfSpace(E=1e6, nu=0.4), shape, spacing, periodic)
+    axes = tuple(range(-len(shape), 0))
+    p, qx = rng.random(shape), rng.standard_normal(shape)
+    crop = tuple(slice(0, n) for n in shape)
+
+    def reference(value, row, col):
+        from scipy import fft as sfft
+
+        spec = sfft.rfftn(value, s=comp.fft_shape, axes=axes) * comp.spectrum(row, col)
+        return sfft.irfftn(spec, s=comp.fft_shape, axes=axes)[crop]
+
+    uz = reference(p, "uz", "p")
+    assert np.allclose(comp.normal(p), uz, rtol=0, atol=1e-13 * np.abs(uz).max())
+    out = np.full(shape, np.nan)
+    assert comp.normal(p, out=out) is out and np.allclose(out, uz, rtol=0, atol=1e-13 * np.abs(uz).max())
+    ux = reference(qx, "ux", "qx")
+    assert np.allclose(comp.tangential(qx)[0] if len(shape) == 1 else comp.tangential(qx, None)[0], ux,
+                       rtol=0, atol=1e-13 * np.abs(ux).max())
+    # the preconditioner into a given array equals its fresh result; repeated calls reuse the work spectrum
+    fresh = comp.stiffness(uz)
+    again = np.empty(shape)
+    assert comp.stiffness(uz, out=again) is again and np.array_equal(again, fresh)
+    assert np.array_equal(comp.normal(p), comp.normal(p))

@@ -25,7 +25,7 @@ def test_the_face_lists_its_names_and_loads_them_on_use():
 
 def test_finite_rule():
     assert rules.finite(np.float64(-2.5), "x_start", "m") == -2.5
-    with pytest.raises(ValueError, match=r"x_start: must be finite, got nan; give a finite number in m$"):
+    with pytest.raises(ValueError, match=r"x_start: must be finite, got nan; give a finite number in m, e.g. 1.25e-3$"):
         rules.finite(np.nan, "x_start", "m")
     with pytest.raises(ValueError, match=r"gain: must be finite, got inf; give a finite number$"):
         rules.finite(np.inf, "gain")

@@ -70,3 +70,42 @@ def test_dataset_coordinates_and_their_shape_checks(rng, tmp_path):
         recording_dataset(rec, sensor_positions_m=np.zeros((2, 2)))
     path = write_recording(rec, tmp_path, positions_m=np.arange(7) * 1e-3)
     assert read_recording(path) == rec
+
+
+@pytest.mark.parametrize("fmt", ["netcdf", "parquet"])
+def test_both_files_keep_the_sensor_positions_depth_and_scene_metadata(fmt, rng, tmp_path):
+    """Parquet recordings are self-describing: what the netCDF file keeps beside the values (sensor
+    positions, contact positions, depth and the other scene attributes) comes back from either."""
+    from tactilab.core import package_version
+    from tactilab.data_schemas import read_recording_metadata
+
+    # pyarrow is in the test extra
+    rec = record(rng)
+    sensors = rng.normal(0, 1e-3, (3, 2))
+    positions = np.linspace(-2e-3, 2e-3, 7)
+    scene = {"depth_m": 1.25e-3, "contact_radius_m": 4e-3, "normal_force_n": 0.5, "friction": 0.4}
+    path = write_recording(rec, tmp_path, fmt, positions_m=positions, sensor_positions_m=sensors, attrs=scene)
+    meta = read_recording_metadata(path)
+    assert np.array_equal(meta["sensor_positions_m"], sensors) and np.array_equal(meta["positions_m"], positions)
+    assert meta["attrs"] == scene and meta["tactilab_version"] == package_version()
+    assert read_recording(path) == rec
+    (tmp_path / "bare").mkdir()
+    bare = read_recording_metadata(write_recording(rec, tmp_path / "bare", fmt))
+    assert bare["sensor_positions_m"] is None and bare["positions_m"] is None and bare["attrs"] == {}
+
+
+def test_recording_metadata_of_a_json_record_is_refused(rng, tmp_path):
+    from tactilab.data_schemas import read_recording_metadata
+
+    with pytest.raises(ValueError, match="the metadata beside the values is kept in recording.nc or recording.parquet"):
+        read_recording_metadata(record(rng).save(tmp_path / "rec.json"))
+
+
+def test_recording_metadata_of_parquet_without_pyarrow_says_so(tmp_path, monkeypatch):
+    from tactilab.data_schemas import read_recording_metadata
+
+    (tmp_path / "recording.parquet").write_bytes(b"PAR1")
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "pyarrow" else real(name, *a))
+    with pytest.raises(ValueError, match="needs the optional package pyarrow"):
+        read_recording_metadata(tmp_path / "recording.parquet")

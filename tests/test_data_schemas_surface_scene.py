@@ -89,7 +89,8 @@ def test_height_map_reproduces_a_plane_exactly():
 
 
 def test_surface_kinds_registry():
-    assert set(SURFACE_KINDS) == {"flat", "sinusoidal_grating", "square_wave_grating", "defect", "height_map"}
+    assert set(SURFACE_KINDS) == {"flat", "sinusoidal_grating", "square_wave_grating", "defect", "height_map",
+                                 "random_rough", "measured"}
     for kind, model in SURFACE_KINDS.items():
         assert model.model_fields["kind"].default == kind
 

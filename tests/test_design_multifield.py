@@ -85,7 +85,9 @@ def test_protocol_file_with_several_varied_fields_runs_through_the_cli(tmp_path,
             (candidate.surface, candidate.amplitude_m, candidate.pitch_m)
         assert level == candidate.pitch_m
     shown = [_interval(s) for s in frame["stimuli"]]
-    assert len({s["surface"] for s in shown}) == 2  # the design used both waveforms (they separate xx from zx)
+    # the design predicts from what the braille row renders, where the pitch separates xx from zx (on the
+    # ideal surface the waveform did): it shows several pitches
+    assert len({s["pitch_m"] for s in shown}) >= 2
 
     # compare works on the design session as on any other; 16 trials all near ceiling cannot separate the
     # models, so the table says so instead of naming a best model
@@ -132,7 +134,8 @@ def test_multifield_session_resumes_equal_to_the_uninterrupted_one(tmp_path):
     assert estimates[0] == estimates[1]
     for col in ("level", "track", "correct", "response", "procedure_state", "stimuli"):
         assert frames[0][col].tolist() == frames[1][col].tolist(), col
-    assert len({_interval(s)["surface"] for s in frames[0]["stimuli"]}) == 2
+    shown = {tuple(_interval(s)[k] for k in ("surface", "pitch_m", "amplitude_m")) for s in frames[0]["stimuli"]}
+    assert len(shown) >= 2  # the resumed design went on choosing among multi-field candidates
 
 
 @pytest.mark.parametrize("changes, match", [

@@ -178,6 +178,7 @@ def test_a_run_that_ends_in_a_display_fault_still_prints_its_summary(tmp_path, m
         def _play(self, frames, frame_rate_hz):
             report = super()._play(frames, frame_rate_hz)
             LateThenStale.plays += 1
+            LateThenStale.frames_per_play = report.frames_sent
             late = dataclasses.replace(report, late=report.frames_sent // 4)
             return dataclasses.replace(late, stale=3) if LateThenStale.plays == 7 else late
 
@@ -193,7 +194,10 @@ def test_a_run_that_ends_in_a_display_fault_still_prints_its_summary(tmp_path, m
     assert "--- tactilab experiment run: summary ---" in out
     assert re.search(r"^status +failed: a display fault in trial 3 \(ALARM: 3 of \d+ frames .*\); resume repeats the trial$", out, re.M), out
     assert re.search(r"^progress +3 of 8 planned trials \(38 %\)$", out, re.M), out
-    assert re.search(r"^frames +\d+ sent; \d+ late \(2[45] %\)", out, re.M), out
+    # 3 scored trials (6 plays) and the aborted trial's first interval (the 7th play) reached the display
+    per_play = LateThenStale.frames_per_play
+    assert re.search(rf"^frames +{7 * per_play} sent \({per_play} in trials a display fault aborted\); "
+                     r"\d+ late \(2[45] %\)", out, re.M), out
     assert re.search(r"^display faults +1$", out, re.M) and re.search(r"^  - \d+ of \d+ frames late \(2[45]\.\d %", out, re.M)
     assert re.search(r"^  - display fault in trial 3: ALARM", out, re.M)
 
@@ -253,3 +257,35 @@ def test_an_interrupted_run_reports_the_stop_and_exports_nothing(tmp_path, monke
     assert s["files"] == [str(tmp_path / "sub-S04_ses-01_task-status.sqlite")] and not (tmp_path / "bids").exists()
     assert "--export: not exported, the session is interrupted" in captured.err
     assert "resume with: tactilab experiment resume" in captured.err
+
+
+def test_frames_a_display_fault_aborted_are_counted_as_sent(tmp_path, monkeypatch, capsys):
+    """A fault in the first trial's second interval: the display played both intervals' frames, and the
+    status says so (it said 'frames 0 sent': only scored trials were counted)."""
+    import dataclasses
+
+    from tactilab.experiments.devices import SimulatedDisplay, registry
+
+    class StaleSecondPlay(SimulatedDisplay):
+        plays, sent = 0, 0
+
+        def _play(self, frames, frame_rate_hz):
+            report = super()._play(frames, frame_rate_hz)
+            StaleSecondPlay.plays += 1
+            StaleSecondPlay.sent += report.frames_sent
+            return dataclasses.replace(report, stale=2) if StaleSecondPlay.plays == 2 else report
+
+    monkeypatch.setitem(registry._DEVICES, "stale_second_play",
+                        lambda spec, description, **kw: StaleSecondPlay(description, realtime=False))
+    (tmp_path / "p.toml").write_text(PROTOCOL)
+    code = cli_main(["experiment", "run", str(tmp_path / "p.toml"), "--subject", "S04", "--responses", "simulated",
+                     "--display", "stale_second_play", "--no-wait", "--quiet", "--out", str(tmp_path), "--json"])
+    assert code == 3
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["trials_completed"] == 0 and StaleSecondPlay.sent > 0
+    assert summary["frames_sent"] == summary["frames_sent_aborted"] == StaleSecondPlay.sent
+    (path,) = tmp_path.glob("sub-S04_*.sqlite")
+    lines = summary_lines(session_summary(path))
+    assert any(re.fullmatch(rf"frames +{StaleSecondPlay.sent} sent \({StaleSecondPlay.sent} in trials a display "
+                            r"fault aborted\); 0 late \(0 %\), 0 skipped \(0 %\), 0 missing \(0 %\)", line)
+               for line in lines), lines

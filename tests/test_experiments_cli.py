@@ -334,7 +334,12 @@ def test_a_resume_with_a_laxer_display_description_is_refused(tmp_path, capsys):
     # by default the resume uses the recorded description, and the export carries it with its hash
     assert cli_main(["experiment", "resume", str(path), "--no-wait", "--quiet"]) == 0
     meta = SessionLog(path).meta()
-    assert meta["display_description"] == nominal.model_dump(mode="json") and len(meta["display_sha256"]) == 64
+    from tactilab.experiments.devices import description_record
+
+    # the whole description, less the link fields that hold their defaults (pairing key file, lookahead)
+    assert meta["display_description"] == description_record(nominal)[0] and len(meta["display_sha256"]) == 64
+    assert set(nominal.model_dump(mode="json")) - set(meta["display_description"]) == {"pairing_key_file",
+                                                                                      "lookahead_s"}
     export_session(path, tmp_path / "bids")
     sidecar = json.loads(next((tmp_path / "bids").rglob("*_beh.json")).read_text())
     assert sidecar["DisplayDescription"]["max_traction_pa"] == 50000.0

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import socket
 import threading
+import time
 
 import pytest
+from udp_pairing import KEY, paired_description
 
 from tactilab.cli.main import main as cli_main
 from tactilab.data_schemas.display import DisplayDescription
@@ -14,7 +16,7 @@ from tactilab.experiments import (
     DisplayFault, SessionLog, SimulatedObserver, UdpDisplay, emulate, new_session, resume_session, session_status)
 from tactilab.experiments.devices.display import PlaybackReport
 from tactilab.experiments.devices import MAX_UNACKED_FRACTION, display_fault
-from tactilab.experiments.devices.link import ACK, ARM, ARMED, DISARM, FRAME, STATUS_CODE, ZERO, decode, encode
+from tactilab.experiments.devices.link import ACK, ARM, ARMED, DISARM, STATUS_CODE, ZERO, decode, encode, session_key
 
 PROTOCOL = {
     "name": "faults", "seed": 3, "iti_s": 0, "task": {"kind": "yes_no"},
@@ -25,12 +27,12 @@ PROTOCOL = {
 
 
 class FakeDevice:
-    """Speaks frame format 2 (ARM, ZERO, DISARM are answered, tagged); answers FRAMEs with ``mode``:
-    'stale', 'silent' (nothing) or 'applied'."""
+    """Speaks frame format 3 (a paired ARM; ZERO and DISARM are answered, tagged); answers FRAMEs with
+    ``mode``: 'stale', 'silent' (nothing) or 'applied'."""
 
     def __init__(self, mode: str) -> None:
         self.mode, self.log = mode, []
-        self.key, self.nonce = None, bytes(16)
+        self.key, self.nonce = None, bytes(range(16))
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
         self.sock.settimeout(0.05)
@@ -45,18 +47,18 @@ class FakeDevice:
                 data, sender = self.sock.recvfrom(65536)
             except TimeoutError:
                 continue
-            message = decode(data, key=self.key, nonce=self.nonce)
+            message = decode(data, key=KEY if data[5] == ARM else self.key)
             self.log.append(message.kind)
             if message.kind == ARM:
-                self.key, self.nonce = message.key, bytes(range(16))
-                self.sock.sendto(encode(ARMED, message.seq, message.timestamp_ns, key=self.key, nonce=self.nonce),
-                                 sender)
+                self.key = session_key(KEY, message.nonce, self.nonce)
+                self.sock.sendto(encode(ARMED, message.seq, message.timestamp_ns, key=KEY, nonce=self.nonce,
+                                        host_nonce=message.nonce, fifo_frames=1000), sender)
                 continue
             assert message.authentic
             status = {ZERO: "zeroed", DISARM: "released"}.get(message.kind, self.mode)
             if status != "silent":
                 self.sock.sendto(encode(ACK, message.seq, message.timestamp_ns, status=STATUS_CODE[status],
-                                        key=self.key, nonce=self.nonce), sender)
+                                        key=self.key, device_ns=time.perf_counter_ns()), sender)
 
     def close(self) -> None:
         self.stop.set()
@@ -74,12 +76,12 @@ def test_a_trial_whose_frames_were_not_applied_is_never_scored(tmp_path, mode, m
     device = FakeDevice(mode)
     path = tmp_path / "s.sqlite"
     try:
-        with UdpDisplay(description, "127.0.0.1", device.port, max_skipped_fraction=1.0) as display:
+        with UdpDisplay(description, "127.0.0.1", device.port, max_skipped_fraction=1.0, pairing_key=KEY) as display:
             with pytest.raises(DisplayFault, match=match + ".*not scored.*resume"):
                 new_session(protocol, path, display, SimulatedObserver(protocol), subject="S01", realtime=False)
     finally:
         device.close()
-    assert device.log[-2:] == [ZERO, DISARM], "the display is zeroed after the fault"
+    assert device.log[-3:] == [ZERO, ZERO, DISARM], "the display is zeroed after the fault, then disarmed"
     log = SessionLog(path)
     try:
         assert log.trials() == []
@@ -94,13 +96,13 @@ def test_a_trial_whose_frames_were_not_applied_is_never_scored(tmp_path, mode, m
     ports = []
     emulator = threading.Thread(target=emulate, kwargs=dict(
         port=0, watchdog_s=1.0, max_seconds=30, log=lambda line: ports.append(line), stop=stop,
-        handle_signals=False), daemon=True)
+        handle_signals=False, pairing_key=KEY), daemon=True)
     emulator.start()
     while not ports:
         stop.wait(0.01)
     port = int(ports[0].split(":")[2].split()[0])
     try:
-        with UdpDisplay(description, "127.0.0.1", port, max_skipped_fraction=1.0) as display:
+        with UdpDisplay(description, "127.0.0.1", port, max_skipped_fraction=1.0, pairing_key=KEY) as display:
             result = resume_session(path, display, SimulatedObserver(protocol), realtime=False)
     finally:
         stop.set()
@@ -123,7 +125,8 @@ def test_the_cli_reports_a_display_fault_in_one_line(tmp_path, capsys):
                     'levels = ["1um"]\nrepeats_per_block = 1\nn_blocks = 1\n')
     try:
         code = cli_main(["experiment", "run", str(toml), "--subject", "S01", "--responses", "simulated",
-                         "--no-wait", "--quiet", "--out", str(tmp_path), "--display", f"udp://127.0.0.1:{device.port}"])
+                         "--no-wait", "--quiet", "--out", str(tmp_path), "--display", f"udp://127.0.0.1:{device.port}",
+                         "--device", str(paired_description(tmp_path, DisplayDescription.braille_row()))])
     finally:
         device.close()
     err = capsys.readouterr().err
@@ -149,7 +152,7 @@ def test_an_absent_device_is_found_before_any_session_file_exists(tmp_path, caps
         probe.bind(("127.0.0.1", 0))
         free_port = probe.getsockname()[1]
     protocol = Protocol.model_validate(PROTOCOL)
-    display = UdpDisplay(DisplayDescription.braille_row(), "127.0.0.1", free_port)
+    display = UdpDisplay(DisplayDescription.braille_row(), "127.0.0.1", free_port, pairing_key=KEY)
     try:
         with pytest.raises(DisplayError, match="connection refused"):
             new_session(protocol, tmp_path / "s.sqlite", display, SimulatedObserver(protocol), subject="S01",
@@ -162,7 +165,8 @@ def test_an_absent_device_is_found_before_any_session_file_exists(tmp_path, caps
                     'pitch_m = "2mm"\nspeed_m_per_s = "40mm/s"\n[procedure]\nmethod = "constant_stimuli"\n'
                     'parameter = "amplitude_m"\nlevels = ["1um"]\n')
     code = cli_main(["experiment", "run", str(toml), "--subject", "S01", "--responses", "simulated", "--quiet",
-                     "--out", str(tmp_path / "out"), "--display", f"udp://127.0.0.1:{free_port}"])
+                     "--out", str(tmp_path / "out"), "--display", f"udp://127.0.0.1:{free_port}",
+                     "--device", str(paired_description(tmp_path, DisplayDescription.braille_row()))])
     err = capsys.readouterr().err
     assert code == 3 and len(err.strip().splitlines()) == 1 and "connection refused" in err
     assert not list((tmp_path / "out").glob("*.sqlite"))

@@ -21,6 +21,7 @@ import hypothesis.strategies as st
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
+from udp_pairing import KEY
 
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
@@ -43,7 +44,7 @@ def emulator():
     stop = threading.Event()
     thread = threading.Thread(target=emulate, kwargs=dict(
         port=0, watchdog_s=0.5, record=record, max_seconds=120, log=lines.append, stop=stop,
-        handle_signals=False, limits=DESCRIPTION), daemon=True)
+        handle_signals=False, limits=DESCRIPTION, pairing_key=KEY), daemon=True)
     thread.start()
     while not lines:
         stop.wait(0.01)
@@ -90,7 +91,7 @@ def valid_protocols(draw):
 def test_fuzzed_valid_protocols_stay_within_the_limits_on_the_wire(protocol, emulator):
     port, record, folder = emulator
     path = Path(tempfile.mkdtemp(dir=folder)) / "s.sqlite"
-    display = UdpDisplay(DESCRIPTION, port=port, max_skipped_fraction=1.0)  # a loaded CI box may skip
+    display = UdpDisplay(DESCRIPTION, port=port, max_skipped_fraction=1.0, pairing_key=KEY)  # a loaded CI box may skip
     # the emulator (and its record) is shared by all examples: check only this session's streams,
     # against this session's own count of skipped frames
     n_before = len(read_record(record)["streams"])
@@ -128,7 +129,7 @@ def test_an_absurd_amplitude_is_limited_and_every_intervention_logged(emulator, 
         "procedure": {"method": "constant_stimuli", "parameter": "amplitude_m", "levels": ["5mm"],
                       "repeats_per_block": 2, "n_blocks": 1}})
     before = read_record(record)["n_frames"]
-    display = UdpDisplay(DESCRIPTION, port=port, max_skipped_fraction=1.0)  # a loaded CI box may skip
+    display = UdpDisplay(DESCRIPTION, port=port, max_skipped_fraction=1.0, pairing_key=KEY)  # a loaded CI box may skip
     try:
         new_session(protocol, tmp_path / "s.sqlite", display, SimulatedObserver(protocol), subject="F2", realtime=False,
                     clipped="allow")

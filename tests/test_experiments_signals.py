@@ -10,7 +10,9 @@ import sys
 import time
 
 import pytest
+from udp_pairing import key_file, paired_description
 
+from tactilab.data_schemas.display import DisplayDescription
 from tactilab.experiments import SessionLog
 
 PROTOCOL = """
@@ -46,7 +48,8 @@ def _entries(record):
 def test_sighup_and_sigquit_mid_stimulus_zero_the_display_and_log_the_stop(tmp_path, signum):
     record = tmp_path / "emu.jsonl"
     emulator = subprocess.Popen([sys.executable, "-m", "tactilab.cli.main", "device", "emulate", "--port", "0",
-                                 "--record", str(record), "--watchdog", "10s", "--max-seconds", "60s"],
+                                 "--record", str(record), "--watchdog", "10s", "--max-seconds", "60s",
+                                 "--pairing-key", str(key_file(tmp_path))],
                                 stdout=subprocess.PIPE, text=True)
     try:
         port = int(emulator.stdout.readline().split(":")[2].split()[0])
@@ -54,7 +57,9 @@ def test_sighup_and_sigquit_mid_stimulus_zero_the_display_and_log_the_stop(tmp_p
         toml.write_text(PROTOCOL)
         runner = subprocess.Popen([sys.executable, "-m", "tactilab.cli.main", "experiment", "run", str(toml),
                                    "--subject", "S01", "--responses", "simulated", "--quiet", "--out", str(tmp_path),
-                                   "--display", f"udp://127.0.0.1:{port}", "--max-skipped", "1"], stdout=subprocess.PIPE,
+                                   "--display", f"udp://127.0.0.1:{port}", "--max-skipped", "1",
+                                   "--device", str(paired_description(tmp_path, DisplayDescription.braille_row()))],
+                                  stdout=subprocess.PIPE,
                                   stderr=subprocess.PIPE, text=True)
         deadline = time.monotonic() + 30
         while sum(e["type"] == "frame" for e in _entries(record)) < 50:

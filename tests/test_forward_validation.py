@@ -62,7 +62,7 @@ def test_depth_rule_is_the_same_at_every_entry_point():
 
 
 def test_spacing_rule():
-    with pytest.raises(ValueError, match=r"spacing: grid spacing must be finite and > 0 m, got -0.0001; give it in metres"):
+    with pytest.raises(ValueError, match=r"spacing: grid spacing must be finite and > 0 m, got -0.0001; give it in m, e.g. 1.25e-3"):
         SurfaceLoad(p=np.ones(4), spacing=-1e-4)
     with pytest.raises(ValueError, match=r"spacing: expected one value or 2 values \(dx, dy\) in m, got 3"):
         SurfaceLoad(p=np.ones((2, 2)), spacing=(1e-4, 1e-4, 1e-4))

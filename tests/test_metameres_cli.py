@@ -25,7 +25,7 @@ def test_prints_residual_dprime_and_loads(tmp_path, capsys):
     assert f"+1 mm: {pair.params[5] * 1e-3:+.4f}" in out and "tractor loads (N/mm)" in out
     assert (tmp_path / "metamer_strain.png").stat().st_size > 1000
     assert (tmp_path / "metamer_spectrum.png").stat().st_size > 1000
-    assert main(argv + ["--json"]) == 0
+    assert main(argv + ["--json", "--force"]) == 0  # the folder holds the first run's PNGs
     result = json.loads(capsys.readouterr().out)
     assert result["relative_residual"] == pytest.approx(pair.relative_residual, rel=1e-12)
     np.testing.assert_allclose(result["loads_n_per_m"], pair.params, rtol=1e-9)
@@ -40,7 +40,7 @@ def test_bounded_display_reports_loads_at_the_limit(tmp_path, capsys):
 def test_display_from_a_json_description(tmp_path, capsys):
     path = tmp_path / "row.json"
     DisplayDescription.wh2008(max_traction_pa=2e6, display_id="MyRow").save(path)
-    assert main(["metamer", "--target", "sinusoid:A=0.5mm,p=4mm", "--display", str(path), "--out", str(tmp_path),
+    assert main(["metamer", "--target", "sinusoid:A=0.5mm,p=4mm", "--display", str(path), "--out", str(tmp_path / "o"),
                  "--scan", "2", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["display"] == "MyRow" and result["load_limit_n_per_m"] == pytest.approx(2e3)

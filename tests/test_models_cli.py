@@ -46,7 +46,7 @@ def test_power_prints_a_table_and_writes_a_png(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "nats/trial" in out and "trials for z = 4:" in out and (tmp_path / "power.png").stat().st_size > 10_000
     assert _run(["power", "--true", "zx@1mm", "--rival", "xx@1mm", "--design", str(tmp_path / "d.toml"),
-                 "--out", str(tmp_path)]) == 0
+                 "--out", str(tmp_path), "--force"]) == 0  # the folder holds the first run's power.png
     assert "never (identical predictions on this design)" in capsys.readouterr().out
 
 

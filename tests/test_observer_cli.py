@@ -91,7 +91,7 @@ def test_resume_rebuilds_the_observer_and_the_options_are_checked(tmp_path, caps
              (["--observer", "zx@2mm", "--observer-threshold", "-1"], "--observer-threshold: must be a strain > 0"),
              (["--observer", "qq@1mm", "--observer-threshold", "1e-3"], "--observer"),
              (["--observer", "zx@2mm", "--observer-threshold", "1e-3", "--observer-strain", "skin"],
-              "--observer-strain: must be 'surface' or 'display', got 'skin'")]
+              "--observer-strain: must be 'surface', 'display' or 'contact', got 'skin'")]
     for extra, match in cases:
         assert main(["experiment", "run", str(protocol), "--subject", "S02", "--responses", "simulated", "--no-wait",
                      "--quiet", "--out", str(tmp_path / "bad"), *extra]) == 2

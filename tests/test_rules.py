@@ -22,10 +22,11 @@ import numpy as np
 import pytest
 
 import tactilab.forward as fwd
+import tactilab.forward.skin as fskin
 import tactilab.inversion as inv
 from tactilab.core import rules
-from tactilab.data_schemas import (Recording, SensorArray, SkinMaterial, load_example, random_rough_surface,
-                                  read_height_map)
+from tactilab.data_schemas import (ElasticBase, Recording, SensorArray, SkinLayer, SkinMaterial, load_example,
+                                  random_rough_surface, read_height_map)
 
 
 class Rule(NamedTuple):
@@ -51,6 +52,7 @@ QUANTITY = {"depth": "depth", "spacing": "spacing", "E": "young_modulus", "young
 N = 8
 H = 1e-4
 HS = fwd.HalfSpace(1e6, 0.5)
+LAYERED = fwd.LayeredHalfSpace([fwd.Layer(2e-3, 1e6, 0.5)], base=HS)  # deep enough for every good depth
 LOAD = fwd.SurfaceLoad(p=1e3 * np.cos(2 * np.pi * np.arange(N) / N)[None, :].repeat(N, 0), spacing=H, periodic=True)
 SCENE = load_example("tractor_display")
 DISPLAY = SCENE.display
@@ -59,7 +61,19 @@ X = np.linspace(-2e-3, 2e-3, 5)
 DESIGNS = {d: fwd.optimal_half_spacing(d, grid_points=20) for d in (1e-3, 2.5e-4)}
 ROW = np.zeros(DISPLAY.tractor_x_m.shape[-1])  # one line load per tractor of a row, N/m
 CONTACT = fwd.HertzContact(0.5, finger_radius=0.01, young_modulus=1e6)
+SLS = fwd.Prony.sls(1e6, 3e6, 0.07)
+VS = fwd.ViscoelasticHalfSpace(SLS)
+VLAYERED = fwd.ViscoelasticLayeredHalfSpace([fwd.Layer(2e-3, SLS, 0.5)], base=VS)  # any depth lies in it
 _HEIGHT_MAP: list = []
+_HISTORY: list = []
+
+
+def _viscoelastic_history():
+    """A small solved viscoelastic contact (two steps), once per session."""
+    if not _HISTORY:
+        _HISTORY.append(fwd.solve_viscoelastic_contact(VS, np.linspace(-1, 1, 32) ** 2 * 1e-5, 2.5e-5, [0.0, 0.1],
+                                                       normal_force=1.0))
+    return _HISTORY[0]
 
 
 def _height_map_file():
@@ -152,6 +166,9 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("core.rules.components", "value"): lambda v: rules.components(v),
     # records
     ("data_schemas.SkinMaterial", "poisson_ratio"): lambda v: SkinMaterial(young_modulus_pa=1e6, poisson_ratio=v),
+    ("data_schemas.SkinLayer", "poisson_ratio"): lambda v: SkinLayer(thickness_m=1e-3, young_modulus_pa=1e5,
+                                                                     poisson_ratio=v),
+    ("data_schemas.ElasticBase", "poisson_ratio"): lambda v: ElasticBase(young_modulus_pa=1e6, poisson_ratio=v),
     ("data_schemas.SensorArray", "components"): lambda v: SensorArray(positions_m=[[0, 0]], depth_m=1e-3, components=v),
     ("data_schemas.Recording", "components"): _recording,
     ("data_schemas.Recording.from_dataframe", "components"): _from_dataframe,
@@ -181,6 +198,10 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.HertzContact", "young_modulus"): lambda v: fwd.HertzContact(0.5, young_modulus=v),
     ("forward.HertzContact", "poisson_ratio"): lambda v: fwd.HertzContact(0.5, poisson_ratio=v),
     ("forward.HertzContact.load", "spacing"): lambda v: CONTACT.load(spacing=v),
+    ("experiments.modelling.FingerContact", "young_modulus"): (
+        lambda v: importlib.import_module("tactilab.experiments.modelling").FingerContact(young_modulus=v)),
+    ("experiments.modelling.FingerContact", "poisson_ratio"): (
+        lambda v: importlib.import_module("tactilab.experiments.modelling").FingerContact(poisson_ratio=v)),
     ("forward.ContactLoad", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=v),
     ("data_schemas.random_rough_surface", "spacing"): lambda v: random_rough_surface((N, N), v, rms_height=1e-6,
                                                                                      rng=np.random.default_rng(0)),
@@ -191,10 +212,76 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.ContactCompliance", "spacing"): lambda v: fwd.ContactCompliance(HS, (N, N), v, periodic=True),
     ("forward.solve_contact", "spacing"): lambda v: fwd.solve_contact(HS, np.linspace(-1, 1, N) ** 2 * 1e-6, v,
                                                                       normal_force=1.0),
+    ("forward.WestergaardContact", "E"): lambda v: fwd.WestergaardContact(1e-6, 1e-3, 1e3, v),
+    ("forward.WestergaardContact", "nu"): lambda v: fwd.WestergaardContact(1e-6, 1e-3, 1e3, 1e6, nu=v),
+    ("forward.harmonic_field", "depth"): lambda v: fwd.harmonic_field([1e3, 1e3], 1e-3, X, v, 1e6),
+    ("forward.harmonic_field", "E"): lambda v: fwd.harmonic_field([1e3, 1e3], 1e-3, X, 1e-3, v),
+    ("forward.harmonic_field", "nu"): lambda v: fwd.harmonic_field([1e3, 1e3], 1e-3, X, 1e-3, 1e6, nu=v),
+    ("forward.harmonic_field", "components"): (
+        lambda v: fwd.harmonic_field([1e3, 1e3], 1e-3, X, 1e-3, 1e6, components=v)),
+    ("forward.interface_model_errors", "spacing"): lambda v: fwd.interface_model_errors(np.zeros(N), v, 1e3, 1e6),
+    ("forward.interface_model_errors", "E"): lambda v: fwd.interface_model_errors(np.zeros(N), H, 1e3, v),
+    ("forward.interface_model_errors", "nu"): lambda v: fwd.interface_model_errors(np.zeros(N), H, 1e3, 1e6, nu=v),
+    ("forward.interface_model_errors", "depth"): (
+        lambda v: fwd.interface_model_errors(np.zeros(N), H, 1e3, 1e6, depth=v)),
+    ("forward.interface_model_errors", "components"): (
+        lambda v: fwd.interface_model_errors(np.zeros(N), H, 1e3, 1e6, components=v)),
+    ("forward.linear_pressure", "spacing"): lambda v: fwd.linear_pressure(np.zeros(N), v, 1e3, 1e6),
+    ("forward.linear_pressure", "E"): lambda v: fwd.linear_pressure(np.zeros(N), H, 1e3, v),
+    ("forward.linear_pressure", "nu"): lambda v: fwd.linear_pressure(np.zeros(N), H, 1e3, 1e6, nu=v),
+    ("forward.full_contact_pressure", "spacing"): lambda v: fwd.full_contact_pressure(np.zeros(N), v, 1e6),
+    ("forward.full_contact_pressure", "E"): lambda v: fwd.full_contact_pressure(np.zeros(N), H, v),
+    ("forward.full_contact_pressure", "nu"): lambda v: fwd.full_contact_pressure(np.zeros(N), H, 1e6, nu=v),
     ("forward.HalfSpace.surface_influence", "spacing"): lambda v: HS.surface_influence(X, X, v),
+    # the viscoelastic skin (forward.skin)
+    ("forward.ViscoelasticHalfSpace", "nu"): lambda v: fwd.ViscoelasticHalfSpace(SLS, v),
+    ("forward.ViscoelasticHalfSpace.stress", "depth"): lambda v: VS.stress(LOAD, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.stress", "components"): lambda v: VS.stress(LOAD, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticHalfSpace.strain", "depth"): lambda v: VS.strain(LOAD, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.strain", "components"): lambda v: VS.strain(LOAD, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticHalfSpace.pressure_from_deflection", "spacing"):
+        lambda v: VS.pressure_from_deflection(np.zeros(N), v, [0.0]),
+    ("forward.ViscoelasticHalfSpace.stress_from_deflection", "spacing"):
+        lambda v: VS.stress_from_deflection(np.zeros(N), v, 1e-3, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.stress_from_deflection", "depth"):
+        lambda v: VS.stress_from_deflection(np.zeros(N), H, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.stress_from_deflection", "components"):
+        lambda v: VS.stress_from_deflection(np.zeros(N), H, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticHalfSpace.strain_from_deflection", "spacing"):
+        lambda v: VS.strain_from_deflection(np.zeros(N), v, 1e-3, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.strain_from_deflection", "depth"):
+        lambda v: VS.strain_from_deflection(np.zeros(N), H, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.strain_from_deflection", "components"):
+        lambda v: VS.strain_from_deflection(np.zeros(N), H, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticHalfSpace.sliding_pressure", "spacing"): lambda v: VS.sliding_pressure(np.zeros(N), v, 0.1),
+    ("forward.ViscoelasticHalfSpace.steady_sliding", "spacing"):
+        lambda v: VS.steady_sliding(np.zeros(N), v, 0.1, 1e-3, components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.steady_sliding", "depth"):
+        lambda v: VS.steady_sliding(np.zeros(N), H, 0.1, v, components=("zz",)),
+    ("forward.ViscoelasticHalfSpace.steady_sliding", "components"):
+        lambda v: VS.steady_sliding(np.zeros(N), H, 0.1, 1e-3, components=v),
+    ("forward.ViscoelasticHalfSpace.surface_influence", "spacing"): lambda v: VS.surface_influence(X, X, v),
+    ("forward.ViscoelasticHalfSpace.operator", "spacing"): lambda v: VS.operator((N,), v, [0.0]),
+    ("forward.ViscoelasticHalfSpace.operator", "depth"): lambda v: VS.operator((N,), H, [0.0], depth=v),
+    ("forward.ViscoelasticHalfSpace.operator", "components"): lambda v: VS.operator((N,), H, [0.0], components=v),
+    ("forward.Prony.shear_relaxation_modulus", "nu"): lambda v: SLS.shear_relaxation_modulus(0.1, v),
+    ("forward.Prony.shear_creep_compliance", "nu"): lambda v: SLS.shear_creep_compliance(0.1, v),
+    ("forward.solve_viscoelastic_contact", "spacing"):
+        lambda v: fwd.solve_viscoelastic_contact(VS, np.linspace(-1, 1, N) ** 2 * 1e-6, v, [0.0, 0.1],
+                                                 normal_force=1.0),
+    ("forward.skin.HistoryOperator", "spacing"): lambda v: fskin.HistoryOperator(VS, (N,), v, [0.0, 0.1], [0.0]),
+    ("forward.skin.HistoryOperator", "depth"): lambda v: fskin.HistoryOperator(VS, (N,), H, [0.0, 0.1], [0.0], depth=v),
+    ("forward.skin.HistoryOperator", "components"):
+        lambda v: fskin.HistoryOperator(VS, (N,), H, [0.0, 0.1], [0.0], components=v),
+    ("forward.skin.ViscoelasticContactHistory.strain", "depth"):
+        lambda v: _viscoelastic_history().strain(VS, v, components=("zz",)),
+    ("forward.skin.ViscoelasticContactHistory.strain", "components"):
+        lambda v: _viscoelastic_history().strain(VS, 1e-3, components=v),
     ("forward.ContactLoad.sample", "spacing"): lambda v: fwd.ContactLoad(CONTACT, spacing=H).sample((N, N), v),
     ("forward.angular_wavenumbers", "spacing"): lambda v: fwd.angular_wavenumbers((N, N), v),
     ("forward.finger_gap", "spacing"): lambda v: fwd.finger_gap((N, N), v, 0.01),
+    ("forward.SceneFrames", "spacing"): lambda v: fwd.SceneFrames(None, HS, True, (N,), v, np.zeros(1), None,
+                                                                  np.ones(1), 1e6),
     ("forward.solve_scan", "spacing"): lambda v: fwd.solve_scan(HS, (np.linspace(-1, 1, N) ** 2 * 1e-6)[None], v,
                                                                 normal_force=1.0),
     ("forward.SensorReadout", "spacing"): lambda v: fwd.SensorReadout(
@@ -236,6 +323,53 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     ("forward.halfspace.dcfft_kernel_spectrum", "depth"): (
         lambda v: _kernel_spectrum(depth=v)),
     ("forward.halfspace.dcfft_kernel_spectrum", "nu"): lambda v: _kernel_spectrum(nu=v),
+    # the layered skin
+    ("forward.Layer", "E"): lambda v: fwd.Layer(1e-3, v),
+    ("forward.Layer", "nu"): lambda v: fwd.Layer(1e-3, 1e6, v),
+    ("forward.LayeredHalfSpace.stress", "depth"): lambda v: LAYERED.stress(LOAD, v, components=("zz",)),
+    ("forward.LayeredHalfSpace.stress", "components"): lambda v: LAYERED.stress(LOAD, 1e-4, components=v),
+    ("forward.LayeredHalfSpace.strain", "depth"): lambda v: LAYERED.strain(LOAD, v, components=("zz",)),
+    ("forward.LayeredHalfSpace.strain", "components"): lambda v: LAYERED.strain(LOAD, 1e-4, components=v),
+    ("forward.LayeredHalfSpace.operator", "spacing"): lambda v: LAYERED.operator((N,), v, depth=1e-4),
+    ("forward.LayeredHalfSpace.operator", "depth"): lambda v: LAYERED.operator((N,), H, depth=v),
+    ("forward.LayeredHalfSpace.operator", "components"): lambda v: LAYERED.operator((N,), H, depth=1e-4, components=v),
+    ("forward.LayeredHalfSpace.material_at", "depth"): lambda v: LAYERED.material_at(v),
+    ("forward.LayeredHalfSpace.transfer", "depth"): lambda v: LAYERED.transfer(1e3, 0.0, v),
+    # viscoelastic layers
+    ("forward.ViscoelasticLayeredHalfSpace.transfer", "depth"): lambda v: VLAYERED.transfer(1e3, 0.0, v, 10.0),
+    ("forward.ViscoelasticLayeredHalfSpace.deflection_transfer", "depth"):
+        lambda v: VLAYERED.deflection_transfer(1e3, 0.0, v, 10.0),
+    ("forward.ViscoelasticLayeredHalfSpace.complex_modulus_at", "depth"): lambda v: VLAYERED.complex_modulus_at(v, 1.0),
+    ("forward.ViscoelasticLayeredHalfSpace.nu_at", "depth"): lambda v: VLAYERED.nu_at(v),
+    ("forward.ViscoelasticLayeredHalfSpace.sliding_pressure", "spacing"):
+        lambda v: VLAYERED.sliding_pressure(np.zeros(N), v, 0.1),
+    ("forward.ViscoelasticLayeredHalfSpace.steady_sliding", "spacing"):
+        lambda v: VLAYERED.steady_sliding(np.zeros(N), v, 0.1, 1e-3, components=("zz",)),
+    ("forward.ViscoelasticLayeredHalfSpace.steady_sliding", "depth"):
+        lambda v: VLAYERED.steady_sliding(np.zeros(N), H, 0.1, v, components=("zz",)),
+    ("forward.ViscoelasticLayeredHalfSpace.steady_sliding", "components"):
+        lambda v: VLAYERED.steady_sliding(np.zeros(N), H, 0.1, 1e-3, components=v),
+    ("forward.ViscoelasticLayeredHalfSpace.moving_load", "depth"):
+        lambda v: VLAYERED.moving_load(LOAD, 0.1, v, components=("zz",)),
+    ("forward.ViscoelasticLayeredHalfSpace.moving_load", "components"):
+        lambda v: VLAYERED.moving_load(LOAD, 0.1, 1e-3, components=v),
+    ("forward.ViscoelasticLayeredHalfSpace.stress", "depth"): lambda v: VLAYERED.stress(LOAD, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticLayeredHalfSpace.stress", "components"):
+        lambda v: VLAYERED.stress(LOAD, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticLayeredHalfSpace.strain", "depth"): lambda v: VLAYERED.strain(LOAD, v, [0.0], components=("zz",)),
+    ("forward.ViscoelasticLayeredHalfSpace.strain", "components"):
+        lambda v: VLAYERED.strain(LOAD, 1e-3, [0.0], components=v),
+    ("forward.ViscoelasticLayeredHalfSpace.operator", "spacing"): lambda v: VLAYERED.operator((N,), v, [0.0]),
+    ("forward.ViscoelasticLayeredHalfSpace.operator", "depth"): lambda v: VLAYERED.operator((N,), H, [0.0], depth=v),
+    ("forward.ViscoelasticLayeredHalfSpace.operator", "components"):
+        lambda v: VLAYERED.operator((N,), H, [0.0], components=v),
+    ("forward.skin.receptive_field", "depth"): (
+        lambda v: fwd.skin.receptive_field(LAYERED, v, spacing=H, half_extent=4 * H)),
+    ("forward.skin.receptive_field", "spacing"): (
+        lambda v: fwd.skin.receptive_field(LAYERED, 1e-3, spacing=v, half_extent=4 * (v if v > 0 else H))),
+    ("forward.skin.tangential_line_strain", "depth"): (
+        lambda v: fwd.skin.tangential_line_strain(LAYERED, X, [0.0], [1.0], v)),
+    ("forward.skin.tractor_phi_psi", "depth"): lambda v: fwd.skin.tractor_phi_psi(LAYERED, X, [0.0], [1.0], v),
     # scenes, displays, tractors, receptors
     ("forward.rigid_surface_pressure", "spacing"): lambda v: fwd.rigid_surface_pressure(np.zeros(N), v, 1e6),
     ("forward.rigid_surface_pressure", "young_modulus"): lambda v: fwd.rigid_surface_pressure(np.zeros(N), H, v),
@@ -334,6 +468,8 @@ EXEMPT = {
     ("forward.halfspace.pixel_influence", "E"): "the unchecked formula behind HalfSpace.surface_influence",
     ("forward.halfspace.pixel_influence", "nu"): "the unchecked formula behind HalfSpace.surface_influence",
     ("forward.halfspace.pixel_influence", "spacing"): "the unchecked formula behind HalfSpace.surface_influence",
+    ("forward.halfspace.label", "components"): "labels a computed field: the solver (half-space or skin model) "
+                                               "checked its components",
 }
 
 
@@ -365,7 +501,8 @@ def test_every_entry_point_refuses_the_bad_values_with_the_rule(call, param, val
 
 
 # ----------------------------------------------------------------------------- the walker
-FACES = ("core", "data_schemas", "forward", "forward.halfspace", "inversion", "experiments", "demo")
+FACES = ("core", "data_schemas", "forward", "forward.halfspace", "forward.contact", "forward.skin", "inversion",
+         "experiments", "demo")
 
 
 def _public_callables():

@@ -144,3 +144,40 @@ def test_a_window_must_lie_inside_the_grid():
     sens = SensorArray.grid(1, 1, 0.5e-3, 1e-3, components=("zz",))
     with pytest.raises(ValueError, match="window: expected 2 slices"):
         SensorReadout(SKIN, (N, N), DX, sens, window=(slice(-8, 20), slice(0, 20)))
+
+
+def test_plane_strain_finger_scan_reads_the_line_kernels():
+    n, dx = 256, 20e-6
+    gaps = finger_gap((n,), dx, 10e-3)[None]
+    sens = SensorArray(positions_m=[[0.0, 0.0], [0.3e-3, 0.0]], depth_m=0.5e-3, components=("zz", "xx"))
+    sc = solve_scan(SKIN, gaps, dx, normal_force=100.0, friction=0.5, sensors=sens)
+    sol = solve_contact(SKIN, gaps[0], dx, normal_force=100.0, friction=0.5, condition="sliding")
+    field = SKIN.stress(sol.load(), [0.5e-3], points=np.array([[0.0], [0.3e-3]]), components=("zz", "xx"))
+    want = field.data["stress"].values.reshape(2, 2).T
+    assert np.abs(sc.outputs[0][0] - want).max() <= 1e-9 * np.abs(want).max()
+
+
+def test_more_refusals(monkeypatch):
+    g0 = finger_gap((N, N), DX, 10e-3)
+    with pytest.raises(ValueError, match="slide_direction: expected a finite non-zero"):
+        solve_scan(SKIN, g0[None], DX, normal_force=0.5, friction=0.5, slide_direction=(0.0, 0.0))
+    with pytest.raises(ValueError, match="every frame shares one grid"):
+        solve_scan(SKIN, lambda i: g0 if i == 0 else g0[:-2], DX, n_frames=2, normal_force=0.5)
+    import tactilab.forward.scene_readout as readout
+
+    monkeypatch.setattr(readout, "MAX_WEIGHT_VALUES", 10)
+    sens = SensorArray.grid(1, 1, 0.5e-3, 1e-3, components=("zz",))
+    with pytest.raises(ValueError, match="GiB of weights, above the limit"):
+        SensorReadout(SKIN, (N, N), DX, sens)
+
+
+def test_a_folded_readout_refuses_a_scan_it_cannot_read():
+    sens = SensorArray.grid(1, 1, 0.5e-3, 1e-3, components=("zz",))
+    folded = SensorReadout(SKIN, (N, N), DX, sens, loads=("p", "qx", "qy"), sliding=(0.5, (1.0, 0.0)))
+    gaps = finger_gap((N, N), DX, 10e-3)[None]
+    with pytest.raises(ValueError, match="and partial-slip frames"):
+        solve_scan(SKIN, gaps, DX, normal_force=0.5, friction=0.5, slip_ratio=0.5, sensors=folded)
+    with pytest.raises(ValueError, match="folds q = 0.5 p along"):
+        solve_scan(SKIN, gaps, DX, normal_force=0.5, friction=0.3, sensors=folded)
+    sc = solve_scan(SKIN, gaps, DX, normal_force=0.5, friction=0.5, sensors=folded)
+    assert sc.outputs[0].shape == (1, 1, 1)

@@ -2,8 +2,9 @@
 
 The display interface and its drive (:mod:`.display`), limits and strain (:mod:`.display_limits`,
 :mod:`.display_strain`), the safety layer no stimulus can bypass (:mod:`.safety`), playback faults
-(:mod:`.display_faults`), the simulated display, the UDP display with its authenticated link
-(:mod:`.udp`, :mod:`.link`), the loopback device emulator (:mod:`.emulator`) and the registry of
+(:mod:`.display_faults`), the simulated display, the UDP display with its paired link
+(:mod:`.udp`, :mod:`.udp_link`, :mod:`.link`, :mod:`.pairing`), the loopback device emulator
+(:mod:`.emulator`) and the registry of
 device kinds (:mod:`.registry`: ``"simulated"``, ``"udp://HOST:PORT"``, plug-ins in the
 ``tactilab.devices`` entry-point group).
 
@@ -23,8 +24,8 @@ _EXPORTS = {
     "Display": "display",
     "DisplayError": "display",
     "PlaybackReport": "display",
-    "description_differences": "display",
-    "description_record": "display",
+    "description_differences": "display_record",
+    "description_record": "display_record",
     "render_drive": "display",
     "virtual_height": "display",
     "DisplayFault": "display_faults",
@@ -44,9 +45,12 @@ _EXPORTS = {
     "SafeDisplay": "safety",
     "limit_drive": "safety",
     "SimulatedDisplay": "simulated_display",
+    "create_pairing_key": "pairing",
+    "read_pairing_key": "pairing",
     "UdpDisplay": "udp",
     "parse_udp_url": "udp",
     # the display UDP frame format (docs/udp-frame-format.md)
+    "ARM": "link",
     "FRAME": "link",
     "FrameFormatError": "link",
     "decode": "link",

@@ -25,8 +25,6 @@ position x_n follows the height of the virtual surface as the display scans it,
 from __future__ import annotations
 
 import abc
-import hashlib
-import json
 import math
 import threading
 from dataclasses import dataclass, field
@@ -35,14 +33,13 @@ from typing import Literal
 import numpy as np
 
 from tactilab.core import rules
-from tactilab.core.memory import check_memory
+from tactilab.core.memory import MEMORY_LIMIT_BYTES, check_memory
 
 from .display_limits import check_frames, limit_violations, resolve_command
 from .display_strain import strain_gain_line_load
 
 __all__ = [
-    "Display", "DisplayError", "PlaybackReport", "render_drive", "virtual_height", "description_record",
-    "description_differences",
+    "Display", "DisplayError", "PlaybackReport", "render_drive", "virtual_height",
     "DEFAULT_DEPTH_M", "DEFAULT_YOUNG_MODULUS_PA",
 ]
 
@@ -55,7 +52,16 @@ DEFAULT_YOUNG_MODULUS_PA = 1.0e6
 
 
 class DisplayError(RuntimeError):
-    """A display could not do what was asked (no device answer, nothing loaded, ...)."""
+    """A display could not do what was asked (no device answer, nothing loaded, ...).
+
+    Attributes
+    ----------
+    frames_sent : int or None
+        For an error during ``play()``: the frames sent before it (count), so the session reports
+        what the display actually played; None where unknown or not during playback.
+    """
+
+    frames_sent: int | None = None
 
 
 @dataclass(frozen=True)
@@ -84,7 +90,8 @@ class PlaybackReport:
     send_intervals_s : ndarray, shape (frames_sent - 1,)
         Intervals between consecutive frame sends, s (empty for non-real-time playback).
     ack_rtt_s : ndarray, shape (acked,)
-        Round-trip time of each acknowledgement, s (empty when there are none).
+        Delay of each acknowledgement, s: from the frame's due time to its ACK's arrival (UDP,
+        frames sent ahead of time), empty when there are none.
     rejected : int
         Frames acknowledged with a status other than ``applied`` (stale, disarmed, ...);
         ``missing - rejected`` frames got no acknowledgement at all.
@@ -92,8 +99,8 @@ class PlaybackReport:
         Frames acknowledged ``stale``: the device had already applied a newer sequence number
         (another sender is ahead: an alarm).
     skipped : int
-        Frames not sent because their time had passed by more than half a period (the host never
-        sends a burst of late frames).
+        Frames not sent because their due time had passed by more than half a period before the
+        host could send them (the host never sends a burst of late frames).
     foreign : int
         Frames the device applied that this host did not send, since its previous look at the
         device's ``frames_applied`` counter (another process drove the display); 0 for a display
@@ -220,6 +227,12 @@ class Display(abc.ABC):
         return 0
 
     @property
+    def onset_delay_s(self) -> float:
+        """How long after ``play()`` is called the first frame is due, s (0: at once; a display that
+        sends frames ahead of their due times, such as UDP, says how far)."""
+        return 0.0
+
+    @property
     def stop_requested(self) -> bool:
         """Whether ``stop()`` was called since playback started."""
         return self._stop.is_set()
@@ -247,22 +260,6 @@ class Display(abc.ABC):
     @abc.abstractmethod
     def _zero(self) -> None:
         """Set the outputs to zero."""
-
-
-def description_record(description) -> tuple[dict, str]:
-    """The full display description as JSON data and its SHA-256 (hex) over canonical JSON.
-
-    A session records both, so that a resume on a display with other limits is refused.
-    """
-    data = description.model_dump(mode="json")
-    canonical = json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
-    return data, hashlib.sha256(canonical.encode()).hexdigest()
-
-
-def description_differences(recorded: dict, given: dict) -> list[str]:
-    """``"field: recorded X, given Y"`` for every field that differs between two descriptions."""
-    return [f"{key}: recorded {recorded.get(key)!r}, given {given.get(key)!r}"
-            for key in sorted(set(recorded) | set(given)) if recorded.get(key) != given.get(key)]
 
 
 def virtual_height(x_m: np.ndarray, *, surface: Literal["sinusoid", "square"], amplitude_m: float,
@@ -384,10 +381,13 @@ def render_drive(description, *, amplitude_m: float, pitch_m: float, speed_m_per
         raise ValueError(f"gain: must be finite, got {gain!r}; give a number or None for the default")
 
     n_frames = max(2, int(round(duration * rate)))
-    # the memory rule, before any frame exists (a few arrays of this size are alive at once)
-    check_memory(4 * 8 * n_frames * int(description.n_tractors), "frame_rate_hz",
-                 f"the drive ({n_frames} frames x {description.n_tractors} tractors)",
-                 f"lower the frame rate (got {rate!r} Hz) or the duration (got {duration!r} s)")
+    # the memory rule, before any frame exists (a few arrays of this size are alive at once); it names
+    # the largest frame rate that fits at this duration
+    frame_bytes = 4 * 8 * int(description.n_tractors)
+    fits_hz = MEMORY_LIMIT_BYTES // frame_bytes / duration
+    check_memory(frame_bytes * n_frames, "frame_rate_hz",
+                 f"the drive ({n_frames} frames = {rate!r} Hz x {duration!r} s, x {description.n_tractors} tractors)",
+                 f"give frame_rate_hz at most {fits_hz:.6g} Hz at duration_s = {duration!r} s, or a shorter duration_s")
     t = np.arange(n_frames) / rate
     command = resolve_command(description, command)
     x_columns = np.asarray(description.tractor_x_m, dtype=float)

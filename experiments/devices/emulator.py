@@ -1,37 +1,41 @@
 """A device emulator on loopback: acknowledges frames, counts late and missing ones, records
 everything it receives, and zeroes its outputs when frames stop (watchdog).
 
-It is the reference device of ``docs/udp-frame-format.md`` (version 2; the logic is in
+It is the reference device of ``docs/udp-frame-format.md`` (version 3; the logic is in
 :mod:`tactilab.experiments.devices.emulator_device`):
 
-- link sessions: ARM (from any address, only while no session is live) carries the host's
-  fresh key; the device answers ARMED with a fresh random nonce, zeroes its outputs and pins
-  the sender's (ip, port). While armed, every datagram from another address is refused
-  (``busy`` for an ARM, ``foreign`` otherwise), counted and logged; a second ARM is refused
-  until DISARM or the watchdog ends the session. Every message of the session must carry a
-  valid MAC over the nonce (``bad_mac``) and a seq above the last one (``stale``: replays and
-  resets). Version 1 datagrams are refused (``bad_version``);
+- pairing: it holds a 32-byte pairing key (``pairing_key``; ``--pairing-key FILE``). An ARM
+  is accepted only when its tag verifies under that key, its host nonce was never seen and no
+  session is live; the device answers ARMED (its own nonce, tagged with the key over the
+  host's nonce: proof to the host that it is the paired device), zeroes its outputs and pins
+  the sender's (ip, port). Every other ARM, and every datagram from a sender without a
+  session, gets the same untagged ``refused`` (an intruder cannot tell busy from idle, nor a
+  wrong key from busy); counted and logged. Older versions are refused (``bad_version``);
+- every message of the session must carry a valid MAC under the session key (``bad_mac``) and a
+  seq above the last one (``stale``: replays and resets);
 - states: ``disarmed`` (no session, outputs 0), ``idle`` (armed, outputs 0), ``streaming`` (a
   FRAME was accepted), ``tripped`` (the watchdog ended the session; its messages are answered
   ``disarmed``, a new ARM is accepted);
 - ZERO: outputs 0 at once, FIFO emptied, state ``idle``, ACK status ``zeroed``; DISARM: the
   same, and the session ends (``released``);
-- FRAME: accepted into a FIFO when of the expected count and finite (NaN or inf: status
-  ``non_finite``; FIFO full: ``overflow``), and acknowledged ``applied`` when its tick
-  applies it. The device applies the oldest accepted frame on each of its OWN ticks (one frame
-  per tick, the last value held when the FIFO is empty; a tick never comes less than one
-  period after the previous one), so a burst of late frames from the host never becomes an
-  output burst. Each applied frame is clamped to the description's full scale and to one slew
-  step per tick (``limits``), and every clamp is recorded;
-- watchdog: while armed, no valid message for ``watchdog_s`` -> outputs 0, the session ends
-  (state ``tripped``), the zeroing time recorded.
+- FRAME: accepted into a FIFO when of the expected count, finite (``non_finite``), due at most
+  one FIFO's worth of ticks ahead (``bad_due``) and the FIFO has room (``overflow``), and
+  acknowledged ``applied`` when its tick applies it: at its due time on the device's clock, one
+  frame per tick (the last value held when the FIFO is empty; ticks are a fixed timer, never
+  less than one period apart), so a burst of frames from the host never becomes an output
+  burst. Each applied frame is clamped to the description's full scale and to one slew step
+  per tick (``limits``), and every clamp is recorded;
+- watchdog: while armed, no valid message for ``watchdog_s`` after the last message or the due
+  time of the last accepted frame, whichever is later -> outputs 0, the session ends (state
+  ``tripped``), the zeroing time recorded. With the host dead, the outputs are zero at most
+  the host's lookahead plus ``watchdog_s`` after its last message.
 
-Lateness is judged from the host's timestamps, so no clock sharing is needed: a frame is late
-when its transit ``arrival - timestamp`` exceeds the smallest transit seen in the stream by more
-than ``late_after_s``. Missing frames are gaps in the sequence numbers.
+A frame is late when the tick that applied it came more than ``late_after_s`` after its due
+time. Missing frames are gaps in the sequence numbers.
 
 It binds to 127.0.0.1 only (loopback), stops after ``max_seconds`` or on SIGTERM / SIGINT, and
-writes a JSON-lines record (one line per applied frame, clamp or event, flushed at once) that
+writes a JSON-lines record (one line per applied frame, clamp or event; flushed at once, frame lines
+while more frames wait at least every 20 ms) that
 :func:`read_record` loads.
 """
 
@@ -51,6 +55,7 @@ import numpy as np
 from tactilab.data_schemas.display import DisplayDescription
 
 from .emulator_device import DEFAULT_TICK_HZ, LOOPBACK, Device
+from .link import KEY_SIZE, MAX_VALUES
 
 __all__ = ["LOOPBACK", "DEFAULT_TICK_HZ", "EmulatorSummary", "emulate", "read_record"]
 
@@ -94,7 +99,8 @@ def _seconds(value, name: str, *, allow_none: bool = False) -> float | None:
 def emulate(port: int = 0, *, watchdog_s: float = 0.05, record: str | pathlib.Path | None = None,
             max_seconds: float = 60.0, n_tractors: int | None = None, late_after_s: float = 1e-3,
             log: Callable[[str], None] = print, stop: threading.Event | None = None,
-            handle_signals: bool = True, limits=None, fifo_frames: int = 1000) -> EmulatorSummary:
+            handle_signals: bool = True, limits=None, fifo_frames: int = 1000,
+            pairing_key: bytes | None = None) -> EmulatorSummary:
     """Run the emulator until ``max_seconds`` pass, ``stop`` is set, or SIGTERM / SIGINT.
 
     Parameters
@@ -103,7 +109,8 @@ def emulate(port: int = 0, *, watchdog_s: float = 0.05, record: str | pathlib.Pa
         UDP port on 127.0.0.1 (0: any free port; the port is logged as
         ``listening on udp://127.0.0.1:PORT``).
     watchdog_s : float
-        Zero the outputs when no valid FRAME or ZERO arrived for this long while streaming, s.
+        Zero the outputs when no valid message arrived for this long after the last message or
+        the due time of the last accepted frame, whichever is later, while armed, s.
     record : path, optional
         JSON-lines file to write every message and event to.
     max_seconds : float
@@ -112,7 +119,7 @@ def emulate(port: int = 0, *, watchdog_s: float = 0.05, record: str | pathlib.Pa
         Expected values per FRAME; other counts are refused (status ``bad_count``). Default:
         the count of the first FRAME after each ZERO.
     late_after_s : float
-        Transit delay beyond the stream's smallest that makes a frame late, s.
+        A frame applied more than this after its due time is late, s.
     log : callable(str)
         Where to print events (the CLI passes ``print`` with flush).
     stop : threading.Event, optional
@@ -126,8 +133,11 @@ def emulate(port: int = 0, *, watchdog_s: float = 0.05, record: str | pathlib.Pa
         tractor count is expected unless ``n_tractors`` is given. Without it the device ticks at
         1 kHz and clamps nothing (it still refuses NaN and infinite values).
     fifo_frames : int
-        Capacity of the FIFO of accepted frames (>= 1); a FRAME that finds it full is refused
-        with status ``overflow``.
+        Capacity of the FIFO of accepted frames (>= 1, < 65536); a FRAME that finds it full is
+        refused with status ``overflow``, one due more than this many ticks ahead ``bad_due``.
+    pairing_key : bytes
+        The 32-byte pairing key its hosts hold (:func:`~.pairing.read_pairing_key` reads a key
+        file); required.
 
     Returns
     -------
@@ -146,8 +156,15 @@ def emulate(port: int = 0, *, watchdog_s: float = 0.05, record: str | pathlib.Pa
     if n_tractors is not None and (isinstance(n_tractors, bool) or not isinstance(n_tractors, int)
                                    or n_tractors < 1):
         raise ValueError(f"n_tractors: must be an integer >= 1, got {n_tractors!r}; give the display's tractor count")
-    if isinstance(fifo_frames, bool) or not isinstance(fifo_frames, int) or fifo_frames < 1:
-        raise ValueError(f"fifo_frames: must be an integer >= 1, got {fifo_frames!r}; give e.g. 1000")
+    if n_tractors is not None and n_tractors > MAX_VALUES:  # the size rule: no FRAME can carry more (64 KiB datagram)
+        raise ValueError(f"n_tractors: a FRAME carries at most {MAX_VALUES} values (the UDP datagram limit), got "
+                         f"{n_tractors}; give at most {MAX_VALUES}, the display's tractor count")
+    if isinstance(fifo_frames, bool) or not isinstance(fifo_frames, int) or not 1 <= fifo_frames < 2**16:
+        raise ValueError(f"fifo_frames: must be an integer in 1..65535, got {fifo_frames!r}; give e.g. 1000")
+    if not isinstance(pairing_key, (bytes, bytearray)) or len(pairing_key) != KEY_SIZE:
+        got = f"{len(pairing_key)} bytes" if isinstance(pairing_key, (bytes, bytearray)) else repr(pairing_key)
+        raise ValueError(f"pairing_key: the emulator needs the {KEY_SIZE}-byte pairing key its hosts hold, got {got}; "
+                         "give --pairing-key FILE (create one with `tactilab device pair FILE`)")
     if limits is not None and not isinstance(limits, DisplayDescription):
         try:
             limits = DisplayDescription.load(limits)
@@ -167,7 +184,7 @@ def emulate(port: int = 0, *, watchdog_s: float = 0.05, record: str | pathlib.Pa
             for sig in (signal.SIGTERM, signal.SIGINT):
                 previous[sig] = signal.signal(sig, lambda signum, frame: stop.set())
         Device(sock, summary, watchdog_s, max_seconds, n_tractors, late_after_s, log, out, stop,
-                limits, fifo_frames).run()
+                limits, fifo_frames, bytes(pairing_key)).run()
         return summary
     finally:
         for sig, handler in previous.items():
@@ -185,8 +202,10 @@ def read_record(path: str | pathlib.Path) -> dict:
     dict
         ``streams``: one dict per stream (the frames between two ZEROs or a watchdog trip) with
         ``values`` (ndarray (n_frames, n_tractors), the applied outputs, float32 exact),
-        ``seq``, ``arrival_ns`` (when each frame was received) and ``applied_ns`` (the tick that
-        applied it) (ndarrays (n_frames,)); ``n_frames``: frames in all streams; ``events``:
+        ``seq``, ``arrival_ns`` (when each frame was received), ``applied_ns`` (when the tick
+        applied it), ``tick_ns`` (the tick's scheduled time on the device's timer) and ``due_ns``
+        (the frame's due time) (ndarrays (n_frames,), device clock, ns); ``n_frames``: frames in
+        all streams; ``events``:
         every non-frame entry, in order; ``clamps``: the clamp entries; ``summary``: the final
         counts (None if the emulator was killed).
 
@@ -205,7 +224,9 @@ def read_record(path: str | pathlib.Path) -> dict:
             streams.append({"values": np.array([e["values"] for e in current], dtype=float),
                             "seq": np.array([e["seq"] for e in current], dtype=np.int64),
                             "arrival_ns": np.array([e.get("rx_ns", e["t_ns"]) for e in current], dtype=np.int64),
-                            "applied_ns": np.array([e["t_ns"] for e in current], dtype=np.int64)})
+                            "applied_ns": np.array([e["t_ns"] for e in current], dtype=np.int64),
+                            "tick_ns": np.array([e.get("tick_ns", e["t_ns"]) for e in current], dtype=np.int64),
+                            "due_ns": np.array([e.get("due_ns", e["t_ns"]) for e in current], dtype=np.int64)})
             current.clear()
 
     with open(path, encoding="utf-8") as handle:

@@ -269,6 +269,11 @@ class SafeDisplay(Display):
     def _zero(self) -> None:
         self.display.zero()
 
+    @property
+    def onset_delay_s(self) -> float:
+        """The wrapped display's :attr:`~tactilab.experiments.devices.Display.onset_delay_s`."""
+        return self.display.onset_delay_s
+
     def audit(self) -> int:
         """The wrapped display's :meth:`~tactilab.experiments.devices.Display.audit`."""
         return self.display.audit()

@@ -28,6 +28,7 @@ _EXPORTS = {
     "sigmoid_core": "psychometric",
     "TransductionFit": "models",
     "TransductionModel": "models",
+    "FingerContact": "contact_stimulus",
     "compare_models": "comparison",
     "elpd_mcse": "comparison",
     "VERDICTS": "comparison",
@@ -53,6 +54,7 @@ _EXPORTS = {
     "compare_many": "batch",
     "design_sweep": "batch",
     "power_sweep": "batch",
+    "check_power_sweep": "batch",
     "sessions_by_subject": "batch",
 }
 

@@ -215,7 +215,7 @@ def plot_comparison(table, fits, path) -> None:
 
     from ._transduction_data import p_correct_table
 
-    fig = Figure(figsize=(10, 4), layout="constrained")
+    fig = Figure(figsize=(10, 4.8), layout="constrained")
     ax, bx = fig.subplots(1, 2)
     names = list(table.index)
     ax.errorbar(range(len(names)), table["elpd"], yerr=table["se"], fmt="o", capsize=4)
@@ -243,7 +243,8 @@ def plot_comparison(table, fits, path) -> None:
     bx.set_xscale("log")
     bx.set_xlabel("test-interval statistic under each model (strain)")
     bx.set_ylabel("proportion correct")
-    bx.legend(fontsize=7)
+    # below the panel: a legend inside would hide the points at the low end of the curves
+    bx.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncols=2)
     fig.savefig(path, dpi=110)
 
 

@@ -25,8 +25,10 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 
 from tactilab.core.batch import batch_client, read_result, result_path, run_batch, write_netcdf_atomic
+from tactilab.core.memory import check_count
+from tactilab.core.netcdf import cf_ready
 
-from .model_power import power_analysis
+from .model_power import REPEAT_BYTES, power_analysis
 
 __all__ = ["power_sweep", "design_sweep", "compare_many", "sessions_by_subject"]
 
@@ -36,7 +38,13 @@ def _power_point(item, rng, *, true_model, true_params, rival, design, task, n_r
 
     res = power_analysis(true_model, true_params, rival, design, task=task, method="simulate",
                          n_repeats=n_repeats, rng=rng)
-    return xr.Dataset({"p_select": res.p_select(item["n"], z=z)}, attrs={"mu_nats": res.mu, "sigma_nats": res.sigma})
+    return xr.Dataset({"p_select": ((), res.p_select(item["n"], z=z),
+                                    {"units": "1", "long_name": "probability that the true model is selected"})},
+                      attrs={"mu_nats": res.mu, "sigma_nats": res.sigma})
+
+
+#: bytes of bookkeeping per batch point of :func:`power_sweep` (its key, its item, its cell of the table)
+POINT_BYTES = 1024
 
 
 def _check_counts(values, name: str, minimum: int) -> list[int]:
@@ -44,6 +52,24 @@ def _check_counts(values, name: str, minimum: int) -> list[int]:
     if not out or any(o != v or o < minimum for o, v in zip(out, np.atleast_1d(values))):
         raise ValueError(f"{name}: need whole numbers >= {minimum}, got {values!r}")
     return out
+
+
+def check_power_sweep(n_trials, n_seeds, n_repeats) -> tuple[list[int], int, int]:
+    """The sweep's sizes, checked before any point runs: whole numbers >= 1 within the memory rule
+    (one batch point per seed and trial count, one z value per simulated experiment).
+
+    Returns
+    -------
+    n_trials : list of int
+    n_seeds, n_repeats : int
+    """
+    ns = _check_counts(n_trials, "n_trials", 1)
+    (seeds,) = _check_counts(n_seeds, "n_seeds", 1)
+    (repeats,) = _check_counts(n_repeats, "n_repeats", 1)
+    check_count(seeds, POINT_BYTES * len(ns), "n_seeds", f"seeds ({len(ns)} trial count(s), about "
+                                                         f"{POINT_BYTES} bytes of batch bookkeeping each)")
+    check_count(repeats, REPEAT_BYTES, "n_repeats", "simulated experiments (a z value each)")
+    return ns, seeds, repeats
 
 
 def power_sweep(true_model, true_params: dict, rival, design, n_trials: Sequence[int], *, n_seeds: int, seed: int,
@@ -82,8 +108,7 @@ def power_sweep(true_model, true_params: dict, rival, design, n_trials: Sequence
     """
     import xarray as xr
 
-    ns = _check_counts(n_trials, "n_trials", 1)
-    (n_seeds,) = _check_counts(n_seeds, "n_seeds", 1)
+    ns, n_seeds, _ = check_power_sweep(n_trials, n_seeds, n_repeats)
     asym = power_analysis(true_model, true_params, rival, design, task=task)  # validates every argument once
     items = {f"seed-{s:04d}/n-{n}": {"seed_index": s, "n": n} for s in range(n_seeds) for n in ns}
     shared = dict(true_model=true_model, true_params=dict(true_params), rival=rival, design=list(design), task=task,
@@ -206,6 +231,8 @@ def _fit_point(item, rng, *, models, options):
                          coords={"parameter": names},
                          attrs={"units": "threshold_strain in strain (dimensionless); exponent, lapse, false_alarm "
                                          "dimensionless", "interval": "2.5 % and 97.5 % posterior quantiles"})
+    for name in summary.data_vars:  # every transduction parameter is dimensionless (strain, exponent, rates)
+        summary[name].attrs.update(units="1")
     tree["summary"] = xr.DataTree(summary)
     tree.attrs.update(subject=item["subject"], model=item["model"], converged=int(fit.converged))
     return tree
@@ -355,5 +382,9 @@ def _gather_comparison(subs, names, parts, attrs, out_dir):
                     coords={"subject": subs, "model": names, "parameter": params},
                     attrs={**attrs, "warnings": " | ".join(sorted(notes)),
                            "units": "elpd, elpd_diff, se, dse, mcse, mcse_diff in nats (PSIS-LOO); threshold_strain in strain"})
+    for name in ds.data_vars:  # PSIS-LOO columns in nats, parameters dimensionless (strain, rates): all "1"
+        if ds[name].dtype.kind in "iuf":
+            ds[name].attrs.setdefault("units", "1")
+    ds = cf_ready(ds)  # the table returned is the file's (CF attributes included)
     write_netcdf_atomic(ds, pathlib.Path(out_dir) / "compare_many.nc")
     return ds

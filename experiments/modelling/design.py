@@ -74,9 +74,10 @@ class ModelDiscrimination(Procedure):
 
     Parameters
     ----------
-    models : sequence of str or TransductionModel
+    models : sequence of str or TransductionModel, or mapping label -> TransductionModel
         At least two hypotheses, e.g. ``["zx@1mm", "zx@2mm"]`` (strings parsed with
-        ``ReceptorHypothesis.parse``; peak statistic of the ideal surface).
+        ``ReceptorHypothesis.parse``; peak statistic of the ideal surface). A mapping names each
+        model by its key (a protocol's design labels display-source models by their hypothesis).
     candidates : sequence of Stimulus or (Stimulus, Stimulus)
         The stimuli the design may show: a single stimulus (2IFC against a blank interval; yes/no:
         the signal) or a 2IFC pair (target, other). Their order does not matter.
@@ -131,8 +132,7 @@ class ModelDiscrimination(Procedure):
         n_t, n_b = (n_grid, 9) if np.ndim(n_grid) == 0 else (tuple(n_grid) + (None,))[:2]
         if not (whole(n_t, 2) and whole(n_b, 2)):
             raise ValueError(f"n_grid: need whole numbers >= 2 of threshold (and exponent) points, got {n_grid!r}")
-        self.models = self._models(models)
-        self.names = [m.name for m in self.models]
+        self.models, self.names = self._models(models)
         self.task, self.utility, self.parameter = task, utility, parameter
         self.stop_probability, self.max_trials = float(stop_probability), int(max_trials)
         self.candidates = self._candidates(candidates)
@@ -154,18 +154,20 @@ class ModelDiscrimination(Procedure):
 
     # ----- construction ---------------------------------------------------------------------
     @staticmethod
-    def _models(models) -> list[TransductionModel]:
+    def _models(models) -> tuple[list[TransductionModel], list[str]]:
         if isinstance(models, (str, TransductionModel)) or len(models) < 2:
             raise ValueError(f"models: give at least two hypotheses, e.g. ['zx@1mm', 'zx@2mm'], got {models!r}")
+        labels = [str(k) for k in models] if isinstance(models, Mapping) else None
         out = []
-        for i, m in enumerate(models):
+        for i, m in enumerate(models.values() if labels is not None else models):
             try:
                 out.append(m if isinstance(m, TransductionModel) else TransductionModel(str(m)))
             except ValueError as exc:
                 raise ValueError(f"models[{i}]: unknown model {m!r} ({exc})") from None
-        if len({m.name for m in out}) < len(out):
-            raise ValueError(f"models: names must be distinct, got {[m.name for m in out]}")
-        return out
+        names = labels if labels is not None else [m.name for m in out]
+        if len(set(names)) < len(out):
+            raise ValueError(f"models: names must be distinct, got {names}")
+        return out, names
 
     @staticmethod
     def _candidates(candidates) -> list:
@@ -352,8 +354,19 @@ class ModelDiscrimination(Procedure):
                 "metameric_groups": [list(g) for g in self.metameric_groups if len(g) > 1]}
 
 
-def from_config(config: ModelDiscriminationConfig, *, guess_rate: float = 0.5) -> ModelDiscrimination:
+def from_config(config: ModelDiscriminationConfig, *, guess_rate: float = 0.5,
+                display=None) -> ModelDiscrimination:
     """Build the procedure a protocol's ``[procedure]`` table describes (the registered factory).
+
+    Parameters
+    ----------
+    config : ModelDiscriminationConfig
+    guess_rate : float
+        The task's chance rate (must be 0.5).
+    display : SimulatedDisplay, optional
+        A model of the session's display: every hypothesis then predicts from the strain the
+        display renders, its limits included (``TransductionModel(source="display")``), labelled
+        by the protocol's hypothesis string. Default: the ideal surface (``source="surface"``).
 
     Raises
     ------
@@ -366,7 +379,9 @@ def from_config(config: ModelDiscriminationConfig, *, guess_rate: float = 0.5) -
                          f"chance rate {guess_rate}; use task.kind = '2ifc' with method 'model_discrimination'")
     with warnings.catch_warnings():  # the metameric groups are in every trial's recorded state
         warnings.simplefilter("ignore")
-        return ModelDiscrimination(config.models, config.stimuli(), utility=config.utility,
+        models = config.models if display is None else \
+            {m: TransductionModel(m, source="display", display=display) for m in config.models}
+        return ModelDiscrimination(models, config.stimuli(), utility=config.utility,
                                    n_grid=(config.n_grid, 9), stop_probability=config.stop_probability,
                                    max_trials=config.max_trials, task=config.task, config=config,
                                    parameter=config.parameter)

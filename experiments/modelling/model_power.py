@@ -23,6 +23,8 @@ import numpy as np
 from scipy.optimize import minimize
 from scipy.special import expit, ndtr
 
+from tactilab.core.memory import check_count
+
 from ._transduction_data import p_correct_table
 
 #: mean log-likelihood ratios per trial at or below this (nats) are the optimiser's floor: the
@@ -113,6 +115,10 @@ class PowerResult:
         if key not in sim["z"]:
             sim["z"][key] = _simulate(sim, key)
         return float(np.mean(sim["z"][key] > z))
+
+
+#: bytes per simulated experiment of :func:`_simulate`: its z value in a list and in the returned array
+REPEAT_BYTES = 64
 
 
 def _simulate(sim, n):
@@ -207,6 +213,10 @@ def power_analysis(true_model, true_params: dict, rival, design, *, task: str = 
         raise ValueError(f"task: must be '2ifc' or 'yes_no', got {task!r}")
     if method not in ("asymptotic", "simulate"):
         raise ValueError(f"method: must be 'asymptotic' or 'simulate', got {method!r}")
+    if method == "simulate":  # the memory rule: one z value (a Python float in a list) per simulated experiment
+        if int(n_repeats) != n_repeats or n_repeats < 1:
+            raise ValueError(f"n_repeats: need a whole number >= 1 of simulated experiments, got {n_repeats!r}")
+        check_count(int(n_repeats), REPEAT_BYTES, "n_repeats", "simulated experiments (a z value each)")
     names = _NAMES[task]
     if set(true_params) != set(names):
         raise ValueError(f"true_params: need exactly {list(names)} for task {task!r}, got {sorted(true_params)}")

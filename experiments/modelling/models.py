@@ -12,8 +12,10 @@ strain. The statistic of one interval (a data_schemas ``Stimulus``):
   highest harmonic: the squared readout is a trigonometric polynomial).
 
 Sources: ``surface`` (the ideal virtual surface: nu = 1/2 sliding-sinusoid strain, a square
-surface as its odd harmonics 4 A / (n pi) up to n = 29) or ``display`` (the strain a simulated
-display really renders after the safety limits, at its points and frames, for every depth).
+surface as its odd harmonics 4 A / (n pi) up to n = 29), ``display`` (the strain a simulated
+display really renders after the safety limits, at its points and frames, for every depth) or
+``contact`` (a physical grating pressed by a finger, through the solved contact: the finger's
+pressure and friction and the grating's partial contact, :mod:`.contact_stimulus`).
 The link is signal detection (see :mod:`tactilab.experiments.modelling._transduction_data`).
 """
 
@@ -39,7 +41,7 @@ __all__ = ["TransductionModel", "TransductionFit", "fit_transduction", "power_an
            "ReceptorHypothesis", "fit_psychometric", "ParamSummary", "METHODS"]
 
 STATISTICS = ("peak", "rms")
-SOURCES = ("surface", "display")
+SOURCES = ("surface", "display", "contact")
 N_HARMONICS = 15  # odd harmonics 1..29 of a square surface
 _PER_PERIOD = 64  # samples per period of the highest harmonic
 
@@ -52,12 +54,19 @@ class TransductionModel:
     hypothesis : ReceptorHypothesis or str
         E.g. ``"zx@1mm"`` (parsed with ``ReceptorHypothesis.parse``).
     statistic : {"peak", "rms"}
-    source : {"surface", "display"}
+    source : {"surface", "display", "contact"}
     display : SimulatedDisplay, optional
-        Needed for ``source="display"``.
+        Needed for ``source="display"``: any object with ``steady_drive(stimulus)`` and
+        ``strain(frames, depth_m=...)``, e.g. a session's ``RenderedStimuli`` (the candidate as a
+        trial plays it).
+    contact : FingerContact, optional
+        Needed for ``source="contact"``: the finger (radius, normal force, friction, skin) that
+        presses the grating (:class:`~.contact_stimulus.FingerContact`); its receptors are the
+        scan line's nodes under the contact, its statistic is over every offset of the grating.
     """
 
-    def __init__(self, hypothesis, *, statistic: str = "peak", source: str = "surface", display=None):
+    def __init__(self, hypothesis, *, statistic: str = "peak", source: str = "surface", display=None,
+                 contact=None):
         self.hypothesis = hypothesis if isinstance(hypothesis, ReceptorHypothesis) \
             else ReceptorHypothesis.parse(str(hypothesis))
         if statistic not in STATISTICS:
@@ -67,7 +76,10 @@ class TransductionModel:
         if source == "display" and not callable(getattr(display, "steady_drive", None)):
             raise ValueError("display: source='display' needs a SimulatedDisplay (its rendered strain), got "
                              f"{type(display).__name__}; or use source='surface'")
-        self.statistic, self.source, self.display = statistic, source, display
+        if source == "contact" and not callable(getattr(contact, "strain", None)):
+            raise ValueError("contact: source='contact' needs a FingerContact (the finger that presses the grating), "
+                             f"got {type(contact).__name__}; e.g. contact=FingerContact(10e-3, 0.5, 0.5)")
+        self.statistic, self.source, self.display, self.contact = statistic, source, display, contact
         self._cache: dict[Stimulus, float] = {}
 
     def __repr__(self) -> str:
@@ -76,7 +88,8 @@ class TransductionModel:
     @property
     def name(self) -> str:
         """Short label, e.g. ``zx@1mm`` (with ``/rms`` or ``/display`` when not the default)."""
-        extra = ("" if self.statistic == "peak" else f"/{self.statistic}") + ("" if self.source == "surface" else "/display")
+        extra = ("" if self.statistic == "peak" else f"/{self.statistic}") + ("" if self.source == "surface"
+                                                                               else f"/{self.source}")
         return str(self.hypothesis) + extra
 
     # ----- statistic ------------------------------------------------------------------------
@@ -119,6 +132,10 @@ class TransductionModel:
         r = self.hypothesis.readout(np.stack(strain))
         return float(np.abs(r).max() if self.statistic == "peak" else np.sqrt(np.mean(r * r)))
 
+    def _contact_statistic(self, stimulus: Stimulus) -> float:
+        r = self.hypothesis.readout(self.contact.strain(stimulus, self.hypothesis.depths))
+        return float(np.abs(r).max() if self.statistic == "peak" else np.sqrt(np.mean(r * r)))
+
     def statistic_of(self, stimulus: Stimulus) -> float:
         """The statistic of one interval, in readout units (strain); 0 for a blank. Cached."""
         if not isinstance(stimulus, Stimulus):
@@ -128,6 +145,8 @@ class TransductionModel:
                 value = 0.0
             elif self.source == "surface":
                 value = self._surface_statistic(stimulus)
+            elif self.source == "contact":
+                value = self._contact_statistic(stimulus)
             else:
                 value = self._display_statistic(stimulus)
             self._cache[stimulus] = value
@@ -293,7 +312,27 @@ def _tree(post, ll, lp, lik, data, best, attrs, elpd_i=None):
     root = {k: v for k, v in attrs.items() if isinstance(v, (str, int, float, bool, np.integer, np.floating))}
     root = {k: (int(v) if isinstance(v, (bool, np.bool_)) else v) for k, v in root.items()}
     root.update(task=lik.kind, map_estimate=json.dumps(dict(zip(lik.param_names, map(float, best)))))
-    return azb.from_dict({"posterior": post, "log_likelihood": {"correct": ll},
+    tree = azb.from_dict({"posterior": post, "log_likelihood": {"correct": ll},
                           "observed_data": {"correct": lik.observed}, "sample_stats": {"lp": lp},
                           "constant_data": constant},
                          dims={"correct": ["trial"], **{k: ["trial"] for k in constant}}, attrs={"/": root})
+    for group, attrs in _TREE_ATTRS.items():  # units (SI; "1" dimensionless) for az.summary users and CF files
+        for name, value in attrs.items():
+            if group in tree.children and name in tree[group].dataset:
+                tree[group].dataset[name].attrs.update(units=value[0], long_name=value[1])
+    return tree
+
+
+#: group -> variable -> (units, long_name) of a fit's tree
+_TREE_ATTRS = {
+    "posterior": {"threshold_strain": ("1", "strain readout at d' = 1 (tensor strain)"),
+                  "exponent": ("1", "transducer exponent"), "lapse": ("1", "lapse rate"),
+                  "false_alarm": ("1", "false-alarm rate")},
+    "log_likelihood": {"correct": ("1", "pointwise log-likelihood of the response (nats)")},
+    "observed_data": {"correct": ("1", "response correct (1) or wrong (0)")},
+    "sample_stats": {"lp": ("1", "log posterior density up to a constant (nats)")},
+    "constant_data": {"statistic_target": ("1", "the model's statistic of the target interval (strain)"),
+                      "statistic_other": ("1", "the model's statistic of the other interval (strain)"),
+                      "pitch_m": ("m", "target pitch"), "amplitude_m": ("m", "target amplitude"),
+                      "elpd_loo_quadrature": ("1", "exact leave-one-out elpd per trial (nats)")},
+}

@@ -42,13 +42,23 @@ def hypothesis_observer(protocol, hypothesis: str, *, threshold_strain: float, s
         Readout (tensor strain, dimensionless) felt at d' = 1, in the units of the hypothesis and
         statistic.
     statistic : {"peak", "rms"}
-    source : {"surface", "display"}
-        The ideal surface's strain, or what the simulated ``display`` renders (clipping included).
+    source : {"surface", "display", "contact"}
+        The ideal surface's strain, what the simulated ``display`` renders (clipping included), or
+        a physical grating pressed by the protocol's ``[finger]`` through the solved contact
+        (:class:`~.contact_stimulus.FingerContact`; a resume rebuilds it from the protocol).
     display : SimulatedDisplay, optional
         Needed for ``source="display"``.
     seed, exponent, lapse
         As :class:`SimulatedObserver` (seed default: the protocol's).
     """
-    model = TransductionModel(hypothesis, statistic=statistic, source=source, display=display)
+    contact = None
+    if source == "contact":
+        if getattr(protocol, "finger", None) is None:
+            raise ValueError("source: 'contact' needs the finger that presses the gratings: add a [finger] table to "
+                             "the protocol (finger_radius_m, normal_force_n, friction, young_modulus_pa)")
+        from .contact_stimulus import FingerContact
+
+        contact = FingerContact.from_config(protocol.finger)
+    model = TransductionModel(hypothesis, statistic=statistic, source=source, display=display, contact=contact)
     return HypothesisObserver(protocol, model, seed=seed, threshold_strain=threshold_strain, exponent=exponent,
                               lapse=lapse)

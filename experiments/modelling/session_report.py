@@ -106,12 +106,16 @@ def session_summary(path: str | Path, *, rng: int = 0) -> dict[str, Any]:
     by_kind = dict(sorted(Counter(str(p.get("kind", "unknown")) for p in safety).items()))
     frames_by_kind = {k: sum(int(p.get("n_frames") or 0) for p in safety if str(p.get("kind", "unknown")) == k)
                       for k in by_kind}
-    sent = sum(t.frames_sent for t in trials)
-    frames = {"frames_sent": sent}
-    for what in ("late", "skipped", "missing"):
+    # frames the display played: every scored trial's, and every attempt a display fault aborted (its
+    # frames reached the skin too; older files logged only the faulted interval's count)
+    aborted = sum(int(e["payload"].get("frames_sent_trial", e["payload"].get("frames_sent")) or 0)
+                  for e in events if e["kind"] == "display_fault")
+    scored = sum(t.frames_sent for t in trials)
+    frames = {"frames_sent": scored + aborted, "frames_sent_aborted": aborted}
+    for what in ("late", "skipped", "missing"):  # counted per scored trial: fractions of the scored trials' frames
         n = sum(getattr(t, f"frames_{what}") for t in trials)
         frames[f"frames_{what}"] = n
-        frames[f"frames_{what}_fraction"] = n / sent if sent else 0.0
+        frames[f"frames_{what}_fraction"] = n / scored if scored else 0.0
     faults = [{"trial_index": e["trial_index"], "attempt": e["attempt"], "reason": e["payload"].get("reason")}
               for e in events if e["kind"] == "display_fault"]
     rts = [t.rt_s for t in trials]
@@ -150,7 +154,7 @@ def _warnings(s: dict[str, Any]) -> list[str]:
                    "every stimulus as commanded")
     for what in ("late", "skipped", "missing"):
         if s[f"frames_{what}_fraction"] > FRAME_WARN_FRACTION:
-            out.append(f"{s[f'frames_{what}']} of {s['frames_sent']} frames {what} "
+            out.append(f"{s[f'frames_{what}']} of {s['frames_sent'] - s['frames_sent_aborted']} frames {what} "
                        f"({100 * s[f'frames_{what}_fraction']:.1f} %, above {100 * FRAME_WARN_FRACTION:g} %)")
     for f in s["display_faults"]:
         out.append(f"display fault in trial {f['trial_index']}: {f['reason']}")
@@ -185,7 +189,8 @@ def summary_lines(s: dict[str, Any]) -> list[str]:
     kinds = ", ".join(f"{k} {n} ({s['safety_limited_frames_by_kind'][k]} frames)"
                       for k, n in s["safety_interventions_by_kind"].items())
     rows.append(("safety interventions", f"{s['safety_interventions']}" + (f": {kinds}" if kinds else "")))
-    rows.append(("frames", f"{s['frames_sent']} sent; " + ", ".join(
+    aborted = f" ({s['frames_sent_aborted']} in trials a display fault aborted)" if s.get("frames_sent_aborted") else ""
+    rows.append(("frames", f"{s['frames_sent']} sent{aborted}; " + ", ".join(
         f"{s[f'frames_{w}']} {w} ({100 * s[f'frames_{w}_fraction']:.2g} %)" for w in ("late", "skipped", "missing"))))
     rows.append(("display faults", str(len(s["display_faults"]))))
     if s["rt_median_s"] is not None:

@@ -6,6 +6,7 @@ building a staircase loads neither psi nor the modelling room.
 
 from __future__ import annotations
 
+import inspect
 from typing import Any
 
 from .base import Procedure
@@ -14,7 +15,7 @@ from .registry import procedure_factory
 __all__ = ["make_procedure"]
 
 
-def make_procedure(config: Any, guess_rate: float = 0.0) -> Procedure:
+def make_procedure(config: Any, guess_rate: float = 0.0, *, display: Any = None) -> Procedure:
     """Build the procedure that a protocol's ``procedure`` table describes.
 
     Parameters
@@ -23,16 +24,30 @@ def make_procedure(config: Any, guess_rate: float = 0.0) -> Procedure:
         A validated procedure configuration; ``config.method`` names a registered procedure.
     guess_rate : float
         The task's chance rate (0.5 for forced choice), passed to the procedure's factory.
+    display : SimulatedDisplay, optional
+        A model of the session's display (what it renders, limits included). Passed to the
+        factories that take a ``display`` keyword (the model-discrimination design predicts from
+        the stimulus the display renders); factories without one build as before.
 
     Raises
     ------
     UnregisteredError
         If the method, or a psi protocol's likelihood, is not registered.
     """
-    procedure = procedure_factory(config)(config, guess_rate=guess_rate)
+    factory = procedure_factory(config)
+    extra = {"display": display} if display is not None and _takes_display(factory) else {}
+    procedure = factory(config, guess_rate=guess_rate, **extra)
     if not isinstance(procedure, Procedure):
         raise TypeError(
             f"factory: the factory registered for {config.method!r} returned {type(procedure).__name__}, "
             "not a tactilab.experiments.procedures.Procedure; return a Procedure subclass instance"
         )
     return procedure
+
+
+def _takes_display(factory) -> bool:
+    try:
+        parameters = inspect.signature(factory).parameters
+    except (TypeError, ValueError):  # a builtin without a signature: it takes only what the registry documents
+        return False
+    return "display" in parameters

@@ -125,7 +125,9 @@ def register_procedure(name: str, config_cls: type, factory: Callable[..., Any],
         A subclass of :class:`tactilab.data_schemas.experiment_procedures.ProcedureConfigBase`
         with ``method: Literal[name]``.
     factory : callable
-        ``factory(config, *, guess_rate: float) -> Procedure`` (the task's chance rate is given).
+        ``factory(config, *, guess_rate: float) -> Procedure`` (the task's chance rate is given);
+        a factory with a ``display`` keyword also gets the session's display model
+        (:func:`~.build.make_procedure`).
     replace : bool
         Allow replacing the factory of an already registered name.
 

@@ -3,7 +3,8 @@
 Layout of the dataset root ``out`` (BIDS 1.9; checked by the ``bids-validator`` npm package in
 ``tests/test_bids_export.py``)::
 
-    dataset_description.json   Name, BIDSVersion, DatasetType "raw", GeneratedBy tactilab <version>
+    dataset_description.json   Name, BIDSVersion, DatasetType "raw", GeneratedBy tactilab <version>,
+                               Authors (when given)
     participants.tsv (+ .json) participant_id only: the pseudonymous code, never a name
     README                     what the dataset is and how its columns are named
     sub-<id>/ses-<n>/beh/sub-<id>_ses-<n>_task-<name>_beh.tsv   one row per completed trial
@@ -119,8 +120,12 @@ def beh_table(trials: list[TrialRecord]) -> pd.DataFrame:
     return table.where(table.notna(), "n/a")
 
 
-def write_dataset(meta: dict[str, Any], trials: list[TrialRecord], out: Path, *, overwrite: bool) -> list[Path]:
+def write_dataset(meta: dict[str, Any], trials: list[TrialRecord], out: Path, *, overwrite: bool,
+                  authors: list[str] | None = None) -> list[Path]:
     """Write (or add one session to) the BIDS dataset at ``out``; return the files written.
+
+    ``authors`` (one name per entry) goes into a new ``dataset_description.json`` as BIDS
+    ``Authors``; without it the validator warns NO_AUTHORS (the dataset is still valid).
 
     Dataset-level files are created when missing (an existing ``dataset_description.json`` or
     README is kept); the subject joins ``participants.tsv`` once. The session's TSV and sidecar
@@ -129,9 +134,10 @@ def write_dataset(meta: dict[str, Any], trials: list[TrialRecord], out: Path, *,
     Raises
     ------
     ValueError
-        When the session's files exist and ``overwrite`` is False, or ``participants.tsv`` exists
-        without a ``participant_id`` column.
+        When the session's files exist and ``overwrite`` is False, ``participants.tsv`` exists
+        without a ``participant_id`` column, or ``authors`` is not a list of non-empty names.
     """
+    authors = check_authors(authors)
     task = meta["protocol"]["name"]
     subject, session = meta["subject"], meta["session"]
     folder = output_path(out, f"sub-{subject}", f"ses-{session}", "beh", option="out")
@@ -168,6 +174,7 @@ def write_dataset(meta: dict[str, Any], trials: list[TrialRecord], out: Path, *,
             "DatasetType": "raw",
             "GeneratedBy": [{"Name": "tactilab", "Version": package_version(),
                              "Description": "tactilab experiment export --format bids"}],
+            **({"Authors": authors} if authors else {}),
         }, indent=2))
         written.append(dataset)
     written += _participants(out, f"sub-{subject}")
@@ -180,6 +187,22 @@ def write_dataset(meta: dict[str, Any], trials: list[TrialRecord], out: Path, *,
             "and in the sidecar's Units. Participant ids are pseudonymous codes.\n")
         written.append(readme)
     return written
+
+
+def check_authors(authors) -> list[str] | None:
+    """``authors`` as a list of stripped names (``None`` stays ``None``).
+
+    Raises
+    ------
+    ValueError
+        If it is a bare string or holds an empty or non-string name.
+    """
+    if authors is None:
+        return None
+    if isinstance(authors, str) or not all(isinstance(a, str) and a.strip() for a in authors) or not authors:
+        raise ValueError(f"authors: must be a list of non-empty names (one author per entry), got {authors!r}; "
+                         "e.g. ['Ada Lovelace', 'Alan Turing']")
+    return [a.strip() for a in authors]
 
 
 def _write_new(path: Path, text: str) -> None:

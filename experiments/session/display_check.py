@@ -12,6 +12,11 @@ stimulus and the limit; ``"drop"`` leaves such stimuli out (levels of constant s
 candidates of an adaptive design; a staircase's bounds are refused, as it may command any level
 between them) and counts them; ``"allow"`` lets the safety layer limit them at run time (a
 safety test's choice, recorded as interventions).
+
+:func:`design_display` is the model of what the display renders that an adaptive design predicts
+from (a :class:`~tactilab.experiments.devices.SimulatedDisplay` of the session's description):
+a session on a real display (UDP) gets one too, built from the description alone, so a resume
+rebuilds the same model from the recorded description.
 """
 
 from __future__ import annotations
@@ -20,7 +25,7 @@ import warnings
 
 from tactilab.data_schemas.experiment import CLIPPED, check_clipped  # noqa: F401 - CLIPPED is this part's too
 
-from ..devices import limit_drive, render_drive
+from ..devices import SimulatedDisplay, limit_drive, render_drive, resolve_command
 
 
 def _label(stimulus) -> str:
@@ -132,3 +137,65 @@ def plan_for_display(protocol, description, clipped: str | None = None):
                           f"limit (first: {dropped[0]}); the session runs the other {n_planned - len(dropped)}",
                           UserWarning, stacklevel=4)
     return protocol, {"policy": clipped, "n_planned": n_planned, "dropped": dropped}
+
+
+
+class RenderedStimuli:
+    """What a session's display renders for a design candidate, limits included.
+
+    A candidate is merged with the protocol's ``[stimulus]`` as a trial merges it (its
+    ``fields`` replace those of ``base``), then rendered and limited by ``display``
+    (:meth:`SimulatedDisplay.steady_drive`); ``strain`` is the display's. It is the ``display``
+    of ``TransductionModel(source="display")`` for the design's hypotheses.
+
+    Parameters
+    ----------
+    display : SimulatedDisplay
+    base : Stimulus
+        The protocol's ``[stimulus]``.
+    fields : tuple of str
+        The stimulus fields a candidate sets (surface, amplitude_m, pitch_m and its listed fields).
+    """
+
+    def __init__(self, display: SimulatedDisplay, base, fields: tuple[str, ...]) -> None:
+        self.display, self.base, self.fields = display, base, tuple(fields)
+
+    def played(self, stimulus):
+        """The stimulus a trial plays for the candidate ``stimulus`` (validated, SI)."""
+        return type(self.base).model_validate({**self.base.model_dump(),
+                                               **{k: getattr(stimulus, k) for k in self.fields}})
+
+    def steady_drive(self, stimulus):
+        """The frames the display plays for the candidate between its ramps (Pa or m), shape (n, n_tractors)."""
+        return self.display.steady_drive(self.played(stimulus))
+
+    def strain(self, frames, depth_m: float):
+        """``eps_xx, eps_xz`` under each row at ``depth_m`` (m), as :meth:`SimulatedDisplay.strain`."""
+        return self.display.strain(frames, depth_m=depth_m)
+
+
+def design_display(description, protocol):
+    """The model of what the display renders for a protocol's design, from the description alone.
+
+    It renders and limits each candidate as the runner does (merged with ``[stimulus]``; the
+    default receptor depth and skin modulus of :func:`~tactilab.experiments.devices.render_drive`),
+    so a design's predictions use the stimulus the display actually plays.
+
+    Parameters
+    ----------
+    description : DisplayDescription
+        The session's display (recorded in its metadata).
+    protocol : Protocol
+
+    Returns
+    -------
+    RenderedStimuli or None
+        ``None`` for a display commanded in deflection: its strain needs the tractors'
+        stiffness (Pa/m), which a description does not hold; designs then predict from the
+        ideal surface.
+    """
+    if resolve_command(description) != "traction":
+        return None
+    fields = tuple(dict.fromkeys(("surface", "amplitude_m", "pitch_m",
+                                  *getattr(protocol.procedure, "candidates", {}))))
+    return RenderedStimuli(SimulatedDisplay(description, realtime=False), protocol.stimulus, fields)

@@ -61,7 +61,8 @@ def session_dataframe(path: str | Path) -> pd.DataFrame:
         log.close()
 
 
-def export_session(path: str | Path, out: str | Path, format: str = "bids", *, overwrite: bool = True) -> list[Path]:
+def export_session(path: str | Path, out: str | Path, format: str = "bids", *, overwrite: bool = True,
+                   authors: list[str] | None = None) -> list[Path]:
     """Write a session's trials to ``out`` in ``format``; return the files written.
 
     Parameters
@@ -77,6 +78,9 @@ def export_session(path: str | Path, out: str | Path, format: str = "bids", *, o
         (:mod:`.psychopy_export`, ``..._psychopy.csv``).
     overwrite : bool
         Replace the session's files when they exist (the CLI passes ``--force``).
+    authors : list of str, optional
+        BIDS only: the dataset's ``Authors`` (written when its ``dataset_description.json`` is
+        created).
 
     Raises
     ------
@@ -88,6 +92,9 @@ def export_session(path: str | Path, out: str | Path, format: str = "bids", *, o
     """
     if format not in FORMATS:
         raise ValueError(f"format: must be one of {FORMATS}, got {format!r}")
+    if authors is not None and format != "bids":
+        raise ValueError(f"authors: only a BIDS dataset has authors, got format {format!r}; drop authors or "
+                         "use format 'bids'")
     if format == "parquet":
         try:
             import pyarrow  # noqa: F401
@@ -105,7 +112,7 @@ def export_session(path: str | Path, out: str | Path, format: str = "bids", *, o
     if format == "bids":
         from .bids import write_dataset
 
-        return write_dataset(meta, trials, out, overwrite=overwrite)
+        return write_dataset(meta, trials, out, overwrite=overwrite, authors=authors)
     stem = f"sub-{meta['subject']}_ses-{meta['session']}_task-{meta['protocol']['name']}"
     suffix = {"json": "session.json", "csv": "trials.csv", "parquet": "trials.parquet",
               "psychopy": "psychopy.csv"}[format]

@@ -63,6 +63,9 @@ def make_responses(kind: str, protocol: Protocol, display: Display, *, threshold
             raise ValueError("strain: 'display' needs a SimulatedDisplay (a display whose strain is computed); "
                              "use strain='surface' with a real display")
         config["display"] = display
+    elif source == "contact":
+        raise ValueError("strain: 'contact' is read through a receptor hypothesis; name one (the command line's "
+                         "--observer, e.g. zx@1mm) and give the protocol a [finger] table")
     elif source != "surface":
         raise ValueError(
             f"strain: must be 'surface' or 'display', got {source!r}"

@@ -31,6 +31,7 @@ import contextlib
 import os
 import time
 import uuid
+import warnings
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
@@ -199,21 +200,24 @@ class Runner:
                 self.sleep(plan.gap_s)
             frames = render_drive(self.display.description, **stimulus.model_dump())
             self.display.load(frames, stimulus.frame_rate_hz)
-            if k == 0:  # the response clock starts at the first stimulus onset
-                onset_ns = time.monotonic_ns()
+            if k == 0:  # the response clock starts at the first stimulus onset (its first frame's due time)
+                onset_ns = time.monotonic_ns() + round(self.display.onset_delay_s * 1e9)
                 self.responses.arm(plan, onset_ns)
             try:
                 report = self.display.play()
             except DisplayFault:
                 raise
             except DisplayError as exc:  # the link failed mid-trial (device lost): a fault like any other
-                report, fault = None, {"reason": " ".join(str(exc).split())}
+                report, fault = None, {"reason": " ".join(str(exc).split()), "frames_sent": exc.frames_sent}
             else:
                 fault = display_fault(report)
             if fault is not None:  # never scored: zero, log, stop; resume repeats the trial
                 with contextlib.suppress(DisplayError):  # a lost device cannot answer; its watchdog zeroes it
                     self.display.zero()
-                self.recorder.log("display_fault", index, attempt, {**fault, "interval": k})
+                # what the display played of this aborted attempt, every interval so far (the status counts it)
+                played = sum(r.frames_sent for r in reports) + int(fault.get("frames_sent") or 0)
+                self.recorder.log("display_fault", index, attempt, {**fault, "interval": k,
+                                                                    "frames_sent_trial": played})
                 raise DisplayFault(
                     f"display fault in trial {index}, interval {k}: {fault['reason']}. The display is "
                     f"zeroed and the trial was not scored; fix the link or the device, then resume "
@@ -226,7 +230,8 @@ class Runner:
         foreign = self.display.audit()
         if foreign:
             self.recorder.log("display_fault", index, attempt, {
-                "reason": foreign_reason(foreign), "alarm": True, "foreign": foreign, "interval": None})
+                "reason": foreign_reason(foreign), "alarm": True, "foreign": foreign, "interval": None,
+                "frames_sent_trial": sum(r.frames_sent for r in reports)})
             raise DisplayFault(
                 f"display fault in trial {index}: {foreign_reason(foreign)}. The display is zeroed and the "
                 f"trial was not scored; find the other process, then resume {self.recorder.path} (the trial "
@@ -356,9 +361,13 @@ def _new_session(protocol: Protocol, path: str | Path, display: Display, respons
     except ValueError as exc:
         raise ValueError(f"protocol: a planned stimulus's {exc} (frame rates planned: {rates} Hz)") from None
     render_drive(display.description, **protocol.stimulus.model_dump())
-    from .display_check import plan_for_display
+    from .display_check import design_display, plan_for_display
 
     protocol, clipping = plan_for_display(protocol, display.description, clipped)
+    rendered = design_display(display.description, protocol)  # a design predicts from what the display renders
+    if rendered is None and protocol.procedure.method == "model_discrimination":
+        warnings.warn("display: it is commanded in deflection and its strain needs the tractor stiffness, which "
+                      "its description does not hold; the design predicts from the ideal surface", stacklevel=3)
     description, description_sha256 = description_record(display.description)
     meta = {"session_id": uuid.uuid4().hex, "created_utc": utc_now(),
             "subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
@@ -367,9 +376,9 @@ def _new_session(protocol: Protocol, path: str | Path, display: Display, respons
             "display_sha256": description_sha256, "responses": responses.name,
             "responses_config": dict(responses.config),
             "likelihood": getattr(protocol.procedure, "likelihood", None),
-            "clipped": clipping}
+            "clipped": clipping, "design_strain": "surface" if rendered is None else "display"}
     # built before the file exists: an unregistered method or likelihood leaves no session behind
-    procedure = make_procedure(protocol.procedure, protocol.task.guess_rate)
+    procedure = make_procedure(protocol.procedure, protocol.task.guess_rate, display=rendered)
     recorder = None
     try:
         with signals_held():  # the file is created and locked whole

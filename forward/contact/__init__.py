@@ -11,7 +11,13 @@ enforces it). Inside:
 - ``linearised``: the derivative of a solved normal contact at its contact set
   (:class:`ContactLinearisation`, the inversions' Jacobian);
 - ``tangential``: partial slip and stuck contact under a given pressure (:func:`solve_tangential`,
-  :class:`TangentialSolution`), on the quadratic program of ``friction_qp``.
+  :class:`TangentialSolution`), on the quadratic program of ``friction_qp``;
+- ``periodic_forms``: the closed forms of periodic cells, Westergaard's sinusoid and the periodic
+  flat punch, with their harmonics and fields at depth (:class:`WestergaardContact`,
+  :class:`PeriodicFlatPunch`, :func:`harmonic_field`);
+- ``validity``: the sensor error of the cheap texture models against the solved contact
+  (:func:`interface_model_errors`, :func:`linear_pressure`, :func:`modulation_pressure`,
+  :func:`full_contact_pressure`).
 
 Conventions (docs/theory.md section 1): tractions act on the skin, ``p`` pushes into it, heights
 are positive towards the skin, ``uz`` is positive into the skin; SI units.
@@ -35,6 +41,13 @@ _EXPORTS = {
     "memory_estimate": "inputs",
     "memory_limit": "inputs",
     "solve_tangential": "tangential",
+    "WestergaardContact": "periodic_forms",
+    "PeriodicFlatPunch": "periodic_forms",
+    "harmonic_field": "periodic_forms",
+    "interface_model_errors": "validity",
+    "linear_pressure": "validity",
+    "modulation_pressure": "validity",
+    "full_contact_pressure": "validity",
     "TangentialSolution": "tangential",
 }
 

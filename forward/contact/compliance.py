@@ -31,7 +31,10 @@ Two operators, chosen by ``periodic``:
   the skin's ``surface_influence`` (the exact pixel integrals of Boussinesq and Cerruti: Love's
   closed form for the normal entry), by FFT on a grid zero-padded to twice the size (DC-FFT). In
   plane strain the displacement of a line load is defined up to a constant: it is taken as zero
-  at a distance of one grid length ``nx dx`` from the load.
+  at a distance of one grid length ``nx dx`` from the load. A skin without ``surface_influence``
+  (a layered skin) gets its influence coefficients from its ``surface_compliance`` on a periodic
+  grid ``PADDED_PERIODS`` times the zero-padded one per axis (nodal tractions, not pixels; the
+  images' error is discussed in docs/theory.md section 6).
 
 Each block's spectrum is computed on first use and kept (complex128, ``prod(padded)/2`` entries).
 FFTs are ``scipy.fft`` with ``workers=1``, float64.
@@ -39,16 +42,22 @@ FFTs are ``scipy.fft`` with ``workers=1``, float64.
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 from scipy import fft as sfft
 
 from tactilab.core import rules as check
+
+from ..halfspace import inverse_into, rfftn_into
 
 #: index of each displacement / traction component in the compliance matrices
 _ROW = {"uz": 0, "ux": 1, "uy": 2}
 _COL = {"p": 0, "qx": 1, "qy": 2}
 #: rows of the kernel evaluated at a time (bounds the temporaries of a large grid)
 _BAND = 128
+#: isolated grids of skins without surface_influence: periodic grid per axis over the zero-padded one
+PADDED_PERIODS = 4
 
 
 class ContactCompliance:
@@ -74,10 +83,16 @@ class ContactCompliance:
             raise ValueError(f"shape: expected (nx,) or (ny, nx) with at least one node per axis, got {shape}")
         if not isinstance(periodic, (bool, np.bool_)):
             raise ValueError(f"periodic: must be True or False, got {periodic!r}")
-        need = "surface_compliance" if periodic else "surface_influence"
-        if not callable(getattr(skin, need, None)):
-            raise ValueError(f"skin: {'a periodic' if periodic else 'an isolated'} contact needs a skin with "
-                             f"{need}(...), got {type(skin).__name__}; use HalfSpace(E, nu)")
+        has = {name: callable(getattr(skin, name, None)) for name in ("surface_compliance", "surface_influence")}
+        if periodic and not has["surface_compliance"]:
+            raise ValueError(f"skin: a periodic contact needs a skin with surface_compliance(...), got "
+                             f"{type(skin).__name__}; use HalfSpace(E, nu)")
+        if not periodic and not (has["surface_influence"] or has["surface_compliance"]):
+            raise ValueError(f"skin: an isolated contact needs a skin with surface_influence(...) or "
+                             f"surface_compliance(...), got {type(skin).__name__}; use HalfSpace(E, nu)")
+        #: isolated grid of a skin without surface_influence: its influence comes from a periodic grid
+        #: PADDED_PERIODS times the zero-padded one per axis (see _padded_influence)
+        self.padded_periodic = not periodic and not has["surface_influence"]
         self.skin = skin
         self.shape = shape
         self.ndim = len(shape)
@@ -86,6 +101,7 @@ class ContactCompliance:
         self.fft_shape = shape if periodic else tuple(2 * n for n in shape)
         self._axes = tuple(range(-self.ndim, 0))
         self._spectra: dict = {}  # (row, col) -> block spectrum; "stiffness" -> the preconditioner
+        self._local = threading.local()  # per-thread work spectrum of the periodic 2-D products
 
     def __repr__(self) -> str:
         kind = "periodic" if self.periodic else "isolated"
@@ -100,25 +116,10 @@ class ContactCompliance:
     def _block(self, key: tuple[int, int]) -> np.ndarray:
         """One entry of the compliance on the FFT grid: spectral symbol (periodic) or real-space
         influence coefficients (isolated), evaluated in bands of rows to bound the temporaries."""
-        i, j = key
-        odd = i != j  # the cross terms and xy are odd in k
         if self.periodic:
-            kx = 2 * np.pi * sfft.rfftfreq(self.shape[-1], self.spacing[0])
-            if self.ndim == 1:
-                m = np.array(np.asarray(self.skin.surface_compliance(kx, None))[..., i, j], dtype=complex)
-                if odd and self.shape[0] % 2 == 0:
-                    m[-1] = 0.0
-                return m
-            ky = 2 * np.pi * sfft.fftfreq(self.shape[0], self.spacing[1])
-            m = np.empty((len(ky), len(kx)), dtype=complex)
-            for lo in range(0, len(ky), _BAND):
-                band = self.skin.surface_compliance(kx[None, :], ky[lo:lo + _BAND, None])
-                m[lo:lo + _BAND] = np.asarray(band)[..., i, j]
-            if odd and self.shape[-1] % 2 == 0:
-                m[:, -1] = 0.0
-            if odd and self.shape[0] % 2 == 0:
-                m[self.shape[0] // 2] = 0.0
-            return m
+            return self._symbol(key, self.shape)
+        if self.padded_periodic:
+            return self._padded_influence(key)
         offsets = []
         for n, h in zip(self.shape, self.spacing[::-1] if self.ndim == 2 else self.spacing):
             idx = np.arange(2 * n)
@@ -132,6 +133,47 @@ class ContactCompliance:
             m[lo:lo + _BAND] = self.skin.surface_influence(offsets[1][None, :], offsets[0][lo:lo + _BAND, None],
                                                            self.spacing, entry=key)
         return m
+
+    def _symbol(self, key: tuple[int, int], shape: tuple[int, ...]) -> np.ndarray:
+        """One entry of the skin's ``surface_compliance`` on the rfft half spectrum of a periodic grid of
+        ``shape`` (this grid's spacing), with the odd terms 0 on the Nyquist column and row."""
+        i, j = key
+        odd = i != j  # the cross terms and xy are odd in k
+        kx = 2 * np.pi * sfft.rfftfreq(shape[-1], self.spacing[0])
+        if self.ndim == 1:
+            m = np.array(np.asarray(self.skin.surface_compliance(kx, None))[..., i, j], dtype=complex)
+            if odd and shape[0] % 2 == 0:
+                m[-1] = 0.0
+            return m
+        ky = 2 * np.pi * sfft.fftfreq(shape[0], self.spacing[1])
+        m = np.empty((len(ky), len(kx)), dtype=complex)
+        for lo in range(0, len(ky), _BAND):
+            band = self.skin.surface_compliance(kx[None, :], ky[lo:lo + _BAND, None])
+            m[lo:lo + _BAND] = np.asarray(band)[..., i, j]
+        if odd and shape[-1] % 2 == 0:
+            m[:, -1] = 0.0
+        if odd and shape[0] % 2 == 0:
+            m[shape[0] // 2] = 0.0
+        return m
+
+    def _padded_influence(self, key: tuple[int, int]) -> np.ndarray:
+        """Influence coefficients of an isolated grid for a skin known only by its ``surface_compliance``.
+
+        The periodic influence of one node (the spectral symbol on a grid :data:`PADDED_PERIODS` times the
+        zero-padded grid per axis, inverse-transformed), read at the offsets the aperiodic convolution
+        uses (``|offset| < n`` nodes per axis). Its error is that of the periodic images, at least
+        ``(2 PADDED_PERIODS - 1) n`` nodes away: exponentially small for layers on a rigid base (their
+        influence decays over the layer thickness); for a skin on a half-space the ``k = 0`` entry is 0, so
+        the coefficients are shifted by a constant (absorbed in the approach) plus a smooth remainder of
+        relative size about ``(n / (2 PADDED_PERIODS n))^2`` (docs/contact.md, layered skins).
+        """
+        big = tuple(PADDED_PERIODS * m for m in self.fft_shape)
+        g = sfft.irfftn(self._symbol(key, big), s=big, axes=self._axes, workers=1)
+        index = []
+        for n in self.shape:
+            idx = np.arange(2 * n)
+            index.append(np.where(idx < n, idx, idx - 2 * n))  # wrapped offsets, read from the big periodic grid
+        return g[np.ix_(*index)] if self.ndim == 2 else g[index[0]]
 
     def spectrum(self, row: str, col: str) -> np.ndarray:
         """Cached rfft spectrum of one block (``row`` in uz, ux, uy; ``col`` in p, qx, qy)."""
@@ -152,7 +194,7 @@ class ContactCompliance:
             out.append(float(sfft.irfftn(s, s=self.fft_shape, axes=self._axes, workers=1).flat[0]))
         return tuple(out)
 
-    def stiffness(self, gap) -> np.ndarray:
+    def stiffness(self, gap, out: np.ndarray | None = None) -> np.ndarray:
         """The periodic surface stiffness of the grid applied to ``gap`` (m -> Pa): the inverse of the
         periodic normal compliance on the unpadded grid (``E* |k| / 2`` for a half-space; at ``k = 0``
         the value of the grid's longest wave).
@@ -173,9 +215,30 @@ class ContactCompliance:
             # the pressure (an isolated contact under a given approach); force control removes the mean
             stiff.flat[0] = stiff[stiff > 0].min() if (stiff > 0).any() else 0.0
             self._spectra["stiffness"] = stiff
-        spectrum = sfft.rfftn(self._check(gap, "gap"), axes=self._axes, workers=1)
+        gap = self._check(gap, "gap")
+        if self.periodic and self.ndim == 2:
+            return self._periodic_product(gap, "stiffness", out)
+        spectrum = sfft.rfftn(gap, axes=self._axes, workers=1)
         spectrum *= self._spectra["stiffness"]
-        return sfft.irfftn(spectrum, s=self.shape, axes=self._axes, workers=1)
+        out = np.empty(self.shape) if out is None else out
+        out[...] = sfft.irfftn(spectrum, s=self.shape, axes=self._axes, workers=1)
+        return out
+
+    def _periodic_product(self, value: np.ndarray, key, out: np.ndarray | None) -> np.ndarray:
+        """A multiplier's product on a periodic 2-D grid, transformed into a kept work spectrum and
+        straight into ``out``: fresh spectrum-sized temporaries cost as much as the FFTs at 512^2
+        (page faults), so the solvers' two products per iteration reuse memory."""
+        scaled = ("scaled", key)
+        if scaled not in self._spectra:  # inverse_into leaves the inverse's 1 / ny to the multiplier
+            self._spectra[scaled] = (self._spectra["stiffness"] if key == "stiffness"
+                                     else self.spectrum(*key)) / self.shape[0]
+        work = getattr(self._local, "work", None)
+        if work is None:
+            work = self._local.work = np.empty((self.shape[0], self.shape[1] // 2 + 1), complex)
+        rfftn_into(np.ascontiguousarray(value), work, workers=1)
+        work *= self._spectra[scaled]
+        out = np.empty(self.shape) if out is None else out
+        return inverse_into(work, out, workers=1)
 
     # -- products ---------------------------------------------------------------------------
     def _check(self, value, name: str) -> np.ndarray:
@@ -185,8 +248,29 @@ class ContactCompliance:
         return arr
 
     def rfft(self, value) -> np.ndarray:
-        """The (zero-padded) rfft of a grid array: the input of :meth:`product`."""
-        return sfft.rfftn(value, s=self.fft_shape, axes=self._axes, workers=1)
+        """The (zero-padded) rfft of a grid array: the input of :meth:`product`.
+
+        On an isolated 2-D grid the transform is pruned: the rows along x are transformed only
+        where the data are (``ny`` of the ``2 ny`` padded rows, the rest are zeros), then the columns
+        along y, zero-padded by the transform itself; the same spectrum as ``rfftn(value, s=padded)``
+        to round-off, without building the padded array (about half the time at 512^2).
+        """
+        if self.periodic or self.ndim == 1:
+            return sfft.rfftn(value, s=self.fft_shape, axes=self._axes, workers=1)
+        rows = sfft.rfft(value, n=self.fft_shape[1], axis=1, workers=1)
+        return sfft.fft(rows, n=self.fft_shape[0], axis=0, workers=1, overwrite_x=True)
+
+    def _inverse(self, spectrum: np.ndarray) -> np.ndarray:
+        """The grid's part of the inverse of :meth:`rfft` (``spectrum`` may be overwritten).
+
+        Isolated 2-D grids: the columns' inverse along y over the whole padded spectrum, then the
+        rows' inverse along x only for the ``ny`` rows that lie on the grid (pruned as :meth:`rfft`)."""
+        if self.periodic:
+            return sfft.irfftn(spectrum, s=self.fft_shape, axes=self._axes, workers=1)
+        if self.ndim == 1:
+            return sfft.irfft(spectrum, n=self.fft_shape[0], workers=1)[: self.shape[0]]
+        cols = sfft.ifft(spectrum, axis=0, workers=1, overwrite_x=True)[: self.shape[0]]
+        return sfft.irfft(cols, n=self.fft_shape[1], axis=1, workers=1)[:, : self.shape[1]]
 
     def product(self, spectra: dict[str, np.ndarray], row: str) -> np.ndarray:
         """Displacement ``row`` (m, grid shape) from traction spectra ``{"p": rfft(p), ...}``."""
@@ -194,15 +278,20 @@ class ContactCompliance:
         for col, s in spectra.items():
             term = self.spectrum(row, col) * s
             total = term if total is None else total + term
-        out = sfft.irfftn(total, s=self.fft_shape, axes=self._axes, workers=1)
-        return out if self.periodic else out[tuple(slice(0, n) for n in self.shape)]
+        return self._inverse(total)
 
-    def normal(self, p) -> np.ndarray:
-        """``uz`` (m, positive into the skin) from the pressure ``p`` (Pa)."""
-        spectrum = self.rfft(self._check(p, "p"))
+    def normal(self, p, out: np.ndarray | None = None) -> np.ndarray:
+        """``uz`` (m, positive into the skin) from the pressure ``p`` (Pa); into ``out`` if given
+        (a C-contiguous float array of the grid's shape, not ``p``)."""
+        p = self._check(p, "p")
+        if self.periodic and self.ndim == 2:
+            return self._periodic_product(p, ("uz", "p"), out)
+        spectrum = self.rfft(p)
         spectrum *= self.spectrum("uz", "p")  # in place: the solvers call this every iteration
-        out = sfft.irfftn(spectrum, s=self.fft_shape, axes=self._axes, workers=1)
-        return out if self.periodic else out[tuple(slice(0, n) for n in self.shape)]
+        if out is None:
+            return self._inverse(spectrum)
+        out[...] = self._inverse(spectrum)
+        return out
 
     def add_normal_point_loads(self, u: np.ndarray, nodes: np.ndarray, values: np.ndarray) -> None:
         """``u += normal(c)`` in place for a pressure ``c`` that is non-zero at a few nodes only

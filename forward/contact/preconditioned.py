@@ -51,11 +51,13 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     if force:
         s = p.sum()
         p = p * (total / s) if s > 0 else np.full(p.shape, total / p.size)
-    u = A(p)
-    products, exact = 1, True
-    # work arrays, reused: every pass over the grid costs about as much as a tenth of an FFT pair
-    g, r, tmp, t = (np.empty_like(p) for _ in range(4))
+    # work arrays, reused: every pass over the grid costs about as much as a tenth of an FFT pair,
+    # and a fresh grid-sized array about as much again (page faults)
+    g, r, tmp, t, At, u = (np.empty_like(p) for _ in range(6))
+    z_pair = (np.empty_like(p), np.empty_like(p))  # z and z_old alternate
     inside, S = np.empty(p.shape, dtype=bool), np.empty(p.shape, dtype=bool)
+    u = A(p, out=u)
+    products, exact = 1, True
     z_old = np.zeros_like(p)
     G_old, residual, delta = 0.0, np.inf, approach
     # clipped nodes up to which the displacement is corrected by direct summation, not an FFT pair
@@ -75,10 +77,10 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         if residual <= target or it >= max_iter:
             if exact or it >= max_iter:
                 break
-            u, exact = A(p), True  # confirm on the exact displacement
+            u, exact = A(p, out=u), True  # confirm on the exact displacement
             products += 1
             continue
-        z = K(r)
+        z = K(r, out=z_pair[it % 2])
         if force:  # minus its mean on S (then masked): np.subtract(..., where=S) costs half an FFT pair
             z -= _dot(z, S) / int(np.count_nonzero(S))
         z *= S
@@ -94,7 +96,7 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         else:
             t[...] = z
         z_old, G_old = z, G
-        At = A(t)
+        At = A(t, out=At)
         products += 2
         denom = _dot(At, t)
         tau = _dot(r, t) / denom if denom > 0 else 0.0
@@ -108,7 +110,7 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         if m > limit or it % REFRESH == 0:  # many clipped: the displacement is recomputed by FFT
             np.maximum(p, 0.0, out=p)
             _rescale(p, total)
-            u, exact = A(p), True
+            u, exact = A(p, out=u), True
             products += 1
         else:  # none or a few clipped: u = A p updated in place, the clipped ones by direct summation
             np.multiply(At, tau, out=tmp)

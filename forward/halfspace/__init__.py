@@ -25,8 +25,10 @@ _EXPORTS = {
     "dottest": "adjoint",
     "FieldResult": "solve",
     "HalfSpace": "facade",
+    "inverse_into": "_hotpath",  # transforms into given arrays: shared with the contact room
     "INVARIANTS": "fields",
     "invariants": "fields",
+    "label": "fields",  # the labelled (xarray) field with cached coordinates, for skin models' results
     "largest_strain": "fields",
     "line_green": "kernels",
     "line_load_stress": "kernels",
@@ -42,6 +44,7 @@ _EXPORTS = {
     "point_load_stress": "kernels",
     "point_unit": "kernel_formulas",  # unchecked: point_green's formula without its checks
     "pressure_from_deflection": "spectral",
+    "rfftn_into": "_hotpath",
     "select_method": "methods",
     "SHEAR_CONVENTION": "fields",
     "surface_compliance": "surface_compliance",

@@ -49,7 +49,15 @@ class HalfSpace:
 
     @classmethod
     def from_material(cls, material) -> "HalfSpace":
-        """Build from a record with ``young_modulus_pa`` and ``poisson_ratio`` (data_schemas)."""
+        """Build from a record with ``young_modulus_pa`` and ``poisson_ratio`` (data_schemas).
+
+        A ``SkinMaterial`` with layers is refused and a viscoelastic one warns that it enters with its
+        relaxed modulus (``SkinMaterial.half_space_constants``); ``tactilab.forward.skin_from_material``
+        builds the skin model such a material describes."""
+        constants = getattr(material, "half_space_constants", None)
+        if callable(constants):
+            E, nu = constants("HalfSpace.from_material (use tactilab.forward.skin_from_material for its skin model)")
+            return cls(E=E, nu=nu)
         return cls(E=material.young_modulus_pa, nu=material.poisson_ratio)
 
     # -- public entry points -------------------------------------------------------------

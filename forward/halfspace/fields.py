@@ -102,9 +102,11 @@ def invariants(strain: xr.DataArray, stress: xr.DataArray | None = None) -> xr.D
     coords = {d: strain[d] for d in strain.coords if set(strain[d].dims) <= set(other_dims)}
     ds = xr.Dataset(coords=coords)
     ds["volumetric"] = (other_dims, trace, {"units": "1", "long_name": "volumetric strain tr(eps)"})
-    dev_voigt = np.stack([dev[..., _PAIRS[c][0], _PAIRS[c][1]] for c in VOIGT], axis=0)
-    ds["deviatoric"] = (["component", *other_dims], dev_voigt,
-                        {"units": "1", "shear_convention": SHEAR_CONVENTION})
+    # the strain's own dimension order (one order for the same fields across files)
+    dev_voigt = np.stack([dev[..., _PAIRS[c][0], _PAIRS[c][1]] for c in VOIGT], axis=strain.get_axis_num("component"))
+    ds["deviatoric"] = (list(strain.dims), dev_voigt,
+                        {"units": "1", "long_name": "deviatoric strain eps - tr(eps) I / 3 (TENSOR shear)",
+                         "shear_convention": SHEAR_CONVENTION})
     ds = ds.assign_coords(component=list(VOIGT))
     ds["von_mises"] = (other_dims, vm, {"units": "1", "long_name": "equivalent strain sqrt(2/3 e:e)"})
     ds["principal"] = ([*other_dims, "order"], principal, {"units": "1", "long_name": "principal strains, descending"})
@@ -158,23 +160,28 @@ def _build_label(values: np.ndarray, quantity: str, components: Sequence[str], d
                  x: np.ndarray, y: np.ndarray | None, points: np.ndarray | None) -> xr.DataArray:
     x, y, depths = _frozen(x), (None if y is None else _frozen(y)), _frozen(depths)
     points = None if points is None else _frozen(points)
-    attrs = {"units": "Pa" if quantity == "stress" else "1", "quantity": quantity}
+    attrs = {"units": "Pa" if quantity == "stress" else "1", "quantity": quantity,
+             "long_name": "Cauchy stress (Voigt components)" if quantity == "stress"
+             else "strain (Voigt components, TENSOR shear)"}
     if quantity == "strain":
         attrs["shear_convention"] = SHEAR_CONVENTION
-    coords = {"depth": ("depth", depths, {"units": "m"}),
-              "component": list(components)}
+    along = {"units": "m", "long_name": "position along x (the scanning direction)"}
+    across = {"units": "m", "long_name": "position along y (across the scanning direction)"}
+    coords = {"depth": ("depth", depths, {"units": "m", "long_name": "depth below the skin surface",
+                                          "positive": "down"}),
+              "component": ("component", list(components), {"long_name": "Voigt component"})}
     if points is not None:
         dims = ["depth", "component", "point"]
-        coords["x"] = ("point", points[:, 0], {"units": "m"})
+        coords["x"] = ("point", points[:, 0], along)
         if points.shape[1] > 1:
-            coords["y"] = ("point", points[:, 1], {"units": "m"})
+            coords["y"] = ("point", points[:, 1], across)
     elif y is None:
         dims = ["depth", "component", "x"]
-        coords["x"] = ("x", x, {"units": "m"})
+        coords["x"] = ("x", x, along)
     else:
         dims = ["depth", "component", "y", "x"]
-        coords["x"] = ("x", x, {"units": "m"})
-        coords["y"] = ("y", y, {"units": "m"})
+        coords["x"] = ("x", x, along)
+        coords["y"] = ("y", y, across)
     da = xr.DataArray(values, dims=dims, coords=coords, name=quantity, attrs=attrs)
     for coord in da.coords.values():  # shared by every result built from this template: read-only
         if isinstance(coord.variable.data, np.ndarray):

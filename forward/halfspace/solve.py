@@ -11,6 +11,8 @@ import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import math
+
 import numpy as np
 import xarray as xr
 
@@ -124,6 +126,25 @@ def load_error(load: SurfaceLoad, values: np.ndarray, stress_scale: float) -> fl
     return load.error_estimate * peak_traction / peak_field
 
 
+def _float32_scale(load: SurfaceLoad) -> float:
+    """The power of 2 nearest the load's peak traction (1 for a zero load): float32 holds only about
+    1e-38 to 3e38, so a float32 solve runs on the load divided by it (exact: a power of 2) and its
+    rounding stays about eps32 of the field's peak at any magnitude (1e-40 Pa lost 1e-4 of it, 1e38 Pa
+    overflowed)."""
+    peak = float(sum(np.abs(a) for a in load.components.values()).max())
+    return 2.0 ** round(math.log2(peak)) if 0.0 < peak < math.inf else 1.0
+
+
+def _scaled_back(values: np.ndarray, scale: float) -> np.ndarray:
+    """``values * scale``: exact in float32 while the result stays in its normal range, else float64."""
+    info = np.finfo(np.float32)
+    peak = float(np.abs(values).max()) * scale
+    if values.dtype == np.float32 and info.tiny < scale < info.max and (
+            peak == 0.0 or info.tiny / info.eps < peak < info.max / 2):
+        return values * np.float32(scale)
+    return values.astype(np.float64) * scale
+
+
 def solve(E: float, nu: float, load: SurfaceLoad, depths, comps, pts, method, tol: float, quantity: str,
           want_invariants: bool) -> Solution:
     """Choose a method and compute on a nodal load; values have the load's grid (or points).
@@ -134,6 +155,9 @@ def solve(E: float, nu: float, load: SurfaceLoad, depths, comps, pts, method, to
     work_load = load.row() if reduced else load
     work_pts = pts[:, :1] if (reduced and pts is not None) else pts
     dtype = np.dtype(np.float32 if tol >= FLOAT32_TOL else np.float64)
+    scale = _float32_scale(work_load) if dtype == np.float32 else 1.0
+    if scale != 1.0:  # the field is linear in the load: solve on a unit peak, scale the field back
+        work_load = work_load.scaled(1.0 / scale)
     weight_quantity = "stress" if want_invariants else quantity
     weights = output_weights(weight_quantity, comps, E, nu)
     problem = Problem(work_load, depths, nu, weights, work_pts, dtype)
@@ -142,7 +166,9 @@ def solve(E: float, nu: float, load: SurfaceLoad, depths, comps, pts, method, to
         problem = Problem(work_load, depths, nu, weights, work_pts, np.dtype(np.float64))
     values = chosen.compute(problem)
     stress_scale = E if weight_quantity == "strain" else 1.0
-    err = chosen.field_error(problem, values, stress_scale) + load_error(load, values, stress_scale)
+    err = chosen.field_error(problem, values, stress_scale) + load_error(work_load, values, stress_scale)
+    if scale != 1.0:
+        values = _scaled_back(values, scale)
     if reduced and pts is None:  # broadcast the plane-strain row over y
         values = np.broadcast_to(values[..., None, :], values.shape[:-1] + load.shape).copy()
     return Solution(values, chosen, reason, candidates, float(err), weight_quantity, reduced, str(problem.dtype))
