@@ -15,14 +15,12 @@ def _stretches(mask: np.ndarray) -> list[tuple[int, int]]:
 
 def plot_surface(post, path: pathlib.Path, truth=None) -> pathlib.Path:
     """Profile (line) or maps (patch) of a :class:`SurfacePosterior`; returns ``path``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # never pyplot: the caller's backend stays as it is
 
     x_mm = post.x * 1e3
     if post.y is not None:
-        fig, axes = plt.subplots(1, 3 if truth is not None else 2, figsize=(13, 4), constrained_layout=True)
+        fig = Figure(figsize=(13, 4), constrained_layout=True)
+        axes = fig.subplots(1, 3 if truth is not None else 2)
         extent = (x_mm[0], x_mm[-1], post.y[0] * 1e3, post.y[-1] * 1e3)
         panels = [(post.mean, "posterior mean (um)"), (post.std, "posterior sd (um)")]
         if truth is not None:
@@ -34,8 +32,8 @@ def plot_surface(post, path: pathlib.Path, truth=None) -> pathlib.Path:
             fig.colorbar(im, ax=ax)
         fig.suptitle("surface posterior (white: edge of the touched area)")
     else:
-        fig, (ax, ax2) = plt.subplots(2, 1, figsize=(10, 6), sharex=True, height_ratios=(3, 1),
-                                      constrained_layout=True)
+        fig = Figure(figsize=(10, 6), constrained_layout=True)
+        ax, ax2 = fig.subplots(2, 1, sharex=True, height_ratios=(3, 1))
         lower, upper = post.band(0.9)
         untouched = ~post.touched
         for k, (i, j) in enumerate(_stretches(untouched)):
@@ -58,5 +56,4 @@ def plot_surface(post, path: pathlib.Path, truth=None) -> pathlib.Path:
         ax2.set(xlabel="x (mm)", ylabel="sd (um)")
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
