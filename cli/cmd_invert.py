@@ -7,6 +7,7 @@ from pathlib import Path
 
 from .batch_options import add_batch_options, run_invert_batch
 from .common import RunReport, add_report_options, choose_out
+from .invert_surface import add_surface_arguments, run_surface, surface_lengths
 
 NAME = "invert"
 HELP = ("invert a sensor recording (recording.nc or .json, stress in Pa) of a defect scene: defect position "
@@ -46,18 +47,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(contact radius, sensor positions, depth, sampling, material); for real data whose "
                              "metadata differ from the model scene; prints a warning naming what differs")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_surface_arguments(parser)
     add_report_options(parser)
     add_batch_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     if args.batch is not None:
+        if args.target == "surface":
+            raise ValueError("--target surface: not available with --batch; invert one recording at a time")
         if args.json:
             raise ValueError("--json: not available with --batch; the batch summary is in <--out>/invert_many.nc "
                              "(one row per recording) -- drop --json")
         return run_invert_batch(args)
     if args.recording is None:
         raise ValueError("recording: give one recording file, or --batch DIR for a folder of them")
+    prior_lengths = surface_lengths(args)
     import numpy as np
 
     from tactilab.data_schemas import load_scene, read_recording
@@ -84,6 +89,8 @@ def run(args: argparse.Namespace) -> int:
                           allow_mismatch=args.allow_scene_mismatch, name="--scene")
     report = RunReport("invert")
     out = report.watch(choose_out(args.out, Path(f"{args.recording.stem}-inversion"), args.force))
+    if args.target == "surface":
+        return run_surface(args, scene, recording, report, out, prior_lengths)
     _warn_model(report, recording, args.recording)
     rng = np.random.default_rng(args.seed)
     problem = defect_problem(scene, recording, max_data=args.max_data)  # prepared once, used by both methods

@@ -43,6 +43,7 @@ _EXPORTS = {
     "solve_contact": "contact",
     "ContactSolution": "contact",
     "ContactCompliance": "contact",
+    "ContactLinearisation": "contact",
     "solve_tangential": "contact",
     "TangentialSolution": "contact",
     "HertzContact": "contact",

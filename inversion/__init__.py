@@ -69,6 +69,13 @@ _EXPORTS = {
     "invert_many": "batch",
     "recording_keys": "batch",
     "metamer_scan": "metamer_batch",
+    "invert_surface": "surface_scene",
+    "scene_scan": "surface_scene",
+    "invert_scan": "surface",
+    "SurfacePosterior": "surface_posterior",
+    "ContactScan": "surface_scan",
+    "ProfileGrid": "surface_scan",
+    "ScanJacobian": "surface_jacobian",
 }
 
 __version__ = package_version()

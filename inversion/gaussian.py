@@ -32,7 +32,7 @@ from .operators import FourierDiagonal, angular_wavenumbers
 from .paths import choose_path
 from .penalties import penalty_symbol
 
-KINDS = ("matern32", "matern52", "squared_exponential", "white")
+KINDS = ("matern32", "matern52", "squared_exponential", "white", "self_affine")
 
 __all__ = ["StationaryPrior", "GaussianPosterior", "gaussian_posterior", "tikhonov_prior_spectrum", "KINDS"]
 
@@ -47,17 +47,22 @@ class StationaryPrior:
         Pointwise prior variance, model units squared (Pa^2 for a pressure).
     correlation_length : float
         Correlation length ell in m (ignored for ``"white"``).
-    kind : {"matern32", "matern52", "squared_exponential", "white"}
+    kind : {"matern32", "matern52", "squared_exponential", "white", "self_affine"}
         Spectral density shape: Matern ``(2 nu / ell^2 + k^2)^-(nu + d/2)``, squared exponential
-        ``exp(-k^2 ell^2 / 2)``, or flat.
+        ``exp(-k^2 ell^2 / 2)``, flat, or self-affine ``(1 + k^2 ell^2)^-(H + d/2)``: a rough
+        surface's power law ``k^-(1 + 2 H)`` (a profile; ``k^-2 (1 + H)`` in 2-D) rolled off below
+        ``k = 1 / ell`` (ell the correlation length, H the Hurst exponent).
     mean : float
         Prior mean (uniform), model units.
+    hurst : float
+        Hurst exponent H in (0, 1] of ``"self_affine"`` (ignored by the other kinds).
     """
 
     variance: float
     correlation_length: float = 1e-3
     kind: str = "matern32"
     mean: float = 0.0
+    hurst: float = 0.8
 
     def __post_init__(self) -> None:
         rules.positive(self.variance, "variance", "model units squared", "give the pointwise prior variance")
@@ -66,6 +71,8 @@ class StationaryPrior:
             raise ValueError(f"kind: unknown prior kind {self.kind!r}; use one of {', '.join(KINDS)}")
         if not np.isfinite(self.mean):
             raise ValueError(f"mean: prior mean must be finite, got {self.mean!r}")
+        if not (0 < self.hurst <= 1):
+            raise ValueError(f"hurst: the Hurst exponent must lie in (0, 1], got {self.hurst!r}; 0.8 is typical")
 
     def spectrum(self, shape: tuple[int, ...], spacing) -> np.ndarray:
         """Eigenvalues of the circulant prior covariance, full grid, ``fftfreq`` order.
@@ -79,6 +86,8 @@ class StationaryPrior:
             dens = np.ones(shape)
         elif self.kind == "squared_exponential":
             dens = np.exp(-0.5 * k2 * ell**2)
+        elif self.kind == "self_affine":
+            dens = (1.0 + k2 * ell**2) ** (-(self.hurst + d / 2))
         else:
             nu = 1.5 if self.kind == "matern32" else 2.5
             dens = (2 * nu / ell**2 + k2) ** (-(nu + d / 2)) * (2 * nu / ell**2) ** (nu + d / 2)

@@ -126,6 +126,36 @@ def _posterior():
 
 
 # (public name, parameter) -> call with the value; the public name is the one users import
+def _cell_scan(**kwargs):
+    """A one-frame periodic plane-strain cell of the surface inversion's forward map."""
+    args = dict(young_modulus=1e6, poisson_ratio=0.5, grid_shape=(N,), spacing=H, shape_gap=np.zeros(N),
+                positions=[0.0], weights_p=np.ones((N, 1)), weights_q=np.zeros((N, 1)),
+                profile=inv.ProfileGrid(x=np.arange(N) * H, periodic=True), mean_pressure=1e3, periodic=True)
+    return inv.ContactScan(**{**args, **kwargs})
+
+
+_CELL = {}
+
+
+def _surface_cell():
+    """A periodic cell scene (a 0.6 mm grating at 5 kPa, two frames) and its exact-model recording."""
+    if not _CELL:
+        from tactilab.data_schemas import Scene
+        from tactilab.data_schemas.base import record_from_dict
+        from tactilab.forward.scene_models import scene_signals
+
+        scene = record_from_dict(Scene, {
+            "material": {"young_modulus": "1MPa", "poisson_ratio": 0.5},
+            "surface": {"kind": "sinusoidal_grating", "period": "0.6mm", "amplitude": "1um"},
+            "contact": {"mean_pressure": "5kPa", "model": "exact"},
+            "sensors": {"quantity": "stress", "components": ["zz"], "depth": "0.3mm", "noise_std": 10.0,
+                        "positions_m": [[0.0, 0.0], [1e-4, 0.0]]},
+            "scan": {"speed": "25mm/s", "duration": "2ms", "sampling_rate": "1kHz"}})
+        values, _ = scene_signals(scene, "exact", grid_spacing=2.5e-5)
+        _CELL["cell"] = (scene, Recording.from_sensors(scene.sensors, values, 1e3))
+    return _CELL["cell"]
+
+
 ENTRY_POINTS: dict[tuple[str, str], Callable] = {
     # the rules themselves
     ("core.rules.depth", "value"): lambda v: rules.depth(v),
@@ -256,6 +286,13 @@ ENTRY_POINTS: dict[tuple[str, str], Callable] = {
                                                                 normal_force=1.0),
     ("forward.SensorReadout", "spacing"): lambda v: fwd.SensorReadout(
         HS, (N,), v, SensorArray(positions_m=[[0.0, 0.0]], depth_m=1e-3, components=("zz",))),
+    ("inversion.ContactScan", "spacing"): lambda v: _cell_scan(spacing=v),
+    ("inversion.ContactScan", "young_modulus"): lambda v: _cell_scan(young_modulus=v),
+    ("inversion.ContactScan", "poisson_ratio"): lambda v: _cell_scan(poisson_ratio=v),
+    ("inversion.scene_scan", "spacing"): lambda v: inv.scene_scan(_surface_cell()[0], spacing=v, grid_spacing=2.5e-5),
+    ("inversion.invert_surface", "spacing"): lambda v: inv.invert_surface(
+        *_surface_cell(), spacing=v, grid_spacing=2.5e-5, prior=inv.StationaryPrior(1e-12, 1e-4),
+        rng=np.random.default_rng(0), max_iter=1, n_draws=5),
     ("forward.pressure_from_deflection", "spacing"): lambda v: fwd.pressure_from_deflection(np.zeros(N), v, 1e6, 0.5),
     ("forward.pressure_from_deflection", "young_modulus"): (
         lambda v: fwd.pressure_from_deflection(np.zeros(N), H, v, 0.5)),

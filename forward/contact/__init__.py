@@ -8,6 +8,8 @@ enforces it). Inside:
 - ``compliance``: the surface compliance of the skin per wavenumber and the operators that map
   surface tractions to surface displacements on a grid (:class:`ContactCompliance`);
 - ``solve``: the contact solver :func:`solve_contact` and its result :class:`ContactSolution`;
+- ``linearised``: the derivative of a solved normal contact at its contact set
+  (:class:`ContactLinearisation`, the inversions' Jacobian);
 - ``tangential``: partial slip and stuck contact under a given pressure (:func:`solve_tangential`,
   :class:`TangentialSolution`), on the quadratic program of ``friction_qp``;
 - ``periodic_forms``: the closed forms of periodic cells, Westergaard's sinusoid and the periodic
@@ -33,6 +35,7 @@ _EXPORTS = {
     "stuck_shape": "hertz",
     "ContactCompliance": "compliance",
     "ContactSolution": "solution",
+    "ContactLinearisation": "linearised",
     "solve_contact": "solve",
     "METHODS": "solve",
     "memory_estimate": "inputs",

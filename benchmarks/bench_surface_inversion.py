@@ -1,0 +1,98 @@
+"""Benchmark of the surface inversion: a 3-D fingertip scanning a ridged random profile.
+
+The issue's configuration (``--frames 500 --grid-spacing 20um --profile 512``): R = 10 mm, 0.5 N,
+E = 1 MPa, nu = 1/2, friction 0.5 (sliding), a y-uniform random profile (self-affine, rms 5 um),
+9 sensors (zz and zx) 2 mm apart at 2 mm depth, force and friction free. Reduced runs shrink the
+force, the frame count and the grid. Printed: the time of the MAP and the Laplace posterior split
+into scan solves and Jacobians, the posterior mean's rms error against the truth, the 90 % band's
+coverage of touched nodes, the context posterior, and the same error for the linearised inversion
+(the first Gauss-Newton step from the flat surface: the full-contact linearisation around the
+smooth finger's contact).
+
+    python benchmarks/bench_surface_inversion.py --quick
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+from scipy.stats import norm
+
+from tactilab.data_schemas.sensors import SensorArray
+from tactilab.forward import HalfSpace, HertzContact, SensorReadout, finger_gap
+from tactilab.inversion import LogNormal, Normal, StationaryPrior
+from tactilab.inversion.surface import invert_scan
+from tactilab.inversion.surface_laplace import prior_root
+from tactilab.inversion.surface_scan import ContactScan, ProfileGrid
+
+
+def build(force, frames, spacing, depth, sensor_pitch, rms, ell, seed):
+    """The scan (heights -> outputs), the true profile and the prior."""
+    E, nu, R = 1e6, 0.5, 10e-3
+    a = HertzContact(force, R, E, nu).contact_radius
+    half = int(math.ceil(1.5 * a / spacing))
+    n = 2 * half
+    skin = HalfSpace(E=E, nu=nu)
+    grid = (n, n)
+    g = np.arange(3) - 1
+    sensors = SensorArray(positions_m=np.array([[i * sensor_pitch, j * sensor_pitch] for j in g for i in g]),
+                          depth_m=depth, components=("zz", "zx"))
+    w = SensorReadout(skin, grid, spacing, sensors, loads=("p", "qx")).weights
+    x = (np.arange(n) - n // 2) * spacing
+    pos = np.arange(frames) * spacing
+    px = x[0] + spacing * np.arange(n + frames)
+    scan = ContactScan(young_modulus=E, poisson_ratio=nu, grid_shape=grid, spacing=spacing,
+                       shape_gap=finger_gap(grid, spacing, R), positions=pos, weights_p=w[: n * n],
+                       weights_q=w[n * n: 2 * n * n], profile=ProfileGrid(x=px), normal_force=force, friction=0.5,
+                       friction_direction=-1.0)
+    prior = StationaryPrior(variance=rms**2, correlation_length=ell, kind="self_affine", hurst=0.8)
+    rng = np.random.default_rng(seed)
+    truth = prior_root(prior, (px.size,), spacing) @ rng.standard_normal(px.size)
+    return scan, truth, prior, rng
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--quick", action="store_true", help="a reduced run (0.02 N, 8 frames, 40 um grid)")
+    p.add_argument("--force", type=float, default=0.5, help="N")
+    p.add_argument("--frames", type=int, default=500)
+    p.add_argument("--grid-spacing", type=float, default=20e-6, help="m")
+    p.add_argument("--depth", type=float, default=2e-3, help="sensor depth, m")
+    p.add_argument("--seed", type=int, default=1)
+    args = p.parse_args(argv)
+    if args.quick:
+        args.force, args.frames, args.grid_spacing, args.depth = 0.02, 8, 40e-6, 0.3e-3
+    scan, truth, prior, rng = build(args.force, args.frames, args.grid_spacing, args.depth,
+                                    sensor_pitch=args.depth, rms=5e-6, ell=0.3e-3, seed=args.seed)
+    t0 = time.perf_counter()
+    clean = scan.solve(truth)
+    t_solve = time.perf_counter() - t0
+    sigma = 0.01 * np.abs(clean.outputs).max()
+    data = clean.outputs + sigma * rng.standard_normal(clean.outputs.shape)
+    context = {"normal_force": LogNormal(args.force, 0.2), "friction": Normal(0.5, 0.1)}
+    t0 = time.perf_counter()
+    post = invert_scan(scan, data, sigma, prior=prior, context=context, rng=rng, n_draws=200)
+    t_map = time.perf_counter() - t0
+    lin = invert_scan(scan, data, sigma, prior=prior, context=context, rng=rng, n_draws=20, max_iter=1,
+                       continuation=False)
+    t = post.touched
+    offset = np.mean(post.mean[t] - truth[t])  # the absolute level is not identified
+    z90 = norm.ppf(0.95)
+    print(f"grid {scan.grid_shape}, {scan.n_frames} frames, {scan.n_out} outputs, profile {scan.profile.size} nodes")
+    print(f"one scan solve: {t_solve:.2f} s; MAP + Laplace: {t_map:.1f} s; {post.message}")
+    err = np.sqrt(np.mean((post.mean[t] - truth[t] - offset) ** 2))
+    cover = np.mean(np.abs(post.mean[t] - truth[t]) <= z90 * post.std[t])
+    print(f"touched {post.touched_fraction:.2f}; rms error (level removed) {err * 1e6:.3f} um; "
+          f"90 % band covers {cover:.2f} of the touched nodes")
+    lo = np.mean(lin.mean[t] - truth[t])
+    lin_err = np.sqrt(np.mean((lin.mean[t] - truth[t] - lo) ** 2))
+    print(f"linearised (one Gauss-Newton step): rms error {lin_err * 1e6:.3f} um")
+    for name, c in post.context.items():
+        print(f"{name}: {c['mean']:.4g} +- {c['sd']:.2g} (90 %: {c['q05']:.4g} .. {c['q95']:.4g})")
+
+
+if __name__ == "__main__":
+    main()

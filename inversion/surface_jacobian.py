@@ -1,0 +1,147 @@
+"""The Jacobian of a scan's outputs with respect to the surface heights and the free context.
+
+At a solved scan (:class:`~tactilab.inversion.surface_scan.ScanState`) with frame ``t``'s contact
+set ``C_t`` fixed, the pressure responds to the heights through the restricted compliance
+(:class:`tactilab.forward.ContactLinearisation`: ``A_CC dp - d_delta = dh_C``, ``sum dp = 0`` at a
+given force), not at all off ``C_t``; the outputs follow through the finger's node weights:
+
+    d out_t = W_eff^T (E / E_ref) S_t T_t dh + (context columns),
+
+with ``T_t`` the interpolation of the profile onto frame ``t``'s nodes, ``S_t`` the symmetric
+restricted solve, ``W_eff = W(E) (Wp + D mu Wq)``. Context columns (natural units):
+
+- normal force F: ``dp = f_t / dA`` with ``f_t`` the force response (``sum f_t = 1``);
+- friction mu: ``d out = W(E) D Wq^T p``;
+- modulus E: ``dp = (p - P_t f_t) / E`` (``P_t`` the nodal pressure sum; the contact of modulus E at
+  force F is the reference one at force ``F E_ref / E``), plus ``-out / E`` for strain sensors.
+
+:class:`ScanJacobian` is a ``scipy.sparse.linalg.LinearOperator`` (heights, then the free context
+parameters -> outputs of every frame, flattened frame by frame) with its adjoint; ``matrix()``
+builds it explicitly by adjoint solves, one batched solve (all frames) per sensor output.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse.linalg import LinearOperator
+
+from tactilab.forward import ContactLinearisation
+
+__all__ = ["ScanJacobian"]
+
+
+class ScanJacobian(LinearOperator):
+    """``d outputs / d (heights, free context)`` at a solved scan, with its adjoint.
+
+    Parameters
+    ----------
+    scan : ContactScan
+    state : ScanState
+        The solved scan to linearise at.
+    free : sequence of str
+        The free context parameters, in column order after the heights (``normal_force``,
+        ``friction``, ``young_modulus``; natural units N, 1, Pa).
+    tol : float
+        Relative tolerance of the restricted solves.
+
+    Attributes
+    ----------
+    dims, dimsd : tuple
+        Model shape ``(n_profile + n_free,)`` and data shape ``(n_frames, n_out)``.
+    """
+
+    def __init__(self, scan, state, free=(), *, tol: float = 1e-12):
+        self.scan, self.state, self.free = scan, state, tuple(free)
+        if scan.mean_pressure is not None and "normal_force" in self.free:
+            raise ValueError("free: a periodic cell is loaded by its mean pressure, it has no normal_force to free")
+        self.n_h = scan.profile.size
+        n_model = self.n_h + len(self.free)
+        self.dims, self.dimsd = (n_model,), (scan.n_frames, scan.n_out)
+        super().__init__(dtype=np.float64, shape=(scan.n_frames * scan.n_out, n_model))
+        self.lin = ContactLinearisation(scan.compliance, state.contact, force_control=True, tol=tol)
+        ctx = state.context
+        self.ratio = ctx["young_modulus"] / scan.reference["young_modulus"]
+        self.W = scan.effective_weights(ctx)  # (n_nodes, n_out)
+        self.Wq = scan.output_scale(ctx) * scan.direction * scan.weights_q
+        self._force = None  # the force responses, computed when a context column needs them
+
+    def _force_response(self) -> np.ndarray:
+        if self._force is None:
+            self._force = self.lin.force_response()
+        return self._force
+
+    def _context_pressure(self, name: str) -> np.ndarray | None:
+        """dp per unit of a context parameter, (n_frames, *grid); None when it acts on the weights only."""
+        st, scan = self.state, self.scan
+        if name == "normal_force":
+            return self._force_response() / scan.cell_area
+        if name == "young_modulus":
+            total = st.pressure.reshape(scan.n_frames, -1).sum(axis=1)
+            f = self._force_response()
+            return (st.pressure - total.reshape((-1,) + (1,) * len(scan.grid_shape)) * f) / st.context["young_modulus"]
+        return None
+
+    def _context_output(self, name: str) -> np.ndarray:
+        """The part of d out / d context that does not pass through the pressure, (n_frames, n_out)."""
+        st, scan = self.state, self.scan
+        p = st.pressure.reshape(scan.n_frames, -1)
+        if name == "friction":
+            return p @ self.Wq
+        if name == "young_modulus" and scan.quantity == "strain":
+            return -st.outputs / st.context["young_modulus"]
+        return np.zeros((scan.n_frames, scan.n_out))
+
+    # ---------------------------------------------------------------- products
+    def _matvec(self, v):
+        v = np.asarray(v, dtype=float).reshape(-1)
+        scan = self.scan
+        H = scan.node_heights(v[: self.n_h].reshape(scan.profile.shape))
+        dp = self.ratio * self.lin.solve(H)
+        out = np.zeros((scan.n_frames, scan.n_out))
+        for k, name in enumerate(self.free):
+            c = v[self.n_h + k]
+            extra = self._context_pressure(name)
+            if extra is not None:
+                dp = dp + c * extra
+            out += c * self._context_output(name)
+        out += dp.reshape(scan.n_frames, -1) @ self.W
+        return out.reshape(-1)
+
+    def _rmatvec(self, y):
+        scan = self.scan
+        y = np.asarray(y, dtype=float).reshape(scan.n_frames, scan.n_out)
+        g = (y @ self.W.T).reshape(scan.n_frames, *scan.grid_shape)  # d<y, out> / dp per frame
+        grad_h = scan.node_heights_adjoint(self.ratio * self.lin.solve(g))
+        extra = []
+        for name in self.free:
+            e = self._context_pressure(name)
+            val = float(np.sum(e * g)) if e is not None else 0.0
+            extra.append(val + float(np.sum(self._context_output(name) * y)))
+        return np.concatenate([grad_h.reshape(-1), np.asarray(extra)])
+
+    def _matmat(self, X):
+        return np.column_stack([self._matvec(col) for col in np.asarray(X).T])
+
+    def _rmatmat(self, Y):
+        return np.column_stack([self._rmatvec(col) for col in np.asarray(Y).T])
+
+    def matrix(self) -> np.ndarray:
+        """The explicit Jacobian, shape (n_frames * n_out, n_profile + n_free), by adjoint solves.
+
+        One batched restricted solve (all frames at once) per sensor output; rows ordered frame by
+        frame as the flattened outputs.
+        """
+        scan = self.scan
+        J = np.zeros((scan.n_frames, scan.n_out, self.shape[1]))
+        ctx_p = [self._context_pressure(name) for name in self.free]
+        ctx_o = [self._context_output(name) for name in self.free]
+        for o in range(scan.n_out):
+            g = np.broadcast_to(self.W[:, o].reshape(scan.grid_shape), (scan.n_frames, *scan.grid_shape))
+            x = self.ratio * self.lin.solve(np.ascontiguousarray(g))
+            for t in range(scan.n_frames):
+                J[t, o, : self.n_h] = scan.node_heights_adjoint(x[t], frame=t).reshape(-1)
+            for k in range(len(self.free)):
+                if ctx_p[k] is not None:
+                    J[:, o, self.n_h + k] += (ctx_p[k].reshape(scan.n_frames, -1) @ self.W[:, o])
+                J[:, o, self.n_h + k] += ctx_o[k][:, o]
+        return J.reshape(scan.n_frames * scan.n_out, -1)

@@ -1,0 +1,313 @@
+"""The MAP of a surface inversion by Gauss-Newton, and the Laplace (Gaussian) posterior around it.
+
+Unknowns, whitened (so that every prior term is ``|z|^2 / 2`` and the Hessian is at least I):
+
+- the heights ``h = m0 + L z_h`` with ``L = C^(1/2)`` the prior covariance's circulant root
+  (:class:`~tactilab.inversion.gaussian.StationaryPrior` on the profile grid); without a prior the
+  heights themselves, restricted to the nodes the data see (the touched nodes), their level held
+  at 0 (a uniform shift changes no datum at a given force: the heights are then a relief);
+- each free context parameter ``theta = T(z)``: ``Normal(mean, sd)``: ``mean + sd z``;
+  ``LogNormal(median, s)``: ``median exp(s z)``; ``Uniform(low, high)``: ``mid + half z`` with
+  ``|z| <= 1`` and no prior term (flat).
+
+Objective ``Phi(z) = |(d - f(z)) / sigma|^2 / 2 + (prior terms)``; the Gauss-Newton step solves
+``(Jz^T Jz + P) dz = Jz^T r - P z`` (``Jz`` the scan Jacobian in whitened coordinates, divided by
+sigma; ``P`` the prior's identity), then an Armijo backtracking line search on ``Phi`` with the
+non-linear solve (the contact sets may change along the step; a Uniform parameter's step is cut at
+its bounds). It stops when the Gauss-Newton decrement ``-g . dz`` falls below ``tol`` (nats), or
+when the objective moved by less than ``STALL`` (1e-3 nats) over two iterations: near the MAP a contact node
+entering or leaving the set makes the objective piecewise quadratic, and the line search then
+creeps along the kink (the step that leaves the current piece is cut to a few percent).
+
+Touched nodes: those whose largest load over the frames is at least ``TOUCH_THRESHOLD`` (2 %) of
+the largest node's. A node the MAP leaves resting on the skin with almost no load (the prior
+pulls it up, the data say it carried nothing) sits at a kink of the posterior: raising it loads
+the skin, lowering it changes nothing. It is the bound's, not the data's: the contact-grid nodes
+that read it leave the contact set of the final linearisation (they carry almost no load), its
+Jacobian column vanishes, and it joins the untouched nodes (:mod:`.surface_bound`). (Zeroing its
+column alone would let a uniform shift of the touched nodes change the data at the nodes that read
+both, and the unidentifiable absolute level would look measured.)
+
+The Laplace posterior is ``N(z_map, H^-1)``, ``H = Jz^T Jz + P`` at the MAP: the context
+parameters are part of the state, so the heights' covariance is their block of ``H^-1``: the joint
+Laplace approximation, with the context marginalised.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve
+
+from .priors import LogNormal, Normal, Uniform
+from .surface_jacobian import ScanJacobian
+
+__all__ = ["ContextTransform", "LaplaceResult", "gauss_newton", "prior_root"]
+
+#: condition number of the Fisher information above which a prior-free grid is refused
+FISHER_CONDITION_LIMIT = 1e10
+#: most continuation stages (tenfold each) of the noise sd
+MAX_STAGES = 8
+#: a node counts as touched when its largest load over the frames is at least this share of the
+#: largest node's (a node the MAP left on the skin with almost no load is held by the bound)
+TOUCH_THRESHOLD = 0.02
+#: nats: an objective that moves less over two iterations has stalled on a contact-set kink (the
+#: posterior's own scale is 1 nat)
+STALL = 1e-3
+
+
+@dataclass(frozen=True)
+class ContextTransform:
+    """A free context parameter's prior and its whitened coordinate (see the module docstring)."""
+
+    name: str
+    prior: object
+
+    def __post_init__(self):
+        if not isinstance(self.prior, (Normal, LogNormal, Uniform)):
+            raise ValueError(f"context: {self.name} needs a float (fixed), Uniform, Normal or LogNormal prior, got "
+                             f"{type(self.prior).__name__}")
+
+    @property
+    def gaussian(self) -> bool:
+        """Whether the prior adds ``z^2 / 2`` (Normal, LogNormal); Uniform is flat."""
+        return not isinstance(self.prior, Uniform)
+
+    def value(self, z):
+        p = self.prior
+        if isinstance(p, Normal):
+            return p.mean + p.sd * z
+        if isinstance(p, LogNormal):
+            return p.median * np.exp(p.sigma_log * z)
+        return 0.5 * (p.low + p.high) + 0.5 * (p.high - p.low) * z
+
+    def slope(self, z) -> float:
+        """``d theta / d z``."""
+        p = self.prior
+        if isinstance(p, Normal):
+            return p.sd
+        if isinstance(p, LogNormal):
+            return float(self.value(z)) * p.sigma_log
+        return 0.5 * (p.high - p.low)
+
+
+@dataclass
+class LaplaceResult:
+    """The Gauss-Newton MAP and the Hessian there (whitened coordinates)."""
+
+    z: np.ndarray
+    heights: np.ndarray
+    context: dict
+    state: object
+    jacobian: np.ndarray  # natural units, (n_data, n_profile + n_free), at the MAP
+    hessian_factor: tuple  # cho_factor of H on the unknowns
+    unknowns: np.ndarray  # indices of z that are unknowns (all, or the touched heights + context)
+    touched: np.ndarray
+    objective: float
+    chi2: float
+    iterations: int
+    message: str
+    history: list  # per iteration: (objective, decrement, step length, touched nodes)
+
+    def covariance_z(self) -> np.ndarray:
+        """``H^-1`` on the unknowns."""
+        return cho_solve(self.hessian_factor, np.eye(self.unknowns.size))
+
+
+def prior_root(prior, shape, spacing) -> np.ndarray:
+    """The dense symmetric root ``L = C^(1/2)`` of a stationary prior on the profile grid, (n, n)."""
+    lam = prior.spectrum(tuple(shape), spacing)
+    n = int(np.prod(shape))
+    axes = tuple(range(1, len(shape) + 1))
+    eye = np.eye(n).reshape(n, *shape)
+    root = np.fft.ifftn(np.fft.fftn(eye, axes=axes) * np.sqrt(lam), axes=axes).real
+    return root.reshape(n, n)
+
+
+def _context(z_c, transforms, fixed) -> dict | None:
+    ctx = dict(fixed)
+    for zk, tr in zip(z_c, transforms):
+        v = float(tr.value(zk))
+        if not math.isfinite(v) or (tr.name != "friction" and v <= 0) or v < 0:
+            return None  # outside what the scan can solve: the line search backs off
+        ctx[tr.name] = v
+    return ctx
+
+
+def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_iter=30, tol=1e-6,
+                 touch_threshold=TOUCH_THRESHOLD, start=None, continuation=True) -> LaplaceResult:
+    """Gauss-Newton MAP with a line search, then the Hessian there (see the module docstring).
+
+    Parameters
+    ----------
+    scan : ContactScan
+    data : ndarray, shape (n_frames, n_out)
+    noise_std : float
+        Data units.
+    root : ndarray (n, n) or None
+        The prior covariance root ``L`` (m), or None for no prior (flat).
+    mean : float
+        Prior mean height, m.
+    transforms : list of ContextTransform
+        The free context parameters.
+    fixed : dict
+        Fixed context values.
+    """
+    if int(max_iter) < 1:
+        raise ValueError(f"max_iter: the Gauss-Newton search needs at least 1 iteration, got {max_iter!r}")
+    n, k = scan.profile.size, len(transforms)
+    names = [t.name for t in transforms]
+    flat_h = root is None
+    penal = np.concatenate([np.full(n, 0.0 if flat_h else 1.0), [1.0 if t.gaussian else 0.0 for t in transforms]])
+    uniform = np.array([not t.gaussian for t in transforms], dtype=bool)
+
+    def heights(z):
+        zh = z[:n]
+        return (zh.copy() if flat_h else mean + root @ zh).reshape(scan.profile.shape)
+
+    def evaluate(z, sigma):
+        ctx = _context(z[n:], transforms, fixed)
+        if ctx is None or (uniform.any() and np.abs(z[n:][uniform]).max() > 1):
+            return None, math.inf
+        state = scan.solve(heights(z), ctx)
+        r = (data - state.outputs).ravel() / sigma
+        return state, 0.5 * float(r @ r) + 0.5 * float(np.sum(penal * z * z))
+
+    z = np.zeros(n + k) if start is None else np.array(start, dtype=float)
+    state, _ = evaluate(z, noise_std)
+    if state is None:
+        raise ValueError("context: the prior's centre is not a valid context (force and modulus > 0, friction >= 0)")
+    # continuation: the noise sd starts at the initial misfit's rms and falls tenfold per stage to
+    # noise_std, each stage's MAP starting the next (a steep objective far from the MAP sends plain
+    # Gauss-Newton into spiky surfaces that touch only at their spikes)
+    misfit = float(np.sqrt(np.mean(((data - state.outputs) / noise_std) ** 2)))
+    stages = [misfit / 10.0**j for j in range(MAX_STAGES) if misfit / 10.0**j > 1.0 and continuation] + [1.0]
+    history, messages, total = [], [], 0
+    for factor in stages:
+        z, state, info, its = _descend(evaluate, scan, data, noise_std * factor, z, names, transforms, root,
+                                       penal, uniform, n, max_iter, tol, history)
+        total += its
+        messages.append(info)
+    message = messages[-1] + (f" (after {len(stages) - 1} continuation stages in the noise sd)" if len(stages) > 1
+                              else "")
+    touched = loaded_nodes(scan, state, touch_threshold)
+    # nodes resting on the skin with (almost) no load are the bound's, not the data's: the grid nodes
+    # that read them leave the contact set of the linearisation (they carry almost nothing), so that
+    # their columns vanish and a uniform shift of the touched nodes still changes no datum
+    J, touched = _jacobian(scan, replace(state, contact=state.contact & ~reads_nodes(scan, ~touched)), names)
+    unknowns = _unknowns(J, touched, transforms, z, root, noise_std, flat_h, n, scan.profile.spacing)
+    A = _whiten(J, transforms, z, root, noise_std, n)[:, unknowns]
+    factor = cho_factor(A.T @ A + np.diag(penal[unknowns]) + _gauge(A, unknowns, n, flat_h))
+    _, phi = evaluate(z, noise_std)
+    r = (data - state.outputs).ravel() / noise_std
+    return LaplaceResult(z=z, heights=heights(z), context=dict(state.context), state=state, jacobian=J,
+                         hessian_factor=factor, unknowns=unknowns, touched=touched, objective=phi,
+                         chi2=float(r @ r), iterations=total, message=message, history=history)
+
+
+def _descend(evaluate, scan, data, sigma, z, names, transforms, root, penal, uniform, n, max_iter, tol, history):
+    """Gauss-Newton with an Armijo line search at one noise sd; returns (z, state, message, iterations)."""
+    flat_h = root is None
+    state, phi = evaluate(z, sigma)
+    it, message = 0, ""
+    for it in range(1, max_iter + 1):
+        J, touched = _jacobian(scan, state, names)
+        if flat_h:  # without a prior, a node just entering the contact is held until it carries a load
+            touched &= loaded_nodes(scan, state, TOUCH_THRESHOLD)
+        unknowns = _unknowns(J, touched, transforms, z, root, sigma, flat_h, n, scan.profile.spacing)
+        A = _whiten(J, transforms, z, root, sigma, n)[:, unknowns]
+        r = (data - state.outputs).ravel() / sigma
+        gauge = _gauge(A, unknowns, n, flat_h)
+        g = -(A.T @ r) + penal[unknowns] * z[unknowns] + gauge @ z[unknowns]
+        step = np.zeros_like(z)
+        step[unknowns] = -cho_solve(cho_factor(A.T @ A + np.diag(penal[unknowns]) + gauge), g)
+        decrement = -float(g @ step[unknowns])
+        if decrement < tol:
+            return z, state, f"converged: Gauss-Newton decrement {decrement:.2g} < {tol:g} nats", it
+        if uniform.any():  # a Uniform parameter's step stops at its bound
+            zc, sc = z[n:][uniform], step[n:][uniform]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                room = np.where(sc > 0, (1 - 1e-9 - zc) / sc, np.where(sc < 0, (-1 + 1e-9 - zc) / sc, np.inf))
+            step *= min(1.0, float(room.min()))
+        alpha = 1.0
+        for _ in range(30):
+            new_state, new_phi = evaluate(z + alpha * step, sigma)
+            if new_state is not None and new_phi <= phi - 1e-4 * alpha * decrement:
+                break
+            alpha *= 0.5
+        else:
+            return z, state, f"stopped: the line search found no decrease after 30 halvings (decrement " \
+                             f"{decrement:.2g} nats)", it
+        z, state, phi = z + alpha * step, new_state, new_phi
+        history.append((sigma, phi, decrement, alpha, int(touched.sum())))
+        if len(history) >= 3 and history[-3][0] == sigma and history[-3][1] - phi < STALL:
+            # creeping along a contact-set kink: the objective no longer moves
+            return z, state, (f"converged: the objective changed by {history[-3][1] - phi:.2g} < {STALL:g} nats over "
+                              f"2 iterations (last step {alpha:.2g} of the Gauss-Newton step)"), it
+    return z, state, f"stopped at max_iter = {max_iter} iterations (decrement {decrement:.2g} nats)", it
+
+
+def reads_nodes(scan, nodes: np.ndarray) -> np.ndarray:
+    """Per frame, the contact-grid nodes whose height interpolation reads any of the profile ``nodes``,
+    shape (n_frames, *grid)."""
+    idx, w = scan.interpolation
+    hit = (nodes.reshape(-1)[idx] & (w > 0)).any(axis=-1)
+    if scan.profile.y is None and len(scan.grid_shape) == 2:
+        hit = np.broadcast_to(hit[:, None, :], (scan.n_frames, *scan.grid_shape))
+    return hit
+
+
+def loaded_nodes(scan, state, threshold: float) -> np.ndarray:
+    """Profile nodes whose largest load over the frames (pressure read back through the
+    interpolation) is at least ``threshold`` times the largest node's: the touched nodes."""
+    load = np.zeros(scan.profile.size)
+    for t in range(scan.n_frames):
+        load = np.maximum(load, scan.node_heights_adjoint(state.pressure[t], frame=t).reshape(-1))
+    return load >= threshold * load.max() if load.max() > 0 else np.zeros(scan.profile.size, dtype=bool)
+
+
+def _jacobian(scan, state, names):
+    """The scan Jacobian (natural units) and the touched nodes (a non-zero column)."""
+    J = ScanJacobian(scan, state, free=names).matrix()
+    return J, np.abs(J[:, : scan.profile.size]).max(axis=0) > 0
+
+
+def _whiten(J, transforms, z, root, sigma, n):
+    """The Jacobian in whitened coordinates, divided by the noise sd."""
+    Jz = np.empty_like(J)
+    Jz[:, :n] = J[:, :n] if root is None else J[:, :n] @ root
+    for i, tr in enumerate(transforms):
+        Jz[:, n + i] = J[:, n + i] * tr.slope(z[n + i])
+    return Jz / sigma
+
+
+def _gauge(A, unknowns, n, flat_h) -> np.ndarray:
+    """Without a prior, the level of the touched heights (a uniform shift changes no datum at a given
+    force) is held where it is (at 0: the flat start): a curvature ``c u u^T`` along the uniform
+    direction ``u`` of the touched heights, ``c`` the Fisher information's mean eigenvalue."""
+    k = unknowns.size
+    if not flat_h:
+        return np.zeros((k, k))
+    u = (unknowns < n).astype(float)
+    u /= np.sqrt(u.sum()) if u.sum() else 1.0
+    c = float(np.sum(A * A)) / max(k, 1) or 1.0
+    return c * np.outer(u, u)
+
+
+def _unknowns(J, touched, transforms, z, root, sigma, flat_h, n, spacing) -> np.ndarray:
+    """All of z with a prior; without one the touched heights (checked: the data must resolve them) and the context."""
+    if not flat_h:
+        return np.arange(n + len(transforms))
+    unknowns = np.concatenate([np.flatnonzero(touched), n + np.arange(len(transforms))])
+    Jz = _whiten(J, transforms, z, root, sigma, n)[:, unknowns]
+    fisher = np.linalg.eigvalsh(Jz.T @ Jz + _gauge(Jz, unknowns, n, True))
+    if fisher[0] <= fisher[-1] / FISHER_CONDITION_LIMIT:
+        ratio = f"{fisher[-1] / fisher[0]:.3g}" if fisher[0] > fisher[-1] * 1e-300 else "infinite"
+        raise ValueError(
+            f"spacing: without a prior the data must resolve every node of the grid, but the Fisher information "
+            f"of the {int(touched.sum())} touched nodes has condition number "
+            f"{ratio} > {FISHER_CONDITION_LIMIT:g} at spacing {spacing:.3g} m; give a prior "
+            "(prior=StationaryPrior(...)) or a coarser spacing")
+    return unknowns

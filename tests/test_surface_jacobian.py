@@ -1,0 +1,147 @@
+"""The linearised contact and the scan Jacobian: dot tests and finite differences of the full solve.
+
+Oracles: the non-linear solve itself (``solve_contact`` at perturbed heights, force or modulus,
+with the contact set unchanged: the pressure is then affine in the heights), and the adjoint
+identity <J x, y> = <x, J^T y>.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tactilab.forward import ContactCompliance, ContactLinearisation, HalfSpace, dottest, solve_contact
+from tactilab.inversion.surface_jacobian import ScanJacobian
+from tactilab.inversion.surface_scan import ContactScan, ProfileGrid
+
+E, R = 1e6, 10e-3
+
+
+def _sphere(n, dx, rng, rough=0.2e-6):
+    x = (np.arange(n) - n // 2) * dx
+    xx, yy = np.meshgrid(x, x)
+    return (xx**2 + yy**2) / (2 * R) - rough * rng.standard_normal((n, n))
+
+
+def test_linearisation_matches_finite_differences_of_the_solve(rng):
+    n, dx, force = 48, 40e-6, 0.03
+    skin = HalfSpace(E=E, nu=0.5)
+    gap = _sphere(n, dx, rng)
+    sol = solve_contact(skin, gap, dx, normal_force=force, tol=1e-13)
+    lin = ContactLinearisation(ContactCompliance(skin, (n, n), (dx, dx), False), sol.contact, force_control=True)
+    dh = 1e-10 * rng.standard_normal((n, n))
+    moved = solve_contact(skin, gap - dh, dx, normal_force=force, tol=1e-14, initial=sol)
+    assert np.array_equal(moved.contact, sol.contact)
+    dp = lin.solve(dh)
+    assert np.abs(moved.pressure - sol.pressure - dp).max() < 1e-6 * np.abs(dp).max()
+    assert np.all(dp[~sol.contact] == 0) and abs(dp.sum()) < 1e-9 * np.abs(dp).sum()
+    # the force response: sum 1, and the pressure change of a (slightly) larger force
+    f = lin.force_response()
+    assert f.sum() == pytest.approx(1.0, rel=1e-10)
+    step = 1e-6 * force
+    up = solve_contact(skin, gap, dx, normal_force=force + step, tol=1e-14, initial=sol)
+    down = solve_contact(skin, gap, dx, normal_force=force - step, tol=1e-14, initial=sol)
+    fd = (up.pressure - down.pressure) / (2 * step / dx**2)
+    assert np.abs(fd - f).max() < 1e-5 * np.abs(f).max()
+
+
+def test_linearisation_is_symmetric_and_batched(rng):
+    n, dx = 32, 40e-6
+    skin = HalfSpace(E=E, nu=0.5)
+    comp = ContactCompliance(skin, (n, n), (dx, dx), False)
+    sols = [solve_contact(skin, _sphere(n, dx, rng), dx, normal_force=0.01, tol=1e-12) for _ in range(3)]
+    lin = ContactLinearisation(comp, np.stack([s.contact for s in sols]), force_control=True)
+    a, b = rng.standard_normal((2, 3, n, n))
+    sa, sb = lin.solve(a), lin.solve(b)
+    assert np.sum(sa * b) == pytest.approx(np.sum(a * sb), rel=1e-9)
+    one = ContactLinearisation(comp, sols[1].contact, force_control=True).solve(a[1])
+    assert np.allclose(sa[1], one, rtol=0, atol=1e-9 * np.abs(one).max())
+    assert np.allclose(lin.solve(a[1:2], frames=[1])[0], one, rtol=0, atol=1e-9 * np.abs(one).max())
+
+
+def test_linearisation_refuses_bad_input():
+    skin = HalfSpace(E=E, nu=0.5)
+    comp = ContactCompliance(skin, (8, 8), (1e-4, 1e-4), False)
+    mask = np.zeros((8, 8), dtype=bool)
+    mask[3:5, 3:5] = True
+    with pytest.raises(ValueError, match="compliance: expected a ContactCompliance"):
+        ContactLinearisation(skin, mask, force_control=True)
+    with pytest.raises(ValueError, match="contact: expected a boolean mask of shape"):
+        ContactLinearisation(comp, mask.astype(float), force_control=True)
+    with pytest.raises(ValueError, match="contact: a set is empty"):
+        ContactLinearisation(comp, np.zeros((8, 8), dtype=bool), force_control=True)
+    lin = ContactLinearisation(comp, mask, force_control=False)
+    with pytest.raises(ValueError, match="rhs: expected finite values of shape"):
+        lin.solve(np.full((8, 8), np.nan))
+    with pytest.raises(ValueError, match="frames: need 1 indices"):
+        lin.solve(np.ones((8, 8)), frames=[3])
+    with pytest.raises(ValueError, match="force_control: the force response needs"):
+        lin.force_response()
+    stacked = ContactLinearisation(comp, np.stack([mask, mask]), force_control=True)
+    with pytest.raises(ValueError, match="rhs: 3 right-hand sides for 2 contact sets"):
+        stacked.solve(np.ones((3, 8, 8)))
+
+
+def _scan(rng, quantity="stress", geometry="line", n=24, dx=40e-6, frames=4):
+    x = (np.arange(n) - n // 2) * dx
+    xx, yy = np.meshgrid(x, x)
+    pos = np.arange(frames) * 2 * dx
+    px = np.arange(x[0] + pos[0] - dx, x[-1] + pos[-1] + 2 * dx, dx)
+    profile = ProfileGrid(x=px, y=None if geometry == "line" else x.copy())
+    w_p, w_q = rng.standard_normal((2, n * n, 3))
+    scan = ContactScan(young_modulus=E, poisson_ratio=0.5, grid_shape=(n, n), spacing=dx,
+                       shape_gap=(xx**2 + yy**2) / (2 * R), positions=pos, weights_p=w_p, weights_q=w_q,
+                       profile=profile, normal_force=0.008, friction=0.4, tol=1e-13, quantity=quantity)
+    heights = 0.3e-6 * rng.standard_normal(profile.shape)
+    return scan, heights, scan.solve(heights)
+
+
+@pytest.mark.parametrize("quantity", ["stress", "strain"])
+@pytest.mark.parametrize("geometry", ["line", "patch"])
+def test_scan_jacobian_dot_test_and_explicit_matrix(rng, quantity, geometry):
+    scan, _, state = _scan(rng, quantity, geometry)
+    jac = ScanJacobian(scan, state, free=("normal_force", "friction", "young_modulus"))
+    assert dottest(jac, rng, rtol=1e-8) < 1e-8
+    v = rng.standard_normal(jac.shape[1])
+    dense = jac.matrix()
+    assert np.abs(dense @ v - jac.matvec(v)).max() < 1e-9 * np.abs(dense @ v).max()
+
+
+@pytest.mark.parametrize("quantity", ["stress", "strain"])
+def test_scan_jacobian_matches_finite_differences(rng, quantity):
+    scan, heights, state = _scan(rng, quantity)
+    free = ("normal_force", "friction", "young_modulus")
+    jac = ScanJacobian(scan, state, free=free)
+    dh = 1e-10 * rng.standard_normal(heights.shape)
+    moved = scan.solve(heights + dh)
+    assert np.array_equal(moved.contact, state.contact)
+    lin = jac.matvec(np.concatenate([dh.ravel(), np.zeros(3)]))
+    assert np.abs((moved.outputs - state.outputs).ravel() - lin).max() < 1e-6 * np.abs(lin).max()
+    for k, name in enumerate(free):
+        step = 1e-6 * max(state.context[name], 1.0 if name == "friction" else 0.0)
+        up, down = (scan.solve(heights, {name: state.context[name] + s}) for s in (step, -step))
+        fd = (up.outputs - down.outputs).ravel() / (2 * step)
+        col = jac.matvec(np.eye(jac.shape[1])[scan.profile.size + k])
+        assert np.abs(fd - col).max() < 1e-5 * np.abs(col).max(), name
+
+
+def test_scan_refuses_bad_input(rng):
+    scan, heights, state = _scan(rng)
+    with pytest.raises(ValueError, match="heights: expected finite values of shape"):
+        scan.solve(heights[:-1])
+    with pytest.raises(ValueError, match="context: unknown parameter 'depth'"):
+        scan.solve(heights, {"depth": 1e-3})
+    with pytest.raises(ValueError, match="profile: the frames read the surface at x in"):
+        ContactScan(young_modulus=E, poisson_ratio=0.5, grid_shape=scan.grid_shape, spacing=scan.spacing,
+                    shape_gap=scan.shape_gap, positions=scan.positions + 1e-3, weights_p=scan.weights_p,
+                    weights_q=scan.weights_q, profile=scan.profile, normal_force=0.008)
+    kwargs = dict(young_modulus=E, grid_shape=scan.grid_shape, spacing=scan.spacing, shape_gap=scan.shape_gap,
+                  positions=scan.positions, weights_p=scan.weights_p, weights_q=scan.weights_q, profile=scan.profile)
+    with pytest.raises(ValueError, match="poisson_ratio: the surface inversion solves frictionless frames"):
+        ContactScan(poisson_ratio=0.3, normal_force=0.008, friction=0.5, **kwargs)
+    with pytest.raises(ValueError, match="normal_force, mean_pressure: give exactly one"):
+        ContactScan(poisson_ratio=0.5, **kwargs)
+    with pytest.raises(ValueError, match="weights_p: expected finite weights of shape"):
+        ContactScan(poisson_ratio=0.5, normal_force=0.008, **dict(kwargs, weights_p=scan.weights_p[:-1]))
+    with pytest.raises(ValueError, match="shape_gap: expected shape"):
+        ContactScan(poisson_ratio=0.5, normal_force=0.008, **dict(kwargs, shape_gap=scan.shape_gap[:-1]))
