@@ -34,7 +34,6 @@ from .halfspace import HalfSpace, pressure_from_deflection
 from .scanning import reference_height, scanned_surface, scene_finger
 from .scene_contact import finger_gap, ridge_heights
 from .scene_readout import SensorReadout
-from .surfaces import Surface
 
 #: finger grid half-width in Hertz contact radii (a rough contact spreads a little beyond a)
 GRID_RADII = 1.5
@@ -103,14 +102,12 @@ class SceneFrames:
             return cls._cell(scene, skin, e_star, u, ratios, grid_spacing)
         finger = scene_finger(scene, grid_spacing)
         h = finger.spacing
-        half = int(math.ceil(GRID_RADII * finger.contact.contact_radius / h))
-        shape = (2 * half, 2 * half)
-        strip = scanned_surface(scene.surface, u, finger)  # refuses a defect the finger never touches
-        reach = half * h + h
-        surface = Surface(length=float(u.max() - u.min()) + 2 * reach, width=2 * reach,
-                          features=strip.features, x_start=float(u.min()) - reach)
-        return cls(scene, skin, False, shape, (h, h), u, _shifts(u, h), ratios, e_star, finger, surface,
-                   reference_height(strip))
+        half, reach = grid_reach(finger)
+        # the strip the grid reads is the strip the check covers: a defect outside it, or a measured
+        # map smaller than it, is refused naming both sizes (not met later as a point off the map)
+        strip = scanned_surface(scene.surface, u, finger, reach=reach)
+        return cls(scene, skin, False, (2 * half, 2 * half), (h, h), u, _shifts(u, h), ratios, e_star, finger,
+                   strip, reference_height(strip))
 
     @classmethod
     def _cell(cls, scene, skin, e_star, u, ratios, grid_spacing):
@@ -282,6 +279,19 @@ class SceneFrames:
                                                    periodic=self.periodic, window=window, loads=loads,
                                                    sliding=sliding)
         return self._cache["readout"]
+
+
+def grid_reach(finger: BiomimeticFinger) -> tuple[int, float]:
+    """The finger's contact grid for the exact and linear models: ``(half, reach)``.
+
+    The grid has ``2 half`` nodes per axis, ``half = ceil(GRID_RADII a / h)`` (a the Hertz radius,
+    h the finger's spacing), at ``(j - half) h``: it reads the surface within ``reach = half h`` (m)
+    of the contact centre. :meth:`SceneFrames.from_scene` checks and builds the scanned strip with
+    this one reach (:func:`~.scanning.scanned_surface`).
+    """
+    h = finger.spacing
+    half = int(math.ceil(GRID_RADII * finger.contact.contact_radius / h))
+    return half, half * h
 
 
 def _shifts(u: np.ndarray, h: float) -> np.ndarray | None:
