@@ -89,7 +89,8 @@ def replay_log(log: SessionLog) -> Replayed:
     kind = protocol.task.kind
     history = [{"trial_index": t.trial_index, "track": t.track, "level": t.level,
                 "outcome": outcome_of(kind, t.target, t.response)} for t in trials]
-    procedure = make_procedure(protocol.procedure, protocol.task.guess_rate, **_design_source(meta, protocol).keywords())
+    source = _design_source(meta, protocol)
+    procedure = make_procedure(protocol.procedure, protocol.task.guess_rate, **source.keywords())
     replay(procedure, history, lambda i: trial_generators(protocol.seed, i)[0])
     pending = [e for e in events if e["trial_index"] == len(trials) and e["attempt"] is not None]
     attempts = {}
