@@ -32,10 +32,14 @@ from .contact import HertzContact
 from .exploration import wiener_kernel
 from .scene_models import scene_signals
 
+#: the studies' skin and finger: E (Pa), nu, fingertip radius (m), friction coefficient
 E_PA, NU, RADIUS, MU = 1e6, 0.5, 0.01, 0.5
-SPEED, RATE = 0.04, 1000.0  # one 40 um node per frame
+#: the bump scans' speed (m/s) and sampling rate (Hz): one 40 um node per frame
+SPEED, RATE = 0.04, 1000.0
+#: a bump's base diameter, m
 BUMP = 0.4e-3
-COMPONENTS = ("zz", "zx")
+#: the strain components the sensor reads
+STUDY_COMPONENTS = ("zz", "zx")
 #: the fingerprint ridges (period, height), m
 RIDGES = (0.5e-3, 20e-6)
 
@@ -49,7 +53,8 @@ def study_scene(surface, force: float, model: str, start: float, stop: float, *,
     return Scene(material=SkinMaterial(young_modulus_pa=E_PA, poisson_ratio=NU), surface=surface,
                  contact=Contact(normal_force_n=force, finger_radius_m=RADIUS, friction_coefficient=MU, model=model,
                                  fingerprint_period_m=period, fingerprint_height_m=height),
-                 sensors=SensorArray(positions_m=[[0.0, 0.0]], depth_m=1e-3, quantity="strain", components=COMPONENTS),
+                 sensors=SensorArray(positions_m=[[0.0, 0.0]], depth_m=1e-3, quantity="strain",
+                                     components=STUDY_COMPONENTS),
                  scan=Scan(speed_m_per_s=speed, duration_s=duration, sampling_rate_hz=rate, start_position_m=start))
 
 
@@ -120,7 +125,7 @@ def receptive_field_change(model: str, force: float, height: float, reach: float
     scaled = np.linspace(-reach / a_ref, reach / a_ref, 400) * min(1.0, a_ref / a)  # inside both scans
     corr = [(correlation(r[:, c], ref[:, c]),
              correlation(np.interp(scaled, u / a, r[:, c]), np.interp(scaled, u / a_ref, ref[:, c])))
-            for c in range(len(COMPONENTS))]
+            for c in range(len(STUDY_COMPONENTS))]
     gain = (np.abs(r[:, 0]).max() / (height * 1e6)) / (np.abs(ref[:, 0]).max() / (h_ref * 1e6))
     return corr, float(gain)
 
