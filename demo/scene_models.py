@@ -7,17 +7,23 @@ mean pressure (80 kPa): the centre of the contact follows the grating, its rim d
 simulated with the exact model (every frame's contact solved), the linear superposition and the
 modulation of docs/theory.md 4b; ``"auto"`` says which the scene requires at tol 1 %, and the figure
 shows how far off the cheaper ones are.
+
+Then the founding papers' four studies through the solved contact (docs/scenes.md, "The founding
+papers' studies"), one line each at a reduced size (about 4 s in all; the tables come from
+``benchmarks/bench_scene_studies.py`` at full size, through the same ``tactilab.forward`` functions).
 """
 
 from __future__ import annotations
 
 import pathlib
+import warnings
 from collections.abc import Iterator
 
 import numpy as np
 
 from tactilab.data_schemas import Contact, Scan, Scene, SensorArray, SinusoidalGrating, SkinMaterial
-from tactilab.forward import SceneFrames, choose_model, run_model, signal_error
+from tactilab.forward import (AccuracyWarning, SceneFrames, choose_model, fingerprint_band_pass, kernel_error,
+                              receptive_field_change, run_model, signal_error, superposition_error, wiener_kernels)
 
 MODELS = ("exact", "linear", "modulation")
 
@@ -94,3 +100,32 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
     path = plot_models(scene.scan.times_s, runs, errors, sensor, out / "models.png", title,
                        sensor_x=float(scene.sensors.positions_m[sensor, 0]))
     yield f"figure: {path}"
+    yield from study_lines()
+
+
+def study_lines() -> Iterator[str]:
+    """The founding papers' studies at a reduced size, one line each with its key figure (about 4 s).
+
+    Sizes: 80 um nodes and a 20-frame-per-mm scan for the bumps (a, d), 128 frames of 50 um bars for
+    the fingerprint (b, at 0.2 N) and 128 bits of 80 um for the Wiener kernel (c); the full-size
+    tables (docs/scenes.md) differ in the digits, not in the findings.
+    """
+    yield "== the founding papers' studies through the solved contact, reduced (docs/scenes.md) =="
+    with warnings.catch_warnings():  # coarse demo grids: the contact engine's resolution notes
+        warnings.simplefilter("ignore", AccuracyWarning)
+        (exact, gain), (_, mod_gain) = (receptive_field_change(m, 0.5, 50e-6, 1.6e-3, 80e-6)
+                                         for m in ("exact", "modulation"))
+        yield (f"(a) shape invariance, a 50 um bump against a 20 um one at 0.5 N: exact corr zz "
+               f"{exact[0][0]:.4f}, zx {exact[1][0]:.4f}, gain per um {gain:.2f}; modulation gain per um "
+               f"{mod_gain:.2f} (h / h_ref: blind to the height)")
+        band = {m: fingerprint_band_pass(m, 50e-6, 2000.0, 128, 0.2) for m in ("exact", "modulation")}
+        yield (f"(b) fingerprint band-pass, ridged / smooth skin's PSD at v / lambda = {band['exact']['band']:.0f} Hz: "
+               f"exact {band['exact']['ratio']:.3g}, modulation {band['modulation']['ratio']:.3g}")
+        kernels = wiener_kernels((1e-6, 20e-6), 80e-6, 128, models=("exact", "linear"))
+        shallow, deep = (kernel_error(kernels[("exact", a)], kernels[("linear", 1e-6)]) for a in (1e-6, 20e-6))
+        yield (f"(c) Wiener kernel of the solved contact per um of depth: gain {shallow['gain']:.2f} at 1 um, "
+               f"{deep['gain']:.2f} at 20 um of the linear kernel (rel. error {shallow['error']:.2f}, "
+               f"{deep['error']:.2f}): the non-linearity grows with the texture's depth")
+        pair = {m: superposition_error(m, 20e-6, (0.4e-3,), 1.6e-3, 80e-6)[0.4e-3] for m in ("exact", "modulation")}
+        yield (f"(d) two 20 um bumps 0.4 mm apart, superposition error (zz / zx): exact {pair['exact'][0]:.2g} / "
+               f"{pair['exact'][1]:.2g}, modulation {pair['modulation'][0]:.1g} / {pair['modulation'][1]:.1g}")

@@ -95,6 +95,13 @@ _EXPORTS = {
     "write_field": "load_files",
     "plot_field": "plots",
     "wiener_kernel": "exploration",
+    # the founding papers' studies through the solved contact (bench_scene_studies, the demo)
+    "defect_response": "scene_studies",
+    "receptive_field_change": "scene_studies",
+    "superposition_error": "scene_studies",
+    "fingerprint_band_pass": "scene_studies",
+    "wiener_kernels": "scene_studies",
+    "kernel_error": "scene_studies",
     "linear_kernel": "exploration",
     "shape_invariance": "exploration",
     "kernel_identification": "exploration",

@@ -39,9 +39,13 @@ def feature_peak(feature: Feature) -> float:
 
 def scanned_surface(record_or_features: SurfaceRecord | Feature | Iterable[Feature], positions: ArrayLike,
                     finger: BiomimeticFinger, *,
-                    width: float | None = None) -> Surface:
+                    width: float | None = None, reach: float | None = None) -> Surface:
     """The strip of surface a scan touches, holding the given features; raises if a defect
-    lies outside it (the finger would never touch it).
+    lies outside it (the finger would never touch it) or a measured map does not cover it.
+
+    The strip is ``x in [min(u) - reach, max(u) + reach]``, ``|y| <= width / 2``: the one extent
+    both the check and the returned surface use, so a scan never reads a point the check did not
+    cover.
 
     Parameters
     ----------
@@ -50,7 +54,11 @@ def scanned_surface(record_or_features: SurfaceRecord | Feature | Iterable[Featu
         World x of the contact centre per frame, m.
     finger : BiomimeticFinger
     width : float, optional
-        Strip width across the scan (m); default the finger grid's extent.
+        Strip width across the scan (m); default ``2 * reach``.
+    reach : float, optional
+        How far the scan reads around the contact centre, along x (m, > 0); default the finger
+        grid's half-width (the modulation model's grid). A caller reading a wider grid (the exact
+        and linear models' contact grid, ``SceneFrames``) passes its own.
     """
     if isinstance(record_or_features, Feature):
         feats = (record_or_features,)
@@ -60,8 +68,12 @@ def scanned_surface(record_or_features: SurfaceRecord | Feature | Iterable[Featu
         feats = tuple(as_feature(f) for f in record_or_features)
     else:
         raise ValueError(f"surface: expected a surface record or Feature(s), got {type(record_or_features).__name__}")
-    x, _ = finger.grid()
-    reach = float(x[-1])
+    if reach is None:
+        reach = float(finger.grid()[0][-1])
+    elif not (math.isfinite(reach) and reach > 0):
+        raise ValueError(f"reach: the half-width the scan reads around the contact centre must be finite and > 0 m, "
+                         f"got {reach!r}; omit it for the finger grid's")
+    reach = float(reach)
     u = np.asarray(positions, dtype=float)
     x0, x1, half = float(u.min()) - reach, float(u.max()) + reach, (reach if width is None else width / 2)
     for f in feats:

@@ -9,8 +9,8 @@ world point ``x + u_i``. Two kinds of scene:
   and the surface's relief); the gap is ``r^2 / (2 R) - h(x + u, y) - ridges(x)``;
 - a **periodic cell** (``mean_pressure``): the nominally flat skin on one period of the surface
   (a sinusoid or a regular square wave: 256 nodes per period unless a spacing is given, in plane
-  strain; a ``random_rough`` plate: its own 2-D period on its own nodes); the gap is
-  ``-h(x + u) - ridges(x)``.
+  strain; a ``random_rough`` plate: its own 2-D period on its own nodes, or on a grid spacing that
+  cuts each side into an even number of nodes); the gap is ``-h(x + u) - ridges(x)``.
 
 The cheap models' tractions (SI, on the skin; ``D`` is the scenes' friction direction, +1):
 
@@ -34,7 +34,6 @@ from .halfspace import HalfSpace, pressure_from_deflection
 from .scanning import reference_height, scanned_surface, scene_finger
 from .scene_contact import finger_gap, ridge_heights
 from .scene_readout import SensorReadout
-from .surfaces import Surface
 
 #: finger grid half-width in Hertz contact radii (a rough contact spreads a little beyond a)
 GRID_RADII = 1.5
@@ -103,14 +102,12 @@ class SceneFrames:
             return cls._cell(scene, skin, e_star, u, ratios, grid_spacing)
         finger = scene_finger(scene, grid_spacing)
         h = finger.spacing
-        half = int(math.ceil(GRID_RADII * finger.contact.contact_radius / h))
-        shape = (2 * half, 2 * half)
-        strip = scanned_surface(scene.surface, u, finger)  # refuses a defect the finger never touches
-        reach = half * h + h
-        surface = Surface(length=float(u.max() - u.min()) + 2 * reach, width=2 * reach,
-                          features=strip.features, x_start=float(u.min()) - reach)
-        return cls(scene, skin, False, shape, (h, h), u, _shifts(u, h), ratios, e_star, finger, surface,
-                   reference_height(strip))
+        half, reach = grid_reach(finger)
+        # the strip the grid reads is the strip the check covers: a defect outside it, or a measured
+        # map smaller than it, is refused naming both sizes (not met later as a point off the map)
+        strip = scanned_surface(scene.surface, u, finger, reach=reach)
+        return cls(scene, skin, False, (2 * half, 2 * half), (h, h), u, _shifts(u, h), ratios, e_star, finger,
+                   strip, reference_height(strip))
 
     @classmethod
     def _cell(cls, scene, skin, e_star, u, ratios, grid_spacing):
@@ -121,9 +118,8 @@ class SceneFrames:
                              f"square waves regular), got kind {rec.kind!r}; press a finger (normal_force, "
                              "finger_radius) on it instead")
         if rec.kind == "random_rough":  # a 2-D cell: the plate's own period, on its own nodes unless a spacing is given
+            nx, ny = _tiling(rec, grid_spacing)
             lx, ly = (float(v) for v in rec.size_m)
-            step = rec.spacing_m if grid_spacing is None else grid_spacing
-            nx, ny = (max(8, 2 * int(round(length / step / 2))) for length in (lx, ly))
             peak = float(np.abs(rec.heights_m).max())
             return cls(scene, skin, True, (ny, nx), (lx / nx, ly / ny), u, _shifts(u, lx / nx), ratios, e_star, None,
                        rec, peak)
@@ -282,6 +278,39 @@ class SceneFrames:
                                                    periodic=self.periodic, window=window, loads=loads,
                                                    sliding=sliding)
         return self._cache["readout"]
+
+
+def grid_reach(finger: BiomimeticFinger) -> tuple[int, float]:
+    """The finger's contact grid for the exact and linear models: ``(half, reach)``.
+
+    The grid has ``2 half`` nodes per axis, ``half = ceil(GRID_RADII a / h)`` (a the Hertz radius,
+    h the finger's spacing), at ``(j - half) h``: it reads the surface within ``reach = half h`` (m)
+    of the contact centre. :meth:`SceneFrames.from_scene` checks and builds the scanned strip with
+    this one reach (:func:`~.scanning.scanned_surface`).
+    """
+    h = finger.spacing
+    half = int(math.ceil(GRID_RADII * finger.contact.contact_radius / h))
+    return half, half * h
+
+
+def _tiling(rec, grid_spacing: float | None) -> tuple[int, int]:
+    """Nodes (nx, ny) of a random_rough cell: its period ``size_m`` cut by ``grid_spacing`` (default the
+    plate's own ``spacing_m``) into an even whole number (>= 8) of nodes per side (the periodic contact
+    solve needs even counts); any other spacing is refused rather than silently stretched."""
+    step = float(rec.spacing_m if grid_spacing is None else grid_spacing)
+    counts = []
+    for axis, length in zip("xy", (float(v) for v in rec.size_m)):
+        n = int(round(length / step))
+        if n < 8 or n % 2 or abs(n * step - length) > 1e-6 * step:
+            own = [int(round(v / rec.spacing_m)) for v in rec.size_m]  # whole by the record's own rule
+            fix = rec.spacing_m if all(k >= 8 and k % 2 == 0 for k in own) else rec.spacing_m / 2
+            raise ValueError(
+                f"grid_spacing: a random_rough periodic cell is the plate's period size_m = ({rec.size_m[0]!r}, "
+                f"{rec.size_m[1]!r}) m, so its grid must cut each side into an even whole number (>= 8) of nodes; "
+                f"{step!r} m {'(the plate spacing_m) ' if grid_spacing is None else ''}gives {length / step:.6g} "
+                f"nodes along {axis}; give a grid_spacing that does, e.g. {fix!r} m")
+        counts.append(n)
+    return counts[0], counts[1]
 
 
 def _shifts(u: np.ndarray, h: float) -> np.ndarray | None:

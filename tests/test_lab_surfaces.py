@@ -168,6 +168,39 @@ def test_a_larger_map_is_cropped_and_a_smaller_one_refused_with_both_sizes(tmp_p
         small.surface.height_at(-2e-3, 0.0)
 
 
+def test_the_exact_models_wider_strip_is_checked_against_the_map_naming_both_sizes(tmp_path, rng):
+    """The contact grid of the exact and linear models reads 1.5 Hertz radii around the centre, the
+    modulation's finger grid about one: a map between the two serves the modulation and is refused
+    by SceneFrames with the message naming both sizes, not met later as a point off the map."""
+    from tactilab.forward import SceneFrames
+    from tactilab.forward.scene_frames import grid_reach
+
+    step = 25e-6  # a=1.41 mm at 0.5 N: the finger grid reads 1.6 mm, the contact grid 2.2 mm (0.1 mm nodes)
+    def map_scene(half_width, name):
+        n = int(round(2 * half_width / step)) + 1
+        np.save(tmp_path / f"{name}.npy", heights(rng, (n, n + 8)))
+        origin = f'["{-half_width * 1e3:.4f}mm", "{-half_width * 1e3:.4f}mm"]'
+        surface = (f'kind = "measured"\npath = "{name}.npy"\nspacing = "25um"\nheight_unit = "m"\n'
+                   f"origin = {origin}")
+        return load_scene(scene_file(tmp_path, surface, duration="20ms", start="0mm"))
+
+    narrow = map_scene(1.9e-3, "narrow")
+    finger = scene_finger(narrow, grid_spacing=0.1e-3)
+    u = narrow.scan.positions_m
+    _, reach = grid_reach(finger)
+    assert finger.grid()[0][-1] < 1.9e-3 < reach == pytest.approx(2.2e-3)
+    scanned_surface(narrow.surface, u, finger)  # the modulation's strip is on the map
+    with pytest.raises(ValueError, match=r"surface: the measured map covers x in \[-0\.0019, .* smaller than the strip "
+                                         r"the scan touches, x in \[-0\.0022, .* reaches 0\.0022 m around it\)"):
+        SceneFrames.from_scene(narrow, grid_spacing=0.1e-3)
+    wide = map_scene(2.3e-3, "wide")
+    frames = SceneFrames.from_scene(wide, grid_spacing=0.1e-3)
+    X, Y = np.meshgrid(frames.x + u[-1], frames.y)
+    assert np.array_equal(frames.heights(frames.n_frames - 1), wide.surface.height_at(X, Y))
+    with pytest.raises(ValueError, match=r"reach: the half-width the scan reads .* got -1\.0"):
+        scanned_surface(wide.surface, u, finger, reach=-1.0)
+
+
 def test_levelling_removes_the_mean_and_the_plane(tmp_path, monkeypatch):
     y, x = np.mgrid[0:5, 0:7]
     np.save(tmp_path / "tilted.npy", 1e-6 * (3 + 0.5 * x - 0.25 * y))

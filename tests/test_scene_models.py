@@ -253,3 +253,105 @@ def test_a_deep_square_grating_cell_reads_the_periodic_flat_punch():
     1.3e-2, 6.8e-3 and 3.3e-3 of the signal at 128, 256 and 512 nodes per period)."""
     coarse, fine = _punch_error(128), _punch_error(256)
     assert fine <= 1e-2 and fine <= 0.6 * coarse
+
+
+def _small_rough_cell(ratio, model="exact", size=(0.32e-3, 0.32e-3)):
+    """A 16 x 16-node random_rough plate as a periodic cell at ``ratio`` times its full-contact pressure."""
+    from tactilab.data_schemas.lab_surfaces import RandomRoughSurface
+
+    plate = RandomRoughSurface(rms_height_m=0.2e-6, hurst=0.8, seed=5, spacing_m=20e-6, size_m=size)
+    probe = _rough_cell(1e3).model_copy(update={"surface": plate})
+    p_star = float(-SceneFrames.from_scene(probe, grid_spacing=10e-6).texture_pressure(0).min())
+    sensors = SensorArray(positions_m=[[0.0, 0.0], [0.1e-3, -0.06e-3]], depth_m=0.15e-3, quantity="strain",
+                          components=("zz", "zx", "yz"))
+    return Scene(material=SkinMaterial(young_modulus_pa=E, poisson_ratio=NU), surface=plate,
+                 contact=Contact(mean_pressure_pa=ratio * p_star, friction_coefficient=MU, model=model),
+                 sensors=sensors, scan=Scan(speed_m_per_s=0.04, duration_s=0.003, sampling_rate_hz=1000,
+                                            start_position_m=-0.1e-3))
+
+
+@pytest.mark.filterwarnings("ignore::tactilab.forward.AccuracyWarning")  # 16 nodes: small patches, on purpose
+def test_a_random_rough_cell_equals_solve_contact_on_the_plates_period_and_auto_runs_it():
+    """Each frame of the cell against its own periodic solve_contact (cold, the plate's heights at the
+    plate's nodes moved by the scan) read by an independent field solve (HalfSpace.strain)."""
+    from tactilab.forward import SurfaceLoad
+
+    scene = _small_rough_cell(0.3)
+    values, info = scene_signals(scene)
+    frames = info["frames"]
+    assert frames.shape == (16, 16) and frames.spacing == (20e-6, 20e-6)
+    plate, skin = scene.surface, HalfSpace(E, NU)
+    ny, nx = frames.shape
+    X, Y = np.meshgrid((np.arange(nx) - nx // 2) * 20e-6, (np.arange(ny) - ny // 2) * 20e-6)
+    want = []
+    for u in scene.scan.positions_m:
+        sol = solve_contact(skin, -plate.height_at(X + u, Y), 20e-6, periodic=True,
+                            mean_pressure=scene.contact.mean_pressure_pa, friction=MU, condition="sliding",
+                            slide_direction=(1.0, 0.0), tol=1e-10)
+        assert 0.05 < sol.contact_fraction < 0.95  # partial contact: neither cheap model is exact here
+        load = SurfaceLoad(p=sol.pressure, qx=sol.qx, qy=sol.qy, spacing=20e-6, periodic=True)
+        field = skin.strain(load, [scene.sensors.depth_m], points=scene.sensors.positions_m[:, :2],
+                            components=scene.sensors.components)
+        want.append(field.data["strain"].values.reshape(3, 2).T)
+    err = signal_error(values, np.array(want))
+    assert err <= 1e-4, err
+    auto, chosen = scene_signals(scene.model_copy(update={"contact": scene.contact.model_copy(
+        update={"model": "auto"})}))
+    assert chosen["model"] == "exact" and np.array_equal(auto, values), chosen["reason"]
+    assert min(chosen["errors"].values()) > 1e-2  # the cheap models miss tol in partial contact
+
+
+@pytest.mark.parametrize("size, spacing, match", [
+    ((0.30e-3, 0.32e-3), None, r"grid_spacing: a random_rough periodic cell .* 2e-05 m \(the plate spacing_m\) "
+                               r"gives 15 nodes along x; give a grid_spacing that does, e.g\. 1e-05 m"),
+    ((0.32e-3, 0.32e-3), 30e-6, r"grid_spacing: .* 3e-05 m gives 10\.6667 nodes along x; .* e\.g\. 2e-05 m"),
+    ((0.32e-3, 0.32e-3), 80e-6, r"grid_spacing: .* 8e-05 m gives 4 nodes along x"),
+])
+def test_a_random_rough_cell_grid_must_tile_the_plates_period(size, spacing, match):
+    from tactilab.data_schemas.lab_surfaces import RandomRoughSurface
+
+    plate = RandomRoughSurface(rms_height_m=0.2e-6, seed=5, spacing_m=20e-6, size_m=size)
+    scene = _small_rough_cell(0.3).model_copy(update={"surface": plate})
+    with pytest.raises(ValueError, match=match):
+        SceneFrames.from_scene(scene, grid_spacing=spacing)
+    fine = SceneFrames.from_scene(scene, grid_spacing=10e-6)  # half the plate's spacing always tiles it
+    assert fine.shape == tuple(int(round(v / 10e-6)) for v in size[::-1])
+
+
+def _rough_scan_spectra(ratio):
+    """The sensor's spectrum (sigma_zz at 0.2 mm, two sensors) over one period of a random rough cell scanned
+    one node per frame with the exact model, and the linear theory's spectrum computed from the plate's own
+    Fourier coefficients: p = p_bar + E* |k| H~ / 2 times the half-space's zz transfer -(1 + |k| z) e^(-|k| z)."""
+    from tactilab.data_schemas.lab_surfaces import RandomRoughSurface
+
+    plate = RandomRoughSurface(rms_height_m=0.2e-6, hurst=0.8, seed=2, spacing_m=20e-6, size_m=(0.64e-3, 0.64e-3))
+    ny, nx = plate.heights_m.shape
+    kx, ky = np.meshgrid(2 * np.pi * np.fft.fftfreq(nx, 20e-6), 2 * np.pi * np.fft.fftfreq(ny, 20e-6))
+    k = np.hypot(kx, ky)
+    texture = E_STAR * k * np.fft.fft2(plate.heights_m) / plate.heights_m.size / 2
+    tension = float(np.abs(texture).sum())  # a bound on the largest tension of the texture's pressure
+    z, p_bar = 0.2e-3, ratio * tension
+    sensors = SensorArray(positions_m=[[0.0, 0.0], [0.1e-3, 0.2e-3]], depth_m=z, quantity="stress", components=("zz",))
+    scene = Scene(material=SkinMaterial(young_modulus_pa=E, poisson_ratio=NU), surface=plate,
+                  contact=Contact(mean_pressure_pa=p_bar, model="exact"), sensors=sensors,
+                  scan=Scan(speed_m_per_s=0.02, duration_s=nx * 1e-3, sampling_rate_hz=1000))  # one node per frame
+    values, _ = scene_signals(scene)
+    pressure = texture.copy()
+    pressure[0, 0] = p_bar
+    transfer = -(1 + k * z) * np.exp(-k * z) * pressure
+    theory = np.array([[(transfer * np.exp(1j * (kx * (xs + u) + ky * ys))).sum().real
+                        for xs, ys in sensors.positions_m[:, :2]] for u in scene.scan.positions_m])
+    spectrum = lambda s: np.abs(np.fft.rfft(s - s.mean(axis=0), axis=0)) ** 2  # noqa: E731
+    return spectrum(values[:, :, 0]), spectrum(theory)
+
+
+def test_a_random_rough_scans_spectrum_has_the_linear_theorys_shape_where_it_is_valid():
+    """Full contact (p_bar above the texture's largest tension): the exact model's sensor spectrum is the
+    linear theory's, bin by bin over twelve decades of power; in partial contact it is not (the oracle
+    can fail)."""
+    exact, theory = _rough_scan_spectra(2.0)
+    kept = theory >= 1e-12 * theory.max()
+    assert kept.sum() >= 12 and np.abs(exact[kept] / theory[kept] - 1).max() <= 1e-6
+    exact, theory = _rough_scan_spectra(0.03)  # 3 % of the tension bound: the valleys leave the skin
+    kept = theory >= 1e-9 * theory.max()
+    assert np.abs(exact[kept] / theory[kept] - 1).max() > 0.1

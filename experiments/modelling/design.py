@@ -53,6 +53,7 @@ from tactilab.inversion import Beta1, LogNormal
 from ..procedures import PlannedStimulus, Procedure, register_procedure
 from ._design_math import _entropy, information_gain, metameric_groups
 from ._transduction_data import p_correct_table
+from .contact_stimulus import FingerContact
 from .models import TransductionModel
 
 __all__ = ["ModelDiscrimination", "ModelDiscriminationConfig", "UTILITIES", "information_gain", "metameric_groups",
@@ -355,7 +356,7 @@ class ModelDiscrimination(Procedure):
 
 
 def from_config(config: ModelDiscriminationConfig, *, guess_rate: float = 0.5,
-                display=None) -> ModelDiscrimination:
+                display=None, finger=None) -> ModelDiscrimination:
     """Build the procedure a protocol's ``[procedure]`` table describes (the registered factory).
 
     Parameters
@@ -367,20 +368,34 @@ def from_config(config: ModelDiscriminationConfig, *, guess_rate: float = 0.5,
         A model of the session's display: every hypothesis then predicts from the strain the
         display renders, its limits included (``TransductionModel(source="display")``), labelled
         by the protocol's hypothesis string. Default: the ideal surface (``source="surface"``).
+    finger : FingerConfig, optional
+        The finger that presses the protocol's physical gratings (its ``[finger]`` table): every
+        hypothesis then predicts from the strain of that finger's solved contact
+        (``TransductionModel(source="contact")`` with ``FingerContact.from_config(finger)``, one
+        finger shared by the hypotheses, so each candidate's contact is solved once), labelled by
+        the protocol's hypothesis string.
 
     Raises
     ------
     ValueError
         If the protocol's task is not two-interval forced choice (mixed tasks: the design models
-        2IFC, chance rate 0.5).
+        2IFC, chance rate 0.5), or both ``display`` and ``finger`` are given.
     """
     if guess_rate != 0.5:
         raise ValueError(f"task: mixed tasks: the design models 2ifc (chance rate 0.5) but the protocol's task has "
                          f"chance rate {guess_rate}; use task.kind = '2ifc' with method 'model_discrimination'")
+    if display is not None and finger is not None:
+        raise ValueError("display, finger: a design predicts from one strain source, the display's rendering or the "
+                         "finger's solved contact; give one of them")
     with warnings.catch_warnings():  # the metameric groups are in every trial's recorded state
         warnings.simplefilter("ignore")
-        models = config.models if display is None else \
-            {m: TransductionModel(m, source="display", display=display) for m in config.models}
+        if display is not None:
+            models = {m: TransductionModel(m, source="display", display=display) for m in config.models}
+        elif finger is not None:
+            contact = FingerContact.from_config(finger)
+            models = {m: TransductionModel(m, source="contact", contact=contact) for m in config.models}
+        else:
+            models = config.models
         return ModelDiscrimination(models, config.stimuli(), utility=config.utility,
                                    n_grid=(config.n_grid, 9), stop_probability=config.stop_probability,
                                    max_trials=config.max_trials, task=config.task, config=config,

@@ -15,7 +15,7 @@ from .registry import procedure_factory
 __all__ = ["make_procedure"]
 
 
-def make_procedure(config: Any, guess_rate: float = 0.0, *, display: Any = None) -> Procedure:
+def make_procedure(config: Any, guess_rate: float = 0.0, *, display: Any = None, finger: Any = None) -> Procedure:
     """Build the procedure that a protocol's ``procedure`` table describes.
 
     Parameters
@@ -28,6 +28,10 @@ def make_procedure(config: Any, guess_rate: float = 0.0, *, display: Any = None)
         A model of the session's display (what it renders, limits included). Passed to the
         factories that take a ``display`` keyword (the model-discrimination design predicts from
         the stimulus the display renders); factories without one build as before.
+    finger : FingerConfig, optional
+        The finger that presses the protocol's physical gratings (its ``[finger]`` table), passed to
+        the factories that take a ``finger`` keyword (the design then predicts through the solved
+        contact of that finger, ``TransductionModel(source="contact")``).
 
     Raises
     ------
@@ -35,7 +39,8 @@ def make_procedure(config: Any, guess_rate: float = 0.0, *, display: Any = None)
         If the method, or a psi protocol's likelihood, is not registered.
     """
     factory = procedure_factory(config)
-    extra = {"display": display} if display is not None and _takes_display(factory) else {}
+    extra = {name: value for name, value in (("display", display), ("finger", finger))
+             if value is not None and _takes(factory, name)}
     procedure = factory(config, guess_rate=guess_rate, **extra)
     if not isinstance(procedure, Procedure):
         raise TypeError(
@@ -45,9 +50,9 @@ def make_procedure(config: Any, guess_rate: float = 0.0, *, display: Any = None)
     return procedure
 
 
-def _takes_display(factory) -> bool:
+def _takes(factory, keyword: str) -> bool:
     try:
         parameters = inspect.signature(factory).parameters
     except (TypeError, ValueError):  # a builtin without a signature: it takes only what the registry documents
         return False
-    return "display" in parameters
+    return keyword in parameters

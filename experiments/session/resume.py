@@ -89,7 +89,8 @@ def replay_log(log: SessionLog) -> Replayed:
     kind = protocol.task.kind
     history = [{"trial_index": t.trial_index, "track": t.track, "level": t.level,
                 "outcome": outcome_of(kind, t.target, t.response)} for t in trials]
-    procedure = make_procedure(protocol.procedure, protocol.task.guess_rate, display=_design_display(meta, protocol))
+    source = _design_source(meta, protocol)
+    procedure = make_procedure(protocol.procedure, protocol.task.guess_rate, **source.keywords())
     replay(procedure, history, lambda i: trial_generators(protocol.seed, i)[0])
     pending = [e for e in events if e["trial_index"] == len(trials) and e["attempt"] is not None]
     attempts = {}
@@ -101,21 +102,22 @@ def replay_log(log: SessionLog) -> Replayed:
     return Replayed(meta, protocol, trials, procedure, attempts, events)
 
 
-def _design_display(meta: dict[str, Any], protocol: Protocol):
-    """The display model the session's design predicted from: rebuilt from the recorded description
-    (sessions recorded before ``design_strain`` was kept predicted from the ideal surface)."""
-    if meta.get("design_strain") != "display" or meta.get("display_description") is None:
-        return None
-    from tactilab.data_schemas.display import DisplayDescription
+def _design_source(meta: dict[str, Any], protocol: Protocol):
+    """The strain source the session's design predicted from (``design_strain``): rebuilt from the
+    recorded display description or the recorded protocol's [finger] (sessions recorded before
+    ``design_strain`` was kept predicted from the ideal surface)."""
+    from .design_source import recorded_design_source
 
-    from .display_check import design_display
+    description = None
+    if meta.get("design_strain") == "display" and meta.get("display_description") is not None:
+        from tactilab.data_schemas.display import DisplayDescription
 
-    try:
-        description = DisplayDescription.model_validate(meta["display_description"])
-    except ValueError as exc:
-        raise ValueError(f"session: the recorded display description is invalid ({_one_line(exc)}); the "
-                         "metadata was edited") from None
-    return design_display(description, protocol)
+        try:
+            description = DisplayDescription.model_validate(meta["display_description"])
+        except ValueError as exc:
+            raise ValueError(f"session: the recorded display description is invalid ({_one_line(exc)}); the "
+                             "metadata was edited") from None
+    return recorded_design_source(meta, protocol, description)
 
 
 @dataclass

@@ -361,13 +361,16 @@ def _new_session(protocol: Protocol, path: str | Path, display: Display, respons
     except ValueError as exc:
         raise ValueError(f"protocol: a planned stimulus's {exc} (frame rates planned: {rates} Hz)") from None
     render_drive(display.description, **protocol.stimulus.model_dump())
-    from .display_check import design_display, plan_for_display
+    from .design_source import design_source
+    from .display_check import plan_for_display
 
     protocol, clipping = plan_for_display(protocol, display.description, clipped)
-    rendered = design_display(display.description, protocol)  # a design predicts from what the display renders
-    if rendered is None and protocol.procedure.method == "model_discrimination":
+    source = design_source(display.description, protocol)  # what the display renders, else the [finger]'s contact
+    if source.strain != "display" and protocol.procedure.method == "model_discrimination":
+        fallback = ("the protocol's [finger] pressing the gratings (the solved contact)" if source.strain == "contact"
+                    else "the ideal surface")
         warnings.warn("display: it is commanded in deflection and its strain needs the tractor stiffness, which "
-                      "its description does not hold; the design predicts from the ideal surface", stacklevel=3)
+                      f"its description does not hold; the design predicts from {fallback}", stacklevel=3)
     description, description_sha256 = description_record(display.description)
     meta = {"session_id": uuid.uuid4().hex, "created_utc": utc_now(),
             "subject": subject, "session": session, "protocol": protocol.model_dump(mode="json"),
@@ -376,9 +379,9 @@ def _new_session(protocol: Protocol, path: str | Path, display: Display, respons
             "display_sha256": description_sha256, "responses": responses.name,
             "responses_config": dict(responses.config),
             "likelihood": getattr(protocol.procedure, "likelihood", None),
-            "clipped": clipping, "design_strain": "surface" if rendered is None else "display"}
+            "clipped": clipping, "design_strain": source.strain}
     # built before the file exists: an unregistered method or likelihood leaves no session behind
-    procedure = make_procedure(protocol.procedure, protocol.task.guess_rate, display=rendered)
+    procedure = make_procedure(protocol.procedure, protocol.task.guess_rate, **source.keywords())
     recorder = None
     try:
         with signals_held():  # the file is created and locked whole
