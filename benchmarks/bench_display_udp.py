@@ -69,11 +69,19 @@ def paired_stress2(folder: Path, **overrides) -> Path:
     return path
 
 
-def start_emulator(record: Path, watchdog: str, description: Path) -> tuple[subprocess.Popen, int]:
-    """``tactilab device emulate`` with the description's limits and pairing key; (process, port)."""
+def start_emulator(record: Path, watchdog: str, description: Path,
+                   niceness: int | None = None) -> tuple[subprocess.Popen, int]:
+    """``tactilab device emulate`` with the description's limits and pairing key; (process, port).
+
+    ``niceness``: the emulator's scheduling priority (``os.setpriority``; negative needs root), or None
+    to inherit this process's."""
+    def priority() -> None:
+        if niceness is not None:
+            os.setpriority(os.PRIO_PROCESS, 0, niceness)
+
     proc = subprocess.Popen([*EMULATOR, "--record", str(record), "--watchdog", watchdog, "--max-seconds", "3000s",
                              "--pairing-key", str(description.parent / "display.key"), "--limits", str(description)],
-                            stdout=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, text=True, preexec_fn=priority)
     line = proc.stdout.readline()
     return proc, int(line.split(":")[2].split()[0])
 
