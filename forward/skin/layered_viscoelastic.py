@@ -16,7 +16,10 @@ What is supported (docs/theory.md section 7, "Viscoelastic layers"):
   with one shape, ``E_j(t) = c_j E_1(t)``: the stress is the elastic stress of the layers at each
   instant, the strain the instantaneous elastic strain convolved with ``E_1(0) J_1(t)``
   (the correspondence principle). Layers that relax differently have no such separation; a time
-  history on them is refused (use the harmonic steady states).
+  history on them is refused (use the harmonic steady states);
+- **a traction applied at t = 0 and held**: :meth:`~ViscoelasticLayeredHalfSpace.at` gives the
+  elastic layers of its stress and strain, the glassy and the relaxed layers at 0 and inf for any
+  layers, and in between for one relaxation shape.
 """
 
 from __future__ import annotations
