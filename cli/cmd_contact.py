@@ -102,13 +102,13 @@ def run(args: argparse.Namespace) -> int:
     from tactilab.forward.contact_files import write_contact
 
     depths = opts["depths"]
-    created = args.out is None or not args.out.exists()
-    out = report.watch(choose_out(args.out, Path(f"{problem.label}-contact"), args.force))
     skin = HalfSpace(E=settings["young_modulus"], nu=settings["nu"]) if material is None else skin_from_material(material)
     held_note = None
-    if material is not None and (material.has_viscoelastic_layers or held == math.inf):
+    if material is not None and (material.has_viscoelastic_layers or held == math.inf):  # refusals before any folder
         skin, settings, held_note = _held_elastic(args, report, skin, settings, held)
-    elif material is not None and material.is_viscoelastic:
+    created = args.out is None or not args.out.exists()
+    out = report.watch(choose_out(args.out, Path(f"{problem.label}-contact"), args.force))
+    if material is not None and material.is_viscoelastic and held != math.inf:
         return _viscoelastic(args, report, problem, settings, skin, held, depths, out, material, created)
     shape = " x ".join(str(n) for n in problem.gap.shape[::-1])
     if not (args.quiet or args.json):
