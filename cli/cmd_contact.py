@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
 
 from .common import RunReport, add_report_options, choose_out, staged_outputs
-from .material_option import add_material_option, describe_material, read_material_option, refuse_viscoelastic_layers
+from .material_option import RELAXED, add_material_option, describe_material, read_material_option, read_time_option
 
 NAME = "contact"
 HELP = ("solve the frictional contact of the skin with a rigid surface (height map, scene or built-in): "
@@ -50,7 +51,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_material_option(sk)
     sk.add_argument("--time", default=None,
                     help="with a viscoelastic --material: how long the load is held, with unit, e.g. 200ms (default "
-                         "0: the instantaneous contact); solved in time steps, frictionless")
+                         "0: the instantaneous contact), or 'relaxed' (the relaxed elastic contact, frictionless); a "
+                         "viscoelastic half-space is solved in time steps, frictionless; viscoelastic layers at 0 "
+                         "(their glassy elastic layers, any friction condition) or relaxed only")
     sk.add_argument("--finger-radius", help="press a surface with a finger of this radius, e.g. 10mm "
                                             "(isolated contact); without it a surface is a periodic cell")
     sk.add_argument("--periodic", action="store_true", help="the grid is one period of an endless surface")
@@ -83,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
 
     report = RunReport("contact")
     material = read_material_option(args)
-    held_s = _time_option(args)  # its unit is checked with the other options, before the problem is built
+    held_s = read_time_option(args.time)  # its unit is checked with the other options, before the problem is built
     opts = parse_options(args)
     if material is not None:  # its modulus sizes the default grid (the relaxed one: the largest contact)
         opts["young_modulus"], args.nu = material.young_modulus_pa, material.poisson_ratio
@@ -93,16 +96,19 @@ def run(args: argparse.Namespace) -> int:
         if args.young_modulus is not None or args.nu is not None:
             raise ValueError("--young-modulus, --nu: the scene's material is viscoelastic or layered, which they "
                              "cannot describe; drop them, or give an elastic --material")
-        material = refuse_viscoelastic_layers(problem.scene.material, "the scene's [material]")  # as --material
-    held = _held_time(held_s, material, args.time)
+        material = problem.scene.material  # as --material
+    held = _held_time(held_s, material)
     from tactilab.forward import HalfSpace, skin_from_material, solve_contact
     from tactilab.forward.contact_files import write_contact
 
     depths = opts["depths"]
+    skin = HalfSpace(E=settings["young_modulus"], nu=settings["nu"]) if material is None else skin_from_material(material)
+    held_note = None
+    if material is not None and (material.has_viscoelastic_layers or held == math.inf):  # refusals before any folder
+        skin, settings, held_note = _held_elastic(args, report, skin, settings, held)
     created = args.out is None or not args.out.exists()
     out = report.watch(choose_out(args.out, Path(f"{problem.label}-contact"), args.force))
-    skin = HalfSpace(E=settings["young_modulus"], nu=settings["nu"]) if material is None else skin_from_material(material)
-    if material is not None and material.is_viscoelastic:
+    if material is not None and material.is_viscoelastic and held != math.inf:
         return _viscoelastic(args, report, problem, settings, skin, held, depths, out, material, created)
     shape = " x ".join(str(n) for n in problem.gap.shape[::-1])
     if not (args.quiet or args.json):
@@ -122,30 +128,54 @@ def run(args: argparse.Namespace) -> int:
         write_contact(sol, stage, skin=skin, depths=depths, friction=settings["friction"], title=problem.label)
     _summarise(report, sol, problem, settings, elapsed, depths)
     if material is not None:
-        report.computed.append(describe_material(material))
+        report.computed.append(describe_material(material) + (held_note or ""))
     report.data["time_s"] = float(np.round(elapsed, 6))
     report.emit(args.json)
     return 0
 
 
-def _time_option(args: argparse.Namespace) -> float | None:
-    """``--time`` in s (None when not given); a bare number or a wrong unit is refused here."""
-    if args.time is None:
-        return None
-    from tactilab.data_schemas.units import to_si
-
-    return to_si(args.time, "time", name="--time")
-
-
-def _held_time(held: float | None, material, given: str | None) -> float | None:
-    """``--time`` in s (>= 0), only with a viscoelastic material."""
+def _held_time(held: float | None, material) -> float | None:
+    """``--time`` in s (>= 0, inf for relaxed), only with a viscoelastic material or viscoelastic layers."""
     if held is None:
         return None
-    if material is None or not material.is_viscoelastic:
-        raise ValueError("--time: only a viscoelastic --material (model prony or sls) depends on time; drop --time")
-    if not held >= 0:
-        raise ValueError(f"--time: must be >= 0 (0 is the instant the load is applied), got {given!r}; e.g. 200ms")
+    if material is None or not (material.is_viscoelastic or material.has_viscoelastic_layers):
+        raise ValueError("--time: only a viscoelastic --material (model prony or sls, or layers with Prony terms) "
+                         "depends on time; drop --time")
     return held
+
+
+def _held_elastic(args, report, skin, settings, held):
+    """The elastic skin of an exact limit of a held load: the glassy layers at t = 0+ (any friction
+    condition: the skin answers elastically with E(0)), or the relaxed skin, the limit of the
+    frictionless time-stepped contact under a load held for ever. Returns the skin, the settings
+    and the note for the report."""
+    held = held or 0.0
+    if held == 0.0:
+        report.data["held_state"] = "instantaneous"
+        return skin.instantaneous, _top(settings, skin.instantaneous), (
+            "; the load applied at t = 0: the instantaneous contact, on the glassy elastic layers (every E(0))")
+    if held != math.inf:
+        raise ValueError(f"--time: the contact of viscoelastic layers is computed at its two exact limits, 0ms (the "
+                         f"instantaneous contact, on the glassy layers) and {RELAXED} (the load held until the layers "
+                         f"have relaxed), got {args.time!r}; give --time 0ms or --time {RELAXED} (a time-stepped "
+                         "contact is for a viscoelastic half-space, model prony or sls)")
+    if settings["condition"] != "frictionless" and (args.condition is not None or args.friction is not None):
+        raise ValueError(f"--time {RELAXED}: the relaxed contact is the limit of the frictionless time-stepped "
+                         f"contact (with friction the stick zone depends on how the skin relaxed), got "
+                         f"{'--condition ' + args.condition if args.condition else '--friction ' + str(args.friction)}; "
+                         "drop --condition and --friction")
+    if settings["condition"] != "frictionless":
+        report.dropped.append(f"friction (mu = {settings['friction']:g}, the scene's): the relaxed contact is "
+                              "solved frictionless")
+    settings = {**settings, "condition": "frictionless", "friction": 0.0}
+    report.data["held_state"] = RELAXED
+    return skin.relaxed, _top(settings, skin.relaxed), ("; the load held until the skin has relaxed: the relaxed "
+                                                        "elastic contact (every E_inf), frictionless")
+
+
+def _top(settings: dict, skin) -> dict:
+    """The settings with the modulus (Pa) of the elastic skin solved (its top layer's when layered)."""
+    return {**settings, "young_modulus": skin.layers[0].E if hasattr(skin, "layers") else skin.E}
 
 
 def _viscoelastic(args, report, problem, settings, skin, held, depths, out, material, created) -> int:

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from .common import RunReport, add_report_options, choose_out, staged_outputs
-from .material_option import add_material_option, describe_material, read_material_option
+from .material_option import RELAXED, add_material_option, describe_material, read_material_option, read_time_option
 
 NAME = "stress"
 HELP = ("strain (default; dimensionless, tensor shear) or stress (Pa) at given depths (mm) under a load file "
@@ -32,7 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_material_option(parser)
     parser.add_argument("--time", default=None,
                         help="with a viscoelastic --material: how long the load has been held, with unit, e.g. 70ms "
-                             "(default 0: the instantaneous response); the strain creeps, the stress does not")
+                             "(default 0: the instantaneous response), or 'relaxed'; the strain creeps, the stress "
+                             "does not; viscoelastic layers at a time between 0 and relaxed need one relaxation shape")
     parser.add_argument("--out", type=Path, default=None,
                         help="output folder for field.nc (SI) and field.png (mm, kPa or strain); default: a new "
                              "folder <load stem>-stress (then -2, -3, ...); an existing non-empty one needs --force")
@@ -79,28 +81,45 @@ def _skin(args: argparse.Namespace, material):
     """The elastic skin the field is computed on, and its line for the report.
 
     A viscoelastic material under tractions held for ``--time`` t has the elastic stress and the
-    strain of the elastic skin of modulus 1 / J(t) (the correspondence principle at constant nu)."""
+    strain of the elastic skin of modulus 1 / J(t) (the correspondence principle at constant nu);
+    viscoelastic layers have those of ``ViscoelasticLayeredHalfSpace.at(t)``."""
     from tactilab.core import rules
     from tactilab.data_schemas.units import to_si
     from tactilab.forward import HalfSpace, skin_from_material
 
-    time = None
-    if args.time is not None:
-        time = to_si(args.time, "time", name="--time")
-        if not time >= 0:
-            raise ValueError(f"--time: must be >= 0 (0 is the instant the load is applied), got {args.time!r}; e.g. 70ms")
-    if material is None or not material.is_viscoelastic:
+    time = read_time_option(args.time)
+    if material is None or not (material.is_viscoelastic or material.has_viscoelastic_layers):
         if time is not None:
-            raise ValueError("--time: only a viscoelastic --material (model prony or sls) depends on time; drop --time")
+            raise ValueError("--time: only a viscoelastic --material (model prony or sls, or layers with Prony terms) "
+                             "depends on time; drop --time")
     if material is None:
         young = to_si(args.young_modulus or "1MPa", "pressure", name="--young-modulus")
         nu = 0.5 if args.nu is None else rules.poisson_ratio(args.nu, "--nu")
         return HalfSpace(E=young, nu=nu), f"E = {young * 1e-3:g} kPa, nu = {nu:g}"
     skin = skin_from_material(material)
     text = describe_material(material)
+    held = time or 0.0
+    when = "until the skin has relaxed" if held == math.inf else f"for {held * 1e3:g} ms"
     if material.is_viscoelastic:
-        held = time or 0.0
         skin = skin.at(held)
-        text += (f"; tractions held for {held * 1e3:g} ms: the strain of the elastic skin of modulus 1/J(t) = "
+        text += (f"; tractions held {when}: the strain of the elastic skin of modulus 1/J(t) = "
                  f"{skin.E * 1e-3:g} kPa (the stress does not depend on the modulus)")
+    elif material.has_viscoelastic_layers:
+        skin = _held_layers(skin, held)
+        moduli = ", ".join(f"{layer.E * 1e-3:.4g}" for layer in skin.layers)
+        text += f"; tractions applied at t = 0 and held {when}: the elastic layers of moduli {moduli} kPa"
     return skin, text
+
+
+def _held_layers(skin, held: float):
+    """``skin.at(held)``: exact for any layers at 0 and relaxed; in between the layers must relax with one shape."""
+    if 0.0 < held < math.inf:
+        try:
+            skin.relaxation_shape()
+        except ValueError as exc:
+            where = str(exc).partition(":")[0]
+            raise ValueError(f"--time: a held load on viscoelastic layers at a time between 0 and {RELAXED} needs "
+                             f"every material to relax with one shape (the same relaxation times and E_i / E_inf, on "
+                             f"a rigid base), but {where} of the material differs; give --time 0ms (the glassy layers) "
+                             f"or --time {RELAXED} (the relaxed layers), or proportional Prony series") from None
+    return skin.at(held)

@@ -96,6 +96,7 @@ class _Options:
             to_si(args.young_modulus, "pressure", name="--young-modulus"), "--young-modulus")
         self.material = read_material_option(args, replaces=("young_modulus",))
         self.skin = None  # the closed-form half-space; a layered material designs on its layers
+        self.layers_note = None  # how viscoelastic layers entered the design
         if self.material is not None and self.material.is_layered:
             from tactilab.forward import skin_from_material
 
@@ -104,6 +105,8 @@ class _Options:
                                  "(the grating's strain on layers has no closed form); drop --amplitude and "
                                  "--traction-limit")
             self.skin = skin_from_material(self.material)
+            if self.material.has_viscoelastic_layers:
+                self.skin, self.layers_note = _relaxed_layers(self.skin)
         elif self.material is not None:
             if self.material.poisson_ratio != 0.5:
                 raise ValueError(f"--material: the synthesis design assumes nu = 1/2 (plane strain, incompressible), "
@@ -112,6 +115,10 @@ class _Options:
         self.drive = None if args.drive_frequency is None else to_si(args.drive_frequency, "frequency",
                                                                       name="--drive-frequency")
         if self.drive is not None:
+            if self.material is not None and self.material.has_viscoelastic_layers:
+                raise ValueError("--drive-frequency: viscoelastic layers get their optimal spacing here, designed on "
+                                 "their relaxed moduli (a slow drive), and no matching traction; drop "
+                                 "--drive-frequency")
             if self.material is None or not self.material.is_viscoelastic:
                 raise ValueError("--drive-frequency: only a viscoelastic --material (model prony or sls) depends on "
                                  "the drive frequency; drop --drive-frequency")
@@ -135,6 +142,22 @@ class _Options:
                              for w in _lengths(args.sensitivity_widths, "--sensitivity-widths")])
         self.pairs_list = (list(PAIRS_SENSITIVITY) if args.sensitivity_pairs is None
                            else _integers(args.sensitivity_pairs, "--sensitivity-pairs"))
+
+
+def _relaxed_layers(skin):
+    """The elastic layers a viscoelastic layered skin is designed on, and the sentence that says why.
+
+    The design is a quasi-static one on the relaxed layers (every E_inf). When every material relaxes
+    with one shape (E_j(t) = c_j E(t)) the moduli keep their ratios at every time and frequency, so
+    the strain's shape, and the optimum, are the same at any drive rate; otherwise the optimum
+    moves with the rate, and the relaxed one is the slow-drive limit."""
+    try:
+        skin.relaxation_shape()
+        rate = "every layer relaxes with one shape, so the optimum holds at any drive rate"
+    except ValueError:
+        rate = ("the layers relax differently, so this is the slow-drive limit (a fast drive sees the glassy layers, "
+                "whose optimum differs)")
+    return skin.relaxed, f"viscoelastic layers designed on their relaxed moduli (a quasi-static drive): {rate}"
 
 
 HEADER = (f"{'depth_mm':>8} {'width_mm':>8} {'pairs':>5} {'d_mm':>8} {'d/Z':>6} {'k2_1/mm':>8} "
@@ -187,6 +210,8 @@ def run(args: argparse.Namespace) -> int:
                      f"and the strain lags the traction by {lag:.3g} deg (docs/theory.md section 7)")
         if opts.skin is not None:
             skin += "; the tractors' strain shapes are the layered skin's (docs/layered_skin.md), slower to design"
+            if opts.layers_note:
+                skin += "; " + opts.layers_note
         say(f"skin from --material: {skin}")
         report.computed.append(f"skin from --material: {skin}")
     say("objective J(d) over x in [-w/2, w/2]; optimum = lowest non-trivial local minimum, d in "

@@ -37,25 +37,40 @@ def read_material_option(args: argparse.Namespace, replaces: tuple[str, ...] = (
                          f"{' and '.join(given)}, or drop --material")
     from tactilab.data_schemas import read_material
 
-    return refuse_viscoelastic_layers(read_material(args.material), "--material")
+    return read_material(args.material)
 
 
-def refuse_viscoelastic_layers(material, where: str):
-    """The material, unless a layer is viscoelastic: the commands compute elastic layers or a viscoelastic
-    half-space; viscoelastic layers live in Python (``ViscoelasticLayeredHalfSpace``)."""
-    if material is not None and material.has_viscoelastic_layers:
-        raise ValueError(f"{where}: a layer has Prony terms (a viscoelastic layer), which the command line does not "
-                         "compute; use tactilab.forward.ViscoelasticLayeredHalfSpace in Python (docs/viscoelastic.md), "
-                         "or drop the layers' terms (their relaxed moduli) for an elastic layered skin")
-    return material
+#: the ``--time`` keyword for the relaxed state (a load held for ever)
+RELAXED = "relaxed"
+
+
+def read_time_option(text: str | None, name: str = "--time") -> float | None:
+    """``--time`` in s: a time with a unit (``70ms``, >= 0) or ``relaxed`` (``inf``); None when not given.
+
+    Raises
+    ------
+    ValueError
+        For a bare number, a wrong unit, a negative or non-finite time.
+    """
+    if text is None:
+        return None
+    if str(text).strip().lower() == RELAXED:
+        return float("inf")
+    from tactilab.data_schemas.units import to_si
+
+    value = to_si(text, "time", name=name)
+    if not value >= 0:
+        raise ValueError(f"{name}: must be >= 0 (0 is the instant the load is applied), got {text!r}; e.g. 70ms, "
+                         f"or {RELAXED} for a load held until the skin has relaxed")
+    return value
 
 
 def describe_material(material) -> str:
     """One line for the run report: the model and its constants, in kPa and ms."""
     nu = f"nu = {material.poisson_ratio:g}"
     if material.layers:
-        stack = ", ".join(f"{layer.thickness_m * 1e3:g} mm of E = {layer.young_modulus_pa / 1e3:g} kPa"
-                          for layer in material.layers)
+        stack = ", ".join(f"{layer.thickness_m * 1e3:g} mm of {'relaxed ' if layer.terms else ''}E = "
+                          f"{layer.young_modulus_pa / 1e3:g} kPa" + _terms(layer.terms) for layer in material.layers)
         base = material.base
         on = "a rigid base" if base is None or base == "rigid" else \
             f"a half-space of E = {base.young_modulus_pa / 1e3:g} kPa, nu = {base.poisson_ratio:g}"
@@ -64,3 +79,10 @@ def describe_material(material) -> str:
         return f"E = {material.young_modulus_pa / 1e3:g} kPa, {nu}"
     terms = ", ".join(f"{e / 1e3:g} kPa at {t * 1e3:g} ms" for e, t in material.prony_terms)
     return f"viscoelastic skin ({material.model}): relaxed E = {material.young_modulus_pa / 1e3:g} kPa, terms {terms}; {nu}"
+
+
+def _terms(terms) -> str:
+    """A viscoelastic layer's Prony terms for the report, in kPa and ms ('' for an elastic layer)."""
+    if not terms:
+        return ""
+    return " (terms " + ", ".join(f"{t.modulus_pa / 1e3:g} kPa at {t.relaxation_time_s * 1e3:g} ms" for t in terms) + ")"

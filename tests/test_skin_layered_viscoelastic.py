@@ -173,6 +173,34 @@ def test_layers_of_one_relaxation_shape_obey_the_correspondence_principle(rng):
     assert np.abs(skin.strain(load, 2e-3, [0.0, 1e4]).values[-1] - relaxed).max() <= 1e-10 * np.abs(relaxed).max()
 
 
+def test_a_held_load_is_the_elastic_layers_of_at(rng):
+    """at(t): the elastic layers of a traction held from 0 to t. One shape: the recursive creep convolution of
+    strain() (an independent route) and the unchanged stress, and a deep stack's modulus is the half-space's
+    1 / J(t); any layers: 0 and inf are the glassy and the relaxed layers, and a time between is refused."""
+    skin = ViscoelasticLayeredHalfSpace([Layer(1e-3, Prony(3e5, [(6e5, 0.01), (3e5, 0.3)]), 0.5),
+                                         Layer(3e-3, Prony(1e5, [(2e5, 0.01), (1e5, 0.3)]), 0.45)])
+    load = SurfaceLoad(p=1e3 * rng.standard_normal((16, 16)), qy=1e2 * rng.standard_normal((16, 16)), spacing=2e-4,
+                       periodic=True)
+    for t in (0.0, 0.004, 0.07, 2.0):
+        held = skin.at(t)
+        for quantity in ("stress", "strain"):
+            api = getattr(skin, quantity)(load, [5e-4, 2e-3], [0.0] if t == 0 else [0.0, t]).values[-1]
+            mine = getattr(held, quantity)(load, [5e-4, 2e-3]).data[quantity].values
+            assert np.abs(mine - api).max() <= 1e-12 * np.abs(api).max()
+    assert skin.at(0.0) is skin.instantaneous and skin.at(math.inf) is skin.relaxed
+    deep = ViscoelasticLayeredHalfSpace([Layer(0.05, DERMIS, 0.5)], base=ViscoelasticHalfSpace(DERMIS, 0.5))
+    for t in (0.003, 0.05):
+        assert deep.at(t).layers[0].E == pytest.approx(ViscoelasticHalfSpace(DERMIS, 0.5).at(t).E, rel=1e-14)
+        assert deep.at(t).base.E == pytest.approx(deep.at(t).layers[0].E, rel=1e-14)
+    differ = _two_layers()
+    assert differ.at(math.inf) is differ.relaxed and differ.at(0.0) is differ.instantaneous
+    with pytest.raises(ValueError, match=r"layers\[1\]: a time history under prescribed tractions needs every "
+                                         r"material to relax with one shape"):
+        differ.at(0.01)
+    with pytest.raises(ValueError, match=r"time: times must be >= 0 s"):
+        skin.at(-1.0)
+
+
 def test_elastic_layers_are_their_layered_skin_at_every_time_and_speed(rng):
     skin = ViscoelasticLayeredHalfSpace([Layer(1e-3, 2e5, 0.5), Layer(2e-3, 1e5, 0.5)])
     height = 1e-6 * rng.standard_normal(32)
@@ -251,11 +279,12 @@ def test_bad_inputs_are_refused_with_the_rule(tmp_path, capsys):
         SkinMaterial(layers=[dict(thickness_m=1e-3, young_modulus_pa=1e5,
                                   terms=[dict(modulus_pa=1e5, relaxation_time_s=-1.0)])])
     path = tmp_path / "skin.toml"
-    path.write_text('[material]\nlayers = [{thickness = "1mm", young_modulus = "0.4MPa", terms = [["0.8MPa", "10ms"]]}]\n',
-                    encoding="utf-8")
-    assert main(["stress", "examples/fingertip_load.toml", "--depth", "1mm", "--material", str(path)]) == 2
-    assert "a layer has Prony terms (a viscoelastic layer), which the command line does not compute" in \
-        capsys.readouterr().err
+    path.write_text('[material]\nlayers = [{thickness = "1mm", young_modulus = "0.4MPa", terms = [["0.8MPa", "10ms"]]},'
+                    '\n  {thickness = "1mm", young_modulus = "0.2MPa"}]\n', encoding="utf-8")
+    assert main(["stress", "examples/fingertip_load.toml", "--depth", "1mm", "--material", str(path), "--time", "5ms",
+                 "--out", str(tmp_path / "out")]) == 2
+    assert "--time: a held load on viscoelastic layers at a time between 0 and relaxed needs every material to " \
+        "relax with one shape" in capsys.readouterr().err
 
 
 def test_a_depth_meant_in_mm_warns_at_the_users_line():
@@ -342,7 +371,11 @@ def test_the_example_file_is_the_speed_benchmarks_fingertip():
     assert skin.base == "rigid"
 
 
-def test_contact_refuses_a_scenes_viscoelastic_layers(tmp_path, capsys):
+def test_contact_solves_a_scenes_viscoelastic_layers_at_their_limits(tmp_path, capsys):
+    """A scene's [material] with layer terms, as --material: the instantaneous contact (the scene's friction
+    kept), the relaxed one (frictionless), and a time in between refused."""
+    import json
+
     from tactilab.data_schemas import example_path
 
     text = example_path("fingertip_defect").read_text()
@@ -350,6 +383,14 @@ def test_contact_refuses_a_scenes_viscoelastic_layers(tmp_path, capsys):
     scene.write_text(text.replace('young_modulus = "1MPa"\npoisson_ratio = 0.5',
                                   'layers = [{thickness = "2mm", young_modulus = "1MPa", terms = [["1MPa", "50ms"]]}]'),
                      encoding="utf-8")
-    assert main(["contact", str(scene), "--grid", "32", "--quiet", "--out", str(tmp_path / "a")]) == 2
+    argv = ["contact", str(scene), "--grid", "32", "--quiet", "--json"]
+    assert main([*argv, "--out", str(tmp_path / "a")]) == 0
+    now = json.loads(capsys.readouterr().out)
+    assert now["held_state"] == "instantaneous" and now["condition"] == "sliding"
+    assert main([*argv, "--time", "relaxed", "--out", str(tmp_path / "b")]) == 0
+    relaxed = json.loads(capsys.readouterr().out)
+    assert relaxed["condition"] == "frictionless" and any("solved frictionless" in d for d in relaxed["dropped"])
+    assert now["contact_area_mm2"] < relaxed["contact_area_mm2"]
+    assert main([*argv, "--time", "10ms", "--out", str(tmp_path / "c")]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "the scene's [material]: a layer has Prony terms" in err
+    assert err.count("\n") == 1 and "--time: the contact of viscoelastic layers is computed at its two exact" in err

@@ -16,7 +16,10 @@ What is supported (docs/theory.md section 7, "Viscoelastic layers"):
   with one shape, ``E_j(t) = c_j E_1(t)``: the stress is the elastic stress of the layers at each
   instant, the strain the instantaneous elastic strain convolved with ``E_1(0) J_1(t)``
   (the correspondence principle). Layers that relax differently have no such separation; a time
-  history on them is refused (use the harmonic steady states).
+  history on them is refused (use the harmonic steady states);
+- **a traction applied at t = 0 and held**: :meth:`~ViscoelasticLayeredHalfSpace.at` gives the
+  elastic layers of its stress and strain, the glassy and the relaxed layers at 0 and inf for any
+  layers, and in between for one relaxation shape.
 """
 
 from __future__ import annotations
@@ -269,6 +272,35 @@ class ViscoelasticLayeredHalfSpace:
                                  "or use the harmonic steady states (steady_sliding, moving_load, transfer), which "
                                  "take any layers")
         return first
+
+    def at(self, time: float) -> LayeredHalfSpace:
+        """The elastic layers that give the stress and strain of a traction applied at t = 0 and held until
+        ``time`` (s).
+
+        ``0`` is :attr:`instantaneous` and ``inf`` :attr:`relaxed`, for any layers (the response at
+        t = 0+ is glassy, and a held load relaxes to the relaxed elastic state). In between the
+        materials must relax with one shape ``E_j(t) = c_j E(t)`` (:meth:`relaxation_shape`): then
+        the layers of moduli ``E_j(0) / (E(0) J(time))`` (J the shape's creep compliance) have the
+        held load's strain, and the stress, which depends on the ratios ``c_j`` only, is unchanged.
+
+        Raises
+        ------
+        ValueError
+            For a negative or NaN ``time``, or a finite ``time > 0`` on materials that relax differently.
+        """
+        t = float(Prony._times(time, "time"))
+        if t == 0.0:
+            return self.instantaneous
+        if t == np.inf:
+            return self.relaxed
+        shape = self.relaxation_shape()
+        if shape is None:  # every material elastic
+            return self.instantaneous
+        scale = 1.0 / (shape.E_0 * float(shape.creep_compliance(t)))  # E(t)-like: 1 at t = 0, E_inf / E_0 at inf
+        glassy = self.instantaneous
+        layers = [Layer(layer.thickness, layer.E * scale, layer.nu) for layer in glassy.layers]
+        base = glassy.base if isinstance(glassy.base, str) else HalfSpace(glassy.base.E * scale, glassy.base.nu)
+        return LayeredHalfSpace(layers, base=base)
 
     def stress(self, load, depth, times, history=None, points=None, components=None):
         """Stress (Pa) at depth under prescribed tractions: the elastic stress of the layers at each time.
