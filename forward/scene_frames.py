@@ -23,6 +23,7 @@ The cheap models' tractions (SI, on the skin; ``D`` is the scenes' friction dire
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -98,6 +99,12 @@ class SceneFrames:
         ratios = s.slip_ratios
         if s.speed_m_per_s == 0 and c.adhesion > 0:  # a static press: adhesion is Q / (mu F)
             ratios = np.full(u.size, float(c.adhesion))
+        elif c.adhesion > 0 and c.friction_coefficient > 0:  # said, never dropped silently
+            warnings.warn(f"contact.adhesion: {c.adhesion:g} is not used by the solved contact (models exact and "
+                          f"linear) of a finger sliding at {s.speed_m_per_s * 1e3:g} mm/s, which is in full sliding; "
+                          "adhesion is Q / (mu F) of a static press (speed 0), and [scan] onset ramps a scan's "
+                          "tangential load in partial slip (the modulation model keeps its blend)",
+                          UserWarning, stacklevel=2)
         if c.periodic:
             return cls._cell(scene, skin, e_star, u, ratios, grid_spacing)
         finger = scene_finger(scene, grid_spacing)

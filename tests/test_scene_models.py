@@ -134,6 +134,13 @@ def test_a_finger_that_does_not_move_is_a_static_press():
     assert np.allclose(values, want[None], rtol=0, atol=1e-7 * np.abs(want).max())
 
 
+def test_adhesion_of_a_sliding_finger_is_said_to_be_unused_by_the_solved_contact():
+    bump = IsolatedDefect(shape="bump", size_m=0.4e-3, height_m=2e-6)
+    with pytest.warns(UserWarning, match=r"contact.adhesion: 0.4 is not used by the solved contact .* sliding at "
+                                         r"10 mm/s, which is in full sliding"):
+        SceneFrames.from_scene(_finger(bump, model="exact", adhesion=0.4))
+
+
 def test_the_onset_starts_without_tangential_load():
     bump = IsolatedDefect(shape="bump", size_m=0.4e-3, height_m=2e-6)
     base = _finger(bump, model="exact")
