@@ -66,3 +66,15 @@ def test_the_stress_command_warns_and_strict_makes_it_an_error(tmp_path, capsys)
     assert "warning: HalfSpace.strain: the largest strain is 20" in err and "small-strain limit 0.1" in err
     assert main(["--strict", *argv, "--out", str(tmp_path / "b")]) == 2
     assert "error: HalfSpace.strain: the largest strain is 20" in capsys.readouterr().err
+
+
+def test_largest_strain_flags_nan_in_any_component():
+    """The check reads max and min per component: a NaN anywhere must come out as NaN (flagged)."""
+    import math
+
+    comps = ("xx", "yy", "zz", "yz", "zx", "xy")
+    for quantity in ("stress", "strain"):
+        for k in range(6):
+            values = np.zeros((1, 6, 4, 4))
+            values[0, k, 1, 2] = np.nan
+            assert math.isnan(largest_strain(values, quantity, comps, 1e6, 0.45)), (quantity, k)

@@ -9,6 +9,7 @@ eps = ((1 + nu) sigma - nu tr(sigma) I) / E, so nu = 0.5 is exact (no 1 / (1 - 2
 from __future__ import annotations
 
 import collections
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -215,13 +216,28 @@ def largest_strain(values: np.ndarray, quantity: str, components: Sequence[str],
     young_modulus, nu = check.young_modulus(young_modulus), check.poisson_ratio(nu)
     if values.size == 0:
         return 0.0
+    # every facade call runs this check: max and min per component, no field-sized temporaries but
+    # one work array for the normal strains (fancy indexing and abs copies made it cost as much as
+    # the whole spectral solve at 256^2)
     if quantity == "strain":
-        return float(np.abs(values).max())
+        return _peak(values)
     index = {c: i for i, c in enumerate(components)}
-    shear = [index[c] for c in ("yz", "zx", "xy") if c in index]
-    largest = (1.0 + nu) / young_modulus * float(np.abs(values[:, shear]).max()) if shear else 0.0
+    peaks = [(1.0 + nu) / young_modulus * _peak(values[:, index[c]]) for c in ("yz", "zx", "xy") if c in index]
     if all(c in index for c in ("xx", "yy", "zz")):
-        normal = values[:, [index["xx"], index["yy"], index["zz"]]]
-        trace = normal.sum(axis=1, keepdims=True)
-        largest = max(largest, float(np.abs((1.0 + nu) * normal - nu * trace).max()) / young_modulus)
-    return largest
+        sxx, syy, szz = (values[:, index[c]] for c in ("xx", "yy", "zz"))
+        trace = sxx + syy
+        trace += szz
+        trace *= nu
+        work = np.empty_like(trace)
+        for normal in (sxx, syy, szz):  # eps_ii E = (1 + nu) sigma_ii - nu trace
+            np.multiply(normal, 1.0 + nu, out=work)
+            work -= trace
+            peaks.append(_peak(work) / young_modulus)
+    # Python's max() drops a NaN after the first element: NaN is the answer, so that the check flags it
+    return float("nan") if any(math.isnan(v) for v in peaks) else max(peaks, default=0.0)
+
+
+def _peak(a: np.ndarray) -> float:
+    """``max |a|`` without a temporary (NaN if ``a`` holds one)."""
+    high, low = float(a.max()), float(a.min())
+    return float("nan") if math.isnan(high) or math.isnan(low) else max(high, -low)
