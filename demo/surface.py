@@ -88,7 +88,8 @@ def run_demo(report_dir: pathlib.Path, progress: bool = True) -> Iterator[str]:
            f"rms {np.std(truth) * 1e6:.2f} um, noise {NOISE:g} Pa, the exact model")
     yield (f"touched fraction {post.touched_fraction:.2f}; relief error (rms over touched nodes) "
            f"{error * 1e6:.3f} um against a relief of {relief * 1e6:.2f} um rms (posterior relief sd, median "
-           f"{np.median(sd[t]) * 1e6:.3f} um); resolved wavelengths >= {post.resolvable_band['wavelength_min'] * 1e3:.2f} mm")
+           f"{np.median(sd[t]) * 1e6:.3f} um); resolved wavelengths >= "
+           f"{post.resolvable_band['wavelength_min'] * 1e3:.2f} mm")
     force = post.context["normal_force"]
     yield (f"context posterior: normal_force = {force['mean']:.5f} +- {force['sd']:.1g} N (90 % "
            f"[{force['q05']:.5f}, {force['q95']:.5f}], truth {FORCE:g} N, prior sd 20 %)")
