@@ -1,6 +1,6 @@
 """``geometry="patch"`` on a real scene: h(x, y) under a sensor array, from noise-free data of the scene engine.
 
-A fingertip (R = 10 mm, 2 mN, E = 1 MPa) slides over a random 2-D surface (rms 0.2 um) given as a
+A fingertip (R = 10 mm, 2 mN, E = 1 MPa) slides over a random 2-D surface (rms 0.3 um) given as a
 ``height_map`` on the patch's own nodes (the engine reads it bilinearly, as the inversion does), three
 frames; an 8 x 8 array of stress sensors 30 um deep records sigma_zz and sigma_zx. Oracles: the scene
 engine's recording (``scene_signals``, exact model) and Hertz's contact radius for which nodes the
