@@ -5,9 +5,11 @@ Each module is one section of the report, in pipeline order (:data:`SECTIONS`); 
 to print.
 """
 
-from . import analysis, contact, display, experiments, forward, inversion, metameres, records, scene_models, scenes
+from . import (analysis, contact, display, experiments, forward, inversion, metameres, records, scene_models, scenes,
+               surface)
 
 #: The report's sections in pipeline order.
-SECTIONS = (records, forward, contact, scenes, scene_models, display, inversion, metameres, experiments, analysis)
+SECTIONS = (records, forward, contact, scenes, scene_models, display, inversion, metameres, surface, experiments,
+            analysis)
 
 __all__ = ["SECTIONS"]

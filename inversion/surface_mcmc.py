@@ -97,8 +97,12 @@ class SurfaceSubspacePosterior:
 
 def sample_surface(scan, data, noise_std, lap, root, mean, transforms, fixed, *, rng, n_basis: int = 8,
                    max_steps: int = 4000, check_every: int = 250, n_walkers: int | None = None, min_ess: float = 400.0,
-                   tau_factor: float = 30.0, n_start: int = 16) -> dict:
-    """emcee on the reduced basis (module docstring); returns ``heights`` (N, n), ``context`` and a ``message``."""
+                   tau_factor: float = 30.0, n_start: int = 16, max_draws: int = 4000) -> dict:
+    """emcee on the reduced basis (module docstring); returns ``heights`` (N, n), ``context`` and a ``message``.
+
+    ``max_draws`` caps the draws kept (each costs one more likelihood evaluation, for the tree's
+    pointwise log-likelihood); the other options are :func:`~tactilab.inversion.sample_posterior`'s.
+    """
     n = scan.profile.size
     k_ctx = len(transforms)
     J = lap.jacobian
@@ -114,7 +118,8 @@ def sample_surface(scan, data, noise_std, lap, root, mean, transforms, fixed, *,
     scale = np.concatenate([1.0 / np.sqrt(1.0 + s[:keep] ** 2), np.ones(k_ctx)])
     model.scale = scale
     tree = sample_posterior(model, rng, n_walkers=n_walkers, max_steps=max_steps, check_every=check_every,
-                            min_ess=min_ess, tau_factor=tau_factor, n_start=n_start, info_tol=None)
+                            min_ess=min_ess, tau_factor=tau_factor, n_start=n_start, info_tol=None,
+                            max_draws=max_draws)
     post = tree["posterior"]
     theta = np.column_stack([np.asarray(post[q].values).reshape(-1) for q in model.param_names])
     a, zc = theta[:, :keep], theta[:, keep:]
