@@ -18,11 +18,9 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from tactilab.data_schemas import Contact, FlatSurface, HeightMap, Scan, Scene, SensorArray, SkinMaterial
-from tactilab.data_schemas.recording import Recording
-from tactilab.data_schemas.rough_surface import random_rough_surface
-from tactilab.forward import AccuracyWarning
-from tactilab.forward.scene_models import scene_signals
+from tactilab.data_schemas import (Contact, FlatSurface, HeightMap, Recording, Scan, Scene, SensorArray, SkinMaterial,
+                                   random_rough_surface)
+from tactilab.forward import AccuracyWarning, scene_signals
 from tactilab.inversion import LogNormal, StationaryPrior, invert_surface, scene_scan
 
 #: the contact grid's spacing and the profile's, m (reduced: the demo runs every section)
