@@ -59,6 +59,9 @@ def simulate_contact_model(scene, out: pathlib.Path, fmt: str, rng, progress: bo
     scene_attrs = recording_attrs(frames.finger) if not frames.periodic else dict(
         depth_m=float(scene.sensors.depth_m), young_modulus_pa=m.young_modulus_pa, poisson_ratio=m.poisson_ratio,
         mean_pressure_pa=frames.mean_pressure, friction=frames.friction, grid_spacing_m=float(frames.spacing[0]))
+    if frames.layered:  # the top layer's constants, as the scene states them, and the layers in words
+        scene_attrs.update(young_modulus_pa=m.young_modulus_pa, poisson_ratio=m.poisson_ratio,
+                           skin_layers=describe_layers(m))
     attrs = dict(scene_attrs, **model_attrs(info["model"], info["tol"], info["errors"], info["error_basis"],
                                             info["reason"]))
     path = write_recording(rec, out, fmt, positions_m=frames.positions, sensor_positions_m=scene.sensors.positions_m,

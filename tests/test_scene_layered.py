@@ -14,6 +14,7 @@ import pytest
 
 from tactilab.cli.main import main
 from tactilab.data_schemas import SensorArray, SkinMaterial
+from tactilab.data_schemas.recording_io import read_recording_metadata
 from tactilab.data_schemas.scene import Contact, Scan, Scene
 from tactilab.data_schemas.surface import SinusoidalGrating
 from tactilab.forward import HalfSpace, SurfaceLoad
@@ -113,7 +114,9 @@ def test_simulate_cli_takes_elastic_layers(tmp_path, capsys):
                  "--json", "--no-plots"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["interface_model"] == "exact"
-    assert any("layered skin" in line for line in summary["computed"])
+    assert any("layered skin (1 mm of E = 1000 kPa, nu = 0.5 on a rigid base)" in line for line in summary["computed"])
+    attrs = read_recording_metadata(tmp_path / "out" / "recording.nc")["attrs"]
+    assert attrs["skin_layers"] == "1 mm of E = 1000 kPa, nu = 0.5 on a rigid base" and attrs["young_modulus_pa"] == E
 
 
 @pytest.mark.parametrize("material, fields, match", [
