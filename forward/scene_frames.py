@@ -18,6 +18,9 @@ The cheap models' tractions (SI, on the skin; ``D`` is the scenes' friction dire
   ``E* |k| H~ / 2`` (ridges included) inside the finger's contact, clipped at 0; the tangential
   traction is the finger's, scaled by the same ratio (``D mu p`` while sliding);
 - ``"modulation"``: the finger's traction times ``max(0, 1 + h / h_ref)`` (docs/theory.md 4b).
+
+On a layered skin (:mod:`.scene_layered`) the smooth finger's traction is its contact solved on the
+layers, the texture's full-contact pressure is ``h~(k) / C_zz(k)``, and ``"modulation"`` is refused.
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ deep layer.
 """
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -17,7 +18,8 @@ from tactilab.data_schemas import SensorArray, SkinMaterial
 from tactilab.data_schemas.recording_io import read_recording_metadata
 from tactilab.data_schemas.scene import Contact, Scan, Scene
 from tactilab.data_schemas.surface import SinusoidalGrating
-from tactilab.forward import HalfSpace, SurfaceLoad
+from tactilab.forward import HalfSpace, SurfaceLoad, skin_from_material
+from tactilab.forward.halfspace import AccuracyWarning
 from tactilab.forward.scene_contact import solve_scan
 from tactilab.forward.scene_frames import SceneFrames
 from tactilab.forward.scene_models import run_model, scene_signals, signal_error
@@ -146,3 +148,49 @@ def test_readout_tol_is_checked():
     arr = SensorArray.grid(1, 1, 1e-4, 0.3e-3, components=("zz",))
     with pytest.raises(ValueError, match="tol"):
         SensorReadout(HalfSpace(E, NU), (8, 8), 1e-4, arr, tol=-1.0)
+
+
+@pytest.mark.parametrize("shape, periodic", [((16, 16), True), ((24,), False), ((12, 16), False)])
+def test_readout_on_a_layered_grid_equals_its_strain(shape, periodic):
+    """Any grid: a periodic one (layers on a half-space, exact), a plane-strain line and an isolated window
+    narrower than the sensors' reach (on bone, where the padded grids' truncation is exponentially small)."""
+    rng = np.random.default_rng(3)
+    base = dict(young_modulus_pa=E / 2, poisson_ratio=0.45) if periodic else None
+    skin = skin_from_material(_layers(0.6e-3, base=base))
+    h = 1e-4
+    positions = [[-0.55e-3, 0.07e-3], [0.13e-3, -0.2e-3], [0.9e-3, 0.0]] if len(shape) == 2 else \
+        [[-0.55e-3, 0.0], [0.13e-3, 0.0], [0.9e-3, 0.0]]
+    arr = SensorArray(positions_m=positions, depth_m=0.3e-3, quantity="strain", components=("zz", "zx", "xy"))
+    # smooth tractions (Gaussians of random centres and amplitudes, 2.5 nodes wide): on a grid, the field between
+    # the nodes depends on the padded period through the loads' interpolant, which for rough loads differs at 1e-5
+    axes = np.meshgrid(*[(np.arange(n) - n // 2) * h for n in shape], indexing="ij")
+    loads = np.array([rng.uniform(0.5e3, 2e3) * np.exp(-sum((x - c) ** 2 for x, c in zip(axes, rng.uniform(
+        -2.5 * h, 2.5 * h, len(shape)))) / (2.5 * h) ** 2) for _ in range(3)])
+    readout = SensorReadout(skin, shape, h, arr, periodic=periodic, loads=("p", "qx", "qy")[:len(shape) + 1],
+                            tol=1e-4)
+    got = readout.read(*[v[None] for v in loads[:len(shape) + 1]])[0][0]
+    load = SurfaceLoad(**dict(zip(("p", "qx", "qy"), loads[:len(shape) + 1])), spacing=h, periodic=periodic)
+    points = np.asarray(positions)[:, :len(shape)]
+    if not periodic:  # LayeredHalfSpace.strain reads an isolated load's field within its grid: widen it with zeros
+        pad = [(8, 8)] * len(shape)
+        load = SurfaceLoad(**{k: np.pad(v, pad) for k, v in load.components.items()}, spacing=h)
+    want = skin.strain(load, arr.depth_m, points=points, components=arr.components, tol=1e-4)
+    want = want.data["strain"]
+    want = want.values.reshape(len(arr.components), -1).T
+    assert _difference(got, want) <= 1e-6
+
+
+def test_readout_warns_when_its_padding_cannot_meet_tol():
+    skin = _layers(40e-3)
+    arr = SensorArray.grid(1, 1, 1e-4, 0.3e-3, components=("zz",))
+    with pytest.warns(AccuracyWarning, match=r"tol: the layered skin's readout on a grid padded 16x per axis keeps"):
+        SensorReadout(skin_from_material(skin), (8, 8), 1e-4, arr, loads=("p",), tol=1e-12)
+
+
+def test_the_smooth_finger_in_partial_slip_on_layers_carries_its_share_of_friction():
+    frames = SceneFrames.from_scene(_scene(_layers(1e-3), model="linear"), SPACING)
+    p, q = frames._finger_tractions(0.5, fingerprint=False)
+    cell = math.prod(frames.spacing)
+    assert p.sum() * cell == pytest.approx(0.2, rel=1e-8)
+    assert q.sum() * cell == pytest.approx(frames.direction * 0.5 * 0.5 * 0.2, rel=1e-6)
+    assert np.all(np.abs(q) <= 0.5 * p + 1e-9 * p.max())  # Coulomb
