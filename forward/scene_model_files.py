@@ -99,7 +99,7 @@ def simulate_contact_model(scene, out: pathlib.Path, fmt: str, rng, progress: bo
         files = [plot_time_series(rec, out / "time_series.png", positions=frames.positions)]
         if n >= 64:
             files.append(plot_spectrum(rec, out / "spectrum.png"))
-        if not frames.periodic and not frames.layered:  # the finger's maps and receptive fields, by the modulation model
+        if not frames.periodic and not frames.layered:  # the finger's maps and receptive fields (modulation model)
             files.extend(_finger_figures(scene, frames, out))
         if info["model"] == "exact":
             mid = n // 2

@@ -60,8 +60,8 @@ def test_sensors_read_the_layered_strain_of_the_solved_tractions():
     assert _difference(values, sol.outputs[0]) <= 1e-4  # the scene's contact tolerance 5e-6; measured 2.5e-5
     arr, readout = scene.sensors, frames.readout()
     assert readout.error_estimate <= readout.tol
-    finer = SensorReadout(frames.skin, frames.shape, frames.spacing, arr, window=readout.window, loads=("p", "qx", "qy"),
-                          tol=1e-5)  # padded further
+    finer = SensorReadout(frames.skin, frames.shape, frames.spacing, arr, window=readout.window,
+                          loads=("p", "qx", "qy"), tol=1e-5)  # padded further
     for i in range(frames.n_frames):
         assert sol.normal_force[i] == pytest.approx(0.2, rel=1e-9)
         load = SurfaceLoad(p=sol.pressure[i], qx=sol.qx[i], qy=sol.qy[i], spacing=frames.spacing)
@@ -124,7 +124,8 @@ def test_simulate_cli_takes_elastic_layers(tmp_path, capsys):
 @pytest.mark.parametrize("material, fields, match", [
     (_layers(1e-3), dict(model="modulation"), r"contact.model: 'modulation' scales the Hertz traction of a "
                                               r"homogeneous half-space .* use model = 'exact', 'linear' or 'auto'"),
-    (SkinMaterial(layers=[dict(thickness_m=1e-3, young_modulus_pa=E, terms=[dict(modulus_pa=1e6, relaxation_time_s=0.07)])]), {},
+    (SkinMaterial(layers=[dict(thickness_m=1e-3, young_modulus_pa=E,
+                               terms=[dict(modulus_pa=1e6, relaxation_time_s=0.07)])]), {},
      r"material.layers: a scene simulation takes elastic layers .* a layer has Prony terms"),
 ])
 def test_refusals_on_a_layered_skin(material, fields, match):
