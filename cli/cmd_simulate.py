@@ -50,10 +50,10 @@ def run(args: argparse.Namespace) -> int:
     report = RunReport("simulate")
     created = args.out is None or not args.out.exists()
     if material is not None:
-        if material.is_layered:
-            raise ValueError("--material: a scene simulation takes an elastic or viscoelastic material (one "
-                             "half-space), got a layered one; solve a layered skin, viscoelastic layers too, with the "
-                             "stress, contact and synthesis commands")
+        if material.has_viscoelastic_layers:
+            raise ValueError("--material: a scene simulation takes an elastic or viscoelastic half-space or elastic "
+                             "layers, got viscoelastic layers; give each layer its relaxed young_modulus without "
+                             "terms, or solve viscoelastic layers with the stress, contact and synthesis commands")
         scene = scene.model_copy(update={"material": material})
         note = "; the scan is quasi-static: it uses the relaxed modulus" if material.is_viscoelastic else ""
         report.computed.append(f"skin from --material (replaces the scene's): {describe_material(material)}{note}")

@@ -18,6 +18,9 @@ The cheap models' tractions (SI, on the skin; ``D`` is the scenes' friction dire
   ``E* |k| H~ / 2`` (ridges included) inside the finger's contact, clipped at 0; the tangential
   traction is the finger's, scaled by the same ratio (``D mu p`` while sliding);
 - ``"modulation"``: the finger's traction times ``max(0, 1 + h / h_ref)`` (docs/theory.md 4b).
+
+On a layered skin (:mod:`.scene_layered`) the smooth finger's traction is its contact solved on the
+layers, the texture's full-contact pressure is ``h~(k) / C_zz(k)``, and ``"modulation"`` is refused.
 """
 
 from __future__ import annotations
@@ -29,12 +32,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tactilab.core import rules as check
+from tactilab.data_schemas.material import SkinMaterial
 
 from .finger import BiomimeticFinger, Fingerprint
 from .halfspace import HalfSpace, pressure_from_deflection
 from .scanning import reference_height, scanned_surface, scene_finger
-from .scene_contact import finger_gap, ridge_heights
+from .scene_contact import finger_gap, ridge_heights, solve_scan
 from .scene_readout import SensorReadout
+from .scene_layered import layered_deflection_pressure, layered_skin, refuse_layered_modulation, softest
 
 #: finger grid half-width in Hertz contact radii (a rough contact spreads a little beyond a)
 GRID_RADII = 1.5
@@ -51,7 +56,8 @@ class SceneFrames:
     Attributes
     ----------
     scene : data_schemas Scene
-    skin : HalfSpace
+    skin : HalfSpace or LayeredHalfSpace
+        The skin the contact is solved on and the sensors read through.
     periodic : bool
         True for a periodic cell.
     shape : (nx,) or (ny, nx)
@@ -64,7 +70,8 @@ class SceneFrames:
     slip_ratios : ndarray, shape (n_frames,)
         Q / (mu F) per frame (1: full sliding).
     e_star : float
-        Plane-strain modulus E / (1 - nu^2), Pa.
+        Plane-strain modulus E / (1 - nu^2), Pa (a layered skin: of its softest material, which sizes
+        the finger's grid).
     """
 
     scene: object
@@ -92,8 +99,11 @@ class SceneFrames:
         if c is None:
             raise ValueError("scene.contact: the interface models need a finger or a periodic cell ([contact]); "
                              "a display scene is simulated by the display model")
-        E, nu = m.half_space_constants("the scene's interface models (contact and sensor readout)")
-        skin = HalfSpace(E=E, nu=nu)
+        if m.is_layered:
+            skin, (E, nu) = layered_skin(scene), softest(m)
+        else:
+            E, nu = m.half_space_constants("the scene's interface models (contact and sensor readout)")
+            skin = HalfSpace(E=E, nu=nu)
         e_star = E / (1 - nu**2)
         u = s.positions_m
         ratios = s.slip_ratios
@@ -107,7 +117,8 @@ class SceneFrames:
                           UserWarning, stacklevel=2)
         if c.periodic:
             return cls._cell(scene, skin, e_star, u, ratios, grid_spacing)
-        finger = scene_finger(scene, grid_spacing)
+        finger = scene_finger(scene if not m.is_layered else scene.model_copy(
+            update={"material": SkinMaterial(young_modulus_pa=E, poisson_ratio=nu)}), grid_spacing)
         h = finger.spacing
         half, reach = grid_reach(finger)
         # the strip the grid reads is the strip the check covers: a defect outside it, or a measured
@@ -137,6 +148,16 @@ class SceneFrames:
         return cls(scene, skin, True, (n,), (h,), u, _shifts(u, h), ratios, e_star, None, rec, peak)
 
     # ---------------------------------------------------------------- geometry
+    @property
+    def layered(self) -> bool:
+        """True on a layered skin (models exact and linear only)."""
+        return not isinstance(self.skin, HalfSpace)
+
+    @property
+    def cheap_models(self) -> tuple[str, ...]:
+        """The models cheaper than the exact one that this skin takes (in the order the reports list them)."""
+        return ("linear",) if self.layered else ("linear", "modulation")
+
     @property
     def n_frames(self) -> int:
         """Number of frames."""
@@ -222,11 +243,15 @@ class SceneFrames:
         return p[tuple(slice(a, a + n) for (a, _), n in zip(pad, h.shape))]
 
     def _deflection_pressure(self, h: np.ndarray) -> np.ndarray:
+        if self.layered:
+            return layered_deflection_pressure(self.skin, h, self.spacing)
         spacing = self.spacing[0] if len(self.spacing) == 1 else self.spacing
         return pressure_from_deflection(h, spacing, self.skin.E, self.skin.nu).p
 
     def _finger_tractions(self, ratio: float, fingerprint: bool):
         key = ("finger", ratio, fingerprint)
+        if key not in self._cache and self.layered:
+            self._cache[key] = self._smooth_contact(ratio)
         if key not in self._cache:
             f = self.finger
             fp = f.fingerprint if fingerprint else None
@@ -240,12 +265,24 @@ class SceneFrames:
             self._cache[key] = f.traction(X, Y, cell=self.spacing)
         return self._cache[key]
 
+    def _smooth_contact(self, ratio: float) -> tuple[np.ndarray, np.ndarray]:
+        """The smooth finger's ``(p, qx)`` (Pa) solved on a layered skin at the slip ratio ``ratio`` (the
+        Hertz tractions stand for it on a half-space)."""
+        gap = finger_gap(self.shape, self.spacing, self.finger.contact.finger_radius)
+        sol = solve_scan(self.skin, gap[None], self.spacing, friction=self.friction,
+                         slide_direction=(self.direction, 0.0), warm_start=False, tol=1e-10,
+                         slip_ratio=ratio if ratio < 1 and self.friction > 0 else None,
+                         **self.load)
+        return sol.pressure[0], sol.qx[0]
+
     def tractions(self, model: str, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """``(p, qx, qy)`` of the cheap ``model`` ("linear" or "modulation") at frame ``i``, Pa."""
         ratio = float(self.slip_ratios[i])
         if model not in ("linear", "modulation"):
             raise ValueError(f"model: tractions() computes 'linear' or 'modulation', got {model!r}; the exact "
                              "model is solved by solve_scan")
+        if self.layered and model == "modulation":
+            refuse_layered_modulation(model)
         if self.periodic:
             pbar = self.mean_pressure
             if model == "linear":
@@ -326,3 +363,4 @@ def _shifts(u: np.ndarray, h: float) -> np.ndarray | None:
     if np.allclose(steps, np.round(steps), rtol=0.0, atol=1e-6):
         return -np.round(steps).astype(np.int64)
     return None
+

@@ -22,6 +22,7 @@ from .contact import solve_contact
 from .finger_plots import plot_field_maps, plot_receptive_fields, plot_spectrum, plot_time_series
 from .halfspace import largest_strain
 from .scene_models import scene_signals
+from .scene_layered import describe_layers
 from .scene_metadata import recording_attrs
 from .surfaces import RecordFeature
 
@@ -58,6 +59,9 @@ def simulate_contact_model(scene, out: pathlib.Path, fmt: str, rng, progress: bo
     scene_attrs = recording_attrs(frames.finger) if not frames.periodic else dict(
         depth_m=float(scene.sensors.depth_m), young_modulus_pa=m.young_modulus_pa, poisson_ratio=m.poisson_ratio,
         mean_pressure_pa=frames.mean_pressure, friction=frames.friction, grid_spacing_m=float(frames.spacing[0]))
+    if frames.layered:  # the top layer's constants, as the scene states them, and the layers in words
+        scene_attrs.update(young_modulus_pa=m.young_modulus_pa, poisson_ratio=m.poisson_ratio,
+                           skin_layers=describe_layers(m))
     attrs = dict(scene_attrs, **model_attrs(info["model"], info["tol"], info["errors"], info["error_basis"],
                                             info["reason"]))
     path = write_recording(rec, out, fmt, positions_m=frames.positions, sensor_positions_m=scene.sensors.positions_m,
@@ -72,6 +76,11 @@ def simulate_contact_model(scene, out: pathlib.Path, fmt: str, rng, progress: bo
         what = (f"Hertz contact a = {c.contact_radius * 1e3:.2f} mm, p0 = {c.peak_pressure * 1e-3:.1f} kPa at "
                 f"{c.normal_force:g} N; mu = {frames.friction:g}, adhesion = {frames.finger.adhesion:g}; contact grid "
                 f"{frames.shape[1]} x {frames.shape[0]} nodes at {frames.spacing[0] * 1e6:.3g} um")
+        if frames.layered:  # the Hertz contact only sizes the grid there
+            what = (f"layered skin ({describe_layers(m)}), contact solved on it (the grid sized by the Hertz "
+                    "contact of its softest material: " + what[0].lower() + what[1:]
+                    + f"; sensors read through the layers' transfer, truncation estimate "
+                    f"{frames.readout().error_estimate:.1e})")
     iters = f"; median {info['iterations']:.0f} contact iterations per frame" if info["iterations"] is not None else ""
     scale, unit = (1e-3, "kPa") if rec.quantity == "stress" else (1.0, "strain")
     lines = [
@@ -90,7 +99,7 @@ def simulate_contact_model(scene, out: pathlib.Path, fmt: str, rng, progress: bo
         files = [plot_time_series(rec, out / "time_series.png", positions=frames.positions)]
         if n >= 64:
             files.append(plot_spectrum(rec, out / "spectrum.png"))
-        if not frames.periodic:  # the finger's maps and receptive fields, as the modulation model draws them
+        if not frames.periodic and not frames.layered:  # the finger's maps and receptive fields (modulation model)
             files.extend(_finger_figures(scene, frames, out))
         if info["model"] == "exact":
             mid = n // 2
@@ -98,7 +107,8 @@ def simulate_contact_model(scene, out: pathlib.Path, fmt: str, rng, progress: bo
                                 **frames.load)
             files.append(sol.plot(out / "contact_pressure.png"))
         lines.append("plots: " + ", ".join(str(f) for f in files)
-                     + ("" if frames.periodic else " (field_maps and receptive_fields: the modulation model's)"))
+                     + ("" if frames.periodic or frames.layered
+                        else " (field_maps and receptive_fields: the modulation model's)"))
     return lines
 
 

@@ -29,6 +29,7 @@ import numpy as np
 from .contact import interface_model_errors
 from .scene_contact import solve_scan
 from .scene_frames import CELL_NODES, SceneFrames
+from .scene_layered import refuse_layered_modulation
 
 #: cheapest first: auto picks the first whose error is within tol
 CHEAP_FIRST = ("modulation", "linear", "exact")
@@ -135,7 +136,7 @@ def apriori_errors(frames: SceneFrames, indices, *, per_frame: bool = False):
     Returns
     -------
     errors : dict
-        ``{"linear": float, "modulation": float}``.
+        ``{"linear": float, "modulation": float}`` (a layered skin: linear only).
     pressures : dict
         ``"p_bar"`` (the contact's mean pressure, Pa), ``"p_star"`` (the largest tension of the
         texture's full-contact pressure, Pa: pi E* A / L for a sinusoid) and ``"ratio"`` p_bar / p_star.
@@ -146,7 +147,7 @@ def apriori_errors(frames: SceneFrames, indices, *, per_frame: bool = False):
     lin, mod, tension, p_star = [], [], [], 0.0
     for i in indices:
         p_lin, q_lin, qy = frames.tractions("linear", int(i))
-        p_mod, q_mod, _ = frames.tractions("modulation", int(i))
+        p_mod, q_mod, _ = (p_lin, q_lin, None) if frames.layered else frames.tractions("modulation", int(i))
         tex = frames.texture_pressure(int(i))
         if frames.periodic:
             base, inside = np.full(frames.shape, frames.mean_pressure), np.ones(frames.shape, bool)
@@ -166,9 +167,10 @@ def apriori_errors(frames: SceneFrames, indices, *, per_frame: bool = False):
     mod_t = (np.abs(read["modulation"] - read["linear"]) / scale).max(axis=(1, 2)) + lin_t
     p_bar = frames.mean_pressure
     ratio = p_bar / p_star if p_star > 0 else float("inf")
-    out = {"linear": float(lin_t.max()), "modulation": float(mod_t.max())}, {"p_bar": p_bar, "p_star": p_star,
-                                                                           "ratio": ratio}
-    return (*out, lin_t + mod_t) if per_frame else out
+    errors = {"linear": float(lin_t.max())} if frames.layered else {"linear": float(lin_t.max()),
+                                                                    "modulation": float(mod_t.max())}
+    out = errors, {"p_bar": p_bar, "p_star": p_star, "ratio": ratio}
+    return (*out, lin_t if frames.layered else lin_t + mod_t) if per_frame else out
 
 
 def cell_errors(frames: SceneFrames) -> dict | None:
@@ -177,6 +179,8 @@ def cell_errors(frames: SceneFrames) -> dict | None:
     and peak Hertz pressures, the larger estimate), strain at the sensors' depth; None for a texture
     without a period (a defect, a height map, a random square wave)."""
     rec = frames.scene.surface
+    if frames.layered:  # its formulas are the half-space's
+        return None
     if frames.periodic:
         cell, spacing = frames.heights(0) + frames.ridges(), frames.spacing
         pressures = [frames.mean_pressure]
@@ -245,12 +249,17 @@ def choose_model(frames: SceneFrames, tol: float, *, n_check: int = CHECK_FRAMES
         apriori = {m: max(apriori[m], cell[m]) for m in apriori}
     check = np.sort(sample[np.argsort(per_frame, kind="stable")[::-1][:n_check]])  # where the estimates are largest
     exact = run_model(frames, "exact", check, warm_start=False)
-    post = {m: signal_error(run_model(frames, m, check).values, exact.values) for m in ("linear", "modulation")}
+    post = {m: signal_error(run_model(frames, m, check).values, exact.values) for m in frames.cheap_models}
     errors = {m: max(apriori[m], POSTERIORI_FACTOR * post[m]) for m in post}
-    chosen = next(m for m in CHEAP_FIRST if m == "exact" or errors[m] <= tol)
+    chosen = next(m for m in CHEAP_FIRST if m == "exact" or (m in errors and errors[m] <= tol))
     state = (f"mean pressure {'above' if pressures['ratio'] >= 1 else 'below'} the texture's full-contact "
              f"pressure p* = {pressures['p_star'] * 1e-3:.3g} kPa")
     verdict = {m: ("within" if errors[m] <= tol else "above") for m in errors}
+    if frames.layered:  # the linear model only (modulation is a half-space formula)
+        reason = (f"p_bar/p* = {pressures['ratio']:.3g} ({state}); layered skin: estimated error of linear "
+                  f"{errors['linear']:.2g} ({verdict['linear']} tol {tol:g}); a priori {apriori['linear']:.2g}, "
+                  f"measured on frames {', '.join(str(int(i)) for i in check)} solved exactly {post['linear']:.2g}")
+        return ModelChoice(chosen, reason, float(tol), apriori, post, errors, pressures, [int(i) for i in check])
     reason = (f"p_bar/p* = {pressures['ratio']:.3g} ({state}); estimated error of modulation {errors['modulation']:.2g} "
               f"({verdict['modulation']} tol {tol:g}), linear {errors['linear']:.2g} ({verdict['linear']}); a priori "
               f"{apriori['modulation']:.2g} / {apriori['linear']:.2g}, measured on frames "
@@ -281,6 +290,8 @@ def scene_signals(scene, model: str | None = None, *, grid_spacing: float | None
             and model != "modulation":
         raise ValueError(f"contact.fingerprint_height: the {model!r} model puts the ridges in the gap and needs their "
                          "height; give fingerprint_height (e.g. \"20um\") or model = \"modulation\"")
+    if scene.material.is_layered:
+        refuse_layered_modulation(model)
     frames = SceneFrames.from_scene(scene, grid_spacing)
     tol = float(scene.contact.tol)
     t0 = time.perf_counter()
@@ -290,7 +301,7 @@ def scene_signals(scene, model: str | None = None, *, grid_spacing: float | None
         info = dict(model=choice.model, reason=f"auto: {choice.reason}", errors=dict(choice.errors),
                     error_basis="a priori and on frames solved exactly", pressures=choice.pressures)
         if choice.model == "exact":  # the cheap models cost little: measure their errors on the whole scan
-            info["errors"] = {m: signal_error(run_model(frames, m).values, run.values) for m in ("linear", "modulation")}
+            info["errors"] = {m: signal_error(run_model(frames, m).values, run.values) for m in frames.cheap_models}
             info["error_basis"] = "measured on every frame against the exact model"
     else:
         run = run_model(frames, model, progress=progress)
@@ -298,7 +309,7 @@ def scene_signals(scene, model: str | None = None, *, grid_spacing: float | None
                     pressures={})
         if model == "exact":  # the cheap models cost little: their errors on the whole scan, for the record
             info.update(errors={m: signal_error(run_model(frames, m).values, run.values)
-                                for m in ("linear", "modulation")},
+                                for m in frames.cheap_models},
                         error_basis="measured on every frame against the exact model")
         else:
             sample = np.unique(np.linspace(0, frames.n_frames - 1, min(frames.n_frames, APRIORI_FRAMES)).round())

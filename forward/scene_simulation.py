@@ -20,6 +20,7 @@ from tactilab.data_schemas.recording_io import FORMATS, write_recording
 from .finger_plots import plot_field_maps, plot_receptive_fields, plot_spectrum, plot_time_series
 from .halfspace import largest_strain
 from .scanning import check_scan, reference_height, scan_outputs, scanned_surface, scene_finger
+from .scene_layered import refuse_layered_modulation
 from .scene_metadata import recording_attrs
 from .scene_model_files import simulate_contact_model as _simulate_contact_model
 from .surfaces import RecordFeature
@@ -51,6 +52,8 @@ def simulate_scene(scene, out_dir, *, fmt: str = "netcdf", rng: np.random.Genera
         return _simulate_display(scene, pathlib.Path(out_dir), fmt, rng, plots)
     s = scene.scan
     n = check_scan(s.speed_m_per_s, s.sampling_rate_hz, s.duration_s)
+    if scene.material.is_layered:  # a layered skin: the solved contact (models exact and linear)
+        refuse_layered_modulation(scene.contact.model)
     if scene.contact.model != "modulation" or scene.contact.periodic or s.onset_s > 0:
         return _simulate_contact_model(scene, pathlib.Path(out_dir), fmt, rng, progress, grid_spacing, plots)
     finger = scene_finger(scene, grid_spacing)

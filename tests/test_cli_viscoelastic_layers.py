@@ -174,5 +174,5 @@ def test_simulate_refuses_viscoelastic_layers(tmp_path, capsys):
 
     _fails(["simulate", str(example_path("sliding_grating")), "--material", _file(tmp_path, DIFFER, "d.toml"),
             "--out", str(tmp_path / "x"), "--quiet"], capsys,
-           r"--material: a scene simulation takes an elastic or viscoelastic material \(one half-space\), got a "
-           r"layered one; solve a layered skin, viscoelastic layers too, with the stress, contact and synthesis")
+           r"--material: a scene simulation takes an elastic or viscoelastic half-space or elastic layers, got "
+           r"viscoelastic layers; give each layer its relaxed young_modulus without terms, or solve viscoelastic")
