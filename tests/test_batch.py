@@ -117,6 +117,7 @@ def test_same_bits_on_any_worker_count_order_and_chunking(tmp_path, client):
     assert all(np.array_equal(a[k], b[k]) for k in keys)
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_worker_killed_mid_batch_then_rerun_recomputes_nothing(tmp_path, client):
     log = tmp_path / "calls.log"
     items = {f"k{i}": f"k{i}" for i in range(8)}

@@ -145,6 +145,7 @@ def test_synthesis_design_table_as_a_batch(tmp_path, capsys):
     assert "drop --amplitude and --traction-limit" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_metamer_scan_serial_and_on_a_scheduler(tmp_path, capsys, client):
     argv = ["metamer", "--target", "sinusoid:A=20um,p=4mm", "--scan-pitch", "2mm,4mm", "--scan-phase", "0,1.5",
             "--scan-display", "wh2008,stress2", "--receptors", "41", "--scan", "2", "--json"]

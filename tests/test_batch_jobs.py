@@ -90,6 +90,7 @@ def serial_fits(subjects, tmp_path_factory):
 
 
 @pytest.mark.filterwarnings("ignore:Estimated shape parameter of Pareto:UserWarning")
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_compare_many_equals_direct_fits_and_records_the_broken_subject(serial_fits, subjects):
     out, table = serial_fits
     assert (table.attrs["n_run"], table.attrs["n_skipped"], table.attrs["n_failed"]) == (4, 0, 2)
@@ -250,6 +251,7 @@ def blas_task(item, rng):
     return xr.Dataset({"out": (("i", "j"), out), "blas_threads": ("lib", threads)})
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_one_blas_thread_serially_and_on_workers_same_bits(tmp_path, client):
     from threadpoolctl import threadpool_limits
 

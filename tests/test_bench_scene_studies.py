@@ -35,6 +35,7 @@ def test_shape_invariance_rows(capsys):
 
 
 @pytest.mark.filterwarnings("ignore::UserWarning")
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_two_bumps_interact_in_the_solved_contact_only(capsys):
     rows = _bench().section_d(True, 80e-6)
     assert "(d) two bumps" in capsys.readouterr().out

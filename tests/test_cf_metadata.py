@@ -57,6 +57,7 @@ def test_recording_netcdf(tmp_path):
     assert ds["values"].attrs["units"] == "Pa" and ds["sensor_x"].attrs["units"] == "m"
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_strain_field_and_contact_files(tmp_path):
     skin = HalfSpace(E=1e6, nu=0.5)
     hertz = HertzContact(finger_radius=10e-3, normal_force=0.5, young_modulus=1e6, poisson_ratio=0.5)

@@ -88,6 +88,7 @@ def test_stress_with_a_viscoelastic_material_creeps_with_time(tmp_path, capsys):
                                    atol=1e-12 * float(np.abs(a["strain"]).max()))
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_contact_with_a_viscoelastic_material_grows_to_the_relaxed_limit(tmp_path, capsys):
     path = _file(tmp_path, SLS, "sls.toml")
     base = ["contact", "sphere:R=10mm", "--normal-force", "0.1N", "--grid", "32", "--grid-spacing", "0.2mm",
@@ -196,6 +197,7 @@ def test_synthesis_designs_on_a_layered_material(tmp_path, capsys, monkeypatch):
            capsys, r"--workers/--scheduler: the batch design table is for the half-space")
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_simulate_takes_the_material_and_refuses_layers(tmp_path, capsys):
     from tactilab.data_schemas import example_path
 

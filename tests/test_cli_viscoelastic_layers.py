@@ -58,6 +58,7 @@ def _field(folder, quantity):
         return ds[quantity].values
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_stress_of_a_held_load_on_layers_of_one_shape_is_the_library_field(tmp_path, capsys):
     """--time 70ms: the CLI's stress and strain equal ViscoelasticLayeredHalfSpace's under a step held 70 ms."""
     path = _file(tmp_path, SHAPED, "m.toml")
@@ -73,6 +74,7 @@ def test_stress_of_a_held_load_on_layers_of_one_shape_is_the_library_field(tmp_p
         assert np.abs(mine - api).max() <= 1e-12 * np.abs(api).max()
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_stress_on_layers_that_relax_differently_at_their_limits_and_refused_between(tmp_path, capsys):
     """0 and relaxed are the glassy and the relaxed layers for any layers (elastic files of those moduli);
     a time between needs one relaxation shape."""

@@ -88,6 +88,7 @@ def valid_protocols(draw):
 @settings(max_examples=10, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(protocol=valid_protocols())
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_fuzzed_valid_protocols_stay_within_the_limits_on_the_wire(protocol, emulator):
     port, record, folder = emulator
     path = Path(tempfile.mkdtemp(dir=folder)) / "s.sqlite"

@@ -231,6 +231,7 @@ def test_safe_stream_arrives_exactly_and_within_limits(emulator):
                                                                  HealthCheck.function_scoped_fixture])
 @given(data=st.data(), slew=st.floats(20.0, 3000.0), duty=st.floats(0.1, 1.0), n_frames=st.integers(2, 30),
        scale=st.floats(0.1, 4.0))
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_random_drives_through_safe_display_never_exceed_limits(emulator, data, slew, duty, n_frames, scale):
     """Hypothesis: whatever the drive, the emulator's record stays within the limits."""
     port, record = emulator
@@ -333,6 +334,7 @@ def _frames_so_far(record) -> int:
         return 0
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_host_killed_mid_stimulus_emulator_zeroes_within_its_lookahead_and_watchdog(tmp_path):
     proc, port, record = start_emulator(tmp_path, "kill", "--watchdog", "100ms", "--max-seconds", "60s")
     host = subprocess.Popen([sys.executable, "-c", HOST, str(port)], stdout=subprocess.PIPE, text=True)

@@ -152,6 +152,7 @@ def test_frames_the_host_did_not_send_fault_the_trial(start, tmp_path, monkeypat
         len(s["seq"]) for s in read_record(record)["streams"])
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_the_keep_alive_holds_the_link_through_a_long_response_wait(start, tmp_path, monkeypatch):
     """The subject takes 4 watchdog times to answer: the keep-alive ZEROs hold the link, so the device
     never trips and the host never arms again (one link for the whole session)."""

@@ -159,6 +159,7 @@ from hypothesis import strategies as st  # noqa: E402
 @example(force=0.5, radius=0.25, modulus=1e5, nu=0.0, mu=5e-324, ratio=0.0)  # mu F underflows to 0
 @example(force=1.0, radius=0.25, modulus=1e5, nu=0.0, mu=1.0, ratio=1e-06)
 @example(force=0.75, radius=0.25, modulus=1e5, nu=0.0, mu=5e-324, ratio=1.0)  # Q = mu F, both subnormal
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_force_balance_property(force, radius, modulus, nu, mu, ratio):
     """For any contact: the Hertz pressure integrates to F (polar quadrature) and the
     Cattaneo--Mindlin traction to Q = ratio mu F (with the analytic stick-zone integral)."""

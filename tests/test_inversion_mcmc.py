@@ -219,6 +219,7 @@ def test_priors_logpdf_and_moments(rng):
     assert Uniform(0, 1).logpdf(2.0) == -np.inf
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_separated_modes_caught_across_ensembles():
     """One sensor on the scan line cannot tell +y0 from -y0: ensembles started at their own MAPs land
     in different modes, and the between-ensemble R-hat reports it (not flagged as flat)."""

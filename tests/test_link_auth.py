@@ -228,6 +228,7 @@ display.close()
 """
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_an_arm_from_another_process_while_armed_is_refused(device):
     """Even a process holding the pairing key cannot arm a device whose link is armed; it can once the
     holder disarms."""

@@ -31,6 +31,7 @@ def one_pitch(tmp_path_factory):
     return [_session(tmp_path_factory.mktemp("one") / "s.sqlite", 2, 1, TransductionModel("zx@1mm"))]
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_the_table_is_the_same_for_every_seed(one_pitch):
     """The grid path draws no random number: seeds 0..9 give the same table, bit for bit."""
     first, _ = compare_sessions(one_pitch, ["zx@1mm", "zx@3mm"], rng=0)
@@ -39,6 +40,7 @@ def test_the_table_is_the_same_for_every_seed(one_pitch):
         pd.testing.assert_frame_equal(table, first, check_exact=True)
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_one_pitch_never_separates_depths_two_pitches_do(one_pitch, tmp_path):
     """One pitch: every pair of depth hypotheses is 'not identifiable on this design' (the runner's
     session, and simulated sessions of five response seeds); the reason names the pitch. Two
@@ -58,6 +60,7 @@ def test_one_pitch_never_separates_depths_two_pitches_do(one_pitch, tmp_path):
     assert table["verdict"].iloc[1] in ("worse", "weakly worse") and table["separation"].iloc[1] >= 2
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_a_fit_that_did_not_converge_never_gets_a_verdict(one_pitch, tmp_path):
     """Whatever its elpd, a non-converged fit gets 'no verdict: fit not converged' and what to do;
     the leader is the best converged fit; a leader without a converged rival gets no verdict."""

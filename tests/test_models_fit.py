@@ -121,6 +121,7 @@ def _session(path, pitch_mm, seed, truth):
     return path
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_end_to_end_the_comparison_picks_the_read_hypothesis(tmp_path):
     """An observer reading zx@1mm, two sessions (pitch 2 mm and 8 mm) through the runner: zx@1mm
     beats zx@3mm by more than 2 standard errors, as the power analysis of the same design expects."""
@@ -158,6 +159,7 @@ def test_compare_and_fit_bad_input(frame, fit_zx):
         fit_transduction("zx@1mm", frame, rng=0)
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_yes_no_fit_recovers_the_false_alarm_rate():
     """Yes/no with 25 % blank trials: false_alarm is a parameter of the posterior and is recovered."""
     import pandas as pd

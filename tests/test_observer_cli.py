@@ -46,6 +46,7 @@ def _run(tmp_path, protocol, *extra):
     return sorted((tmp_path / "sessions").glob(f"*task-{protocol.stem}.sqlite"))[-1]
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_the_observer_reading_xx_at_2mm_is_picked_over_zx_at_1mm(tmp_path, capsys):
     observer = ["--observer", "xx@2mm", "--observer-threshold", "1e-4", "--observer-statistic", "peak",
                 "--observer-strain", "surface"]
@@ -109,6 +110,7 @@ def test_help_states_the_units(flag, capsys):
     assert flag in text and "the unit of `power --threshold`" in text
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_an_observer_feeling_the_display_is_found_by_models_of_the_display(tmp_path, capsys):
     """The default for a simulated display: the observer feels what the display renders; compare
     --source display fits models of that same rendered strain (from the recorded description)."""

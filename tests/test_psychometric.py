@@ -101,6 +101,7 @@ def test_per_trial_input_pools_to_counts():
     np.testing.assert_array_equal(a.tree["observed_data"]["n_correct"].values, [2, 3, 4])
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_emcee_agrees_with_the_grid():
     x = np.linspace(1.0, 3.0, 6)
     n = np.full(6, 60)

@@ -5,6 +5,7 @@ import pytest
 from tactilab.demo import SECTIONS, scene_models, scenes
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_the_studies_print_one_line_each_with_their_key_figure():
     """Oracles: the modulation is linear in M = 1 + h / h_ref (h_ref the bump's own height), so its
     gain per um of a 50 um bump against a 20 um one is 20 / 50 and two bumps superpose to rounding;

@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 
 import numpy as np
+import pytest
 
 from tactilab.demo import SECTIONS, metameres, surface
 
@@ -20,6 +21,7 @@ def test_the_truth_is_the_profile_the_scene_engine_scanned(rng):
     assert recording.n_times == scene.scan.n_samples and 0.5e-6 < np.std(truth) < 2e-6
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_the_section_recovers_the_relief_and_the_force(tmp_path):
     """The relief error stays within three posterior relief sd (the section's seed), the finger touched
     part of the strip (its ends only bound the surface), and the force's 90 % interval holds the truth."""

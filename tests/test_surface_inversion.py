@@ -127,6 +127,7 @@ def test_noise_free_partial_contact_recovers_the_touched_heights_and_bounds_the_
     assert np.all(upper[untouched] <= post.upper_bound[untouched] + 4 * s_c) and np.all(lower < upper)
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_context_is_marginalised_and_recovered(rng):
     scan, truth, data = _groove_problem(rng)
     sigma = 0.01 * np.abs(data).max()
@@ -203,6 +204,7 @@ def test_without_a_prior_the_touched_relief_is_recovered_and_the_rest_only_bound
     assert "no prior, no posterior (NaN)" in post.message
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_the_relief_is_known_far_better_than_the_level(rng):
     scan, truth, data = _groove_problem(rng)
     sigma = 0.01 * np.abs(data).max()

@@ -34,6 +34,7 @@ def _scene(surface) -> Scene:
                                             start_position_m=-75e-6))
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_patch_noise_free_recovers_the_touched_relief_and_flags_the_rest(rng):
     profile = scene_scan(_scene(FlatSurface()), geometry="patch", spacing=SPACING, grid_spacing=GRID).profile
     pad = 4  # the surface continues past the patch

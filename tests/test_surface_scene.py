@@ -69,6 +69,7 @@ def test_the_forward_map_reproduces_the_scene_engine(scene_and_recording):
     assert np.abs(out - values.reshape(out.shape)).max() < 1e-3 * np.abs(values).max()
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_invert_surface_holds_the_grating(scene_and_recording, rng):
     scene, rec, _, _, _ = scene_and_recording
     prior = StationaryPrior(variance=(2e-6) ** 2, correlation_length=0.15e-3, kind="matern52")
@@ -104,6 +105,7 @@ def test_invert_surface_refuses_a_mismatched_recording(scene_and_recording, rng)
         invert_surface(scene, rec, prior=prior, context={"depth": LogNormal(3e-4, 0.1)}, rng=rng)
 
 
+@pytest.mark.slow  # a few seconds; the whole suite runs it
 def test_cli_invert_target_surface(scene_and_recording, capsys):
     scene, rec, _, scene_path, folder = scene_and_recording
     rec_path = rec.save(folder / "rec.json")
