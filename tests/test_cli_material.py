@@ -198,12 +198,17 @@ def test_synthesis_designs_on_a_layered_material(tmp_path, capsys, monkeypatch):
 
 
 @pytest.mark.slow  # a few seconds; the whole suite runs it
-def test_simulate_takes_the_material_and_refuses_layers(tmp_path, capsys):
+def test_simulate_takes_the_material_and_refuses_viscoelastic_layers(tmp_path, capsys):
+    """Elastic layers simulate through the solved contact (tests/test_scene_layered.py); viscoelastic ones
+    are refused in one line."""
     from tactilab.data_schemas import example_path
 
     scene = str(example_path("sliding_grating"))
-    _fails(["simulate", scene, "--material", _file(tmp_path, LAYERED, "l.toml"), "--out", str(tmp_path / "x"),
-            "--quiet"], capsys, r"--material: a scene simulation takes an elastic or viscoelastic material")
+    visco_layers = ('[material]\nlayers = [{thickness = "2mm", young_modulus = "100kPa", '
+                    'terms = [["200kPa", "70ms"]]}]\nbase = "rigid"\n')
+    _fails(["simulate", scene, "--material", _file(tmp_path, visco_layers, "l.toml"), "--out", str(tmp_path / "x"),
+            "--quiet"], capsys, r"--material: a scene simulation takes an elastic or viscoelastic half-space or "
+                                r"elastic layers, got viscoelastic layers")
     assert main(["simulate", scene, "--material", _file(tmp_path, SLS, "s.toml"), "--out", str(tmp_path / "s"),
                  "--quiet", "--no-plots", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
