@@ -49,7 +49,7 @@ def plot_models(times_s, runs: dict, errors: dict, sensor: int, path: pathlib.Pa
 
     exact = runs["exact"]
     n_comp = exact.shape[2]
-    fig = Figure(figsize=(6 * n_comp, 6.5), layout="constrained")
+    fig = Figure(figsize=(6 * n_comp, 7.5), layout="constrained")
     axes = fig.subplots(2, n_comp, squeeze=False)
     t = np.asarray(times_s) * 1e3
     style = {"exact": dict(color="k", lw=2), "linear": dict(color="tab:blue", ls="--"),
@@ -66,8 +66,8 @@ def plot_models(times_s, runs: dict, errors: dict, sensor: int, path: pathlib.Pa
         axes[1, c].axhline(0, color="k", lw=0.5)
         axes[1, c].set(title=f"error against the exact model, % of max |exact {comp}|", xlabel="time (ms)",
                        ylabel="error (%)")
-        axes[0, c].legend(fontsize=8)
-        axes[1, c].legend(fontsize=8)
+        for ax in axes[:, c]:  # below the panel: curves fill the whole panel, a legend inside hides some
+            ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=3, frameon=False)
     fig.suptitle(title, fontsize=10)
     path = pathlib.Path(path)
     fig.savefig(path, dpi=110)
