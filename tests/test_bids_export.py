@@ -43,9 +43,13 @@ max_trials = 6
 """
 
 
+#: the validator's lockfile (exact versions of it and of every dependency), which the README's command installs
+LOCK = ROOT / ".ci" / "bids-validator" / "package-lock.json"
+
+
 def _install_line() -> str:
-    """The validator install step of the README's test command (the one place its version is pinned)."""
-    return re.search(r"npm install [^&]*bids-validator@\S+", (ROOT / "README.md").read_text()).group(0)
+    """The validator install step of the README's test command (from the lockfile)."""
+    return re.search(r"mkdir -p \.ci/node [^&]*&& npm ci [^&]*", (ROOT / "README.md").read_text()).group(0).strip()
 
 
 def validate(folder: Path) -> dict:
@@ -76,7 +80,8 @@ def test_the_validator_pin_is_installed():
     if not VALIDATOR.exists():
         pytest.fail(f"the BIDS validator is not installed; run `{_install_line()}` in the repository root")
     version = subprocess.run([str(VALIDATOR), "--version"], capture_output=True, text=True, timeout=60)
-    assert version.stdout.strip() == _install_line().rsplit("@", 1)[1]
+    pinned = json.loads(LOCK.read_text())["packages"]["node_modules/bids-validator"]["version"]
+    assert version.stdout.strip() == pinned == "1.15.0"
 
 
 @pytest.mark.slow
