@@ -13,12 +13,14 @@ import pytest
 
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
-from tactilab.experiments import SimulatedDisplay, SimulatedObserver, make_procedure, new_session, resume_session
+from tactilab.experiments import SimulatedDisplay, make_procedure, new_session, resume_session
 from tactilab.experiments import replay_session, session_dataframe
 from tactilab.experiments.modelling import FingerContact
 from tactilab.experiments.modelling.design import from_config
 from tactilab.experiments.modelling.models import TransductionModel
 from tactilab.experiments.session.design_source import design_source, recorded_design_source
+
+from stop_after import StopAfter
 
 STIMULUS = {"amplitude_m": "10um", "pitch_m": "3mm", "speed_m_per_s": "20mm/s", "duration_s": "50ms", "ramp_s": "5ms"}
 PROCEDURE = {"method": "model_discrimination", "parameter": "pitch_m", "models": ["zx@1mm", "zz@2mm"],
@@ -66,13 +68,6 @@ def test_recorded_sources_that_the_session_lacks_are_refused():
     assert recorded_design_source({}, _protocol(), None).strain == "surface"  # recorded before design_strain
 
 
-class StopAfter(SimulatedObserver):
-    stop_at = None
-
-    def collect(self, plan):
-        if plan.trial_index == self.stop_at:
-            raise KeyboardInterrupt("test stop")
-        return super().collect(plan)
 
 
 def _run(tmp_path, name, stop_at=None):

@@ -17,6 +17,8 @@ from tactilab.experiments.devices import limit_drive, render_drive
 from tactilab.experiments.modelling.models import TransductionModel
 from tactilab.experiments.session.display_check import design_display
 
+from stop_after import StopAfter
+
 STIMULUS = {"amplitude_m": "5um", "pitch_m": "3mm", "speed_m_per_s": "20mm/s", "duration_s": "50ms", "ramp_s": "5ms"}
 # 20 um at 4 mm asks the braille row for about 104 kPa: its 50 kPa limit clips it (clipped = "allow")
 PROCEDURE = {"method": "model_discrimination", "parameter": "pitch_m", "models": ["zx@1mm", "zx@2mm"],
@@ -68,13 +70,6 @@ def test_design_without_a_display_still_predicts_from_the_surface():
     assert design.stats[0, 0, 0] == TransductionModel("zx@1mm").statistic_of(candidate)
 
 
-class StopAfter(SimulatedObserver):
-    stop_at = None
-
-    def collect(self, plan):
-        if plan.trial_index == self.stop_at:
-            raise KeyboardInterrupt("test stop")
-        return super().collect(plan)
 
 
 def _run(tmp_path, name, stop_at=None):

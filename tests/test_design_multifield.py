@@ -13,10 +13,12 @@ from tactilab.cli.main import main
 from tactilab.data_schemas.design_config import ModelDiscriminationConfig
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
-from tactilab.experiments import SimulatedDisplay, SimulatedObserver, new_session, resume_session, session_dataframe
+from tactilab.experiments import SimulatedDisplay, new_session, resume_session, session_dataframe
 from tactilab.experiments.modelling.design import ModelDiscrimination
 from tactilab.experiments.modelling.models import TransductionModel
 from tactilab.experiments.procedures.tasks import PlannedStimulus, plan_trial
+
+from stop_after import StopAfter
 
 PROTOCOL = """
 name = "designmulti"
@@ -99,15 +101,6 @@ def test_protocol_file_with_several_varied_fields_runs_through_the_cli(tmp_path,
     assert (tmp_path / "figs" / "compare.png").stat().st_size > 10_000
 
 
-class StopAfter(SimulatedObserver):
-    """The same simulated observer, with Ctrl-C pressed at trial ``stop_at``."""
-
-    stop_at = None
-
-    def collect(self, plan):
-        if plan.trial_index == self.stop_at:
-            raise KeyboardInterrupt("test stop")
-        return super().collect(plan)
 
 
 def _observer(protocol, stop_at=None):

@@ -9,10 +9,12 @@ import pytest
 from tactilab.data_schemas.design_config import ModelDiscriminationConfig
 from tactilab.data_schemas.display import DisplayDescription
 from tactilab.data_schemas.experiment import Protocol
-from tactilab.experiments import SimulatedDisplay, SimulatedObserver, make_procedure, new_session, resume_session
+from tactilab.experiments import SimulatedDisplay, make_procedure, new_session, resume_session
 from tactilab.experiments import session_dataframe, session_status
 from tactilab.experiments.modelling.design import ModelDiscrimination, from_config
 from tactilab.experiments.modelling.models import TransductionModel
+
+from stop_after import StopAfter
 
 STIMULUS = {"amplitude_m": "5um", "pitch_m": "3mm", "speed_m_per_s": "20mm/s", "duration_s": "50ms",
             "ramp_s": "5ms"}
@@ -29,15 +31,6 @@ def _protocol(**changes):
                                     "stimulus": STIMULUS, "procedure": {**PROCEDURE, **changes}})
 
 
-class StopAfter(SimulatedObserver):
-    """The same simulated observer, with Ctrl-C pressed at trial ``stop_at`` (not part of its config)."""
-
-    stop_at = None
-
-    def collect(self, plan):
-        if plan.trial_index == self.stop_at:
-            raise KeyboardInterrupt("test stop")
-        return super().collect(plan)
 
 
 def _observer(protocol, stop_at=None):
