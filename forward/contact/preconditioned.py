@@ -40,9 +40,11 @@ from .normal import REFRESH, NormalResult, _dot
 
 
 def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approach: float | None, tol: float,
-                      max_iter: int, p0: np.ndarray, extra_gap: np.ndarray | None = None) -> NormalResult:
-    """Solve the frictionless normal contact on one grid; the arguments of :func:`.normal.polonsky_keer`."""
-    A, K = compliance.normal, compliance.stiffness
+                      max_iter: int, p0: np.ndarray, extra_gap: np.ndarray | None = None,
+                      preconditioner: str = "auto") -> NormalResult:
+    """Solve the frictionless normal contact on one grid; the arguments of :func:`.normal.polonsky_keer`,
+    and ``preconditioner``, the kind of :meth:`ContactCompliance.preconditioner`."""
+    A, K = compliance.normal, compliance.preconditioner(preconditioner)
     g0 = g0 if extra_gap is None else g0 + extra_gap
     scale = float(g0.max() - g0.min()) or float(np.abs(g0).max()) or 1.0
     target = tol * scale
