@@ -28,6 +28,15 @@ def test_bench_contact_sections_run(capsys):
     assert len(rows) == 4  # two sizes in (a) and in (d)
 
 
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_bench_contact_compares_preconditioners_in_one_run(capsys):
+    bench = _bench()
+    assert bench.main(["--sections", "a", "--sizes", "32", "--no-peer", "--tol", "1e-6",
+                       "--preconditioner", "auto", "fft"]) == 0
+    rows = [line.split() for line in capsys.readouterr().out.splitlines() if line.strip().startswith("32 ")]
+    assert [r[7] for r in rows] == ["auto", "fft"]
+
+
 def test_fft_floor_is_positive_and_pads_isolated_grids():
     bench = _bench()
     assert bench.fft_floor((16, 16), True, repeats=1) > 0

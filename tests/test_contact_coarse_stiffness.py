@@ -81,7 +81,8 @@ def test_compiled_kernel_equals_its_numpy_twin(monkeypatch, rng):
 
 
 @pytest.mark.parametrize("shape,spacing,periodic", [((64, 64), 1e-4, False), ((64,), 1e-4, True),
-                                                    ((60, 64), 1e-4, True), ((64, 64), (1e-4, 2e-4), True)])
+                                                    ((60, 64), 1e-4, True), ((64, 64), (1e-4, 2e-4), True),
+                                                    ((8, 64), 1e-4, True)])
 def test_auto_keeps_the_exact_stiffness_where_two_level_does_not_apply(shape, spacing, periodic):
     C = ContactCompliance(HalfSpace(E, 0.5), shape, spacing, periodic)
     assert C.preconditioner("auto") == C.stiffness
@@ -101,7 +102,7 @@ def test_bad_inputs():
     with pytest.raises(ValueError, match=r"preconditioner: must be one of \('auto', 'fft', 'two_level'\), got 'x'"):
         C.preconditioner("x")
     with pytest.raises(ValueError, match="shape, spacing: the two-level stiffness needs a 2-D grid with both sides "
-                                         "multiples of 8 and square pixels, got shape \\(60, 64\\)"):
+                                         "multiples of 8 \\(at least 16\\) and square pixels, got shape \\(60, 64\\)"):
         cs.TwoLevelStiffness(HalfSpace(E, 0.5), (60, 64), 1e-4)
     with pytest.raises(ValueError, match="spacing: grid spacing must be finite and > 0 m"):
         cs.TwoLevelStiffness(HalfSpace(E, 0.5), (64, 64), float("nan"))

@@ -23,7 +23,8 @@ tests bound the generalised eigenvalues). As the contact solver's preconditioner
 surfaces of docs/contact.md (Table a) it takes 3 iterations more than the exact stiffness (26, 33, 43
 instead of 23, 30, 40 at 256^2, 512^2, 1024^2) for one product that costs two passes over the grid
 and a tiny FFT pair instead of a full pair. It applies to periodic 2-D grids of square pixels whose
-sides are multiples of ``FACTOR`` (:func:`applies`); elsewhere the exact stiffness is used.
+sides are multiples of ``FACTOR`` (at least ``2 FACTOR``: :func:`applies`); elsewhere the exact
+stiffness is used.
 """
 
 from __future__ import annotations
@@ -45,8 +46,9 @@ STENCIL_BOUNDS = (0.81, 1.23)
 
 def applies(shape: tuple[int, ...], spacing: tuple[float, ...], periodic: bool) -> bool:
     """True where the two-level stiffness is defined: a periodic 2-D grid of square pixels
-    (``dx == dy`` to 1e-9) whose sides are multiples of :data:`FACTOR`."""
-    return (periodic and len(shape) == 2 and all(n % FACTOR == 0 for n in shape)
+    (``dx == dy`` to 1e-9) whose sides are multiples of :data:`FACTOR`, at least two blocks each (the
+    coarse grid's longest wave sets the stiffness of the mean)."""
+    return (periodic and len(shape) == 2 and all(n % FACTOR == 0 and n >= 2 * FACTOR for n in shape)
             and abs(spacing[0] - spacing[-1]) <= 1e-9 * spacing[0])
 
 
@@ -71,7 +73,7 @@ class TwoLevelStiffness:
         spacing = check.spacing(spacing, 2)
         if not applies(shape, spacing, True):
             raise ValueError(f"shape, spacing: the two-level stiffness needs a 2-D grid with both sides multiples of "
-                             f"{FACTOR} and square pixels, got shape {shape}, spacing {spacing}; use the exact "
+                             f"{FACTOR} (at least {2 * FACTOR}) and square pixels, got shape {shape}, spacing {spacing}; use the exact "
                              f"stiffness (preconditioner='fft')")
         self.shape = shape
         self.spacing = spacing[0]

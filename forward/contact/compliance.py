@@ -235,7 +235,7 @@ class ContactCompliance:
         ``"fft"``: :meth:`stiffness` (an FFT pair of the unpadded grid); ``"two_level"``: the
         two-level approximation of :mod:`.coarse_stiffness` (a local stencil plus a coarse-grid
         correction, about a tenth of that pair; periodic 2-D grids of square pixels, sides multiples
-        of 8); ``"auto"``: ``"two_level"`` where it applies, ``"fft"`` elsewhere (isolated grids, whose
+        of 8, at least 16); ``"auto"``: ``"two_level"`` where it applies, ``"fft"`` elsewhere (isolated grids, whose
         compliance product costs four times the preconditioner's pair, keep the exact one).
         """
         if kind not in PRECONDITIONERS:
@@ -243,7 +243,7 @@ class ContactCompliance:
         fits = applies(self.shape, self.spacing, self.periodic)
         if kind == "two_level" and not fits:
             raise ValueError(f"preconditioner: 'two_level' needs a periodic 2-D grid of square pixels with sides "
-                             f"multiples of 8, got {self!r}; use 'fft' or 'auto'")
+                             f"multiples of 8 (at least 16), got {self!r}; use 'fft' or 'auto'")
         if kind == "fft" or not fits:
             return self.stiffness
         if "two_level" not in self._spectra:
