@@ -224,10 +224,10 @@ def section_a(sizes, tol: float, peer: bool, cap: float, kinds=("auto",)) -> Non
         h, pbar = rough_cell(n)
         res = run_peer(PKR_SCRIPT, {"h": h, "size": n * 1e-6, "pbar": pbar, "tol": tol, "E": E_PA, "nu": NU},
                        cap) if peer else "Tamaas skipped (--no-peer)"
+        floor = fft_floor((n, n), True)  # once per size: the kinds' rows share one yardstick
         for kind in kinds:
             with FineLoop(kind) as loop:
                 sol, t = timed(lambda: solve_contact(skin, -h, 1e-6, mean_pressure=pbar, periodic=True, tol=tol))
-            floor = fft_floor((n, n), True)
             per_iter = t / max(sol.iterations, 1) / floor
             per_loop = loop.per_iteration((n, n)) / floor
             if isinstance(res, str):
@@ -239,13 +239,26 @@ def section_a(sizes, tol: float, peer: bool, cap: float, kinds=("auto",)) -> Non
                   f"{per_iter:12.2f}{per_loop:12.2f}{kind:>10}{cols}", flush=True)
 
 
+def peak_rss_mib() -> float:
+    """This process's peak resident memory (MiB): Linux's VmHWM, which belongs to the process's own memory
+    map; ``ru_maxrss`` (the fallback elsewhere) keeps the parent's peak across fork and exec on Linux, so a
+    child started by a large parent would report the parent's peak."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return float(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
 def memory_child(n: int, tol: float, kind: str = "auto") -> None:
-    """Child process: RSS before and after one section-a solve at n^2 (printed in MiB)."""
+    """Child process: peak RSS before and after one section-a solve at n^2 (printed in MiB)."""
     h, pbar = rough_cell(n)
-    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    before = peak_rss_mib()
     with FineLoop(kind):
         solve_contact(HalfSpace(E=E_PA, nu=NU), -h, 1e-6, mean_pressure=pbar, periodic=True, tol=tol)
-    after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    after = peak_rss_mib()
     print(f"{before:.1f} {after:.1f}")
 
 
@@ -257,8 +270,8 @@ def section_a_memory(n: int, tol: float, kind: str = "auto") -> None:
         print(f"memory at {n}^2: the child failed: {proc.stderr.strip().splitlines()[-1:]}")
         return
     before, after = (float(v) for v in proc.stdout.split())
-    print(f"memory at {n}^2 (periodic): peak RSS {after:.0f} MiB, of which the solve {after - before:.0f} MiB "
-          f"(the rest: Python, numpy, the surface)")
+    print(f"memory at {n}^2 (periodic, preconditioner {kind}): peak RSS {after:.0f} MiB, of which the solve "
+          f"{after - before:.0f} MiB (the rest: Python, numpy, numba, the surface)")
 
 
 def hertz_grid(n: int):
@@ -347,12 +360,12 @@ def section_d(sizes, tol: float, kinds=("auto",)) -> None:
     for n in sizes:
         h, pbar = rough_cell(n)
         plate, finger, dx = fingertip(n)
+        fp, fi = fft_floor((n, n), True), fft_floor((n, n), False)
         for kind in kinds:
             with FineLoop(kind) as loop_p:
                 per, tp = timed(lambda: solve_contact(skin, -h, 1e-6, mean_pressure=pbar, periodic=True, tol=tol))
             with FineLoop(kind) as loop_i:
                 iso, ti = timed(lambda: solve_contact(skin, finger - plate, dx, normal_force=0.5, tol=tol))
-            fp, fi = fft_floor((n, n), True), fft_floor((n, n), False)
             print(f"{n:6d}{tp:12.3f}{per.iterations:7d}{tp / max(per.iterations, 1) / fp:12.2f}"
                   f"{loop_p.per_iteration((n, n)) / fp:12.2f}{ti:12.3f}{iso.iterations:7d}{fi * 1e3:14.2f}"
                   f"{ti / max(iso.iterations, 1) / fi:12.2f}{loop_i.per_iteration((n, n)) / fi:12.2f}{kind:>10}",
