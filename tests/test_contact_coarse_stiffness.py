@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from scipy import linalg
 
+from tactilab.core import jit
 from tactilab.data_schemas import random_rough_surface
 from tactilab.forward import HalfSpace
 from tactilab.forward.contact import ContactCompliance
@@ -90,10 +91,14 @@ def test_auto_keeps_the_exact_stiffness_where_two_level_does_not_apply(shape, sp
         C.preconditioner("two_level")
 
 
-def test_auto_is_two_level_on_periodic_grids():
+def test_auto_is_two_level_on_periodic_grids_when_compiled(monkeypatch):
     C = ContactCompliance(HalfSpace(E, 0.5), (64, 32), 1e-4, True)
-    assert isinstance(C.preconditioner(), cs.TwoLevelStiffness)
-    assert C.preconditioner("auto") is C.preconditioner("two_level")  # built once, kept
+    monkeypatch.setenv("TACTILAB_JIT", "0")  # the NumPy twin costs nearly an FFT pair: auto keeps the exact one
+    assert C.preconditioner() == C.stiffness
+    monkeypatch.setenv("TACTILAB_JIT", "1")
+    assert isinstance(C.preconditioner(), cs.TwoLevelStiffness) == jit.available()
+    assert isinstance(C.preconditioner("two_level"), cs.TwoLevelStiffness)
+    assert C.preconditioner("two_level") is C.preconditioner("two_level")  # built once, kept
     assert C.preconditioner("fft") == C.stiffness
 
 

@@ -51,7 +51,7 @@ from scipy import fft as sfft
 from tactilab.core import rules as check
 
 from ..halfspace import inverse_into, rfftn_into
-from .coarse_stiffness import TwoLevelStiffness, applies
+from .coarse_stiffness import TwoLevelStiffness, applies, preferred
 
 #: the normal solvers' preconditioners (:meth:`ContactCompliance.preconditioner`)
 PRECONDITIONERS = ("auto", "fft", "two_level")
@@ -235,16 +235,16 @@ class ContactCompliance:
         ``"fft"``: :meth:`stiffness` (an FFT pair of the unpadded grid); ``"two_level"``: the
         two-level approximation of :mod:`.coarse_stiffness` (a local stencil plus a coarse-grid
         correction, about a tenth of that pair; periodic 2-D grids of square pixels, sides multiples
-        of 8, at least 16); ``"auto"``: ``"two_level"`` where it applies, ``"fft"`` elsewhere (isolated grids, whose
-        compliance product costs four times the preconditioner's pair, keep the exact one).
+        of 8, at least 16); ``"auto"``: ``"two_level"`` where it applies and its kernels are compiled
+        (numba), ``"fft"`` elsewhere (isolated grids, whose pruned compliance product costs about twice
+        the preconditioner's pair, keep the exact one: docs/contact.md, Cost).
         """
         if kind not in PRECONDITIONERS:
             raise ValueError(f"preconditioner: must be one of {PRECONDITIONERS}, got {kind!r}")
-        fits = applies(self.shape, self.spacing, self.periodic)
-        if kind == "two_level" and not fits:
+        if kind == "two_level" and not applies(self.shape, self.spacing, self.periodic):
             raise ValueError(f"preconditioner: 'two_level' needs a periodic 2-D grid of square pixels with sides "
                              f"multiples of 8 (at least 16), got {self!r}; use 'fft' or 'auto'")
-        if kind == "fft" or not fits:
+        if kind == "fft" or (kind == "auto" and not preferred(self.shape, self.spacing, self.periodic)):
             return self.stiffness
         if "two_level" not in self._spectra:
             self._spectra["two_level"] = TwoLevelStiffness(self.skin, self.shape, self.spacing)
