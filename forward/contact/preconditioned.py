@@ -5,7 +5,8 @@ or the approach given). Polonsky and Keer's iteration needs a number of iteratio
 like the square root of the grid's width, because the compliance's spectrum ``2 / (E* |k|)``
 spans the ratio of the grid's largest and smallest wavenumbers. Here each iteration is
 preconditioned by the periodic surface stiffness ``E* |k| / 2`` (the exact inverse of the
-compliance on a fully touching periodic grid), restricted to the working set, which cuts the
+compliance on a fully touching periodic grid; on periodic 2-D grids by default its two-level
+approximation, :meth:`ContactCompliance.preconditioner`), restricted to the working set, which cuts the
 iterations five- to seven-fold on rough surfaces (30 instead of 206 at 512^2, 10 %
 contact), in the spirit of Vollebregt's bound-constrained CG (J. Optim. Theory Appl. 162, 2014).
 
@@ -22,14 +23,16 @@ One iteration:
 
 Products: one compliance product ``A t`` and one preconditioner product ``K r`` per iteration
 (the preconditioner is an FFT pair of the unpadded grid, a quarter of a padded product for an
-isolated contact). ``uz = A p`` is updated as ``uz - tau A t``; a pressure clipped to 0 adds its
+isolated contact, or on a periodic grid the two-level stiffness: two passes and a pair of 1/64
+of the nodes). ``uz = A p`` is updated as ``uz - tau A t``; a pressure clipped to 0 adds its
 correction by direct summation of the influence coefficients when few nodes are clipped (up to
 ``ContactCompliance.direct_limit``, about 8 on a periodic grid and 36 on a padded 256^2 one), and
 ``uz`` is recomputed by FFT when more are, every 32 iterations, and before convergence is declared.
 Clipping of many nodes happens in most iterations until the contact set settles (self-affine
 surface, 10 % contact: hundreds to thousands of nodes for the first two thirds of the iterations,
-a few in the tail), so an iteration costs between two and three FFT pairs of the grid, where
-Polonsky-Keer's costs about two: the iterations saved pay for it twice over.
+a few in the tail), so an iteration costs between two and three FFT pairs of the grid with the
+exact stiffness (between one and two with the two-level one), where Polonsky-Keer's costs about
+two: the iterations saved pay for it twice over.
 """
 
 from __future__ import annotations
