@@ -131,3 +131,22 @@ def test_solver_answer_does_not_depend_on_the_preconditioner(rng):
     assert 0.03 < np.count_nonzero(p_two) / p_two.size < 0.5
     assert out["two_level"].iterations <= out["fft"].iterations + 8
 
+
+
+def test_auto_takes_the_exact_stiffness_for_a_nearly_full_start(rng):
+    """A start touching every node (full contact): "auto" uses the exact stiffness, which inverts the
+    periodic compliance, so the answer is the full-contact closed form p = p_mean + K h (zero-mean part)
+    to round-off, not only to the solver's tolerance; the two-level one stops at the tolerance."""
+    n, h = 64, 1e-6
+    es = E / 0.75
+    height = random_rough_surface((n, n), h, rms_height=1e-9, hurst=0.8, rng=rng)
+    C = ContactCompliance(HalfSpace(E, 0.5), (n, n), h, True)
+    p_mean = 0.05 * es
+    kh = C.stiffness(height)
+    exact = p_mean + kh - kh.mean()
+    assert exact.min() > 0  # full contact
+    kw = dict(total=p_mean * n * n, approach=None, tol=1e-8, max_iter=200, p0=np.full((n, n), p_mean))
+    auto = preconditioned_cg(C, -height, **kw)
+    assert np.abs(auto.pressure - exact).max() <= 1e-12 * exact.max() and auto.iterations <= 2
+    two = preconditioned_cg(C, -height, preconditioner="two_level", **kw)
+    assert two.converged and np.abs(two.pressure - exact).max() <= 1e-6 * exact.max()

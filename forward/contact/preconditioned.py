@@ -41,13 +41,17 @@ import numpy as np
 
 from .normal import REFRESH, NormalResult, _dot
 
+#: start's contact fraction above which "auto" takes the exact stiffness (at 99 % contact it needs 12
+#: to 14 iterations against the two-level one's 16 to 17, and a full contact comes out exact)
+NEARLY_FULL = 0.95
+
 
 def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approach: float | None, tol: float,
                       max_iter: int, p0: np.ndarray, extra_gap: np.ndarray | None = None,
                       preconditioner: str = "auto") -> NormalResult:
     """Solve the frictionless normal contact on one grid; the arguments of :func:`.normal.polonsky_keer`,
-    and ``preconditioner``, the kind of :meth:`ContactCompliance.preconditioner`."""
-    A, K = compliance.normal, compliance.preconditioner(preconditioner)
+    and ``preconditioner``, the kind of :meth:`ContactCompliance.preconditioner` (``"auto"`` takes the
+    exact stiffness when the start touches more than :data:`NEARLY_FULL` of the nodes)."""
     g0 = g0 if extra_gap is None else g0 + extra_gap
     scale = float(g0.max() - g0.min()) or float(np.abs(g0).max()) or 1.0
     target = tol * scale
@@ -56,6 +60,9 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     if force:
         s = p.sum()
         p = p * (total / s) if s > 0 else np.full(p.shape, total / p.size)
+    if preconditioner == "auto" and np.count_nonzero(p) > NEARLY_FULL * p.size:
+        preconditioner = "fft"  # the exact stiffness inverts a full periodic contact: exact in one step
+    A, K = compliance.normal, compliance.preconditioner(preconditioner)
     # work arrays, reused: every pass over the grid costs about as much as a tenth of an FFT pair,
     # and a fresh grid-sized array about as much again (page faults)
     g, r, tmp, t, At, u = (np.empty_like(p) for _ in range(6))
