@@ -1,5 +1,5 @@
 """A cheap preconditioner for periodic 2-D contact grids: the surface stiffness as a local stencil
-plus a coarse-grid correction (two levels), at about a tenth of the FFT pair of the exact one.
+plus a coarse-grid correction (two levels), at a tenth to a fifth of the FFT pair of the exact one.
 
 The exact periodic stiffness ``K(k) = E* |k| / 2`` (:meth:`ContactCompliance.stiffness`) costs an FFT
 pair of the grid, as much as the compliance product itself. Here it is approximated by::
@@ -8,9 +8,9 @@ pair of the grid, as much as the compliance product itself. Here it is approxima
 
 - ``L``: the periodic 5-point Laplacian in nodes (symbol ``lam = 4 sin^2(kx h / 2) + 4 sin^2(ky h / 2)``);
   ``a``, ``b``: :data:`STENCIL`, the fit of ``a + b lam`` to ``|k| h / pi`` for ``|k| h >= pi / 8``
-  (within :data:`STENCIL_BOUNDS`, 0.81 to 1.23 times it, there); ``s``: the skin's exact stiffness at the x Nyquist
-  wavenumber ``pi / h`` (``E* pi / (2 h)`` for a half-space), so that any skin that looks like a
-  half-space at the grid's scale gets its own.
+  (within :data:`STENCIL_BOUNDS`, 0.81 to 1.23 times it, there); ``s``: the skin's exact stiffness
+  at the x Nyquist wavenumber ``pi / h`` (``E* pi / (2 h)`` for a half-space), so that any skin that
+  looks like a half-space at the grid's scale gets its own.
 - ``R``: the mean over blocks of :data:`FACTOR` x :data:`FACTOR` nodes; ``P``: each block's value back to
   its nodes. ``R = P^T / FACTOR^2``, so ``P D R`` is symmetric when ``D`` is.
 - ``D``: on the grid of ``FACTOR`` times the spacing, the exact stiffness minus the stencil's symbol,
@@ -18,13 +18,13 @@ pair of the grid, as much as the compliance product itself. Here it is approxima
   FFT pair of ``1 / FACTOR^2`` of the nodes: the long waves, which no local stencil follows
   (``|k|`` is not smooth at ``k = 0``), are exact.
 
-``K2`` is symmetric and, on the grids tested, within a factor of about 2 of the exact stiffness (the
-tests bound the generalised eigenvalues). As the contact solver's preconditioner on the self-affine
-surfaces of docs/contact.md (Table a) it takes 3 iterations more than the exact stiffness (26, 33, 43
-instead of 23, 30, 40 at 256^2, 512^2, 1024^2) for one product that costs two passes over the grid
-and a tiny FFT pair instead of a full pair. It applies to periodic 2-D grids of square pixels whose
-sides are multiples of ``FACTOR`` (at least ``2 FACTOR``: :func:`applies`); elsewhere the exact
-stiffness is used.
+``K2`` is symmetric and, on the grids tested, within 0.81 to 1.7 of the exact stiffness (the tests
+bound the generalised eigenvalues). As the contact solver's preconditioner on the self-affine
+surfaces of docs/contact.md (Table a) it takes 2 iterations more than the exact stiffness (25, 32, 42
+instead of 23, 30, 40 at 256^2, 512^2, 1024^2; 55 instead of 51 at 2048^2) for one product that
+costs two passes over the grid and a tiny FFT pair instead of a full pair. It applies to periodic
+2-D grids of square pixels whose sides are multiples of ``FACTOR`` (at least ``2 FACTOR``:
+:func:`applies`); elsewhere the exact stiffness is used.
 """
 
 from __future__ import annotations
@@ -80,8 +80,8 @@ class TwoLevelStiffness:
         spacing = check.spacing(spacing, 2)
         if not applies(shape, spacing, True):
             raise ValueError(f"shape, spacing: the two-level stiffness needs a 2-D grid with both sides multiples of "
-                             f"{FACTOR} (at least {2 * FACTOR}) and square pixels, got shape {shape}, spacing {spacing}; use the exact "
-                             f"stiffness (preconditioner='fft')")
+                             f"{FACTOR} (at least {2 * FACTOR}) and square pixels, got shape {shape}, spacing "
+                             f"{spacing}; use the exact stiffness (preconditioner='fft')")
         self.shape = shape
         self.spacing = spacing[0]
         h, (ny, nx) = self.spacing, self.shape

@@ -6,8 +6,8 @@ like the square root of the grid's width, because the compliance's spectrum ``2 
 spans the ratio of the grid's largest and smallest wavenumbers. Here each iteration is
 preconditioned by the periodic surface stiffness ``E* |k| / 2`` (the exact inverse of the
 compliance on a fully touching periodic grid; on periodic 2-D grids by default its two-level
-approximation, :meth:`ContactCompliance.preconditioner`), restricted to the working set, which cuts the
-iterations five- to seven-fold on rough surfaces (30 instead of 206 at 512^2, 10 %
+approximation, :meth:`ContactCompliance.preconditioner`), restricted to the working set, which
+cuts the iterations five- to seven-fold on rough surfaces (30 instead of 206 at 512^2, 10 %
 contact), in the spirit of Vollebregt's bound-constrained CG (J. Optim. Theory Appl. 162, 2014).
 
 One iteration:
