@@ -23,11 +23,12 @@ the system and asks again) as on its FFTs. So
 
 Where a facade call goes (``benchmarks/bench_forward.py --phases``, Table 0b of
 docs/forward_benchmark.md: ``HalfSpace.stress(load, 1 mm, method="spectral")``, p + qx + qy, six
-components, one depth, float64, one thread; minima over 101 interleaved repeats on a shared
-2-core machine, in units of the FFT floor of 3 ``rfft2`` + 6 ``irfft2``, at 256^2 / 512^2): the
-three forward transforms 0.30 / 0.35 (the floor's own: 0.31 / 0.35), the six inverse transforms
-0.70 / 0.69 (the floor's: 0.68 / 0.63), and between them the multiply-adds: 0.33 / 0.38 as the
-30 NumPy passes of :func:`apply`, 0.14 / 0.14 as the six compiled passes of :func:`apply_fused`.
+components, one depth, float64, one thread; minima over 101 interleaved repeats on the 2-core
+machine shared with other jobs, in units of the FFT floor of 3 ``rfft2`` + 6 ``irfft2``, at
+256^2 / 512^2): the three forward transforms 0.30 / 0.35 (the floor's own: 0.31 / 0.34), the six
+inverse transforms 0.66 to 0.73 / 0.67 to 0.73 (the floor's: 0.68 / 0.65), and between them the
+multiply-adds: 0.31 / 0.35 as the 30 NumPy passes of :func:`apply`, 0.14 to 0.16 / 0.12 to 0.14
+as the six compiled passes of :func:`apply_fused`.
 Measured and not kept (NumPy path):
 tables stored for eta >= 0 only and mirrored (half the table memory, no faster: the extra
 half-size calls and reversed rows cost what the smaller tables save), real tables applied through
@@ -338,8 +339,9 @@ def _multiply_add(spectra, loads, imaginary, tables, acc):  # pragma: no cover -
     """acc = sum_k spectra[loads[k]] x tables[k] (x 1j where imaginary[k]), on float views
     (re at 2i, im at 2i + 1), summed in the order given (the NumPy path's sums).
 
-    Up to three terms in one pass (a loop per count, so that each vectorises); further terms (a
-    load entering both as real and imaginary) are added one pass each.
+    Up to three terms in one pass (a loop per count, so that each vectorises: one inner loop over
+    any number of terms ran 2.5x slower, and (n, 2) views of the spectra 2x slower); further terms
+    (a load entering both as real and imaginary) are added one pass each.
     """
     n, count = tables.shape[1], loads.shape[0]
     s0, t0, j0 = spectra[loads[0]], tables[0], imaginary[0]
