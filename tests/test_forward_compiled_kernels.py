@@ -94,7 +94,7 @@ def test_compiled_strain_check_gives_the_numpy_bound(rng, monkeypatch, shape, dt
         field = values[:, [COMPS.index(c) for c in comps]]
         got, want = _both_paths(monkeypatch, lambda: largest_strain(field, quantity, comps, 2e5, 0.45))
         assert got == want, (quantity, comps)
-    strided = values[:, ::-1]  # not contiguous: copied for the kernel
+    strided = values[:, ::-1]  # not contiguous: the NumPy twin (a copy for the kernel could be large)
     got, want = _both_paths(monkeypatch, lambda: largest_strain(strided, "stress", COMPS[::-1], 2e5, 0.45))
     assert got == want
 

@@ -223,7 +223,7 @@ def largest_strain(values: np.ndarray, quantity: str, components: Sequence[str],
     else:  # shear strains are (1 + nu) sigma_ij / E; the normal ones need all three (the trace)
         direct = [index[c] for c in ("yz", "zx", "xy") if c in index]
         normals = [index[c] for c in ("xx", "yy", "zz")] if {"xx", "yy", "zz"} <= index.keys() else []
-    if jit.enabled() and values.dtype in _BITS:
+    if jit.enabled() and values.dtype in _BITS and values.flags.c_contiguous:  # else no copy: NumPy
         direct_peaks, normal_peaks = _peaks_compiled(values, direct, normals, nu)
     else:
         direct_peaks, normal_peaks = _peaks_numpy(values, direct, normals, nu)
@@ -262,7 +262,7 @@ _BLOCK = 512  # normal strains per block of the compiled kernel (its scratch sta
 
 
 def _peaks_compiled(values: np.ndarray, direct: list, normals: list, nu: float) -> tuple[list, list]:
-    """:func:`_peaks_numpy` in one compiled pass over the field, with the same results.
+    """:func:`_peaks_numpy` in one compiled pass over a C-contiguous field, with the same results.
 
     ``max |x|`` is taken on the bit patterns with the sign bit cleared, as integers: for
     non-negative floats they order as the numbers do, and a NaN's pattern lies above infinity's,
@@ -270,7 +270,7 @@ def _peaks_compiled(values: np.ndarray, direct: list, normals: list, nu: float) 
     where a floating-point one that must keep NaN does not).
     """
     itype, mask = _BITS[values.dtype]
-    field = np.ascontiguousarray(values).reshape(values.shape[0], values.shape[1], -1)
+    field = values.reshape(values.shape[0], values.shape[1], -1)  # C-contiguous: a view
     scratch = np.empty(_BLOCK, field.dtype)
     peaks = np.zeros(len(direct) + len(normals), itype)
     one_plus_nu, nu_ = field.dtype.type(1.0 + nu), field.dtype.type(nu)  # NumPy's float32 arithmetic
