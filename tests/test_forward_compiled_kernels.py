@@ -116,3 +116,19 @@ def test_compiled_strain_check_flags_nan_and_inf_anywhere(monkeypatch, dtype):
                         assert math.isnan(got) and math.isnan(want), (bad, k, where, quantity)
                     else:
                         assert got == want == math.inf, (bad, k, where, quantity)
+
+
+@pytest.mark.parametrize("shape", [(20, 24), (21, 15), (48,)])
+@pytest.mark.parametrize("tol", [1e-9, 1e-3])  # float64, float32
+def test_the_facade_gives_the_same_answer_on_both_paths(rng, monkeypatch, shape, tol):
+    from tactilab.forward import HalfSpace
+
+    load = _load(rng, shape)
+    hs = HalfSpace(E=1e6, nu=0.45)
+    for quantity in ("stress", "strain"):
+        def call():
+            result = getattr(hs, quantity)(load, [2e-4, 1e-3], method="spectral", tol=tol)
+            return result.data[quantity].values, result.error_estimate
+
+        (got, got_err), (want, want_err) = _both_paths(monkeypatch, call)
+        assert np.array_equal(got, want) and got_err == want_err, quantity

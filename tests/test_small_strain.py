@@ -24,7 +24,7 @@ def _fingertip_load(n: int = 32, spacing: float = 0.25e-3) -> SurfaceLoad:
     return SurfaceLoad(p=42e3 * np.sqrt(np.clip(1 - rho2 / 3e-3 ** 2, 0, None)), spacing=spacing)
 
 
-def test_a_1kpa_skin_under_a_fingertip_load_warns_and_1mpa_does_not():
+def test_a_1kpa_skin_under_a_fingertip_load_warns_and_1mpa_does_not(kernel_path):
     load = _fingertip_load()
     with pytest.warns(PlausibilityWarning, match=STRAIN_MESSAGE):
         HalfSpace(E=1e3).strain(load, 1e-3, components=("zz",))
