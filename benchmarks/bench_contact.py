@@ -56,6 +56,7 @@ from tactilab.data_schemas import random_rough_surface  # noqa: E402
 from tactilab.forward import HalfSpace  # noqa: E402
 from tactilab.forward import solve_contact as _solve_contact  # noqa: E402
 from tactilab.forward.contact import solve as contact_solve  # noqa: E402  (the method table, to time the loop)
+from tactilab.core import jit  # noqa: E402
 from tactilab.forward.halfspace import inverse_into, rfftn_into  # noqa: E402
 
 E_PA, NU = 1e6, 0.5
@@ -341,6 +342,23 @@ def section_d(sizes, tol: float) -> None:
               f"{ti / max(iso.iterations, 1) / fi:12.2f}{loop_i.per_iteration((n, n)) / fi:12.2f}", flush=True)
 
 
+def passes() -> str:
+    """Which path the solvers' elementwise passes take (tactilab.core.jit)."""
+    if jit.enabled():
+        import numba
+
+        return f"compiled (numba {numba.__version__})"
+    return "NumPy (TACTILAB_JIT=0)" if jit.available() else "NumPy (numba not installed)"
+
+
+def warm_up() -> None:
+    """One small solve of each kind, so that no table times a kernel's compilation or cache load."""
+    h, pbar = rough_cell(32)
+    solve_contact(HalfSpace(E=E_PA, nu=NU), -h, 1e-6, mean_pressure=pbar, periodic=True)
+    plate, finger, dx = fingertip(32)
+    solve_contact(HalfSpace(E=E_PA, nu=NU), finger - plate, dx, normal_force=0.5)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sections", nargs="+", choices=("a", "b", "c", "d"), default=["a", "b", "c", "d"])
@@ -370,7 +388,8 @@ def main(argv=None) -> int:
     sizes_a = args.sizes or ([32, 64] if args.quick else [256, 512, 1024])
     sizes_d = args.sizes or ([32, 64] if args.quick else [256, 512, 1024, 2048])
     print(f"bench_contact: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}, numpy {np.__version__}, "
-          f"tol {args.tol:g}, method {args.method}, one thread")
+          f"tol {args.tol:g}, method {args.method}, one thread, elementwise passes: {passes()}")
+    warm_up()
     if "a" in args.sections:
         section_a(sizes_a, args.tol, peer, args.peer_cap)
         section_a_memory(max(sizes_a), args.tol)
