@@ -16,6 +16,8 @@ the system and asks again) as on its FFTs. So
   that ``scipy.fft`` itself calls, checked once at import to give bitwise the same result as
   ``scipy.fft.rfftn`` / ``ifft`` / ``irfft``; where that binding is missing or differs (another
   scipy), they fall back to the public functions and a copy.
+- :func:`rfft_last_into`, :func:`fft_first_inplace` and :func:`irfft_last_into` do the same along one
+  axis (the contact room's zero-padded products transform only the rows that hold data).
 - :func:`work_buffers` keeps one set of spectrum-sized work arrays per thread (for grids whose
   buffers stay below :data:`BUFFER_BYTES`), so repeated calls reuse warm memory.
 
@@ -81,6 +83,10 @@ def _binding():
                     mod.c2r(spec, (1,), shape[-1], False, 2, rows, 1)
                     if not (np.array_equal(spec, cols) and np.array_equal(rows, sfft.irfft(cols, n=shape[-1], axis=1))):
                         return None
+                    ahead = sfft.fft(cols, axis=0)  # fft_first_inplace's forward transform
+                    mod.c2c(cols, (0,), True, 0, cols, 1)
+                    if not np.array_equal(cols, ahead):
+                        return None
         except (TypeError, ValueError, AttributeError):
             return None
         return mod
@@ -134,6 +140,32 @@ def inverse_into(spectrum: np.ndarray, out: np.ndarray, workers: int | None = No
     out[...] = sfft.irfft(spectrum, n=out.shape[1], axis=1, workers=workers)
     return out
 
+
+
+def rfft_last_into(values: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
+    """``out[...] = scipy.fft.rfft(values, axis=-1)`` (float -> complex), straight into ``out``."""
+    if _RAW is not None:
+        return _RAW.r2c(values, (values.ndim - 1,), True, 0, out, threads(workers))
+    out[...] = sfft.rfft(values, axis=-1, workers=workers)
+    return out
+
+
+def fft_first_inplace(spectrum: np.ndarray, forward: bool, workers: int | None = None) -> np.ndarray:
+    """The complex FFT of ``spectrum`` along its first axis, in place and unnormalised both ways
+    (``forward=False``: ``ifft`` times the axis' length)."""
+    if _RAW is not None:
+        return _RAW.c2c(spectrum, (0,), bool(forward), 0, spectrum, threads(workers))
+    spectrum[...] = (sfft.fft(spectrum, axis=0, workers=workers) if forward
+                     else sfft.ifft(spectrum, axis=0, norm="forward", workers=workers))
+    return spectrum
+
+
+def irfft_last_into(spectrum: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
+    """``out[...] = scipy.fft.irfft(spectrum, n=out.shape[-1], axis=-1)`` (complex -> float, 1/n)."""
+    if _RAW is not None:
+        return _RAW.c2r(spectrum, (spectrum.ndim - 1,), out.shape[-1], False, 2, out, threads(workers))
+    out[...] = sfft.irfft(spectrum, n=out.shape[-1], axis=-1, workers=workers)
+    return out
 
 def work_buffers(spectrum_shape: tuple, cdtype, count: int) -> list[np.ndarray]:
     """``count`` complex arrays of ``spectrum_shape`` (contents undefined), reused per thread.
