@@ -16,8 +16,6 @@ the system and asks again) as on its FFTs. So
   that ``scipy.fft`` itself calls, checked once at import to give bitwise the same result as
   ``scipy.fft.rfftn`` / ``ifft`` / ``irfft``; where that binding is missing or differs (another
   scipy), they fall back to the public functions and a copy.
-- :func:`rfft_last_into`, :func:`fft_first_inplace` and :func:`irfft_last_into` do the same along one
-  axis (the contact room's zero-padded products transform only the rows that hold data).
 - :func:`work_buffers` keeps one set of spectrum-sized work arrays per thread (for grids whose
   buffers stay below :data:`BUFFER_BYTES`), so repeated calls reuse warm memory.
 
@@ -109,6 +107,35 @@ def threads(workers: int | None) -> int:
     return count
 
 
+def rfft_last_into(values: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
+    """``out[...] = scipy.fft.rfft(values, axis=-1)`` (float -> complex), straight into ``out``.
+
+    With :func:`fft_first_inplace` and :func:`irfft_last_into`: the transforms of :func:`rfftn_into`
+    and :func:`inverse_into` one axis at a time, so that a zero-padded product transforms only the
+    rows that hold data (the contact room's isolated grids)."""
+    if _RAW is not None:
+        return _RAW.r2c(values, (values.ndim - 1,), True, 0, out, threads(workers))
+    out[...] = sfft.rfft(values, axis=-1, workers=workers)
+    return out
+
+
+def fft_first_inplace(spectrum: np.ndarray, forward: bool, workers: int | None = None) -> np.ndarray:
+    """The complex FFT of ``spectrum`` along its first axis, in place and unnormalised both ways
+    (``forward=False``: ``ifft`` times the axis' length)."""
+    if _RAW is not None:
+        return _RAW.c2c(spectrum, (0,), bool(forward), 0, spectrum, threads(workers))
+    spectrum[...] = (sfft.fft(spectrum, axis=0, workers=workers) if forward
+                     else sfft.ifft(spectrum, axis=0, norm="forward", workers=workers))
+    return spectrum
+
+
+def irfft_last_into(spectrum: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
+    """``out[...] = scipy.fft.irfft(spectrum, n=out.shape[-1], axis=-1)`` (complex -> float, 1/n)."""
+    if _RAW is not None:
+        return _RAW.c2r(spectrum, (spectrum.ndim - 1,), out.shape[-1], False, 2, out, threads(workers))
+    out[...] = sfft.irfft(spectrum, n=out.shape[-1], axis=-1, workers=workers)
+    return out
+
 def rfftn_into(values: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
     """``out[...] = scipy.fft.rfftn(values)`` over all axes of ``values`` (float -> complex)."""
     axes = tuple(range(values.ndim))
@@ -141,31 +168,6 @@ def inverse_into(spectrum: np.ndarray, out: np.ndarray, workers: int | None = No
     return out
 
 
-
-def rfft_last_into(values: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
-    """``out[...] = scipy.fft.rfft(values, axis=-1)`` (float -> complex), straight into ``out``."""
-    if _RAW is not None:
-        return _RAW.r2c(values, (values.ndim - 1,), True, 0, out, threads(workers))
-    out[...] = sfft.rfft(values, axis=-1, workers=workers)
-    return out
-
-
-def fft_first_inplace(spectrum: np.ndarray, forward: bool, workers: int | None = None) -> np.ndarray:
-    """The complex FFT of ``spectrum`` along its first axis, in place and unnormalised both ways
-    (``forward=False``: ``ifft`` times the axis' length)."""
-    if _RAW is not None:
-        return _RAW.c2c(spectrum, (0,), bool(forward), 0, spectrum, threads(workers))
-    spectrum[...] = (sfft.fft(spectrum, axis=0, workers=workers) if forward
-                     else sfft.ifft(spectrum, axis=0, norm="forward", workers=workers))
-    return spectrum
-
-
-def irfft_last_into(spectrum: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
-    """``out[...] = scipy.fft.irfft(spectrum, n=out.shape[-1], axis=-1)`` (complex -> float, 1/n)."""
-    if _RAW is not None:
-        return _RAW.c2r(spectrum, (spectrum.ndim - 1,), out.shape[-1], False, 2, out, threads(workers))
-    out[...] = sfft.irfft(spectrum, n=out.shape[-1], axis=-1, workers=workers)
-    return out
 
 def work_buffers(spectrum_shape: tuple, cdtype, count: int) -> list[np.ndarray]:
     """``count`` complex arrays of ``spectrum_shape`` (contents undefined), reused per thread.
