@@ -136,6 +136,7 @@ def irfft_last_into(spectrum: np.ndarray, out: np.ndarray, workers: int | None =
     out[...] = sfft.irfft(spectrum, n=out.shape[-1], axis=-1, workers=workers)
     return out
 
+
 def rfftn_into(values: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
     """``out[...] = scipy.fft.rfftn(values)`` over all axes of ``values`` (float -> complex)."""
     axes = tuple(range(values.ndim))
