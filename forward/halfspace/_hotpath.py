@@ -169,7 +169,6 @@ def inverse_into(spectrum: np.ndarray, out: np.ndarray, workers: int | None = No
     return out
 
 
-
 def work_buffers(spectrum_shape: tuple, cdtype, count: int) -> list[np.ndarray]:
     """``count`` complex arrays of ``spectrum_shape`` (contents undefined), reused per thread.
 
