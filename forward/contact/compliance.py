@@ -216,7 +216,7 @@ class ContactCompliance:
             stiff.flat[0] = stiff[stiff > 0].min() if (stiff > 0).any() else 0.0
             self._spectra["stiffness"] = stiff
         gap = self._check(gap, "gap")
-        if self.periodic and self.ndim == 2:
+        if self.ndim == 2:  # periodic or not, the stiffness acts on the unpadded grid: kept work arrays
             return self._periodic_product(gap, "stiffness", out)
         spectrum = sfft.rfftn(gap, axes=self._axes, workers=1)
         spectrum *= self._spectra["stiffness"]
