@@ -15,6 +15,7 @@ from tactilab.forward import HalfSpace, solve_contact
 from tactilab.forward.contact import ContactCompliance, kernels
 from tactilab.forward.contact.preconditioned import preconditioned_cg
 
+SKIN = HalfSpace(1e6, 0.5)
 SHAPE = (24, 36)  # not a multiple of the SIMD width: the kernels' tails run too
 
 
@@ -128,7 +129,6 @@ def test_nan_propagates_both_ways(rng):
 
 
 # -- the whole loop -----------------------------------------------------------------------------
-SKIN = HalfSpace(1e6, 0.5)
 CASES = {  # name: (shape, periodic, force control)
     "periodic 2-D, force": ((48, 64), True, True),
     "periodic plane strain, force": ((256,), True, True),
