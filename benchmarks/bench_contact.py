@@ -250,12 +250,25 @@ def section_a(sizes, tol: float, peer: bool, cap: float) -> None:
               f"{per_iter:12.2f}{per_loop:12.2f}{cols}", flush=True)
 
 
+def peak_rss_mib() -> float:
+    """This process's peak resident memory, MiB: Linux's VmHWM (``ru_maxrss`` would carry over the
+    parent's resident memory at the fork that started this child), ``ru_maxrss`` elsewhere."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return float(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
 def memory_child(n: int, tol: float) -> None:
-    """Child process: RSS before and after one section-a solve at n^2 (printed in MiB)."""
+    """Child process: peak RSS before and after one section-a solve at n^2 (printed in MiB)."""
     h, pbar = rough_cell(n)
-    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    before = peak_rss_mib()
     solve_contact(HalfSpace(E=E_PA, nu=NU), -h, 1e-6, mean_pressure=pbar, periodic=True, tol=tol)
-    after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    after = peak_rss_mib()
     print(f"{before:.1f} {after:.1f}")
 
 
@@ -268,7 +281,7 @@ def section_a_memory(n: int, tol: float) -> None:
         return
     before, after = (float(v) for v in proc.stdout.split())
     print(f"memory at {n}^2 (periodic): peak RSS {after:.0f} MiB, of which the solve {after - before:.0f} MiB "
-          f"(the rest: Python, numpy, the surface)")
+          f"(the rest: Python, numpy, numba where installed, the surface)")
 
 
 def hertz_grid(n: int):
