@@ -1,13 +1,15 @@
 """The fused passes of the preconditioned contact loop (:mod:`.preconditioned`), compiled or in NumPy.
 
-Between its two FFT products an iteration of :func:`.preconditioned.preconditioned_cg` makes about
-30 elementwise NumPy passes over the grid (each a read and a write of one or two grid arrays),
-which cost about as much as the FFTs. Here they are grouped into six passes, each one loop over the
-grid when compiled (:mod:`tactilab.core.jit`: numba) and the original NumPy calls otherwise (the
-NumPy twin, with ``TACTILAB_JIT=0`` or without numba). Each function takes ``compiled`` (the
-caller asks :func:`tactilab.core.jit.enabled` once per solve) and gives the same elementwise
-values either way; only the order of the additions in a sum differs (NumPy's einsum and sum add in
-blocks, a loop in sequence), so the two paths' iterates agree to round-off (tests/test_contact_kernels.py).
+Between its FFT products an iteration of :func:`.preconditioned.preconditioned_cg` makes about 30
+elementwise NumPy passes over the grid (each a read and a write of one or two grid arrays): 1.3 to
+1.5 FFT floors per iteration on a periodic grid (docs/contact.md, Cost). Here they are grouped
+into seven functions, each one loop over the grid when compiled (:mod:`tactilab.core.jit`: numba;
+two for :func:`project` under force control) and the original NumPy calls otherwise (the NumPy
+twin, with ``TACTILAB_JIT=0`` or without numba): 0.55 to 0.7 floors. Each function takes
+``compiled`` (the caller asks :func:`tactilab.core.jit.enabled` once per solve) and gives the same
+elementwise values either way; only the order of the additions in a sum differs (the compiled sums
+add in SIMD lanes, NumPy's einsum and sum in blocks), so the two paths' iterates agree to round-off
+(tests/test_contact_kernels.py).
 
 The passes, in the order of an iteration (arrays of the grid's shape, C-contiguous, float64 unless
 said; ``g`` gap in m, ``p`` pressure in Pa, ``u`` displacement in m):
@@ -21,8 +23,9 @@ said; ``g`` gap in m, ``p`` pressure in Pa, ``u`` displacement in m):
 4. :func:`direction`: ``t = beta t S + z`` and ``<r, t>``;
 5. :func:`dot`: ``<A t, t>``;
 6. :func:`descend`: ``p -= tau t``, negative pressures clipped to 0 and the first ones recorded,
-   the sum of ``p``; then :func:`subtract_scaled` (``u -= tau A t``) when the displacement is
-   updated rather than recomputed.
+   the sum of ``p``;
+7. :func:`subtract_scaled`: ``u -= tau A t``, when the displacement is updated rather than
+   recomputed.
 """
 
 from __future__ import annotations
@@ -50,11 +53,16 @@ _MAGNITUDE = np.int64(0x7FFFFFFFFFFFFFFF)
 
 @jit.njit(reassociate=True)
 def _gap_kernel(g0, u, p, g, factor):
-    if factor != 1.0:
+    n_in, total = 0, 0.0
+    if factor != 1.0:  # the force's rescaling, in the same pass
         for i in range(g.size):
             u[i] *= factor
             p[i] *= factor
-    n_in, total = 0, 0.0
+            g[i] = v = g0[i] + u[i]
+            inside = p[i] > 0.0
+            total += v * np.float64(inside)
+            n_in += np.int64(inside)
+        return n_in, total
     for i in range(g.size):
         g[i] = v = g0[i] + u[i]
         inside = p[i] > 0.0
