@@ -87,6 +87,10 @@ def _binding():
                     mod.c2r(spec, (1,), shape[-1], False, 2, rows, 1)
                     if not (np.array_equal(spec, cols) and np.array_equal(rows, sfft.irfft(cols, n=shape[-1], axis=1))):
                         return None
+                    ahead = sfft.fft(cols, axis=0)  # fft_first_inplace's forward transform
+                    mod.c2c(cols, (0,), True, 0, cols, 1)
+                    if not np.array_equal(cols, ahead):
+                        return None
         except (TypeError, ValueError, AttributeError):
             return None
         return mod
@@ -107,6 +111,36 @@ def threads(workers: int | None) -> int:
         raise ValueError(f"workers: must be a thread count >= 1, or negative to count back from all "
                          f"{os.cpu_count()} CPUs (-1: all), got {workers!r}; use None for scipy's default")
     return count
+
+
+def rfft_last_into(values: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
+    """``out[...] = scipy.fft.rfft(values, axis=-1)`` (float -> complex), straight into ``out``.
+
+    With :func:`fft_first_inplace` and :func:`irfft_last_into`: the transforms of :func:`rfftn_into`
+    and :func:`inverse_into` one axis at a time, so that a zero-padded product transforms only the
+    rows that hold data (the contact room's isolated grids)."""
+    if _RAW is not None:
+        return _RAW.r2c(values, (values.ndim - 1,), True, 0, out, threads(workers))
+    out[...] = sfft.rfft(values, axis=-1, workers=workers)
+    return out
+
+
+def fft_first_inplace(spectrum: np.ndarray, forward: bool, workers: int | None = None) -> np.ndarray:
+    """The complex FFT of ``spectrum`` along its first axis, in place and unnormalised both ways
+    (``forward=False``: ``ifft`` times the axis' length)."""
+    if _RAW is not None:
+        return _RAW.c2c(spectrum, (0,), bool(forward), 0, spectrum, threads(workers))
+    spectrum[...] = (sfft.fft(spectrum, axis=0, workers=workers) if forward
+                     else sfft.ifft(spectrum, axis=0, norm="forward", workers=workers))
+    return spectrum
+
+
+def irfft_last_into(spectrum: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
+    """``out[...] = scipy.fft.irfft(spectrum, n=out.shape[-1], axis=-1)`` (complex -> float, 1/n)."""
+    if _RAW is not None:
+        return _RAW.c2r(spectrum, (spectrum.ndim - 1,), out.shape[-1], False, 2, out, threads(workers))
+    out[...] = sfft.irfft(spectrum, n=out.shape[-1], axis=-1, workers=workers)
+    return out
 
 
 def rfftn_into(values: np.ndarray, out: np.ndarray, workers: int | None = None) -> np.ndarray:
