@@ -45,8 +45,10 @@ from pathlib import Path
 import numpy as np
 import scipy.fft as sfft
 
+from tactilab.core import jit
 from tactilab.forward.halfspace.dcfft import dcfft_stress, padded_shape
 from tactilab.forward.halfspace.facade import HalfSpace
+from tactilab.forward.halfspace.fields import largest_strain
 from tactilab.forward.halfspace.kernels import COMPONENTS, active_pairs, direct_stress
 from tactilab.forward.halfspace.loads import SurfaceLoad
 from tactilab.forward.halfspace.operator import LoadToSensor
@@ -722,12 +724,14 @@ def bench_phases(n: int, repeats: int) -> dict[str, float]:
     key = (tuple(load.shape), tuple(load.spacing), "float64")
     g = _cached_geometry(*key)
     hs.stress(load, depth, method="spectral", tol=1e-9)  # fills the table cache
-    bufs = _hotpath.work_buffers(g.rho.shape, np.complex128, len(names) + 2)
-    spectra = dict(zip(names, bufs))
+    fused = jit.enabled()  # the path periodic_stress takes now: compiled kernels or their NumPy twins
+    block = _hotpath.work_block(g.rho.shape, np.complex128, len(names) + 2)
+    spectra = dict(zip(names, block))
     tables = _hotpath.depth_tables(g, key, nu, names, IDENTITY, depth, np.dtype(float), np.dtype(complex),
-                                   _real_coefficients)
+                                   _real_coefficients, fused)
     out = np.empty((6,) + load.shape)
     spectrum = sfft.rfft2(load.p)
+    field = periodic_stress(load, [depth], nu, IDENTITY)
 
     def forward():
         for name in names:
@@ -735,16 +739,22 @@ def bench_phases(n: int, repeats: int) -> dict[str, float]:
 
     def passes():
         for terms in tables:
-            _hotpath.apply(terms, spectra, bufs[-2], bufs[-1])
+            if fused:
+                _hotpath.apply_fused(terms, block[:len(names)], block[-2])
+            else:
+                _hotpath.apply(terms, spectra, block[-2], block[-1])
 
     def inverse():
         for o in range(6):
-            _hotpath.inverse_into(bufs[-2], out[o], 1)  # overwrites its input: the timing does not care
+            _hotpath.inverse_into(block[-2], out[o], 1)  # overwrites its input: the timing does not care
 
     funcs = {"facade": lambda: hs.stress(load, depth, method="spectral", tol=1e-9),
              "facade + .data": lambda: hs.stress(load, depth, method="spectral", tol=1e-9).data,
              "periodic_stress": lambda: periodic_stress(load, [depth], nu, IDENTITY),
-             "3 forward transforms": forward, "30 multiply-add passes": passes, "6 inverse transforms": inverse,
+             "3 forward transforms": forward,
+             "6 compiled multiply-adds" if fused else "30 multiply-add passes": passes,
+             "6 inverse transforms": inverse,
+             "small-strain check": lambda: largest_strain(field, "stress", COMPONENTS, E_PA, nu),
              "floor": spectral_floor(load, 1),
              "floor: 3 rfft2": lambda: [sfft.rfft2(a) is None for a in load.components.values()],
              "floor: 6 irfft2": lambda: [sfft.irfft2(spectrum, s=load.shape) is None for _ in range(6)]}
@@ -759,6 +769,17 @@ def print_phases(sizes, repeats: int) -> None:
     for phase in rows[sizes[0]]:
         print(f"{phase:<26}" + "".join(f"{1e3 * rows[n][phase]:11.3f}{rows[n][phase] / rows[n]['floor']:9.2f}"
                                         for n in sizes))
+
+
+def kernels_in_use() -> str:
+    """Which path the solver's elementwise passes take (tactilab.core.jit), for the header."""
+    if jit.enabled():
+        import numba
+
+        return f"compiled (numba {numba.__version__})"
+    if jit.available():
+        return "NumPy (TACTILAB_JIT=0)"
+    return "NumPy (numba not installed: the 'fast' extra)"
 
 
 # -- driver -------------------------------------------------------------------------------------
@@ -798,6 +819,7 @@ def main(argv=None) -> int:
     print(f"tactilab forward benchmark ({'quick' if args.quick else 'full'}): spacing {SPACING * 1e3} mm, "
           f"E = {E_PA:.0e} Pa, nu = 0.5 unless stated, float64, scipy {sfft.__name__} 1 thread, "
           f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}")
+    print(f"kernels: {kernels_in_use()}")
     floor_repeats = args.repeats or (5 if args.quick else 101)
     if args.phases:
         print_phases(args.sizes or [256, 512], args.repeats or (5 if args.quick else 101))

@@ -46,13 +46,23 @@ def enabled() -> bool:
     return _numba is not None and os.environ.get("TACTILAB_JIT", "1").strip() != "0"
 
 
-def njit(func: F) -> F:
+def njit(func: F | None = None, *, reassociate: bool = False):
     """Compile ``func`` with numba (no Python objects, on-disk cache, NumPy's error model).
 
     Without numba, ``func`` is returned as is: callers run their NumPy twin instead (see
     :func:`enabled`), never the pure-Python loops. ``fastmath`` stays off so that NaN and
     infinities propagate exactly as in NumPy.
+
+    ``reassociate=True`` (used as ``@jit.njit(reassociate=True)``) lets the compiler reorder the
+    additions of a sum (LLVM's ``reassoc`` flag alone), so that a loop that accumulates a sum runs
+    in SIMD lanes: about twice as fast when the data are in cache. A sum's value then differs from
+    the sequential one by round-off (as NumPy's own sums, which add in blocks, do); NaN and
+    infinities still propagate, since no other fast-math flag is set. Give it only to kernels whose
+    other results do not depend on the order of operations.
     """
+    if func is None:
+        return lambda f: njit(f, reassociate=reassociate)
     if _numba is None:
         return func
-    return _numba.njit(cache=True, nogil=True, error_model="numpy")(func)
+    flags = {"fastmath": {"reassoc"}} if reassociate else {}
+    return _numba.njit(cache=True, nogil=True, error_model="numpy", **flags)(func)

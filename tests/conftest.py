@@ -50,3 +50,10 @@ def pytest_collection_modifyitems(session, config, items):
     kill -9 reliability tests fork, which needs a single-threaded process.
     """
     items.sort(key=lambda item: item.nodeid.startswith("tests/test_batch"))
+
+
+@pytest.fixture(params=["compiled", "numpy"])
+def kernel_path(request, monkeypatch) -> str:
+    """Runs a test on both paths of tactilab.core.jit: the compiled kernels and their NumPy twins."""
+    monkeypatch.setenv("TACTILAB_JIT", "1" if request.param == "compiled" else "0")
+    return request.param

@@ -42,3 +42,24 @@ def test_fft_floor_is_positive_and_pads_isolated_grids():
     assert bench.fft_floor((16, 16), True, repeats=1) > 0
     h, pbar = bench.rough_cell(16)
     assert h.shape == (16, 16) and pbar == pytest.approx(0.05 * bench.E_STAR * bench.SLOPE)
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")  # tiny grids resolve the contacts coarsely (AccuracyWarning)
+@pytest.mark.parametrize("kind", ["auto", "fft"])
+def test_bench_contact_phases_splits_the_fine_loop(capsys, monkeypatch, kind):
+    spec = importlib.util.spec_from_file_location("bench_contact_phases",
+                                                  ROOT / "benchmarks" / "bench_contact_phases.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    from tactilab.forward.contact import ContactCompliance, kernels
+
+    originals = (ContactCompliance.normal, ContactCompliance.preconditioner, kernels.gap)
+    assert module.main(["--sizes", "32", "--repeats", "1", "--preconditioner", kind]) == 0
+    # the timing wrappers are undone
+    assert (ContactCompliance.normal, ContactCompliance.preconditioner, kernels.gap) == originals
+    rows = [line.split() for line in capsys.readouterr().out.splitlines() if line.strip().startswith("32 ")]
+    assert [r[1] for r in rows] == ["periodic", "isolated"]
+    for r in rows:
+        loop, parts = float(r[4]), [float(r[i]) for i in (5, 8, 9, 10, 11)]  # A, K, points, passes, rest
+        assert int(r[2]) > 0 and loop > 0 and float(r[5]) > 0 and float(r[8]) > 0
+        assert sum(parts) == pytest.approx(loop, abs=0.035)  # printed to 0.01 each

@@ -258,3 +258,26 @@ def test_fast_products_equal_the_padded_convolution(shape, periodic, rng):
     again = np.empty(shape)
     assert comp.stiffness(uz, out=again) is again and np.array_equal(again, fresh)
     assert np.array_equal(comp.normal(p), comp.normal(p))
+
+
+@pytest.mark.parametrize("shape", [(24, 32), (17, 10)])
+def test_padded_products_reuse_their_buffers_and_fall_back_to_scipy(shape, rng, monkeypatch):
+    """An isolated 2-D grid's normal product runs through kept per-thread work arrays: products of other
+    tractions after it (the padding zeroed again each time) equal the textbook zero-padded transform,
+    and so does the path through scipy.fft's public functions (where its transform binding is absent)."""
+    from scipy import fft as sfft
+
+    from tactilab.forward.halfspace import _hotpath
+
+    comp = ContactCompliance(HalfSpace(E=1e6, nu=0.4), shape, (1e-5, 2e-5), False)
+
+    def reference(value):
+        spec = sfft.rfftn(value, s=comp.fft_shape) * comp.spectrum("uz", "p")
+        return sfft.irfftn(spec, s=comp.fft_shape)[: shape[0], : shape[1]]
+
+    for _ in range(3):
+        p = rng.standard_normal(shape)
+        uz = reference(p)
+        np.testing.assert_allclose(comp.normal(p), uz, rtol=0, atol=1e-13 * np.abs(uz).max())
+    monkeypatch.setattr(_hotpath, "_RAW", None)
+    np.testing.assert_allclose(comp.normal(p), uz, rtol=0, atol=1e-13 * np.abs(uz).max())

@@ -39,3 +39,25 @@ def test_the_test_environment_compiles():
     # the test extra installs numba: both paths of every kernel run in the suite
     assert jit.available()
     assert hasattr(jit.njit(_axpy), "py_func")
+
+
+def _total(x):
+    s = 0.0
+    for i in range(x.size):
+        s += x[i]
+    return s
+
+
+def test_reassociated_sums_agree_to_round_off_and_keep_nan(rng):
+    f = jit.njit(reassociate=True)(_total)
+    x = rng.standard_normal(1001)
+    assert f(x) == pytest.approx(x.sum(), rel=1e-12, abs=1e-12)
+    x[500] = np.nan
+    assert np.isnan(f(x))  # only reassoc: no nnan flag, so NaN still propagates
+    x[500] = np.inf
+    assert f(x) == np.inf
+
+
+def test_without_numba_reassociated_njit_returns_the_function(monkeypatch):
+    monkeypatch.setattr(jit, "_numba", None)
+    assert jit.njit(reassociate=True)(_total) is _total

@@ -24,7 +24,7 @@ def _fingertip_load(n: int = 32, spacing: float = 0.25e-3) -> SurfaceLoad:
     return SurfaceLoad(p=42e3 * np.sqrt(np.clip(1 - rho2 / 3e-3 ** 2, 0, None)), spacing=spacing)
 
 
-def test_a_1kpa_skin_under_a_fingertip_load_warns_and_1mpa_does_not():
+def test_a_1kpa_skin_under_a_fingertip_load_warns_and_1mpa_does_not(kernel_path):
     load = _fingertip_load()
     with pytest.warns(PlausibilityWarning, match=STRAIN_MESSAGE):
         HalfSpace(E=1e3).strain(load, 1e-3, components=("zz",))
@@ -35,7 +35,7 @@ def test_a_1kpa_skin_under_a_fingertip_load_warns_and_1mpa_does_not():
         HalfSpace(E=1e6).strain(load, 1e-3, components=("zz",))  # 1000x smaller: about 2 % at most
 
 
-def test_the_stress_bound_equals_the_strain_bound_with_all_six_components():
+def test_the_stress_bound_equals_the_strain_bound_with_all_six_components(kernel_path):
     """Oracle: the bound from a stress field (Hooke's law) is the max |eps_ij| of the strain field."""
     rng = np.random.default_rng(3)
     stress = rng.normal(size=(2, 6, 5, 4)) * 1e3
@@ -68,7 +68,7 @@ def test_the_stress_command_warns_and_strict_makes_it_an_error(tmp_path, capsys)
     assert "error: HalfSpace.strain: the largest strain is 20" in capsys.readouterr().err
 
 
-def test_largest_strain_flags_nan_in_any_component():
+def test_largest_strain_flags_nan_in_any_component(kernel_path):
     """The check reads max and min per component: a NaN anywhere must come out as NaN (flagged)."""
     import math
 

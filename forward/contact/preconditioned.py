@@ -33,13 +33,21 @@ surface, 10 % contact: hundreds to thousands of nodes for the first two thirds o
 a few in the tail), so an iteration costs between two and three FFT pairs of the grid with the
 exact stiffness (between one and two with the two-level one), where Polonsky-Keer's costs about
 two: the iterations saved pay for it twice over.
+
+Between the products an iteration makes about 30 elementwise passes over the grid in NumPy; they
+run as seven fused loops compiled by numba (:mod:`.kernels`, through :mod:`tactilab.core.jit`), or as
+the NumPy twin where numba is absent or ``TACTILAB_JIT=0``: the same iterates either way, to
+round-off (docs/contact.md, Cost, has the measured share of each).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .normal import REFRESH, NormalResult, _dot
+from tactilab.core import jit
+
+from . import kernels
+from .normal import REFRESH, NormalResult
 
 #: start's contact fraction above which "auto" takes the exact stiffness (at 99 % contact it needs 12
 #: to 14 iterations against the two-level one's 16 to 17, and a full contact comes out exact)
@@ -52,7 +60,7 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     """Solve the frictionless normal contact on one grid; the arguments of :func:`.normal.polonsky_keer`,
     and ``preconditioner``, the kind of :meth:`ContactCompliance.preconditioner` (``"auto"`` takes the
     exact stiffness when the start touches more than :data:`NEARLY_FULL` of the nodes)."""
-    g0 = g0 if extra_gap is None else g0 + extra_gap
+    g0 = np.ascontiguousarray(g0 if extra_gap is None else g0 + extra_gap, dtype=float)  # the kernels loop flat
     scale = float(g0.max() - g0.min()) or float(np.abs(g0).max()) or 1.0
     target = tol * scale
     force = total is not None
@@ -74,18 +82,18 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     G_old, residual, delta = 0.0, np.inf, approach
     # clipped nodes up to which the displacement is corrected by direct summation, not an FFT pair
     limit = getattr(compliance, "direct_limit", 0)
-    it = 0
+    nodes, values = np.empty(max(limit, 1), dtype=np.int64), np.empty(max(limit, 1))
+    # the elementwise passes: fused compiled kernels or their NumPy twins (one choice per solve)
+    compiled = jit.enabled()
+    factor, it = 1.0, 0  # factor: the force rescaling of p and u, applied by the next gap pass
     while True:
-        np.add(g0, u, out=g)
-        np.greater(p, 0.0, out=inside)
-        n_in = int(np.count_nonzero(inside))
+        n_in, sum_in = kernels.gap(g0, u, p, g, inside, factor, compiled)
+        factor = 1.0
         if force:
-            delta = _dot(g, inside) / n_in if n_in else float(g.min())  # a masked sum (where=) is 5x slower
-        g -= delta
-        np.less(g, 0.0, out=S)
-        S |= inside  # the working set: in contact, or penetrating (entering)
-        np.multiply(g, S, out=r)
-        residual = max(float(r.max()), -float(r.min()))  # |g| in contact, the penetration elsewhere
+            delta = sum_in / n_in if n_in else float(g.min())
+        # the working set S (in contact, or penetrating: entering), r = g on S; max |r| is |g| in
+        # contact and the penetration elsewhere
+        residual, n_set = kernels.residual(g, delta, p, inside, S, r, compiled)
         if residual <= target or it >= max_iter:
             if exact or it >= max_iter:
                 break
@@ -93,56 +101,34 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
             products += 1
             continue
         z = K(r, out=z_pair[it % 2])
-        if force:  # minus its mean on S (then masked): np.subtract(..., where=S) costs half an FFT pair
-            z -= _dot(z, S) / int(np.count_nonzero(S))
-        z *= S
-        G = _dot(r, z)
+        G, rz_old = kernels.project(z, S, n_set, r, z_old, force, compiled)
         # Polak-Ribiere, clipped at 0 (PR+): restarts by itself when the working set's change spoils
         # the conjugacy; restarting at every entering node (Fletcher-Reeves) took 51 iterations
         # instead of 30 at 512^2 and 89 instead of 40 at 1024^2 (periodic self-affine, 10 % contact)
-        beta = max(0.0, (G - _dot(r, z_old)) / G_old) if G_old > 0 else 0.0
-        if beta > 0:
-            t *= beta
-            t *= S  # nodes that left the set leave the direction
-            t += z
-        else:
-            t[...] = z
+        beta = max(0.0, (G - rz_old) / G_old) if G_old > 0 else 0.0
+        rt = kernels.direction(t, z, S, beta, r, compiled)  # nodes that left S leave the direction
         z_old, G_old = z, G
         At = A(t, out=At)
         products += 2
-        denom = _dot(At, t)
-        tau = _dot(r, t) / denom if denom > 0 else 0.0
-        np.multiply(t, tau, out=tmp)
-        p -= tmp
+        denom = kernels.dot(At, t, compiled)
+        tau = rt / denom if denom > 0 else 0.0
+        m, sum_p = kernels.descend(p, t, tau, nodes, values, tmp, force, compiled)  # clipped at 0
         it += 1
-        m = 0
-        if float(p.min()) < 0:
-            np.less(p, 0.0, out=inside)  # the nodes to clip (inside is free until the next gap)
-            m = int(np.count_nonzero(inside))
         if m > limit or it % REFRESH == 0:  # many clipped: the displacement is recomputed by FFT
-            np.maximum(p, 0.0, out=p)
-            _rescale(p, total)
+            _rescale(p, total, sum_p)
             u, exact = A(p, out=u), True
             products += 1
         else:  # none or a few clipped: u = A p updated in place, the clipped ones by direct summation
-            np.multiply(At, tau, out=tmp)
-            u -= tmp
-            if m:
-                nodes = np.flatnonzero(inside)
-                flat = p.reshape(-1)
-                values = -flat[nodes]  # the pressure added to bring each clipped node back to 0
-                flat[nodes] = 0.0
-                compliance.add_normal_point_loads(u, nodes, values)
-            factor = _rescale(p, total)
-            if factor != 1.0:
-                u *= factor
+            kernels.subtract_scaled(u, At, tau, tmp, compiled)
+            if m:  # the pressure added to bring each clipped node back to 0
+                compliance.add_normal_point_loads(u, nodes[:m], values[:m])
+            factor = total / sum_p if force else 1.0
             exact = False
     return NormalResult(p, float(delta), g, it, residual <= target, residual, products)
 
 
-def _rescale(p: np.ndarray, total: float | None) -> float:
-    """Scale ``p`` in place to the force ``total`` (None: approach control, no scaling); the factor."""
-    factor = total / float(p.sum()) if total is not None else 1.0
+def _rescale(p: np.ndarray, total: float | None, sum_p: float) -> None:
+    """Scale ``p`` (sum ``sum_p``, Pa) in place to the force ``total`` (None: approach control, no scaling)."""
+    factor = total / sum_p if total is not None else 1.0
     if factor != 1.0:
         p *= factor
-    return factor

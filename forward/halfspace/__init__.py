@@ -26,6 +26,9 @@ _EXPORTS = {
     "FieldResult": "solve",
     "HalfSpace": "facade",
     "inverse_into": "_hotpath",  # transforms into given arrays: shared with the contact room
+    "fft_first_inplace": "_hotpath",  # one axis' transforms into given arrays: the contact room's padded products
+    "irfft_last_into": "_hotpath",
+    "rfft_last_into": "_hotpath",
     "INVARIANTS": "fields",
     "invariants": "fields",
     "label": "fields",  # the labelled (xarray) field with cached coordinates, for skin models' results

@@ -32,6 +32,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from . import _hotpath
+from tactilab.core import jit
 from tactilab.core import rules as check
 from tactilab.core.rules import COMPONENTS as VOIGT
 from ._hotpath import clear_transfer_cache  # noqa: F401  (re-export)
@@ -269,20 +270,25 @@ def periodic_stress(load: SurfaceLoad, depths: Sequence[float], nu: float,
     names = tuple(sorted(load.components))
     n_spec = len(names)
     # work arrays: the load spectra, then two accumulators (reused between calls, see _hotpath)
-    buffers = _hotpath.work_buffers(g.rho.shape, cdtype, n_spec + 2)
+    block = _hotpath.work_block(g.rho.shape, cdtype, n_spec + 2)
     spectra = {}  # one forward FFT per load component, reused for every depth and output
-    for name, buf in zip(names, buffers):
+    for name, buf in zip(names, block):
         _hotpath.rfftn_into(load.components[name].astype(dtype, copy=False), buf, workers)
         spectra[name] = buf
-    acc, term = buffers[n_spec], buffers[n_spec + 1]
+    acc, term = block[n_spec], block[n_spec + 1]
+    fused = jit.enabled()  # the compiled multiply-add (tactilab.core.jit), or its NumPy twin
     weights = np.atleast_2d(np.asarray(weights, dtype=float))
     out_shape = shape if points is None else (len(points),)
     out = np.empty((len(depths), weights.shape[0], *out_shape), dtype=dtype)
     phases = None if points is None else _point_phases(shape, load.spacing, np.asarray(points, float))
     for d, z in enumerate(depths):
-        tables = _hotpath.depth_tables(g, grid_key, nu, names, weights, z, dtype, cdtype, _real_coefficients)
+        tables = _hotpath.depth_tables(g, grid_key, nu, names, weights, z, dtype, cdtype, _real_coefficients,
+                                       fused)
         for o, terms in enumerate(tables):  # per output: its (load, multiplier) pairs, cached
-            spectrum = _hotpath.apply(terms, spectra, acc, term)
+            if fused:
+                spectrum = _hotpath.apply_fused(terms, block[:n_spec], acc)
+            else:
+                spectrum = _hotpath.apply(terms, spectra, acc, term)
             if phases is None:
                 _hotpath.inverse_into(spectrum, out[d, o], workers)  # the tables carry its 1/ny
             else:

@@ -1,0 +1,202 @@
+"""The fused passes of the contact loop (forward/contact/kernels.py): compiled kernels against their NumPy twins.
+
+Oracle: the NumPy twin (the loop's original passes). Each pass gives bitwise the same arrays both
+ways and the same sums to round-off (the compiled sums add in SIMD lanes, NumPy's in blocks); the
+whole loop, :func:`preconditioned_cg`, gives the same iterates both ways: the same iteration and
+product counts and pressures to 1e-12 of the peak, periodic and isolated, force and approach control,
+plane strain and 2-D, cold and warm started.
+"""
+
+import functools
+
+import numpy as np
+import pytest
+
+from tactilab.data_schemas import random_rough_surface
+from tactilab.forward import HalfSpace, solve_contact
+from tactilab.forward.contact import ContactCompliance, kernels
+from tactilab.forward.contact.preconditioned import preconditioned_cg
+
+SKIN = HalfSpace(1e6, 0.5)
+SHAPE = (24, 36)  # not a multiple of the SIMD width: the kernels' tails run too
+
+
+def _fields(rng, shape=SHAPE):
+    """Random inputs of every pass, the pressure in contact at a third of the nodes."""
+    a = {name: rng.standard_normal(shape) for name in ("g0", "u", "g", "r", "t", "z", "z_old", "At")}
+    a["p"] = np.where(rng.random(shape) < 1 / 3, rng.random(shape), 0.0)
+    a["S"] = rng.random(shape) < 0.4
+    return a
+
+
+def _both(rng, run):
+    """``run(arrays, compiled)`` on two copies of the same inputs; the two copies and the two outputs."""
+    seed = int(rng.integers(2**31))
+    out = {}
+    for compiled in (True, False):
+        arrays = _fields(np.random.default_rng(seed))
+        out[compiled] = (arrays, run(arrays, compiled))
+    return out[True], out[False]
+
+
+def _same_arrays(x, y, names):
+    for name in names:
+        np.testing.assert_array_equal(x[name], y[name], err_msg=name)
+
+
+@pytest.mark.parametrize("factor", [1.0, 1.25])
+def test_gap_pass(rng, factor):
+    inside = np.empty(SHAPE, bool)
+    (x, cx), (y, cy) = _both(rng, lambda a, c: kernels.gap(a["g0"], a["u"], a["p"], a["g"], inside, factor, c))
+    _same_arrays(x, y, ("g", "u", "p"))
+    assert cx[0] == cy[0] == np.count_nonzero(x["p"] > 0)
+    assert cx[1] == pytest.approx(cy[1], rel=1e-12)
+
+
+def test_residual_pass(rng):
+    def run(a, c):
+        inside = a["p"] > 0  # as the gap pass's twin leaves it
+        return kernels.residual(a["g"], 0.3, a["p"], inside, a["S"], a["r"], c)
+
+    (x, cx), (y, cy) = _both(rng, run)
+    _same_arrays(x, y, ("g", "S", "r"))
+    assert cx == cy  # a maximum and a count: exact
+    assert cx[0] == np.abs(x["r"]).max() and cx[1] == np.count_nonzero(x["S"])
+
+
+@pytest.mark.parametrize("force", [True, False])
+def test_project_pass(rng, force):
+    def run(a, c):
+        return kernels.project(a["z"], a["S"], int(np.count_nonzero(a["S"])), a["r"], a["z_old"], force, c)
+
+    (x, cx), (y, cy) = _both(rng, run)
+    np.testing.assert_allclose(x["z"], y["z"], rtol=1e-12, atol=1e-14)  # the mean is a sum
+    assert np.all(x["z"][~x["S"]] == 0)
+    if force:
+        assert abs(x["z"].sum()) < 1e-12 * np.abs(x["z"]).sum()  # the mean on S removed
+    np.testing.assert_allclose(cx, cy, rtol=1e-12)
+
+
+@pytest.mark.parametrize("beta", [0.0, 0.7])
+def test_direction_pass(rng, beta):
+    (x, cx), (y, cy) = _both(rng, lambda a, c: kernels.direction(a["t"], a["z"], a["S"], beta, a["r"], c))
+    _same_arrays(x, y, ("t",))
+    assert cx == pytest.approx(cy, rel=1e-12)
+    assert cx == pytest.approx(float(np.sum(x["r"] * x["t"])), rel=1e-12)
+
+
+def test_dot_pass(rng):
+    a, b = rng.standard_normal(SHAPE), rng.standard_normal(SHAPE)
+    assert kernels.dot(a, b, True) == pytest.approx(kernels.dot(a, b, False), rel=1e-12)
+
+
+@pytest.mark.parametrize("room", [SHAPE[0] * SHAPE[1], 3])  # every clipped node recorded; the first three
+def test_descend_pass(rng, room):
+    def run(a, c):
+        nodes, values = np.full(room, -1, np.int64), np.zeros(room)
+        a["step"] = a["p"] - a["t"] * 0.2
+        m, total = kernels.descend(a["p"], a["t"], 0.2, nodes, values, np.empty(SHAPE), True, c)
+        return m, total, nodes, values
+
+    (x, cx), (y, cy) = _both(rng, run)
+    _same_arrays(x, y, ("p",))
+    negative = np.flatnonzero(x["step"] < 0)
+    assert cx[0] == cy[0] == negative.size > 3
+    np.testing.assert_array_equal(x["p"], np.maximum(x["step"], 0.0))
+    assert cx[1] == pytest.approx(cy[1], rel=1e-12) and cx[1] == pytest.approx(x["p"].sum(), rel=1e-12)
+    k = min(negative.size, room)
+    for nodes, values in (cx[2:], cy[2:]):  # the first k clipped nodes, in order, and what clipping added
+        np.testing.assert_array_equal(nodes[:k], negative[:k])
+        np.testing.assert_array_equal(values[:k], -x["step"].reshape(-1)[negative[:k]])
+
+
+def test_subtract_scaled_pass(rng):
+    (x, _), (y, _) = _both(rng, lambda a, c: kernels.subtract_scaled(a["u"], a["At"], 0.4, np.empty(SHAPE), c))
+    _same_arrays(x, y, ("u",))
+
+
+def test_nan_propagates_both_ways(rng):
+    for compiled in (True, False):
+        a = _fields(np.random.default_rng(5))
+        a["g0"][3, 4] = np.nan
+        a["p"][3, 4] = 1.0
+        inside = np.empty(SHAPE, bool)
+        n_in, total = kernels.gap(a["g0"], a["u"], a["p"], a["g"], inside, 1.0, compiled)
+        assert np.isnan(total)
+        residual, _ = kernels.residual(a["g"], 0.0, a["p"], a["p"] > 0, a["S"], a["r"], compiled)
+        assert np.isnan(residual)
+        a["t"][0, 0] = np.nan
+        assert np.isnan(kernels.direction(a["t"], a["z"], a["S"], 0.5, a["r"], compiled) if a["S"][0, 0]
+                        else kernels.dot(a["t"], a["r"], compiled))
+
+
+# -- the whole loop -----------------------------------------------------------------------------
+CASES = {  # name: (shape, periodic, force control, preconditioner; "auto" picks by the path, so not here)
+    "periodic 2-D, force, exact stiffness": ((48, 64), True, True, "fft"),
+    "periodic 2-D, force, two-level": ((48, 64), True, True, "two_level"),
+    "periodic plane strain, force": ((256,), True, True, "fft"),
+    "isolated 2-D, force": ((48, 48), False, True, "fft"),
+    "isolated 2-D, approach": ((48, 48), False, False, "fft"),
+    "isolated plane strain, force": ((256,), False, True, "fft"),
+    "isolated plane strain, approach": ((256,), False, False, "fft"),
+}
+
+
+def _scene(shape, periodic, force, rng):
+    """A rough surface (under a sphere or cylinder when isolated), its compliance and the load."""
+    h = random_rough_surface(shape, 1e-6, rms_slope=0.1, hurst=0.8, rng=rng)
+    g0 = -h
+    if not periodic:
+        axes = np.meshgrid(*[(np.arange(n) - n // 2) * 1e-6 for n in shape], indexing="ij")
+        g0 = g0 + sum(x**2 for x in axes) / (2 * 2e-4)
+    comp = ContactCompliance(SKIN, shape, 1e-6, periodic)
+    if force:
+        return comp, g0, dict(total=5e3 * np.prod(shape), approach=None)  # 5 kPa mean
+    return comp, g0, dict(total=None, approach=float(np.quantile(g0, 0.2)))  # a fifth of the nodes reached
+
+
+def _solve(monkeypatch, compiled, comp, g0, load, p0):
+    monkeypatch.setenv("TACTILAB_JIT", "1" if compiled else "0")
+    return preconditioned_cg(comp, g0, tol=1e-10, max_iter=500, p0=p0, **load)
+
+
+def _agree(monkeypatch, comp, g0, load, p0):
+    """Solve both ways from ``p0``; the NumPy twin again on ``g0`` changed by round-off (2e-16), whose
+    spread is the problem's own sensitivity to round-off: plane strain under approach control (a line
+    load's logarithmic displacement) moves its pressures by up to 3e-11 of the peak."""
+    a, b = (_solve(monkeypatch, c, comp, g0, load, p0) for c in (True, False))
+    c = _solve(monkeypatch, False, comp, g0 * (1 + 2e-16), load, p0)
+    assert a.converged and b.converged
+    assert (a.iterations, a.products) == (b.iterations, b.products)
+    peak = b.pressure.max()
+    spread = max(1e-12 * peak, 10 * float(np.abs(c.pressure - b.pressure).max()))
+    assert float(np.abs(a.pressure - b.pressure).max()) <= spread
+    assert a.approach == pytest.approx(b.approach, rel=1e-12, abs=spread / peak * float(np.ptp(g0)))
+    return b
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_the_loop_gives_the_same_iterates_both_ways(monkeypatch, rng, case):
+    shape, periodic, force, kind = CASES[case]
+    comp, g0, load = _scene(shape, periodic, force, rng)
+    load["preconditioner"] = kind
+    cold = _agree(monkeypatch, comp, g0, load, np.ones(shape))
+    assert cold.iterations >= 10  # a real solve, with clipping and restarts
+    # warm started from the solution shifted by one node
+    warm = _agree(monkeypatch, comp, g0, load, np.roll(cold.pressure, 1, axis=-1))
+    assert 2 <= warm.iterations < cold.iterations
+
+
+@pytest.mark.parametrize("kind", ["fft", "two_level"])
+def test_a_solve_gives_one_answer_both_ways(monkeypatch, rng, kind):
+    """The facade (check solve, cascade of coarse starts, error estimate) agrees to its tolerance: a
+    coarse start stopped at a loose tolerance may take one iteration more or less on one path. The
+    preconditioner is named: "auto" takes the two-level one only where the kernels are compiled."""
+    h = random_rough_surface((64, 64), 1e-6, rms_slope=0.1, hurst=0.8, rng=rng)
+    method = functools.partial(preconditioned_cg, preconditioner=kind)
+    out = []
+    for compiled in (True, False):
+        monkeypatch.setenv("TACTILAB_JIT", "1" if compiled else "0")
+        out.append(solve_contact(SKIN, -h, 1e-6, mean_pressure=5e3, periodic=True, tol=1e-10, method=method))
+    assert out[0].iterations == out[1].iterations
+    np.testing.assert_allclose(out[0].pressure, out[1].pressure, rtol=0, atol=1e-9 * out[1].pressure.max())
