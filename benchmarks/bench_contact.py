@@ -456,7 +456,8 @@ def main(argv=None) -> int:
     warm_up(args.preconditioner)
     if "a" in args.sections:
         section_a(sizes_a, args.tol, peer, args.peer_cap, args.preconditioner)
-        section_a_memory(max(sizes_a), args.tol, args.preconditioner[0])
+        for kind in args.preconditioner:
+            section_a_memory(max(sizes_a), args.tol, kind)
     if "b" in args.sections:
         section_b(32 if args.quick else args.partial_size, args.tol, peer, 60 if args.quick else args.peer_cap,
                   args.condat_tol, args.condat_max_iter)
