@@ -83,26 +83,27 @@ class SingleCorrection:
         if buffers is None:
             buffers = self._local.buffers = self._buffers()
         data, spectrum = buffers
-        ny, nx = self.shape
-        index = np.unravel_index(nodes, self.shape)
-        data[index] = values
+        data[np.unravel_index(nodes, self.shape)] = values
+        try:
+            self._transform(u, data, spectrum)
+        finally:
+            data[...] = 0.0  # kept zero for the next call
+
+    def _transform(self, u: np.ndarray, data: np.ndarray, spectrum: np.ndarray) -> None:
+        """``u += A c`` for ``c`` in the kept grid ``data`` (overwritten) through the work ``spectrum``."""
         if self._mode == "periodic":
             rfftn_into(data, spectrum, workers=1)
             spectrum *= self.spectrum
-            inverse_into(spectrum, data, workers=1)
-            u += data
-            data[...] = 0.0  # kept zero for the next call
+            u += inverse_into(spectrum, data, workers=1)
             return
         # isolated 2-D: pruned as ContactCompliance's padded product (the padding's rows never transformed)
-        data[:, nx:] = 0.0
+        ny, nx = self.shape
         rfft_last_into(data, spectrum[:ny], workers=1)
         spectrum[ny:] = 0.0
         fft_first_inplace(spectrum, True, workers=1)
         spectrum *= self.spectrum
         fft_first_inplace(spectrum, False, workers=1)
-        irfft_last_into(spectrum[:ny], data, workers=1)
-        u += data[:, :nx]
-        data[...] = 0.0
+        u += irfft_last_into(spectrum[:ny], data, workers=1)[:, :nx]
 
     def _buffers(self) -> tuple[np.ndarray, np.ndarray]:
         """The kept float32 grid (zero between calls; padded rows of twice the width when isolated) and
