@@ -28,7 +28,7 @@ of the nodes). ``uz = A p`` is updated as ``uz - tau A t``; a pressure clipped t
 correction by direct summation of the influence coefficients when few nodes are clipped (up to
 ``ContactCompliance.direct_limit``, about 8 on a periodic grid and 36 on a padded 256^2 one), by a
 float32 FFT pair when more are (:mod:`.single_correction`, while the accumulated bound of its
-round-off stays below :data:`SINGLE_SHARE` of the residual; 0.6 to 0.8 of the float64 product's
+round-off stays below :data:`SINGLE_SHARE` of the residual; 0.5 to 0.75 of the float64 product's
 time), and ``uz`` is recomputed by a float64 FFT pair otherwise, every 32 iterations, and before
 convergence is declared.
 Clipping of many nodes happens in most iterations until the contact set settles (self-affine

@@ -6,7 +6,7 @@ pressure that brings each clipped node back to 0. When more nodes clip than a di
 affords (``ContactCompliance.direct_limit``), it used to recompute ``A p`` by a float64 FFT pair
 (about a floor of the grid each, after 0.5 to 0.7 of the iterations on a periodic rough surface).
 Here the correction ``A c`` is computed instead, by the same transforms in float32 through kept
-work arrays: 0.6 to 0.8 of the float64 product's time (the transforms run at about half the
+work arrays: 0.5 to 0.75 of the float64 product's time (the transforms run at about half the
 float64 time; the scatter, the conversion and the addition stay), with an error of 1.0e-7 to
 1.8e-7 of max |A c| (float32's rounding through the transform's stages), bounded by
 :meth:`SingleCorrection.bound`. The solver uses it while the accumulated bound stays below a
