@@ -1,8 +1,8 @@
 """Benchmark of the contact engine: time, iterations and error, against Tamaas and the FFT floor.
 
 Run: ``python benchmarks/bench_contact.py [--sections a b c d] [--sizes 256 512 1024] [--frames 10] [--method auto]
-[--no-peer] [--repeats 3] [--clock cpu]`` (``TACTILAB_JIT=0``: the solvers' NumPy passes instead of the compiled kernels;
-the header says which ran)
+[--preconditioner auto fft] [--no-peer] [--repeats 3] [--clock cpu]`` (``TACTILAB_JIT=0``: the solvers' NumPy passes
+instead of the compiled kernels; the header says which ran)
 (the full run takes tens of minutes; ``--quick`` uses small grids and checks the harness in about
 a minute). Everything runs on one core (OMP/BLAS threads 1, ``scipy.fft`` workers=1), float64, SI.
 
@@ -32,6 +32,9 @@ d. Time and iterations against the grid size (up to 2048^2): the periodic surfac
    isolated fingertip (section c's finger and plate, the grid spanning 5.12 mm at every size), each
    with its cost per iteration over its floor (the padded grid's for the isolated one), whole solve
    and fine loop.
+
+``--preconditioner`` (the preconditioned CG's, :meth:`ContactCompliance.preconditioner`) takes several kinds:
+(a) and (d) then solve each size with each kind in turn, in the same run, one row each (its last column).
 """
 
 from __future__ import annotations
@@ -53,11 +56,11 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy.fft as sfft  # noqa: E402
 
+from tactilab.core import jit  # noqa: E402
 from tactilab.data_schemas import random_rough_surface  # noqa: E402
 from tactilab.forward import HalfSpace  # noqa: E402
 from tactilab.forward import solve_contact as _solve_contact  # noqa: E402
 from tactilab.forward.contact import solve as contact_solve  # noqa: E402  (the method table, to time the loop)
-from tactilab.core import jit  # noqa: E402
 from tactilab.forward.halfspace import inverse_into, rfftn_into  # noqa: E402
 
 E_PA, NU = 1e6, 0.5
@@ -156,16 +159,18 @@ class FineLoop:
     """Times the fine grid's solver loop of each solve (the normal method's call on the finest grid),
     so that the cost per iteration of the loop itself is reported beside the whole solve's."""
 
-    def __init__(self):
+    def __init__(self, preconditioner: str = "auto"):
         self.calls: list[tuple[tuple[int, ...], int, float]] = []
+        self.preconditioner = preconditioner
 
     def __enter__(self):
         name = "preconditioned_cg" if METHOD["method"] == "auto" else METHOD["method"]
         self._name, self._inner = name, contact_solve.METHODS[name]
+        extra = {"preconditioner": self.preconditioner} if name == "preconditioned_cg" else {}
 
         def timed_method(compliance, g0, **kwargs):
             t0 = clock()
-            out = self._inner(compliance, g0, **kwargs)
+            out = self._inner(compliance, g0, **kwargs, **extra)
             self.calls.append((g0.shape, out.iterations, clock() - t0))
             return out
 
@@ -227,32 +232,46 @@ def floor_of(shape, periodic: bool) -> float:
     return min(fft_floor(shape, periodic) for _ in range(REPEATS["n"]))
 
 
-def section_a(sizes, tol: float, peer: bool, cap: float) -> None:
+def warm_up(kinds) -> None:
+    """One small periodic solve per preconditioner and one isolated solve, untimed: compiled kernels load
+    from numba's cache on their first call in a process (about 0.2 s, once), which no table should count."""
+    skin = HalfSpace(E=E_PA, nu=NU)
+    h, pbar = rough_cell(32)
+    for kind in kinds:
+        with FineLoop(kind):
+            solve_contact(skin, -h, 1e-6, mean_pressure=pbar, periodic=True, tol=1e-6)
+    plate, finger, dx = fingertip(32)
+    solve_contact(skin, finger - plate, dx, normal_force=0.5, tol=1e-6)
+
+
+def section_a(sizes, tol: float, peer: bool, cap: float, kinds=("auto",)) -> None:
     print("\n(a) normal contact, periodic self-affine surface (H 0.8, rms slope 0.1), cold start, one core")
     print(f"{'n':>6}{'time s':>10}{'iter':>7}{'fraction':>10}{'floor ms':>10}{'iter/floor':>12}{'loop/floor':>12}"
-          f"{'Tamaas s':>10}{'speed-up':>10}{'max|dp|/pmax':>14}")
+          f"{'precond':>10}{'Tamaas s':>10}{'speed-up':>10}{'max|dp|/pmax':>14}")
     skin = HalfSpace(E=E_PA, nu=NU)
     for n in sizes:
         h, pbar = rough_cell(n)
-        with FineLoop() as loop:
-            sol, t = fastest(lambda: solve_contact(skin, -h, 1e-6, mean_pressure=pbar, periodic=True, tol=tol))
-        floor = floor_of((n, n), True)
-        per_iter = t / max(sol.iterations, 1) / floor
-        per_loop = loop.per_iteration((n, n)) / floor
         res = run_peer(PKR_SCRIPT, {"h": h, "size": n * 1e-6, "pbar": pbar, "tol": tol, "E": E_PA, "nu": NU},
                        cap) if peer else "Tamaas skipped (--no-peer)"
-        if isinstance(res, str):
-            cols = f"{'-':>10}{'-':>10}{'-':>14}   {res}"
-        else:
-            dp = float(np.max(np.abs(res["p"] - sol.pressure)) / np.max(sol.pressure))
-            cols = f"{float(res['time']):10.3f}{float(res['time']) / t:10.2f}{dp:14.2e}"
-        print(f"{n:6d}{t:10.3f}{sol.iterations:7d}{sol.contact_fraction:10.3f}{floor * 1e3:10.2f}"
-              f"{per_iter:12.2f}{per_loop:12.2f}{cols}", flush=True)
+        floor = floor_of((n, n), True)  # once per size: the kinds' rows share one yardstick
+        for kind in kinds:
+            with FineLoop(kind) as loop:
+                sol, t = fastest(lambda: solve_contact(skin, -h, 1e-6, mean_pressure=pbar, periodic=True, tol=tol))
+            per_iter = t / max(sol.iterations, 1) / floor
+            per_loop = loop.per_iteration((n, n)) / floor
+            if isinstance(res, str):
+                cols = f"{'-':>10}{'-':>10}{'-':>14}   {res}"
+            else:
+                dp = float(np.max(np.abs(res["p"] - sol.pressure)) / np.max(sol.pressure))
+                cols = f"{float(res['time']):10.3f}{float(res['time']) / t:10.2f}{dp:14.2e}"
+            print(f"{n:6d}{t:10.3f}{sol.iterations:7d}{sol.contact_fraction:10.3f}{floor * 1e3:10.2f}"
+                  f"{per_iter:12.2f}{per_loop:12.2f}{kind:>10}{cols}", flush=True)
 
 
 def peak_rss_mib() -> float:
-    """This process's peak resident memory, MiB: Linux's VmHWM (``ru_maxrss`` would carry over the
-    parent's resident memory at the fork that started this child), ``ru_maxrss`` elsewhere."""
+    """This process's peak resident memory (MiB): Linux's VmHWM, which belongs to the process's own memory
+    map; ``ru_maxrss`` (the fallback elsewhere) keeps the parent's peak across fork and exec on Linux, so a
+    child started by a large parent would report the parent's peak."""
     try:
         with open("/proc/self/status") as status:
             for line in status:
@@ -263,25 +282,26 @@ def peak_rss_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def memory_child(n: int, tol: float) -> None:
+def memory_child(n: int, tol: float, kind: str = "auto") -> None:
     """Child process: peak RSS before and after one section-a solve at n^2 (printed in MiB)."""
     h, pbar = rough_cell(n)
     before = peak_rss_mib()
-    solve_contact(HalfSpace(E=E_PA, nu=NU), -h, 1e-6, mean_pressure=pbar, periodic=True, tol=tol)
+    with FineLoop(kind):
+        solve_contact(HalfSpace(E=E_PA, nu=NU), -h, 1e-6, mean_pressure=pbar, periodic=True, tol=tol)
     after = peak_rss_mib()
     print(f"{before:.1f} {after:.1f}")
 
 
-def section_a_memory(n: int, tol: float) -> None:
+def section_a_memory(n: int, tol: float, kind: str = "auto") -> None:
     proc = subprocess.run([sys.executable, __file__, "--memory-child", str(n), "--tol", str(tol),
-                           "--method", METHOD["method"]],
+                           "--method", METHOD["method"], "--preconditioner", kind],
                           capture_output=True, text=True)
     if proc.returncode != 0:
         print(f"memory at {n}^2: the child failed: {proc.stderr.strip().splitlines()[-1:]}")
         return
     before, after = (float(v) for v in proc.stdout.split())
-    print(f"memory at {n}^2 (periodic): peak RSS {after:.0f} MiB, of which the solve {after - before:.0f} MiB "
-          f"(the rest: Python, numpy, numba where installed, the surface)")
+    print(f"memory at {n}^2 (periodic, preconditioner {kind}): peak RSS {after:.0f} MiB, of which the solve "
+          f"{after - before:.0f} MiB (the rest: Python, numpy, numba where installed, the surface)")
 
 
 def hertz_grid(n: int):
@@ -362,23 +382,25 @@ def section_c(frames: int, tol: float, n: int = 256) -> None:
           "the plate (frame 0 is cold in both)")
 
 
-def section_d(sizes, tol: float) -> None:
+def section_d(sizes, tol: float, kinds=("auto",)) -> None:
     print("\n(d) time and iterations against the grid size (cold starts)")
     print(f"{'n':>6}{'periodic s':>12}{'iter':>7}{'iter/floor':>12}{'loop/floor':>12}{'isolated s':>12}{'iter':>7}"
-          f"{'iso floor ms':>14}{'iter/floor':>12}{'loop/floor':>12}")
+          f"{'iso floor ms':>14}{'iter/floor':>12}{'loop/floor':>12}{'precond':>10}")
     skin = HalfSpace(E=E_PA, nu=NU)
     for n in sizes:
         h, pbar = rough_cell(n)
-        with FineLoop() as loop_p:
-            per, tp = fastest(lambda: solve_contact(skin, -h, 1e-6, mean_pressure=pbar, periodic=True, tol=tol))
-        del h
+        fp, fi = floor_of((n, n), True), floor_of((n, n), False)  # once per size: the kinds' rows share them
         plate, finger, dx = fingertip(n)
-        with FineLoop() as loop_i:
-            iso, ti = fastest(lambda: solve_contact(skin, finger - plate, dx, normal_force=0.5, tol=tol))
-        fp, fi = floor_of((n, n), True), floor_of((n, n), False)
-        print(f"{n:6d}{tp:12.3f}{per.iterations:7d}{tp / max(per.iterations, 1) / fp:12.2f}"
-              f"{loop_p.per_iteration((n, n)) / fp:12.2f}{ti:12.3f}{iso.iterations:7d}{fi * 1e3:14.2f}"
-              f"{ti / max(iso.iterations, 1) / fi:12.2f}{loop_i.per_iteration((n, n)) / fi:12.2f}", flush=True)
+        for kind in kinds:
+            with FineLoop(kind) as loop_p:
+                per, tp = fastest(lambda: solve_contact(skin, -h, 1e-6, mean_pressure=pbar, periodic=True, tol=tol))
+            with FineLoop(kind) as loop_i:
+                iso, ti = fastest(lambda: solve_contact(skin, finger - plate, dx, normal_force=0.5, tol=tol))
+            print(f"{n:6d}{tp:12.3f}{per.iterations:7d}{tp / max(per.iterations, 1) / fp:12.2f}"
+                  f"{loop_p.per_iteration((n, n)) / fp:12.2f}{ti:12.3f}{iso.iterations:7d}{fi * 1e3:14.2f}"
+                  f"{ti / max(iso.iterations, 1) / fi:12.2f}{loop_i.per_iteration((n, n)) / fi:12.2f}{kind:>10}",
+                  flush=True)
+        del h, plate
 
 
 def passes() -> str:
@@ -388,14 +410,6 @@ def passes() -> str:
 
         return f"compiled (numba {numba.__version__})"
     return "NumPy (TACTILAB_JIT=0)" if jit.available() else "NumPy (numba not installed)"
-
-
-def warm_up() -> None:
-    """One small solve of each kind, so that no table times a kernel's compilation or cache load."""
-    h, pbar = rough_cell(32)
-    solve_contact(HalfSpace(E=E_PA, nu=NU), -h, 1e-6, mean_pressure=pbar, periodic=True)
-    plate, finger, dx = fingertip(32)
-    solve_contact(HalfSpace(E=E_PA, nu=NU), finger - plate, dx, normal_force=0.5)
 
 
 def main(argv=None) -> int:
@@ -408,6 +422,10 @@ def main(argv=None) -> int:
     parser.add_argument("--partial-size", type=int, default=128, help="grid of the partial-slip frame (b)")
     parser.add_argument("--method", default="auto", choices=("auto", "preconditioned_cg", "polonsky_keer"),
                         help="normal-contact method of every solve (default auto = preconditioned_cg)")
+    parser.add_argument("--preconditioner", nargs="+", default=["auto"], choices=("auto", "fft"),
+                        help="the preconditioned CG's preconditioner in (a) and (d); several: each size is solved "
+                             "with each in turn (auto: the two-level stiffness on periodic grids, the exact one, "
+                             "fft, on isolated ones)")
     parser.add_argument("--tol", type=float, default=1e-8, help="solver tolerance of every solve (and Tamaas's)")
     parser.add_argument("--condat-tol", type=float, default=1e-4,
                         help="Tamaas Condat's tolerance in (b) (its own cost criterion; 1e-8 gives no answer "
@@ -424,7 +442,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.memory_child:
         METHOD["method"] = args.method
-        memory_child(args.memory_child, args.tol)
+        memory_child(args.memory_child, args.tol, args.preconditioner[0])
         return 0
     peer = not args.no_peer
     METHOD["method"] = args.method
@@ -435,10 +453,11 @@ def main(argv=None) -> int:
     print(f"bench_contact: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}, numpy {np.__version__}, "
           f"tol {args.tol:g}, method {args.method}, one thread, elementwise passes: {passes()}, "
           f"fastest of {REPEATS['n']}, {CLOCK['name']} clock")
-    warm_up()
+    warm_up(args.preconditioner)
     if "a" in args.sections:
-        section_a(sizes_a, args.tol, peer, args.peer_cap)
-        section_a_memory(max(sizes_a), args.tol)
+        section_a(sizes_a, args.tol, peer, args.peer_cap, args.preconditioner)
+        for kind in args.preconditioner:
+            section_a_memory(max(sizes_a), args.tol, kind)
     if "b" in args.sections:
         section_b(32 if args.quick else args.partial_size, args.tol, peer, 60 if args.quick else args.peer_cap,
                   args.condat_tol, args.condat_max_iter)
@@ -446,7 +465,7 @@ def main(argv=None) -> int:
         frames = args.frames or (3 if args.quick else 10)
         section_c(frames, args.tol, 32 if args.quick else args.sliding_size)
     if "d" in args.sections:
-        section_d(sizes_d, args.tol)
+        section_d(sizes_d, args.tol, args.preconditioner)
     return 0
 
 

@@ -1,13 +1,15 @@
 """Where the contact solver's fine loop spends an iteration, in FFT floors (docs/contact.md, Cost).
 
-Run: ``python benchmarks/bench_contact_phases.py [--sizes 256 512 1024] [--repeats 3] [--clock cpu]``
-(``TACTILAB_JIT=0``: the loop's NumPy passes instead of the compiled kernels; the header says which).
+Run: ``python benchmarks/bench_contact_phases.py [--sizes 256 512 1024] [--repeats 3] [--clock cpu]
+[--preconditioner auto]`` (``TACTILAB_JIT=0``: the loop's NumPy passes instead of the compiled kernels; the
+header says which).
 
 The scenes of ``bench_contact.py``: section a's periodic self-affine surface (floor: one rfft2 +
 one irfft2 of the grid) and section d's isolated fingertip (floor: the same of the grid zero-padded
 to twice each side). Each solve's fine loop (``preconditioned_cg`` on the finest grid) is split
 into its compliance products (``ContactCompliance.normal``: per iteration, and each one's cost),
-the preconditioner (``stiffness``), the direct summation of a few clipped nodes
+the preconditioner (``ContactCompliance.preconditioner(kind)``'s operator: the exact ``stiffness`` or the
+two-level one, whichever the kind gives on the grid), the direct summation of a few clipped nodes
 (``add_normal_point_loads``), the elementwise passes (``forward/contact/kernels.py``, compiled or
 NumPy) and the rest (Python between them). The fastest of ``--repeats`` solves is kept, and the
 fastest of as many floors; the wrappers that time the parts add two clock reads per call.
@@ -25,15 +27,15 @@ import bench_contact as bench  # noqa: E402  (the scenes, the floor, the clock, 
 
 from tactilab.forward.contact import ContactCompliance, kernels  # noqa: E402
 
-PRODUCTS = ("normal", "stiffness", "add_normal_point_loads")
+PRODUCTS = ("normal", "add_normal_point_loads")
 PASSES = ("gap", "residual", "project", "direction", "dot", "descend", "subtract_scaled")
 
 
 class Phases:
     """Times the parts of the fine loop on ``shape`` while in its ``with`` block (the patches undone after)."""
 
-    def __init__(self, shape):
-        self.shape = tuple(shape)
+    def __init__(self, shape, kind: str = "auto"):
+        self.shape, self.kind = tuple(shape), kind
         self.time: dict[str, float] = {}
         self.calls: dict[str, int] = {}
         self.loop = [0.0, 0, 0]  # seconds, iterations, products of the fine loop
@@ -65,10 +67,22 @@ class Phases:
                 return out
             return timed
 
+        def preconditioner(f):
+            def timed(comp, kind="auto"):
+                operator = f(comp, kind)
+
+                def timed_operator(r, out=None):
+                    t0 = bench.clock()
+                    result = operator(r, out=out)
+                    self._count("stiffness", bench.clock() - t0, comp.shape)
+                    return result
+                return timed_operator
+            return timed
+
         def solver(f):
             def timed(comp, g0, **kwargs):
                 t0 = bench.clock()
-                out = f(comp, g0, **kwargs)
+                out = f(comp, g0, **kwargs, preconditioner=self.kind)
                 if tuple(g0.shape) == self.shape:
                     self.loop = [self.loop[0] + bench.clock() - t0, self.loop[1] + out.iterations,
                                  self.loop[2] + out.products]
@@ -77,6 +91,7 @@ class Phases:
 
         for name in PRODUCTS:
             self._patch(ContactCompliance, name, lambda f, name=name: method(f, name))
+        self._patch(ContactCompliance, "preconditioner", preconditioner)
         for name in PASSES:
             self._patch(kernels, name, lambda f, name=name: function(f, name))
         self._patch_method_table(solver)
@@ -95,7 +110,7 @@ class Phases:
                 setattr(owner, name, original)
 
 
-def measure(n: int, periodic: bool, tol: float) -> dict:
+def measure(n: int, periodic: bool, tol: float, kind: str = "auto") -> dict:
     """The fastest of ``--repeats`` solves of the scene on n^2, split into parts (floors per iteration)."""
     skin = bench.HalfSpace(E=bench.E_PA, nu=bench.NU)
     if periodic:
@@ -106,13 +121,13 @@ def measure(n: int, periodic: bool, tol: float) -> dict:
         args, kwargs = (skin, finger - plate, dx), dict(normal_force=0.5, tol=tol)
     best = None
     for _ in range(bench.REPEATS["n"]):
-        with Phases((n, n)) as phases:
+        with Phases((n, n), kind) as phases:
             bench.solve_contact(*args, **kwargs)
         if best is None or phases.loop[0] < best.loop[0]:
             best = phases
     floor = bench.floor_of((n, n), periodic)
     seconds, iterations, products = best.loop
-    per = {name: best.time.get(name, 0.0) / iterations / floor for name in PRODUCTS + PASSES}
+    per = {name: best.time.get(name, 0.0) / iterations / floor for name in PRODUCTS + ("stiffness",) + PASSES}
     passes = sum(per[name] for name in PASSES)
     loop = seconds / iterations / floor
     calls = best.calls.get("normal", 0)
@@ -129,16 +144,18 @@ def main(argv=None) -> int:
     parser.add_argument("--tol", type=float, default=1e-8)
     parser.add_argument("--repeats", type=int, default=3, help="solves and floors per size, the fastest kept")
     parser.add_argument("--clock", choices=sorted(bench.CLOCKS), default="cpu")
+    parser.add_argument("--preconditioner", choices=("auto", "fft"), default="auto",
+                        help="the fine loop's (auto: the two-level stiffness on periodic grids, compiled)")
     args = parser.parse_args(argv)
     bench.REPEATS["n"], bench.CLOCK["name"] = max(1, args.repeats), args.clock
-    print(f"bench_contact_phases: elementwise passes {bench.passes()}, fastest of {bench.REPEATS['n']}, "
-          f"{args.clock} clock, tol {args.tol:g}, one thread")
-    bench.warm_up()
+    print(f"bench_contact_phases: elementwise passes {bench.passes()}, preconditioner {args.preconditioner}, "
+          f"fastest of {bench.REPEATS['n']}, {args.clock} clock, tol {args.tol:g}, one thread")
+    bench.warm_up([args.preconditioner])
     print(f"{'n':>6} {'grid':<9}{'iter':>5}{'prod/it':>8}{'loop':>7}{'A':>7}{'A/it':>6}{'A each':>7}{'K':>6}"
           f"{'points':>7}{'passes':>7}{'rest':>6}   (FFT floors per iteration)")
     for n in args.sizes:
         for periodic in (True, False):
-            r = measure(n, periodic, args.tol)
+            r = measure(n, periodic, args.tol, args.preconditioner)
             print(f"{n:6d} {'periodic' if periodic else 'isolated':<9}{r['iterations']:5d}{r['products']:8.2f}"
                   f"{r['loop']:7.2f}{r['normal']:7.2f}{r['normal_per_iteration']:6.2f}{r['normal_each']:7.2f}"
                   f"{r['stiffness']:6.2f}{r['point_loads']:7.2f}{r['passes']:7.2f}{r['rest']:6.2f}", flush=True)

@@ -28,6 +28,15 @@ def test_bench_contact_sections_run(capsys):
     assert len(rows) == 4  # two sizes in (a) and in (d)
 
 
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_bench_contact_compares_preconditioners_in_one_run(capsys):
+    bench = _bench()
+    assert bench.main(["--sections", "a", "--sizes", "32", "--no-peer", "--tol", "1e-6",
+                       "--preconditioner", "auto", "fft"]) == 0
+    rows = [line.split() for line in capsys.readouterr().out.splitlines() if line.strip().startswith("32 ")]
+    assert [r[7] for r in rows] == ["auto", "fft"]
+
+
 def test_fft_floor_is_positive_and_pads_isolated_grids():
     bench = _bench()
     assert bench.fft_floor((16, 16), True, repeats=1) > 0
@@ -36,16 +45,18 @@ def test_fft_floor_is_positive_and_pads_isolated_grids():
 
 
 @pytest.mark.filterwarnings("ignore::UserWarning")  # tiny grids resolve the contacts coarsely (AccuracyWarning)
-def test_bench_contact_phases_splits_the_fine_loop(capsys, monkeypatch):
+@pytest.mark.parametrize("kind", ["auto", "fft"])
+def test_bench_contact_phases_splits_the_fine_loop(capsys, monkeypatch, kind):
     spec = importlib.util.spec_from_file_location("bench_contact_phases",
                                                   ROOT / "benchmarks" / "bench_contact_phases.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     from tactilab.forward.contact import ContactCompliance, kernels
 
-    originals = (ContactCompliance.normal, kernels.gap)
-    assert module.main(["--sizes", "32", "--repeats", "1"]) == 0
-    assert (ContactCompliance.normal, kernels.gap) == originals  # the timing wrappers are undone
+    originals = (ContactCompliance.normal, ContactCompliance.preconditioner, kernels.gap)
+    assert module.main(["--sizes", "32", "--repeats", "1", "--preconditioner", kind]) == 0
+    # the timing wrappers are undone
+    assert (ContactCompliance.normal, ContactCompliance.preconditioner, kernels.gap) == originals
     rows = [line.split() for line in capsys.readouterr().out.splitlines() if line.strip().startswith("32 ")]
     assert [r[1] for r in rows] == ["periodic", "isolated"]
     for r in rows:

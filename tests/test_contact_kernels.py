@@ -7,6 +7,8 @@ product counts and pressures to 1e-12 of the peak, periodic and isolated, force 
 plane strain and 2-D, cold and warm started.
 """
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -129,13 +131,14 @@ def test_nan_propagates_both_ways(rng):
 
 
 # -- the whole loop -----------------------------------------------------------------------------
-CASES = {  # name: (shape, periodic, force control)
-    "periodic 2-D, force": ((48, 64), True, True),
-    "periodic plane strain, force": ((256,), True, True),
-    "isolated 2-D, force": ((48, 48), False, True),
-    "isolated 2-D, approach": ((48, 48), False, False),
-    "isolated plane strain, force": ((256,), False, True),
-    "isolated plane strain, approach": ((256,), False, False),
+CASES = {  # name: (shape, periodic, force control, preconditioner; "auto" picks by the path, so not here)
+    "periodic 2-D, force, exact stiffness": ((48, 64), True, True, "fft"),
+    "periodic 2-D, force, two-level": ((48, 64), True, True, "two_level"),
+    "periodic plane strain, force": ((256,), True, True, "fft"),
+    "isolated 2-D, force": ((48, 48), False, True, "fft"),
+    "isolated 2-D, approach": ((48, 48), False, False, "fft"),
+    "isolated plane strain, force": ((256,), False, True, "fft"),
+    "isolated plane strain, approach": ((256,), False, False, "fft"),
 }
 
 
@@ -174,8 +177,9 @@ def _agree(monkeypatch, comp, g0, load, p0):
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_the_loop_gives_the_same_iterates_both_ways(monkeypatch, rng, case):
-    shape, periodic, force = CASES[case]
+    shape, periodic, force, kind = CASES[case]
     comp, g0, load = _scene(shape, periodic, force, rng)
+    load["preconditioner"] = kind
     cold = _agree(monkeypatch, comp, g0, load, np.ones(shape))
     assert cold.iterations >= 10  # a real solve, with clipping and restarts
     # warm started from the solution shifted by one node
@@ -183,13 +187,16 @@ def test_the_loop_gives_the_same_iterates_both_ways(monkeypatch, rng, case):
     assert 2 <= warm.iterations < cold.iterations
 
 
-def test_a_solve_gives_one_answer_both_ways(monkeypatch, rng):
+@pytest.mark.parametrize("kind", ["fft", "two_level"])
+def test_a_solve_gives_one_answer_both_ways(monkeypatch, rng, kind):
     """The facade (check solve, cascade of coarse starts, error estimate) agrees to its tolerance: a
-    coarse start stopped at a loose tolerance may take one iteration more or less on one path."""
+    coarse start stopped at a loose tolerance may take one iteration more or less on one path. The
+    preconditioner is named: "auto" takes the two-level one only where the kernels are compiled."""
     h = random_rough_surface((64, 64), 1e-6, rms_slope=0.1, hurst=0.8, rng=rng)
+    method = functools.partial(preconditioned_cg, preconditioner=kind)
     out = []
     for compiled in (True, False):
         monkeypatch.setenv("TACTILAB_JIT", "1" if compiled else "0")
-        out.append(solve_contact(SKIN, -h, 1e-6, mean_pressure=5e3, periodic=True, tol=1e-10))
+        out.append(solve_contact(SKIN, -h, 1e-6, mean_pressure=5e3, periodic=True, tol=1e-10, method=method))
     assert out[0].iterations == out[1].iterations
     np.testing.assert_allclose(out[0].pressure, out[1].pressure, rtol=0, atol=1e-9 * out[1].pressure.max())

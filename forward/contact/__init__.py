@@ -6,7 +6,9 @@ enforces it). Inside:
 - ``hertz``: the Hertz and Cattaneo--Mindlin closed forms (:class:`HertzContact`,
   :func:`interfacial_traction`, :func:`stick_radius`, :class:`ContactLoad`);
 - ``compliance``: the surface compliance of the skin per wavenumber and the operators that map
-  surface tractions to surface displacements on a grid (:class:`ContactCompliance`);
+  surface tractions to surface displacements on a grid (:class:`ContactCompliance`), and
+  ``coarse_stiffness``, the two-level approximation of the periodic stiffness that preconditions
+  the normal solver on periodic grids;
 - ``solve``: the contact solver :func:`solve_contact` and its result :class:`ContactSolution`;
 - ``linearised``: the derivative of a solved normal contact at its contact set
   (:class:`ContactLinearisation`, the inversions' Jacobian);

@@ -10,6 +10,7 @@
     uz, ux, uy = C.apply(p, qx, qy)       # all of it
     C.self_compliance                     # (Czz, Cxx, Cyy) at zero offset, m/Pa (a Jacobi scale)
     p_approx = C.stiffness(uz)            # Pa, the periodic inverse of normal (a preconditioner)
+    K = C.preconditioner("auto")          # the normal solver's: stiffness, or its two-level approximation
 
 Arrays have the grid's ``shape``: ``(nx,)`` (plane strain) or ``(ny, nx)`` (x last); node ``j``
 sits at ``x_j = (j - nx // 2) dx`` as in :class:`~tactilab.forward.halfspace.SurfaceLoad`.
@@ -50,6 +51,10 @@ from scipy import fft as sfft
 from tactilab.core import rules as check
 
 from ..halfspace import fft_first_inplace, inverse_into, irfft_last_into, rfft_last_into, rfftn_into
+from .coarse_stiffness import TwoLevelStiffness, applies, preferred
+
+#: the normal solvers' preconditioners (:meth:`ContactCompliance.preconditioner`)
+PRECONDITIONERS = ("auto", "fft", "two_level")
 
 #: index of each displacement / traction component in the compliance matrices
 _ROW = {"uz": 0, "ux": 1, "uy": 2}
@@ -223,6 +228,27 @@ class ContactCompliance:
         out = np.empty(self.shape) if out is None else out
         out[...] = sfft.irfftn(spectrum, s=self.shape, axes=self._axes, workers=1)
         return out
+
+    def preconditioner(self, kind: str = "auto"):
+        """The normal solvers' preconditioner, a callable ``(gap, out=None) -> pressure`` (m -> Pa).
+
+        ``"fft"``: :meth:`stiffness` (an FFT pair of the unpadded grid); ``"two_level"``: the
+        two-level approximation of :mod:`.coarse_stiffness` (a local stencil plus a coarse-grid
+        correction, about a tenth of that pair; periodic 2-D grids of square pixels, sides multiples
+        of 8, at least 16); ``"auto"``: ``"two_level"`` where it applies and its kernels are compiled
+        (numba), ``"fft"`` elsewhere (isolated grids, whose pruned compliance product costs about twice
+        the preconditioner's pair, keep the exact one: docs/contact.md, Cost).
+        """
+        if kind not in PRECONDITIONERS:
+            raise ValueError(f"preconditioner: must be one of {PRECONDITIONERS}, got {kind!r}")
+        if kind == "two_level" and not applies(self.shape, self.spacing, self.periodic):
+            raise ValueError(f"preconditioner: 'two_level' needs a periodic 2-D grid of square pixels with sides "
+                             f"multiples of 8 (at least 16), got {self!r}; use 'fft' or 'auto'")
+        if kind == "fft" or (kind == "auto" and not preferred(self.shape, self.spacing, self.periodic)):
+            return self.stiffness
+        if "two_level" not in self._spectra:
+            self._spectra["two_level"] = TwoLevelStiffness(self.skin, self.shape, self.spacing)
+        return self._spectra["two_level"]
 
     def _periodic_product(self, value: np.ndarray, key, out: np.ndarray | None) -> np.ndarray:
         """A multiplier's product on a periodic 2-D grid, transformed into a kept work spectrum and
