@@ -128,20 +128,38 @@ class ScanJacobian(LinearOperator):
     def matrix(self) -> np.ndarray:
         """The explicit Jacobian, shape (n_frames * n_out, n_profile + n_free), by adjoint solves.
 
-        One batched restricted solve (all frames at once) per sensor output; rows ordered frame by
-        frame as the flattened outputs.
+        One restricted solve per frame and sensor output, batched over chunks of frames (a chunk's
+        right-hand sides are all its frames' outputs: they share their frames' windows); rows
+        ordered frame by frame as the flattened outputs.
         """
         scan = self.scan
-        J = np.zeros((scan.n_frames, scan.n_out, self.shape[1]))
-        ctx_p = [self._context_pressure(name) for name in self.free]
-        ctx_o = [self._context_output(name) for name in self.free]
-        for o in range(scan.n_out):
-            g = np.broadcast_to(self.W[:, o].reshape(scan.grid_shape), (scan.n_frames, *scan.grid_shape))
-            x = self.ratio * self.lin.solve(np.ascontiguousarray(g))
-            for t in range(scan.n_frames):
-                J[t, o, : self.n_h] = scan.node_heights_adjoint(x[t], frame=t).reshape(-1)
-            for k in range(len(self.free)):
-                if ctx_p[k] is not None:
-                    J[:, o, self.n_h + k] += (ctx_p[k].reshape(scan.n_frames, -1) @ self.W[:, o])
-                J[:, o, self.n_h + k] += ctx_o[k][:, o]
-        return J.reshape(scan.n_frames * scan.n_out, -1)
+        n_out, grid = scan.n_out, scan.grid_shape
+        J = np.zeros((scan.n_frames, n_out, self.shape[1]))
+        weights = np.ascontiguousarray(self.W.T.reshape(n_out, *grid))
+        per = max(1, self.lin.chunk // n_out)
+        for lo in range(0, scan.n_frames, per):
+            frames = np.arange(lo, min(lo + per, scan.n_frames))
+            rhs = np.broadcast_to(weights, (frames.size, n_out, *grid)).reshape(-1, *grid)
+            x = self.ratio * self.lin.solve(rhs, frames=np.repeat(frames, n_out))
+            J[frames, :, : self.n_h] = self._adjoint_rows(x.reshape(frames.size, n_out, *grid), frames)
+        for k, name in enumerate(self.free):
+            extra = self._context_pressure(name)
+            if extra is not None:
+                J[:, :, self.n_h + k] += extra.reshape(scan.n_frames, -1) @ self.W
+            J[:, :, self.n_h + k] += self._context_output(name)
+        return J.reshape(scan.n_frames * n_out, -1)
+
+    def _adjoint_rows(self, x: np.ndarray, frames: np.ndarray) -> np.ndarray:
+        """``T_t^T x_(t, o)`` for a chunk: (f, n_out, *grid) pressure fields -> (f, n_out, n_profile)."""
+        scan = self.scan
+        if scan.profile.y is None and len(scan.grid_shape) == 2:
+            x = x.sum(axis=-2)  # a line profile: every row of a column reads the same heights
+        idx, w = scan.interpolation
+        n_out, n_h = x.shape[1], self.n_h
+        offset = (np.arange(n_out) * n_h).reshape((n_out,) + (1,) * (idx.ndim - 1))
+        out = np.empty((frames.size, n_out, n_h))
+        for i, t in enumerate(frames):
+            vals = x[i][..., None] * w[t]
+            out[i] = np.bincount((idx[t][None] + offset).reshape(-1), weights=vals.reshape(-1),
+                                 minlength=n_out * n_h).reshape(n_out, n_h)
+        return out
