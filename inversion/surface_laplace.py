@@ -167,11 +167,15 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         zh = z[:n]
         return (zh.copy() if flat_h else mean + root @ zh).reshape(scan.profile.shape)
 
+    last = {}  # the last solved z and its state: a stage's start and the final objective reuse it
+
     def evaluate(z, sigma):
         ctx = _context(z[n:], transforms, fixed)
         if ctx is None or (uniform.any() and np.abs(z[n:][uniform]).max() > 1):
             return None, math.inf
-        state = scan.solve(heights(z), ctx)
+        if last.get("z") is None or not np.array_equal(last["z"], z):
+            last["z"], last["state"] = z.copy(), scan.solve(heights(z), ctx)
+        state = last["state"]
         r = (data - state.outputs).ravel() / sigma
         return state, 0.5 * float(r @ r) + 0.5 * float(np.sum(penal * z * z))
 
