@@ -137,7 +137,8 @@ def _context(z_c, transforms, fixed) -> dict | None:
 
 
 def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_iter=30, tol=1e-6,
-                 touch_threshold=TOUCH_THRESHOLD, start=None, continuation=True) -> LaplaceResult:
+                 touch_threshold=TOUCH_THRESHOLD, start=None, continuation=True,
+                 jacobian_every: int = 1) -> LaplaceResult:
     """Gauss-Newton MAP with a line search, then the Hessian there (see the module docstring).
 
     Parameters
@@ -154,9 +155,17 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         The free context parameters.
     fixed : dict
         Fixed context values.
+    jacobian_every : int
+        Iterations per explicit Jacobian (1: every iteration). Above 1 (with a prior), the last
+        Jacobian drives the steps of the next ``jacobian_every - 1`` iterations while the gradient
+        stays exact (one adjoint solve per frame, about a tenth of a Jacobian's solves): the
+        iteration then stops at the same MAP (the exact gradient's zero), and the Laplace Hessian
+        is the exact Jacobian's at the MAP. A step the line search had to cut rebuilds it.
     """
     if int(max_iter) < 1:
         raise ValueError(f"max_iter: the Gauss-Newton search needs at least 1 iteration, got {max_iter!r}")
+    if int(jacobian_every) < 1:
+        raise ValueError(f"jacobian_every: iterations per explicit Jacobian must be >= 1, got {jacobian_every!r}")
     n, k = scan.profile.size, len(transforms)
     names = [t.name for t in transforms]
     flat_h = root is None
@@ -191,7 +200,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     history, messages, total = [], [], 0
     for factor in stages:
         z, state, info, its = _descend(evaluate, scan, data, noise_std * factor, z, names, transforms, root,
-                                       penal, uniform, n, max_iter, tol, history)
+                                       penal, uniform, n, max_iter, tol, history, int(jacobian_every))
         total += its
         messages.append(info)
     message = messages[-1] + (f" (after {len(stages) - 1} continuation stages in the noise sd)" if len(stages) > 1
@@ -211,22 +220,31 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
                          chi2=float(r @ r), iterations=total, message=message, history=history)
 
 
-def _descend(evaluate, scan, data, sigma, z, names, transforms, root, penal, uniform, n, max_iter, tol, history):
-    """Gauss-Newton with an Armijo line search at one noise sd; returns (z, state, message, iterations)."""
+def _descend(evaluate, scan, data, sigma, z, names, transforms, root, penal, uniform, n, max_iter, tol, history,
+             every=1):
+    """Gauss-Newton with an Armijo line search at one noise sd; returns (z, state, message, iterations).
+    With ``every`` > 1 (and a prior) the Jacobian is rebuilt every ``every`` iterations (see gauss_newton)."""
     flat_h = root is None
     state, phi = evaluate(z, sigma)
-    it, message = 0, ""
+    it, message, age, model = 0, "", every, None
     for it in range(1, max_iter + 1):
-        J, touched = _jacobian(scan, state, names)
-        if flat_h:  # without a prior, a node just entering the contact is held until it carries a load
-            touched &= loaded_nodes(scan, state, TOUCH_THRESHOLD)
-        unknowns = _unknowns(J, touched, transforms, z, root, sigma, flat_h, n, scan.profile.spacing)
-        A = _whiten(J, transforms, z, root, sigma, n)[:, unknowns]
         r = (data - state.outputs).ravel() / sigma
-        gauge = _gauge(A, unknowns, n, flat_h)
-        g = -(A.T @ r) + penal[unknowns] * z[unknowns] + gauge @ z[unknowns]
+        if model is None or age >= every or flat_h:
+            J, touched = _jacobian(scan, state, names)
+            if flat_h:  # without a prior, a node just entering the contact is held until it carries a load
+                touched &= loaded_nodes(scan, state, TOUCH_THRESHOLD)
+            unknowns = _unknowns(J, touched, transforms, z, root, sigma, flat_h, n, scan.profile.spacing)
+            A = _whiten(J, transforms, z, root, sigma, n)[:, unknowns]
+            gauge = _gauge(A, unknowns, n, flat_h)
+            model, age, fresh = cho_factor(A.T @ A + np.diag(penal[unknowns]) + gauge), 0, True
+            g = -(A.T @ r) + penal[unknowns] * z[unknowns] + gauge @ z[unknowns]
+        else:
+            fresh = False  # the exact gradient by one adjoint solve per frame; the last Jacobian's Hessian
+            g = -_whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r)[unknowns] \
+                + penal[unknowns] * z[unknowns]
+        age += 1
         step = np.zeros_like(z)
-        step[unknowns] = -cho_solve(cho_factor(A.T @ A + np.diag(penal[unknowns]) + gauge), g)
+        step[unknowns] = -cho_solve(model, g)
         decrement = -float(g @ step[unknowns])
         if decrement < tol:
             return z, state, f"converged: Gauss-Newton decrement {decrement:.2g} < {tol:g} nats", it
@@ -242,15 +260,30 @@ def _descend(evaluate, scan, data, sigma, z, names, transforms, root, penal, uni
                 break
             alpha *= 0.5
         else:
+            if not fresh:  # an old Jacobian's step: rebuild it here and try again
+                age = every
+                continue
             return z, state, f"stopped: the line search found no decrease after 30 halvings (decrement " \
                              f"{decrement:.2g} nats)", it
         z, state, phi = z + alpha * step, new_state, new_phi
+        if alpha < 1:  # the model overshot: rebuild the Jacobian at the new point
+            age = every
         history.append((sigma, phi, decrement, alpha, int(touched.sum())))
         if len(history) >= 3 and history[-3][0] == sigma and history[-3][1] - phi < STALL:
             # creeping along a contact-set kink: the objective no longer moves
             return z, state, (f"converged: the objective changed by {history[-3][1] - phi:.2g} < {STALL:g} nats over "
                               f"2 iterations (last step {alpha:.2g} of the Gauss-Newton step)"), it
     return z, state, f"stopped at max_iter = {max_iter} iterations (decrement {decrement:.2g} nats)", it
+
+
+def _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r) -> np.ndarray:
+    """``Jz^T r`` (whitened coordinates, over sigma) by the scan Jacobian's adjoint, without the matrix."""
+    jt = ScanJacobian(scan, state, free=names).rmatvec(r)
+    out = np.empty(n + len(transforms))
+    out[:n] = root.T @ jt[:n]
+    for i, tr in enumerate(transforms):
+        out[n + i] = jt[n + i] * tr.slope(z[n + i])
+    return out / sigma
 
 
 def reads_nodes(scan, nodes: np.ndarray) -> np.ndarray:
