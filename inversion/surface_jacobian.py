@@ -68,8 +68,9 @@ class ScanJacobian(LinearOperator):
         self._force = None  # the force responses, computed when a context column needs them
 
     def _force_response(self) -> np.ndarray:
-        if self._force is None:
-            self._force = self.lin.force_response()
+        if self._force is None:  # one solve per distinct contact set
+            first, which = self._distinct()
+            self._force = self.lin.force_response(frames=first)[which]
         return self._force
 
     def _context_pressure(self, name: str) -> np.ndarray | None:
@@ -130,20 +131,26 @@ class ScanJacobian(LinearOperator):
     def matrix(self) -> np.ndarray:
         """The explicit Jacobian, shape (n_frames * n_out, n_profile + n_free), by adjoint solves.
 
-        One restricted solve per frame and sensor output, batched over chunks of frames (a chunk's
-        right-hand sides are all its frames' outputs: they share their frames' windows); rows
+        One restricted solve per distinct contact set and sensor output, batched over chunks of
+        sets (a chunk's right-hand sides are all its sets' outputs: they share their windows); rows
         ordered frame by frame as the flattened outputs.
         """
         scan = self.scan
         n_out, grid = scan.n_out, scan.grid_shape
         J = np.zeros((scan.n_frames, n_out, self.shape[1]))
         weights = np.ascontiguousarray(self.W.T.reshape(n_out, *grid))
+        # the right-hand sides are the same in every frame: one solve per distinct contact set (at a
+        # flat surface every frame has the finger's own contact, so one frame's solves serve all)
+        first, which = self._distinct()
         per = max(1, self.lin.chunk // n_out)
-        for lo in range(0, scan.n_frames, per):
-            frames = np.arange(lo, min(lo + per, scan.n_frames))
-            rhs = np.broadcast_to(weights, (frames.size, n_out, *grid)).reshape(-1, *grid)
-            x = self.ratio * self.lin.solve(rhs, frames=np.repeat(frames, n_out))
-            J[frames, :, : self.n_h] = self._adjoint_rows(x.reshape(frames.size, n_out, *grid), frames)
+        for lo in range(0, first.size, per):
+            sets = first[lo: lo + per]
+            rhs = np.broadcast_to(weights, (sets.size, n_out, *grid)).reshape(-1, *grid)
+            x = (self.ratio * self.lin.solve(rhs, frames=np.repeat(sets, n_out))).reshape(sets.size, n_out, *grid)
+            cols = self._columns(x)
+            for i in range(sets.size):
+                frames = np.flatnonzero(which == lo + i)
+                J[frames, :, : self.n_h] = self._adjoint_rows(cols[i], frames)
         for k, name in enumerate(self.free):
             extra = self._context_pressure(name)
             if extra is not None:
@@ -151,17 +158,30 @@ class ScanJacobian(LinearOperator):
             J[:, :, self.n_h + k] += self._context_output(name)
         return J.reshape(scan.n_frames * n_out, -1)
 
-    def _adjoint_rows(self, x: np.ndarray, frames: np.ndarray) -> np.ndarray:
-        """``T_t^T x_(t, o)`` for a chunk: (f, n_out, *grid) pressure fields -> (f, n_out, n_profile)."""
-        scan = self.scan
-        if scan.profile.y is None and len(scan.grid_shape) == 2:
-            x = x.sum(axis=-2)  # a line profile: every row of a column reads the same heights
-        idx, w = scan.interpolation
-        n_out, n_h = x.shape[1], self.n_h
+    def _distinct(self) -> tuple[np.ndarray, np.ndarray]:
+        """The first frame of each distinct contact set, and each frame's set (an index into them)."""
+        seen, first, which = {}, [], np.empty(self.scan.n_frames, dtype=int)
+        for t, m in enumerate(self.lin.mask):
+            key = np.packbits(m).tobytes()
+            if key not in seen:
+                seen[key] = len(first)
+                first.append(t)
+            which[t] = seen[key]
+        return np.asarray(first, dtype=int), which
+
+    def _columns(self, x: np.ndarray) -> np.ndarray:
+        """A line profile's columns: every row of a column reads the same heights (sum over y)."""
+        return x.sum(axis=-2) if self.scan.profile.y is None and len(self.scan.grid_shape) == 2 else x
+
+    def _adjoint_rows(self, cols: np.ndarray, frames: np.ndarray) -> np.ndarray:
+        """``T_t^T x_o`` in each of ``frames`` for one set's fields ``cols`` (n_out, *grid; a line
+        profile's column sums): -> (frames, n_out, n_profile)."""
+        idx, w = self.scan.interpolation
+        n_out, n_h = cols.shape[0], self.n_h
         offset = (np.arange(n_out) * n_h).reshape((n_out,) + (1,) * (idx.ndim - 1))
         out = np.empty((frames.size, n_out, n_h))
         for i, t in enumerate(frames):
-            vals = x[i][..., None] * w[t]
+            vals = cols[..., None] * w[t]
             out[i] = np.bincount((idx[t][None] + offset).reshape(-1), weights=vals.reshape(-1),
                                  minlength=n_out * n_h).reshape(n_out, n_h)
         return out

@@ -180,3 +180,17 @@ def test_windowed_chunked_solve_equals_the_dense_restricted_system(rng):
         lin.solve(rhs, initial=np.zeros((2, n, n)))
     with pytest.raises(ValueError, match="chunk: right-hand sides per batched solve must be >= 1"):
         ContactLinearisation(comp, masks, force_control=True, chunk=0)
+
+
+def test_frames_with_one_contact_set_share_their_solves(rng):
+    """At a flat surface every frame has the finger's own contact: matrix() solves one frame and
+    reads it into every frame's rows (each through its own interpolation), as matvec does frame by frame."""
+    scan, heights, _ = _scan(rng)
+    state = scan.solve(np.zeros_like(heights))
+    jac = ScanJacobian(scan, state, free=("normal_force", "friction"))
+    first, which = jac._distinct()
+    assert first.tolist() == [0] and np.all(which == 0)
+    dense = jac.matrix()
+    cols = np.column_stack([jac.matvec(e) for e in np.eye(jac.shape[1])])
+    assert np.abs(dense - cols).max() < 1e-7 * np.abs(cols).max()
+    assert np.abs(dense[: scan.n_out]).max() > 0 and np.abs(dense[-scan.n_out:]).max() > 0
