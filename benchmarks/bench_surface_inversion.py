@@ -96,8 +96,9 @@ def main(argv=None):
     p.add_argument("--depth", type=float, default=2e-3, help="sensor depth, m")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--margin", type=float, default=MARGIN, help="the contact grid's half-width in Hertz radii")
-    p.add_argument("--jacobian-every", type=int, default=3,
+    p.add_argument("--jacobian-every", type=int, default=100,
                    help="Gauss-Newton iterations per explicit Jacobian (the exact gradient in between)")
+    p.add_argument("--jacobian-tol", type=float, default=1e-6, help="the Jacobian's restricted solves' tolerance")
     args = p.parse_args(argv)
     if args.quick:
         args.force, args.frames, args.grid_spacing, args.depth, args.margin = 0.02, 8, 40e-6, 0.3e-3, 1.5
@@ -115,7 +116,7 @@ def main(argv=None):
     t0, c0 = time.perf_counter(), time.process_time()
     with clocks(parts) as spent:
         post = invert_scan(scan, data, sigma, prior=prior, context=context, rng=rng, n_draws=200,
-                           jacobian_every=args.jacobian_every)
+                           jacobian_every=args.jacobian_every, jacobian_tol=args.jacobian_tol)
     t_map, c_map = time.perf_counter() - t0, time.process_time() - c0
     lin = invert_scan(scan, data, sigma, prior=prior, context=context, rng=rng, n_draws=20, max_iter=1,
                        continuation=False)

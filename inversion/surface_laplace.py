@@ -138,7 +138,7 @@ def _context(z_c, transforms, fixed) -> dict | None:
 
 def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_iter=30, tol=1e-6,
                  touch_threshold=TOUCH_THRESHOLD, start=None, continuation=True,
-                 jacobian_every: int = 1) -> LaplaceResult:
+                 jacobian_every: int = 1, jacobian_tol: float = 1e-8) -> LaplaceResult:
     """Gauss-Newton MAP with a line search, then the Hessian there (see the module docstring).
 
     Parameters
@@ -161,13 +161,22 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         stays exact (one adjoint solve per frame, about a tenth of a Jacobian's solves): the
         iteration then stops at the same MAP (the exact gradient's zero), and the Laplace Hessian
         is the exact Jacobian's at the MAP. A step the line search had to cut rebuilds it.
+    jacobian_tol : float
+        Relative residual of the Jacobian's restricted solves (:class:`ScanJacobian`'s ``tol``).
     """
     if int(max_iter) < 1:
         raise ValueError(f"max_iter: the Gauss-Newton search needs at least 1 iteration, got {max_iter!r}")
     if int(jacobian_every) < 1:
         raise ValueError(f"jacobian_every: iterations per explicit Jacobian must be >= 1, got {jacobian_every!r}")
-    n, k = scan.profile.size, len(transforms)
+    if not 0 < jacobian_tol < 1:
+        raise ValueError(f"jacobian_tol: the restricted solves' relative residual must lie in (0, 1), got "
+                         f"{jacobian_tol!r}; e.g. 1e-8")
     names = [t.name for t in transforms]
+
+    def jacobian(state):
+        return _jacobian(scan, state, names, jacobian_tol)
+
+    n, k = scan.profile.size, len(transforms)
     flat_h = root is None
     penal = np.concatenate([np.full(n, 0.0 if flat_h else 1.0), [1.0 if t.gaussian else 0.0 for t in transforms]])
     uniform = np.array([not t.gaussian for t in transforms], dtype=bool)
@@ -199,8 +208,8 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     stages = [misfit / 10.0**j for j in range(MAX_STAGES) if misfit / 10.0**j > 1.0 and continuation] + [1.0]
     history, messages, total = [], [], 0
     for factor in stages:
-        z, state, info, its = _descend(evaluate, scan, data, noise_std * factor, z, names, transforms, root,
-                                       penal, uniform, n, max_iter, tol, history, int(jacobian_every))
+        z, state, info, its = _descend(evaluate, jacobian, scan, data, noise_std * factor, z, names, transforms,
+                                       root, penal, uniform, n, max_iter, tol, history, int(jacobian_every))
         total += its
         messages.append(info)
     message = messages[-1] + (f" (after {len(stages) - 1} continuation stages in the noise sd)" if len(stages) > 1
@@ -209,7 +218,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     # nodes resting on the skin with (almost) no load are the bound's, not the data's: the grid nodes
     # that read them leave the contact set of the linearisation (they carry almost nothing), so that
     # their columns vanish and a uniform shift of the touched nodes still changes no datum
-    J, touched = _jacobian(scan, replace(state, contact=state.contact & ~reads_nodes(scan, ~touched)), names)
+    J, touched = jacobian(replace(state, contact=state.contact & ~reads_nodes(scan, ~touched)))
     unknowns = _unknowns(J, touched, transforms, z, root, noise_std, flat_h, n, scan.profile.spacing)
     A = _whiten(J, transforms, z, root, noise_std, n)[:, unknowns]
     factor = cho_factor(A.T @ A + np.diag(penal[unknowns]) + _gauge(A, unknowns, n, flat_h))
@@ -220,7 +229,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
                          chi2=float(r @ r), iterations=total, message=message, history=history)
 
 
-def _descend(evaluate, scan, data, sigma, z, names, transforms, root, penal, uniform, n, max_iter, tol, history,
+def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, penal, uniform, n, max_iter, tol, history,
              every=1):
     """Gauss-Newton with an Armijo line search at one noise sd; returns (z, state, message, iterations).
     With ``every`` > 1 (and a prior) the Jacobian is rebuilt every ``every`` iterations (see gauss_newton)."""
@@ -230,7 +239,7 @@ def _descend(evaluate, scan, data, sigma, z, names, transforms, root, penal, uni
     for it in range(1, max_iter + 1):
         r = (data - state.outputs).ravel() / sigma
         if model is None or age >= every or flat_h:
-            J, touched = _jacobian(scan, state, names)
+            J, touched = jacobian(state)
             if flat_h:  # without a prior, a node just entering the contact is held until it carries a load
                 touched &= loaded_nodes(scan, state, TOUCH_THRESHOLD)
             unknowns = _unknowns(J, touched, transforms, z, root, sigma, flat_h, n, scan.profile.spacing)
@@ -305,9 +314,9 @@ def loaded_nodes(scan, state, threshold: float) -> np.ndarray:
     return load >= threshold * load.max() if load.max() > 0 else np.zeros(scan.profile.size, dtype=bool)
 
 
-def _jacobian(scan, state, names):
+def _jacobian(scan, state, names, tol):
     """The scan Jacobian (natural units) and the touched nodes (a non-zero column)."""
-    J = ScanJacobian(scan, state, free=names).matrix()
+    J = ScanJacobian(scan, state, free=names, tol=tol).matrix()
     return J, np.abs(J[:, : scan.profile.size]).max(axis=0) > 0
 
 
