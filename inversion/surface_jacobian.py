@@ -114,13 +114,33 @@ class ScanJacobian(LinearOperator):
         scan = self.scan
         y = np.asarray(y, dtype=float).reshape(scan.n_frames, scan.n_out)
         g = (y @ self.W.T).reshape(scan.n_frames, *scan.grid_shape)  # d<y, out> / dp per frame
-        grad_h = scan.node_heights_adjoint(self.ratio * self.lin.solve(g))
+        sg = self.lin.solve(g)
+        grad_h = scan.node_heights_adjoint(self.ratio * sg)
         extra = []
         for name in self.free:
-            e = self._context_pressure(name)
-            val = float(np.sum(e * g)) if e is not None else 0.0
+            if name in ("normal_force", "young_modulus") and self._force is None:
+                val = self._context_dot(name, g, sg)
+            else:
+                e = self._context_pressure(name)
+                val = float(np.sum(e * g)) if e is not None else 0.0
             extra.append(val + float(np.sum(self._context_output(name) * y)))
         return np.concatenate([grad_h.reshape(-1), np.asarray(extra)])
+
+    def _context_dot(self, name: str, g: np.ndarray, sg: np.ndarray) -> float:
+        """``<dp/d theta, g>`` for the force and the modulus without the force responses' solves:
+        ``f = f0 - S A f0`` (``f0`` uniform on the set, sum 1; ``S`` the symmetric restricted solve),
+        so ``<f, g> = <f0, g> - <A f0, S g>``: one compliance product per frame, ``S g`` is at hand."""
+        scan, lin = self.scan, self.lin
+        fg = np.empty(scan.n_frames)
+        for t in range(scan.n_frames):
+            f0 = lin.mask[t] / lin.n_contact[t]
+            fg[t] = float(np.sum(f0 * g[t])) - float(np.sum(scan.compliance.normal(f0) * sg[t]))
+        if name == "normal_force":
+            return float(fg.sum()) / scan.cell_area
+        st = self.state
+        p = st.pressure.reshape(scan.n_frames, -1)
+        pg = np.einsum("ti,ti->t", p, g.reshape(scan.n_frames, -1))
+        return float(np.sum(pg - p.sum(axis=1) * fg)) / st.context["young_modulus"]
 
     def _matmat(self, X):
         return np.column_stack([self._matvec(col) for col in np.asarray(X).T])

@@ -106,6 +106,14 @@ def test_scan_jacobian_dot_test_and_explicit_matrix(rng, quantity, geometry):
     v = rng.standard_normal(jac.shape[1])
     dense = jac.matrix()
     assert np.abs(dense @ v - jac.matvec(v)).max() < 1e-9 * np.abs(dense @ v).max()
+    # a fresh operator's adjoint reads the force and modulus columns without the force responses
+    # (<f, g> = <f0, g> - <A f0, S g>): the same as the matrix built from them
+    y = rng.standard_normal(jac.shape[0])
+    fresh = ScanJacobian(scan, state, free=("normal_force", "friction", "young_modulus"), tol=1e-12)
+    got = fresh.rmatvec(y)
+    want = dense.T @ y
+    assert fresh._force is None and np.abs(got - want).max() < 1e-9 * np.abs(want).max()
+    assert np.allclose(got[-3:], want[-3:], rtol=1e-8, atol=0)
 
 
 @pytest.mark.parametrize("quantity", ["stress", "strain"])
