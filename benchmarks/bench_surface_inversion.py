@@ -1,6 +1,7 @@
 """Benchmark of the surface inversion: a 3-D fingertip scanning a ridged random profile.
 
-The issue's configuration (``--frames 500 --grid-spacing 20um --profile 512``): R = 10 mm, 0.5 N,
+The issue's configuration (the defaults: 500 frames, 20 um contact grid, 512 profile nodes over
+the scanned strip): R = 10 mm, 0.5 N,
 E = 1 MPa, nu = 1/2, friction 0.5 (sliding), a y-uniform random profile (self-affine, rms 5 um),
 9 sensors (zz and zx) 2 mm apart at 2 mm depth, force and friction free. Reduced runs shrink the
 force, the frame count and the grid. Printed: the time of the MAP and the Laplace posterior split
@@ -61,8 +62,9 @@ def clocks(parts):
 MARGIN = 1.25
 
 
-def build(force, frames, spacing, depth, sensor_pitch, rms, ell, seed, margin=MARGIN):
-    """The scan (heights -> outputs), the true profile and the prior."""
+def build(force, frames, spacing, depth, sensor_pitch, rms, ell, seed, margin=MARGIN, profile_nodes=0):
+    """The scan (heights -> outputs), the true profile and the prior; the profile has ``profile_nodes``
+    nodes over the scanned strip (0: the contact grid's spacing)."""
     E, nu, R = 1e6, 0.5, 10e-3
     a = HertzContact(force, R, E, nu).contact_radius
     n = 2 * int(math.ceil(margin * a / spacing))
@@ -76,14 +78,14 @@ def build(force, frames, spacing, depth, sensor_pitch, rms, ell, seed, margin=MA
     w = SensorReadout(skin, grid, spacing, sensors, loads=("p", "qx")).weights
     x = (np.arange(n) - n // 2) * spacing
     pos = np.arange(frames) * spacing
-    px = x[0] + spacing * np.arange(n + frames)
+    px = np.linspace(x[0], x[-1] + pos[-1], profile_nodes) if profile_nodes else x[0] + spacing * np.arange(n + frames)
     scan = ContactScan(young_modulus=E, poisson_ratio=nu, grid_shape=grid, spacing=spacing,
                        shape_gap=finger_gap(grid, spacing, R), positions=pos, weights_p=w[: n * n],
                        weights_q=w[n * n: 2 * n * n], profile=ProfileGrid(x=px), normal_force=force, friction=0.5,
                        friction_direction=-1.0, tol=1e-8)
     prior = StationaryPrior(variance=rms**2, correlation_length=ell, kind="self_affine", hurst=0.8)
     rng = np.random.default_rng(seed)
-    truth = prior_root(prior, (px.size,), spacing) @ rng.standard_normal(px.size)
+    truth = prior_root(prior, (px.size,), float(px[1] - px[0])) @ rng.standard_normal(px.size)
     return scan, truth, prior, rng
 
 
@@ -95,6 +97,7 @@ def main(argv=None):
     p.add_argument("--grid-spacing", type=float, default=20e-6, help="m")
     p.add_argument("--depth", type=float, default=2e-3, help="sensor depth, m")
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--profile", type=int, default=512, help="profile nodes over the strip (0: the grid's spacing)")
     p.add_argument("--margin", type=float, default=MARGIN, help="the contact grid's half-width in Hertz radii")
     p.add_argument("--jacobian-every", type=int, default=100,
                    help="Gauss-Newton iterations per explicit Jacobian (the exact gradient in between)")
@@ -102,9 +105,10 @@ def main(argv=None):
     args = p.parse_args(argv)
     if args.quick:
         args.force, args.frames, args.grid_spacing, args.depth, args.margin = 0.02, 8, 40e-6, 0.3e-3, 1.5
+        args.profile = 0
     scan, truth, prior, rng = build(args.force, args.frames, args.grid_spacing, args.depth,
                                     sensor_pitch=args.depth, rms=5e-6, ell=0.3e-3, seed=args.seed,
-                                    margin=args.margin)
+                                    margin=args.margin, profile_nodes=args.profile)
     t0 = time.perf_counter()
     clean = scan.solve(truth)
     t_solve = time.perf_counter() - t0

@@ -53,6 +53,9 @@ MAX_STAGES = 8
 #: a node counts as touched when its largest load over the frames is at least this share of the
 #: largest node's (a node the MAP left on the skin with almost no load is held by the bound)
 TOUCH_THRESHOLD = 0.02
+#: an old Jacobian's step whose decrement is above this share of the previous one converges too
+#: slowly: the next iteration rebuilds the Jacobian (``jacobian_every`` > 1)
+SLOW = 0.25
 #: nats: an objective that moves less over two iterations has stalled on a contact-set kink (the
 #: posterior's own scale is 1 nat)
 STALL = 1e-3
@@ -160,7 +163,8 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         Jacobian drives the steps of the next ``jacobian_every - 1`` iterations while the gradient
         stays exact (one adjoint solve per frame, about a tenth of a Jacobian's solves): the
         iteration then stops at the same MAP (the exact gradient's zero), and the Laplace Hessian
-        is the exact Jacobian's at the MAP. A step the line search had to cut rebuilds it.
+        is the exact Jacobian's at the MAP. A step the line search had to cut, or a decrement above
+        :data:`SLOW` times the previous one, rebuilds it; it is carried into the next continuation stage.
     jacobian_tol : float
         Relative residual of the Jacobian's restricted solves (:class:`ScanJacobian`'s ``tol``).
     """
@@ -207,9 +211,10 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     misfit = float(np.sqrt(np.mean(((data - state.outputs) / noise_std) ** 2)))
     stages = [misfit / 10.0**j for j in range(MAX_STAGES) if misfit / 10.0**j > 1.0 and continuation] + [1.0]
     history, messages, total = [], [], 0
+    kept = {} if int(jacobian_every) > 1 else None  # the last Jacobian, carried into the next stage
     for factor in stages:
         z, state, info, its = _descend(evaluate, jacobian, scan, data, noise_std * factor, z, names, transforms,
-                                       root, penal, uniform, n, max_iter, tol, history, int(jacobian_every))
+                                       root, penal, uniform, n, max_iter, tol, history, int(jacobian_every), kept)
         total += its
         messages.append(info)
     message = messages[-1] + (f" (after {len(stages) - 1} continuation stages in the noise sd)" if len(stages) > 1
@@ -229,26 +234,34 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
                          chi2=float(r @ r), iterations=total, message=message, history=history)
 
 
-def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, penal, uniform, n, max_iter, tol, history,
-             every=1):
+def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, penal, uniform, n, max_iter, tol,
+             history, every=1, kept=None):
     """Gauss-Newton with an Armijo line search at one noise sd; returns (z, state, message, iterations).
-    With ``every`` > 1 (and a prior) the Jacobian is rebuilt every ``every`` iterations (see gauss_newton)."""
+    With ``every`` > 1 (and a prior) the Jacobian is rebuilt every ``every`` iterations (see
+    gauss_newton); ``kept`` (a dict) holds the last one across calls (stages)."""
     flat_h = root is None
+    kept = {} if kept is None else kept
     state, phi = evaluate(z, sigma)
-    it, message, age, model = 0, "", every, None
+    it, message, model, last_decrement = 0, "", None, math.inf
+    age = 0 if "J" in kept else every
     for it in range(1, max_iter + 1):
         r = (data - state.outputs).ravel() / sigma
-        if model is None or age >= every or flat_h:
+        fresh = "J" not in kept or age >= every or flat_h
+        if fresh:
             J, touched = jacobian(state)
             if flat_h:  # without a prior, a node just entering the contact is held until it carries a load
                 touched &= loaded_nodes(scan, state, TOUCH_THRESHOLD)
+            kept.update(J=J, touched=touched)
+            age = 0
+        if fresh or model is None:  # the Gauss-Newton Hessian of the (last) Jacobian at this noise sd
+            J, touched = kept["J"], kept["touched"]
             unknowns = _unknowns(J, touched, transforms, z, root, sigma, flat_h, n, scan.profile.spacing)
             A = _whiten(J, transforms, z, root, sigma, n)[:, unknowns]
             gauge = _gauge(A, unknowns, n, flat_h)
-            model, age, fresh = cho_factor(A.T @ A + np.diag(penal[unknowns]) + gauge), 0, True
+            model = cho_factor(A.T @ A + np.diag(penal[unknowns]) + gauge)
+        if fresh:
             g = -(A.T @ r) + penal[unknowns] * z[unknowns] + gauge @ z[unknowns]
-        else:
-            fresh = False  # the exact gradient by one adjoint solve per frame; the last Jacobian's Hessian
+        else:  # the exact gradient by one adjoint solve per frame; the last Jacobian's Hessian
             g = -_whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r)[unknowns] \
                 + penal[unknowns] * z[unknowns]
         age += 1
@@ -257,6 +270,9 @@ def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, 
         decrement = -float(g @ step[unknowns])
         if decrement < tol:
             return z, state, f"converged: Gauss-Newton decrement {decrement:.2g} < {tol:g} nats", it
+        if not fresh and decrement > SLOW * last_decrement:  # an old Jacobian converging slowly: rebuild next
+            age = every
+        last_decrement = decrement
         if uniform.any():  # a Uniform parameter's step stops at its bound
             zc, sc = z[n:][uniform], step[n:][uniform]
             with np.errstate(divide="ignore", invalid="ignore"):
