@@ -14,7 +14,8 @@ Objective ``Phi(z) = |(d - f(z)) / sigma|^2 / 2 + (prior terms)``; the Gauss-New
 ``(Jz^T Jz + P) dz = Jz^T r - P z`` (``Jz`` the scan Jacobian in whitened coordinates, divided by
 sigma; ``P`` the prior's identity), then an Armijo backtracking line search on ``Phi`` with the
 non-linear solve (the contact sets may change along the step; a Uniform parameter's step is cut at
-its bounds). It stops when the Gauss-Newton decrement ``-g . dz`` falls below ``tol`` (nats), or
+its bounds). It stops when the Gauss-Newton decrement ``-g . dz`` falls below ``tol`` (nats; a
+continuation stage before the last below ``STAGE_TOL``, 1 nat: it only starts the next), or
 when the objective moved by less than ``STALL`` (1e-3 nats) over two iterations: near the MAP a contact node
 entering or leaving the set makes the objective piecewise quadratic, and the line search then
 creeps along the kink (the step that leaves the current piece is cut to a few percent).
@@ -53,6 +54,8 @@ MAX_STAGES = 8
 #: a node counts as touched when its largest load over the frames is at least this share of the
 #: largest node's (a node the MAP left on the skin with almost no load is held by the bound)
 TOUCH_THRESHOLD = 0.02
+#: nats: the Gauss-Newton decrement at which a continuation stage before the last stops
+STAGE_TOL = 1.0
 #: an old Jacobian's step whose decrement is above this share of the previous one converges too
 #: slowly: the next iteration rebuilds the Jacobian (``jacobian_every`` > 1)
 SLOW = 0.25
@@ -209,12 +212,16 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     # noise_std, each stage's MAP starting the next (a steep objective far from the MAP sends plain
     # Gauss-Newton into spiky surfaces that touch only at their spikes)
     misfit = float(np.sqrt(np.mean(((data - state.outputs) / noise_std) ** 2)))
-    stages = [misfit / 10.0**j for j in range(MAX_STAGES) if misfit / 10.0**j > 1.0 and continuation] + [1.0]
+    stages = [misfit / 10.0**i for i in range(MAX_STAGES) if misfit / 10.0**i > 1.0 and continuation] + [1.0]
     history, messages, total = [], [], 0
     kept = {} if int(jacobian_every) > 1 else None  # the last Jacobian, carried into the next stage
-    for factor in stages:
+    for j, factor in enumerate(stages):
+        # a stage before the last only starts the next one (whose objective is tens of nats away):
+        # its MAP to STAGE_TOL is enough
+        stage_tol = tol if j == len(stages) - 1 else max(tol, STAGE_TOL)
         z, state, info, its = _descend(evaluate, jacobian, scan, data, noise_std * factor, z, names, transforms,
-                                       root, penal, uniform, n, max_iter, tol, history, int(jacobian_every), kept)
+                                       root, penal, uniform, n, max_iter, stage_tol, history, int(jacobian_every),
+                                       kept)
         total += its
         messages.append(info)
     message = messages[-1] + (f" (after {len(stages) - 1} continuation stages in the noise sd)" if len(stages) > 1
