@@ -1,16 +1,18 @@
 """Benchmark of the surface inversion: a 3-D fingertip scanning a ridged random profile.
 
-The issue's configuration (the defaults: 500 frames, 20 um contact grid, 512 profile nodes over
-the scanned strip): R = 10 mm, 0.5 N,
-E = 1 MPa, nu = 1/2, friction 0.5 (sliding), a y-uniform random profile (self-affine, rms 5 um),
-9 sensors (zz and zx) 2 mm apart at 2 mm depth, force and friction free. Reduced runs shrink the
-force, the frame count and the grid. Printed: the time of the MAP and the Laplace posterior split
-into scan solves and Jacobians, the posterior mean's rms error against the truth, the 90 % band's
-coverage of touched nodes, the context posterior, and the same error for the linearised inversion
-(the first Gauss-Newton step from the flat surface: the full-contact linearisation around the
-smooth finger's contact).
+The issue's configuration (the defaults: 500 frames, 20 um contact grid, 512 profile nodes over the
+scanned strip): R = 10 mm, 0.5 N, E = 1 MPa, nu = 1/2, friction 0.5 (sliding), a y-uniform random
+profile (self-affine, rms 5 um), 9 sensors (zz and zx) 2 mm apart at 2 mm depth, force and friction
+free. Reduced runs shrink the force, the frame count and the grid. Printed: the time of the MAP and
+the Laplace posterior split into scan solves, explicit Jacobians (by default only at the flat start,
+where one frame's solves serve every frame, and at the MAP) and exact gradients (the Gauss-Newton
+steps in between), the posterior mean's rms error against the truth, the 90 % band's coverage of
+touched nodes, the context posterior, and the same error for the linearised inversion (the first
+Gauss-Newton step from the flat surface: the full-contact linearisation around the smooth finger's
+contact).
 
-    python benchmarks/bench_surface_inversion.py --quick
+    python benchmarks/bench_surface_inversion.py            # the issue's size, minutes
+    python benchmarks/bench_surface_inversion.py --quick --jacobian-every 1
 """
 
 from __future__ import annotations
@@ -140,7 +142,8 @@ def main(argv=None):
           f"90 % band covers {cover:.2f} of the touched nodes")
     lo = np.mean(lin.mean[t] - truth[t])
     lin_err = np.sqrt(np.mean((lin.mean[t] - truth[t] - lo) ** 2))
-    print(f"linearised (one Gauss-Newton step): rms error {lin_err * 1e6:.3f} um")
+    print(f"linearised (one Gauss-Newton step): rms error {lin_err * 1e6:.3f} um, chi2 {lin.chi2:.4g} (the MAP's "
+          f"{post.chi2:.4g}) for {data.size} data")
     for name, c in post.context.items():
         print(f"{name}: {c['mean']:.4g} +- {c['sd']:.2g} (90 %: {c['q05']:.4g} .. {c['q95']:.4g})")
 

@@ -56,8 +56,9 @@ MAX_STAGES = 8
 TOUCH_THRESHOLD = 0.02
 #: nats: the Gauss-Newton decrement at which a continuation stage before the last stops
 STAGE_TOL = 1.0
-#: an old Jacobian's step whose decrement is above this share of the previous one converges too
-#: slowly: the next iteration rebuilds the Jacobian (``jacobian_every`` > 1)
+#: an old Jacobian's step whose decrement is above this share of the previous one (and above 10
+#: STALL: within that of the MAP a rebuild cannot pay) converges too slowly: the next iteration
+#: rebuilds the Jacobian (``jacobian_every`` > 1)
 SLOW = 0.25
 #: nats: an objective that moves less over two iterations has stalled on a contact-set kink (the
 #: posterior's own scale is 1 nat)
@@ -167,7 +168,8 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         stays exact (one adjoint solve per frame, about a tenth of a Jacobian's solves): the
         iteration then stops at the same MAP (the exact gradient's zero), and the Laplace Hessian
         is the exact Jacobian's at the MAP. A step the line search had to cut, or a decrement above
-        :data:`SLOW` times the previous one, rebuilds it; it is carried into the next continuation stage.
+        :data:`SLOW` times the previous one (and above 0.01 nats), rebuilds it; it is carried into the
+        next continuation stage.
     jacobian_tol : float
         Relative residual of the Jacobian's restricted solves (:class:`ScanJacobian`'s ``tol``).
     """
@@ -277,8 +279,8 @@ def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, 
         decrement = -float(g @ step[unknowns])
         if decrement < tol:
             return z, state, f"converged: Gauss-Newton decrement {decrement:.2g} < {tol:g} nats", it
-        if not fresh and decrement > SLOW * last_decrement:  # an old Jacobian converging slowly: rebuild next
-            age = every
+        if not fresh and decrement > max(SLOW * last_decrement, 10 * STALL):
+            age = every  # an old Jacobian converging slowly, still far from the MAP: rebuild next
         last_decrement = decrement
         if uniform.any():  # a Uniform parameter's step stops at its bound
             zc, sc = z[n:][uniform], step[n:][uniform]

@@ -193,7 +193,7 @@ def test_invert_scan_refuses_bad_input(rng):
         invert_scan(scan, data, 1.0, prior=1e-12, rng=rng)
     with pytest.raises(ValueError, match="jacobian_every: iterations per explicit Jacobian must be >= 1"):
         invert_scan(scan, data, 1.0, prior=prior, rng=rng, jacobian_every=0)
-    with pytest.raises(ValueError, match=r"jacobian_tol: the restricted solves' relative residual must lie in \(0, 1\)"):
+    with pytest.raises(ValueError, match=r"jacobian_tol: the restricted solves' relative residual must lie in"):
         invert_scan(scan, data, 1.0, prior=prior, rng=rng, jacobian_tol=0.0)
     with pytest.raises(ValueError, match="noise_std: the likelihood needs"):
         invert_scan(scan, data, 0.0, prior=prior, rng=rng)
