@@ -14,7 +14,8 @@ Objective ``Phi(z) = |(d - f(z)) / sigma|^2 / 2 + (prior terms)``; the Gauss-New
 ``(Jz^T Jz + P) dz = Jz^T r - P z`` (``Jz`` the scan Jacobian in whitened coordinates, divided by
 sigma; ``P`` the prior's identity), then an Armijo backtracking line search on ``Phi`` with the
 non-linear solve (the contact sets may change along the step; a Uniform parameter's step is cut at
-its bounds). It stops when the Gauss-Newton decrement ``-g . dz`` falls below ``tol`` (nats), or
+its bounds). It stops when the Gauss-Newton decrement ``-g . dz`` falls below ``tol`` (nats; a
+continuation stage before the last below ``STAGE_TOL``, 1 nat: it only starts the next), or
 when the objective moved by less than ``STALL`` (1e-3 nats) over two iterations: near the MAP a contact node
 entering or leaving the set makes the objective piecewise quadratic, and the line search then
 creeps along the kink (the step that leaves the current piece is cut to a few percent).
@@ -53,6 +54,12 @@ MAX_STAGES = 8
 #: a node counts as touched when its largest load over the frames is at least this share of the
 #: largest node's (a node the MAP left on the skin with almost no load is held by the bound)
 TOUCH_THRESHOLD = 0.02
+#: nats: the Gauss-Newton decrement at which a continuation stage before the last stops
+STAGE_TOL = 1.0
+#: an old Jacobian's step whose decrement is above this share of the previous one (and above 10
+#: STALL: within that of the MAP a rebuild cannot pay) converges too slowly: the next iteration
+#: rebuilds the Jacobian (``jacobian_every`` > 1)
+SLOW = 0.25
 #: nats: an objective that moves less over two iterations has stalled on a contact-set kink (the
 #: posterior's own scale is 1 nat)
 STALL = 1e-3
@@ -137,7 +144,8 @@ def _context(z_c, transforms, fixed) -> dict | None:
 
 
 def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_iter=30, tol=1e-6,
-                 touch_threshold=TOUCH_THRESHOLD, start=None, continuation=True) -> LaplaceResult:
+                 touch_threshold=TOUCH_THRESHOLD, start=None, continuation=True,
+                 jacobian_every: int = 1, jacobian_tol: float = 1e-8) -> LaplaceResult:
     """Gauss-Newton MAP with a line search, then the Hessian there (see the module docstring).
 
     Parameters
@@ -154,11 +162,30 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         The free context parameters.
     fixed : dict
         Fixed context values.
+    jacobian_every : int
+        Iterations per explicit Jacobian (1: every iteration). Above 1 (with a prior), the last
+        Jacobian drives the steps of the next ``jacobian_every - 1`` iterations while the gradient
+        stays exact (one adjoint solve per frame, about a tenth of a Jacobian's solves): the
+        iteration then stops at the same MAP (the exact gradient's zero), and the Laplace Hessian
+        is the exact Jacobian's at the MAP. A step the line search had to cut, or a decrement above
+        :data:`SLOW` times the previous one (and above 0.01 nats), rebuilds it; it is carried into the
+        next continuation stage.
+    jacobian_tol : float
+        Relative residual of the Jacobian's restricted solves (:class:`ScanJacobian`'s ``tol``).
     """
     if int(max_iter) < 1:
         raise ValueError(f"max_iter: the Gauss-Newton search needs at least 1 iteration, got {max_iter!r}")
-    n, k = scan.profile.size, len(transforms)
+    if int(jacobian_every) < 1:
+        raise ValueError(f"jacobian_every: iterations per explicit Jacobian must be >= 1, got {jacobian_every!r}")
+    if not 0 < jacobian_tol < 1:
+        raise ValueError(f"jacobian_tol: the restricted solves' relative residual must lie in (0, 1), got "
+                         f"{jacobian_tol!r}; e.g. 1e-8")
     names = [t.name for t in transforms]
+
+    def jacobian(state):
+        return _jacobian(scan, state, names, jacobian_tol)
+
+    n, k = scan.profile.size, len(transforms)
     flat_h = root is None
     penal = np.concatenate([np.full(n, 0.0 if flat_h else 1.0), [1.0 if t.gaussian else 0.0 for t in transforms]])
     uniform = np.array([not t.gaussian for t in transforms], dtype=bool)
@@ -167,11 +194,15 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         zh = z[:n]
         return (zh.copy() if flat_h else mean + root @ zh).reshape(scan.profile.shape)
 
+    last = {}  # the last solved z and its state: a stage's start and the final objective reuse it
+
     def evaluate(z, sigma):
         ctx = _context(z[n:], transforms, fixed)
         if ctx is None or (uniform.any() and np.abs(z[n:][uniform]).max() > 1):
             return None, math.inf
-        state = scan.solve(heights(z), ctx)
+        if last.get("z") is None or not np.array_equal(last["z"], z):
+            last["z"], last["state"] = z.copy(), scan.solve(heights(z), ctx)
+        state = last["state"]
         r = (data - state.outputs).ravel() / sigma
         return state, 0.5 * float(r @ r) + 0.5 * float(np.sum(penal * z * z))
 
@@ -183,11 +214,16 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     # noise_std, each stage's MAP starting the next (a steep objective far from the MAP sends plain
     # Gauss-Newton into spiky surfaces that touch only at their spikes)
     misfit = float(np.sqrt(np.mean(((data - state.outputs) / noise_std) ** 2)))
-    stages = [misfit / 10.0**j for j in range(MAX_STAGES) if misfit / 10.0**j > 1.0 and continuation] + [1.0]
+    stages = [misfit / 10.0**i for i in range(MAX_STAGES) if misfit / 10.0**i > 1.0 and continuation] + [1.0]
     history, messages, total = [], [], 0
-    for factor in stages:
-        z, state, info, its = _descend(evaluate, scan, data, noise_std * factor, z, names, transforms, root,
-                                       penal, uniform, n, max_iter, tol, history)
+    kept = {} if int(jacobian_every) > 1 else None  # the last Jacobian, carried into the next stage
+    for j, factor in enumerate(stages):
+        # a stage before the last only starts the next one (whose objective is tens of nats away):
+        # its MAP to STAGE_TOL is enough
+        stage_tol = tol if j == len(stages) - 1 else max(tol, STAGE_TOL)
+        z, state, info, its = _descend(evaluate, jacobian, scan, data, noise_std * factor, z, names, transforms,
+                                       root, penal, uniform, n, max_iter, stage_tol, history, int(jacobian_every),
+                                       kept)
         total += its
         messages.append(info)
     message = messages[-1] + (f" (after {len(stages) - 1} continuation stages in the noise sd)" if len(stages) > 1
@@ -196,7 +232,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     # nodes resting on the skin with (almost) no load are the bound's, not the data's: the grid nodes
     # that read them leave the contact set of the linearisation (they carry almost nothing), so that
     # their columns vanish and a uniform shift of the touched nodes still changes no datum
-    J, touched = _jacobian(scan, replace(state, contact=state.contact & ~reads_nodes(scan, ~touched)), names)
+    J, touched = jacobian(replace(state, contact=state.contact & ~reads_nodes(scan, ~touched)))
     unknowns = _unknowns(J, touched, transforms, z, root, noise_std, flat_h, n, scan.profile.spacing)
     A = _whiten(J, transforms, z, root, noise_std, n)[:, unknowns]
     factor = cho_factor(A.T @ A + np.diag(penal[unknowns]) + _gauge(A, unknowns, n, flat_h))
@@ -207,25 +243,45 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
                          chi2=float(r @ r), iterations=total, message=message, history=history)
 
 
-def _descend(evaluate, scan, data, sigma, z, names, transforms, root, penal, uniform, n, max_iter, tol, history):
-    """Gauss-Newton with an Armijo line search at one noise sd; returns (z, state, message, iterations)."""
+def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, penal, uniform, n, max_iter, tol,
+             history, every=1, kept=None):
+    """Gauss-Newton with an Armijo line search at one noise sd; returns (z, state, message, iterations).
+    With ``every`` > 1 (and a prior) the Jacobian is rebuilt every ``every`` iterations (see
+    gauss_newton); ``kept`` (a dict) holds the last one across calls (stages)."""
     flat_h = root is None
+    kept = {} if kept is None else kept
     state, phi = evaluate(z, sigma)
-    it, message = 0, ""
+    it, message, model, last_decrement = 0, "", None, math.inf
+    age = 0 if "J" in kept else every
     for it in range(1, max_iter + 1):
-        J, touched = _jacobian(scan, state, names)
-        if flat_h:  # without a prior, a node just entering the contact is held until it carries a load
-            touched &= loaded_nodes(scan, state, TOUCH_THRESHOLD)
-        unknowns = _unknowns(J, touched, transforms, z, root, sigma, flat_h, n, scan.profile.spacing)
-        A = _whiten(J, transforms, z, root, sigma, n)[:, unknowns]
         r = (data - state.outputs).ravel() / sigma
-        gauge = _gauge(A, unknowns, n, flat_h)
-        g = -(A.T @ r) + penal[unknowns] * z[unknowns] + gauge @ z[unknowns]
+        fresh = "J" not in kept or age >= every or flat_h
+        if fresh:
+            J, touched = jacobian(state)
+            if flat_h:  # without a prior, a node just entering the contact is held until it carries a load
+                touched &= loaded_nodes(scan, state, TOUCH_THRESHOLD)
+            kept.update(J=J, touched=touched)
+            age = 0
+        if fresh or model is None:  # the Gauss-Newton Hessian of the (last) Jacobian at this noise sd
+            J, touched = kept["J"], kept["touched"]
+            unknowns = _unknowns(J, touched, transforms, z, root, sigma, flat_h, n, scan.profile.spacing)
+            A = _whiten(J, transforms, z, root, sigma, n)[:, unknowns]
+            gauge = _gauge(A, unknowns, n, flat_h)
+            model = cho_factor(A.T @ A + np.diag(penal[unknowns]) + gauge)
+        if fresh:
+            g = -(A.T @ r) + penal[unknowns] * z[unknowns] + gauge @ z[unknowns]
+        else:  # the exact gradient by one adjoint solve per frame; the last Jacobian's Hessian
+            g = -_whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r)[unknowns] \
+                + penal[unknowns] * z[unknowns]
+        age += 1
         step = np.zeros_like(z)
-        step[unknowns] = -cho_solve(cho_factor(A.T @ A + np.diag(penal[unknowns]) + gauge), g)
+        step[unknowns] = -cho_solve(model, g)
         decrement = -float(g @ step[unknowns])
         if decrement < tol:
             return z, state, f"converged: Gauss-Newton decrement {decrement:.2g} < {tol:g} nats", it
+        if not fresh and decrement > max(SLOW * last_decrement, 10 * STALL):
+            age = every  # an old Jacobian converging slowly, still far from the MAP: rebuild next
+        last_decrement = decrement
         if uniform.any():  # a Uniform parameter's step stops at its bound
             zc, sc = z[n:][uniform], step[n:][uniform]
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -238,15 +294,30 @@ def _descend(evaluate, scan, data, sigma, z, names, transforms, root, penal, uni
                 break
             alpha *= 0.5
         else:
+            if not fresh:  # an old Jacobian's step: rebuild it here and try again
+                age = every
+                continue
             return z, state, f"stopped: the line search found no decrease after 30 halvings (decrement " \
                              f"{decrement:.2g} nats)", it
         z, state, phi = z + alpha * step, new_state, new_phi
+        if alpha < 1:  # the model overshot: rebuild the Jacobian at the new point
+            age = every
         history.append((sigma, phi, decrement, alpha, int(touched.sum())))
         if len(history) >= 3 and history[-3][0] == sigma and history[-3][1] - phi < STALL:
             # creeping along a contact-set kink: the objective no longer moves
             return z, state, (f"converged: the objective changed by {history[-3][1] - phi:.2g} < {STALL:g} nats over "
                               f"2 iterations (last step {alpha:.2g} of the Gauss-Newton step)"), it
     return z, state, f"stopped at max_iter = {max_iter} iterations (decrement {decrement:.2g} nats)", it
+
+
+def _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r) -> np.ndarray:
+    """``Jz^T r`` (whitened coordinates, over sigma) by the scan Jacobian's adjoint, without the matrix."""
+    jt = ScanJacobian(scan, state, free=names).rmatvec(r)
+    out = np.empty(n + len(transforms))
+    out[:n] = root.T @ jt[:n]
+    for i, tr in enumerate(transforms):
+        out[n + i] = jt[n + i] * tr.slope(z[n + i])
+    return out / sigma
 
 
 def reads_nodes(scan, nodes: np.ndarray) -> np.ndarray:
@@ -268,9 +339,9 @@ def loaded_nodes(scan, state, threshold: float) -> np.ndarray:
     return load >= threshold * load.max() if load.max() > 0 else np.zeros(scan.profile.size, dtype=bool)
 
 
-def _jacobian(scan, state, names):
+def _jacobian(scan, state, names, tol):
     """The scan Jacobian (natural units) and the touched nodes (a non-zero column)."""
-    J = ScanJacobian(scan, state, free=names).matrix()
+    J = ScanJacobian(scan, state, free=names, tol=tol).matrix()
     return J, np.abs(J[:, : scan.profile.size]).max(axis=0) > 0
 
 

@@ -133,12 +133,23 @@ def test_context_is_marginalised_and_recovered(rng):
     sigma = 0.01 * np.abs(data).max()
     noisy = data + sigma * rng.standard_normal(data.shape)
     post = invert_scan(scan, noisy, sigma, prior=StationaryPrior(variance=(10e-6) ** 2, kind="white"),
-                       context={"normal_force": LogNormal(8.0, 0.3), "friction": Normal(0.3, 0.1)}, rng=rng)
+                       context={"normal_force": LogNormal(8.0, 0.3), "friction": Normal(0.3, 0.1)},
+                       rng=np.random.default_rng(7))
     for name, true in (("normal_force", 8.0), ("friction", 0.3)):
         c = post.context[name]
         assert c["q05"] < c["mean"] < c["q95"] and c["sd"] > 0
         assert abs(c["mean"] - true) < 4 * c["sd"], name
     assert post.context_draws["friction"].shape == (400,)
+    # the Jacobian rebuilt every third iteration (the exact gradient between): the same MAP and Hessian
+    lagged = invert_scan(scan, noisy, sigma, prior=StationaryPrior(variance=(10e-6) ** 2, kind="white"),
+                         context={"normal_force": LogNormal(8.0, 0.3), "friction": Normal(0.3, 0.1)},
+                         rng=np.random.default_rng(7), jacobian_every=3)  # the same draws' numbers
+    t = post.touched
+    assert np.array_equal(lagged.touched, t)
+    assert np.abs(lagged.mean[t] - post.mean[t]).max() < 0.1 * post.std[t].min()
+    assert np.abs(lagged.std[t] / post.std[t] - 1).max() < 0.02
+    for name in ("normal_force", "friction"):
+        assert abs(lagged.context[name]["mean"] - post.context[name]["mean"]) < 0.1 * post.context[name]["sd"]
 
 
 def test_surface_posterior_files_and_draws(rng, tmp_path):
@@ -180,6 +191,10 @@ def test_invert_scan_refuses_bad_input(rng):
         invert_scan(scan, data, 1.0, prior=prior, rng=3)
     with pytest.raises(ValueError, match="prior: expected a StationaryPrior"):
         invert_scan(scan, data, 1.0, prior=1e-12, rng=rng)
+    with pytest.raises(ValueError, match="jacobian_every: iterations per explicit Jacobian must be >= 1"):
+        invert_scan(scan, data, 1.0, prior=prior, rng=rng, jacobian_every=0)
+    with pytest.raises(ValueError, match=r"jacobian_tol: the restricted solves' relative residual must lie in"):
+        invert_scan(scan, data, 1.0, prior=prior, rng=rng, jacobian_tol=0.0)
     with pytest.raises(ValueError, match="noise_std: the likelihood needs"):
         invert_scan(scan, data, 0.0, prior=prior, rng=rng)
     with pytest.raises(ValueError, match=r"data: expected finite values of shape \(2, 3\)"):

@@ -100,11 +100,20 @@ def _scan(rng, quantity="stress", geometry="line", n=24, dx=40e-6, frames=4):
 @pytest.mark.parametrize("geometry", ["line", "patch"])
 def test_scan_jacobian_dot_test_and_explicit_matrix(rng, quantity, geometry):
     scan, _, state = _scan(rng, quantity, geometry)
-    jac = ScanJacobian(scan, state, free=("normal_force", "friction", "young_modulus"))
+    # solves to 1e-12 (the default 1e-8 is an accuracy choice): the dot test checks the adjoint's formula
+    jac = ScanJacobian(scan, state, free=("normal_force", "friction", "young_modulus"), tol=1e-12)
     assert dottest(jac, rng, rtol=1e-8) < 1e-8
     v = rng.standard_normal(jac.shape[1])
     dense = jac.matrix()
     assert np.abs(dense @ v - jac.matvec(v)).max() < 1e-9 * np.abs(dense @ v).max()
+    # a fresh operator's adjoint reads the force and modulus columns without the force responses
+    # (<f, g> = <f0, g> - <A f0, S g>): the same as the matrix built from them
+    y = rng.standard_normal(jac.shape[0])
+    fresh = ScanJacobian(scan, state, free=("normal_force", "friction", "young_modulus"), tol=1e-12)
+    got = fresh.rmatvec(y)
+    want = dense.T @ y
+    assert fresh._force is None and np.abs(got - want).max() < 1e-9 * np.abs(want).max()
+    assert np.allclose(got[-3:], want[-3:], rtol=1e-8, atol=0)
 
 
 @pytest.mark.parametrize("quantity", ["stress", "strain"])
@@ -145,3 +154,51 @@ def test_scan_refuses_bad_input(rng):
         ContactScan(poisson_ratio=0.5, normal_force=0.008, **dict(kwargs, weights_p=scan.weights_p[:-1]))
     with pytest.raises(ValueError, match="shape_gap: expected shape"):
         ContactScan(poisson_ratio=0.5, normal_force=0.008, **dict(kwargs, shape_gap=scan.shape_gap[:-1]))
+
+
+def test_windowed_chunked_solve_equals_the_dense_restricted_system(rng):
+    """Oracle: the bordered system ``[A_CC -1; 1^T 0] [dp; d_delta] = [dh_C; 0]`` solved densely, with
+    ``A`` built column by column from the compliance's products on the whole grid; the linearisation
+    solves on windows around the contact sets (smaller than the grid here), in chunks."""
+    n, dx = 24, 40e-6
+    skin = HalfSpace(E=E, nu=0.5)
+    comp = ContactCompliance(skin, (n, n), (dx, dx), False)
+    sols = [solve_contact(skin, _sphere(n, dx, rng), dx, normal_force=f, tol=1e-12) for f in (0.002, 0.004, 0.003)]
+    masks = np.stack([s.contact for s in sols])
+    assert not masks.any(axis=0)[0].any()  # the sets leave a margin: the windows are smaller than the grid
+    A = np.column_stack([comp.normal(e.reshape(n, n)).ravel() for e in np.eye(n * n)])
+    rhs = rng.standard_normal((3, n, n))
+    lin = ContactLinearisation(comp, masks, force_control=True, tol=1e-13, chunk=2)
+    got = lin.solve(rhs)
+    for k in range(3):
+        c = np.flatnonzero(masks[k].ravel())
+        m = c.size
+        K = np.zeros((m + 1, m + 1))
+        K[:m, :m], K[:m, m], K[m, :m] = A[np.ix_(c, c)], -1.0, 1.0
+        sol = np.linalg.solve(K, np.concatenate([rhs[k].ravel()[c], [0.0]]))
+        want = np.zeros(n * n)
+        want[c] = sol[:m]
+        assert np.abs(got[k].ravel() - want).max() < 1e-9 * np.abs(want).max()
+    # a start at the answer converges at once; a start elsewhere to the same answer
+    again = lin.solve(rhs, initial=got)
+    assert lin.last_iterations <= 1 and np.abs(again - got).max() < 1e-9 * np.abs(got).max()
+    other = lin.solve(rhs, initial=rng.standard_normal(rhs.shape))
+    assert np.abs(other - got).max() < 1e-9 * np.abs(got).max()
+    with pytest.raises(ValueError, match="initial: expected finite values of the shape of rhs"):
+        lin.solve(rhs, initial=np.zeros((2, n, n)))
+    with pytest.raises(ValueError, match="chunk: right-hand sides per batched solve must be >= 1"):
+        ContactLinearisation(comp, masks, force_control=True, chunk=0)
+
+
+def test_frames_with_one_contact_set_share_their_solves(rng):
+    """At a flat surface every frame has the finger's own contact: matrix() solves one frame and
+    reads it into every frame's rows (each through its own interpolation), as matvec does frame by frame."""
+    scan, heights, _ = _scan(rng)
+    state = scan.solve(np.zeros_like(heights))
+    jac = ScanJacobian(scan, state, free=("normal_force", "friction"))
+    first, which = jac._distinct()
+    assert first.tolist() == [0] and np.all(which == 0)
+    dense = jac.matrix()
+    cols = np.column_stack([jac.matvec(e) for e in np.eye(jac.shape[1])])
+    assert np.abs(dense - cols).max() < 1e-7 * np.abs(cols).max()
+    assert np.abs(dense[: scan.n_out]).max() > 0 and np.abs(dense[-scan.n_out:]).max() > 0

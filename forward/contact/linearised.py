@@ -16,6 +16,14 @@ The solve is conjugate gradients projected on those fields and preconditioned by
 surface stiffness (``ContactCompliance.stiffness``, the preconditioner of the normal solver
 :mod:`.preconditioned`), for a stack of right-hand sides at once, each with its own contact set:
 one batched compliance product per iteration (the FFTs of all the stack's grids together).
+
+Cost. The stack is solved in memory-bounded chunks, each on the window of the grid that holds its
+contact sets (their joint bounding box, widened to a size whose padded transform is fast): an
+isolated contact's compliance depends only on node differences, so the restricted operator on the
+window is the same operator (exact, not an approximation); a fingertip's contact filling half of
+its grid's width then costs a quarter of the padded FFT work. The padded products are pruned (the
+rows of zeros are not transformed, the rows off the window not returned). A start ``initial`` (a
+neighbouring frame's or an earlier iterate's solution) cuts the iterations where it is close.
 """
 
 from __future__ import annotations
@@ -30,6 +38,58 @@ from ..halfspace import AccuracyWarning
 from .compliance import ContactCompliance
 
 __all__ = ["ContactLinearisation"]
+
+#: bytes of work memory per chunk of right-hand sides (about ten grid-sized arrays and a padded
+#: spectrum per right-hand side)
+CHUNK_BYTES = 256 * 2**20
+
+
+def _fast_size(size: int, limit: int) -> int:
+    """The smallest window width >= ``size`` (at most ``limit``) whose padded transform (2 x) is fast."""
+    for m in range(size, limit):
+        if sfft.next_fast_len(2 * m, real=True) == 2 * m:
+            return m
+    return limit
+
+
+class _Window:
+    """One window of the grid (slices) and its operators: the isolated compliance's pruned padded
+    product and the periodic stiffness of the window (the preconditioner), on stacks."""
+
+    def __init__(self, compliance: ContactCompliance, slices: tuple[slice, ...]):
+        self.slices = slices
+        shape = tuple(s.stop - s.start for s in slices)
+        c = compliance if shape == compliance.shape else ContactCompliance(compliance.skin, shape,
+                                                                           compliance.spacing, compliance.periodic)
+        self.compliance, self.shape, self.ndim = c, shape, len(shape)
+        self.axes = tuple(range(-self.ndim, 0))
+        self.spectrum = c.spectrum("uz", "p")
+        impulse = np.zeros(shape)  # the stiffness's spectrum: read back by a unit impulse
+        impulse.flat[0] = 1.0
+        self.stiffness = sfft.rfftn(c.stiffness(impulse), axes=self.axes, workers=1)
+
+    def compliance_product(self, x: np.ndarray) -> np.ndarray:
+        """``A x`` for a stack ``(k, *window)`` of pressures (Pa -> m)."""
+        c = self.compliance
+        if c.periodic:
+            spec = sfft.rfftn(x, axes=self.axes, workers=1)
+            spec *= self.spectrum
+            return sfft.irfftn(spec, s=c.shape, axes=self.axes, workers=1)
+        if self.ndim == 1:
+            spec = sfft.rfft(x, n=c.fft_shape[0], axis=-1, workers=1)
+            spec *= self.spectrum
+            return sfft.irfft(spec, n=c.fft_shape[0], axis=-1, workers=1)[..., : c.shape[0]]
+        # pruned: the rows along x only where the data are, the columns zero-padded by the transform
+        rows = sfft.rfft(x, n=c.fft_shape[1], axis=-1, workers=1)
+        spec = sfft.fft(rows, n=c.fft_shape[0], axis=-2, workers=1, overwrite_x=True)
+        spec *= self.spectrum
+        cols = sfft.ifft(spec, axis=-2, workers=1, overwrite_x=True)[..., : c.shape[0], :]
+        return sfft.irfft(cols, n=c.fft_shape[1], axis=-1, workers=1)[..., : c.shape[1]]
+
+    def precondition(self, r: np.ndarray) -> np.ndarray:
+        spec = sfft.rfftn(r, axes=self.axes, workers=1)
+        spec *= self.stiffness
+        return sfft.irfftn(spec, s=self.shape, axes=self.axes, workers=1)
 
 
 class ContactLinearisation:
@@ -48,6 +108,17 @@ class ContactLinearisation:
         Relative residual of the conjugate gradients, per right-hand side.
     max_iter : int, optional
         Iteration limit (default ``20 sqrt(n) + 100`` for ``n`` nodes per grid).
+    chunk : int, optional
+        Right-hand sides per batched solve (default: as many as :data:`CHUNK_BYTES` of work memory
+        hold for the grid); each chunk is solved on the window that holds its contact sets.
+
+    Attributes
+    ----------
+    last_iterations : int
+        The most iterations a chunk of the last solve needed.
+    total_iterations : int
+        Iterations times right-hand sides of the last solve (each right-hand side counted until
+        it converged), for cost accounting.
 
     Notes
     -----
@@ -57,13 +128,15 @@ class ContactLinearisation:
     """
 
     def __init__(self, compliance: ContactCompliance, contact, *, force_control: bool, tol: float = 1e-12,
-                 max_iter: int | None = None):
+                 max_iter: int | None = None, chunk: int | None = None):
         if not isinstance(compliance, ContactCompliance):
             raise ValueError(f"compliance: expected a ContactCompliance, got {type(compliance).__name__}")
         mask = np.asarray(contact)
         if mask.dtype != bool or mask.shape[-compliance.ndim:] != compliance.shape or mask.ndim > compliance.ndim + 1:
             raise ValueError(f"contact: expected a boolean mask of shape {compliance.shape} or (m, "
                              f"*{compliance.shape}), got dtype {mask.dtype} and shape {mask.shape}")
+        if chunk is not None and int(chunk) < 1:
+            raise ValueError(f"chunk: right-hand sides per batched solve must be >= 1, got {chunk!r}; or None")
         self.compliance = compliance
         self.stacked = mask.ndim == compliance.ndim + 1
         self.mask = mask if self.stacked else mask[None]
@@ -75,20 +148,33 @@ class ContactLinearisation:
         self.tol = float(tol)
         n = int(np.prod(compliance.shape))
         self.max_iter = int(max_iter) if max_iter is not None else int(20 * math.sqrt(n)) + 100
-        self._axes = tuple(range(-compliance.ndim, 0))
-        self._stiffness = None
+        self.chunk = int(chunk) if chunk is not None else max(1, CHUNK_BYTES // (12 * 8 * n))
+        self._windows: dict = {}  # window slices -> _Window (its kernel spectra kept)
         self.last_iterations = 0
+        self.total_iterations = 0
 
-    # ---------------------------------------------------------------- the operators on stacks
-    def _compliance(self, x: np.ndarray) -> np.ndarray:
-        """``A x`` for a stack ``(k, *grid)`` of pressures (Pa -> m): one batched FFT pair."""
+    # ---------------------------------------------------------------- windows
+    def _window(self, mask: np.ndarray) -> _Window:
+        """The window holding every set of a chunk: their joint bounding box, widened to a fast size."""
         c = self.compliance
-        # the transform over the grid's own axes (the stack's first axis is not a grid axis); the same
-        # layout as the compliance's spectrum (rfftn of the padded grid)
-        spec = sfft.rfftn(x, s=c.fft_shape, axes=self._axes, workers=1)
-        spec *= c.spectrum("uz", "p")
-        out = sfft.irfftn(spec, s=c.fft_shape, axes=self._axes, workers=1)
-        return out if c.periodic else out[(Ellipsis,) + tuple(slice(0, n) for n in c.shape)]
+        if c.periodic:
+            slices = tuple(slice(0, n) for n in c.shape)
+        else:
+            union = mask.any(axis=0)
+            slices = []
+            for axis, n in enumerate(c.shape):
+                other = tuple(a for a in range(c.ndim) if a != axis)
+                hit = np.flatnonzero(union.any(axis=other) if other else union)
+                lo, hi = (int(hit[0]), int(hit[-1]) + 1) if hit.size else (0, 1)
+                m = _fast_size(hi - lo, n)
+                start = min(max(0, lo - (m - (hi - lo)) // 2), n - m)
+                slices.append(slice(start, start + m))
+            slices = tuple(slices)
+        if slices not in self._windows:
+            if len(self._windows) > 16:
+                self._windows.pop(next(iter(self._windows)))
+            self._windows[slices] = _Window(c, slices)
+        return self._windows[slices]
 
     def _project(self, x: np.ndarray, mask: np.ndarray, count: np.ndarray) -> np.ndarray:
         """Onto the admissible fields: zero off the set, zero sum on it under force control."""
@@ -98,31 +184,19 @@ class ContactLinearisation:
             x -= mean.reshape((-1,) + (1,) * self.compliance.ndim) * mask
         return x
 
-    def _precondition(self, r: np.ndarray) -> np.ndarray:
-        """The periodic surface stiffness on a stack (the normal solver's preconditioner), one batched FFT pair."""
-        c = self.compliance
-        if self._stiffness is None:  # its spectrum: ask the compliance once, read it back by a unit impulse
-            impulse = np.zeros(c.shape)
-            impulse.flat[0] = 1.0
-            self._stiffness = sfft.rfftn(c.stiffness(impulse), axes=self._axes, workers=1)
-        spec = sfft.rfftn(r, axes=self._axes, workers=1)
-        spec *= self._stiffness
-        return sfft.irfftn(spec, s=c.shape, axes=self._axes, workers=1)
-
-    def _masks(self, k: int, frames) -> tuple[np.ndarray, np.ndarray]:
+    def _masks(self, k: int, frames) -> np.ndarray:
         if frames is None:
             if self.mask.shape[0] not in (1, k):
                 raise ValueError(f"rhs: {k} right-hand sides for {self.mask.shape[0]} contact sets; give one "
                                  "per set, or frames= naming each one's set")
-            idx = np.zeros(k, dtype=int) if self.mask.shape[0] == 1 else np.arange(k)
-        else:
-            idx = np.asarray(frames, dtype=int).reshape(-1)
-            if idx.size != k or (idx.size and (idx.min() < 0 or idx.max() >= self.mask.shape[0])):
-                raise ValueError(f"frames: need {k} indices in [0, {self.mask.shape[0]}), got {frames!r}")
-        return self.mask[idx], self.n_contact[idx]
+            return np.zeros(k, dtype=int) if self.mask.shape[0] == 1 else np.arange(k)
+        idx = np.asarray(frames, dtype=int).reshape(-1)
+        if idx.size != k or (idx.size and (idx.min() < 0 or idx.max() >= self.mask.shape[0])):
+            raise ValueError(f"frames: need {k} indices in [0, {self.mask.shape[0]}), got {frames!r}")
+        return idx
 
     # ---------------------------------------------------------------- the solve
-    def solve(self, rhs, frames=None) -> np.ndarray:
+    def solve(self, rhs, frames=None, initial=None) -> np.ndarray:
         """The pressure change for a height change (Pa per m): ``S rhs``; ``S`` is symmetric.
 
         Parameters
@@ -131,6 +205,9 @@ class ContactLinearisation:
             Height changes at the nodes, m (only their values on the contact set matter).
         frames : array_like of int, shape (k,), optional
             The contact set of each right-hand side (default: one per set, in order).
+        initial : ndarray, the shape of ``rhs``, optional
+            Starting pressure changes, Pa (projected on each set's admissible fields); the
+            tolerance stays relative to ``rhs``.
 
         Returns
         -------
@@ -142,8 +219,14 @@ class ContactLinearisation:
         if b.shape[1:] != self.compliance.shape or not np.all(np.isfinite(b)):
             raise ValueError(f"rhs: expected finite values of shape {self.compliance.shape} or (k, "
                              f"*{self.compliance.shape}), got shape {np.shape(rhs)}")
-        mask, count = self._masks(b.shape[0], frames)
-        x = self._pcg(b, mask, count)
+        x0 = None
+        if initial is not None:
+            x0 = np.asarray(initial, dtype=float)
+            x0 = x0[None] if single else x0
+            if x0.shape != b.shape or not np.all(np.isfinite(x0)):
+                raise ValueError(f"initial: expected finite values of the shape of rhs {b.shape}, got shape "
+                                 f"{np.shape(initial)}")
+        x = self._solve_chunks(b, self._masks(b.shape[0], frames), x0)
         return x[0] if single else x
 
     def force_response(self, frames=None) -> np.ndarray:
@@ -158,42 +241,72 @@ class ContactLinearisation:
             raise ValueError("force_control: the force response needs a force-controlled contact "
                              "(force_control=True)")
         m = self.mask.shape[0] if frames is None else np.asarray(frames).size
-        mask, count = self._masks(m, frames)
-        x0 = mask / np.maximum(count, 1).reshape((-1,) + (1,) * self.compliance.ndim)
-        x = x0 + self._pcg(-self._compliance(x0), mask, count)
+        idx = self._masks(m, frames)
+        x = self._solve_chunks(None, idx, None)
         return x if self.stacked or frames is not None else x[0]
 
-    def _pcg(self, b: np.ndarray, mask: np.ndarray, count: np.ndarray) -> np.ndarray:
-        """Projected, preconditioned CG on the stack, each column stopped at its own tolerance."""
-        k = b.shape[0]
+    def _solve_chunks(self, b, idx: np.ndarray, x0) -> np.ndarray:
+        """Solve chunk by chunk, each on its window; ``b`` None: the force responses."""
+        out = np.zeros((idx.size, *self.compliance.shape))
+        self.last_iterations, self.total_iterations = 0, 0
         shape_k = (-1,) + (1,) * self.compliance.ndim
+        for lo in range(0, idx.size, self.chunk):
+            sel = idx[lo: lo + self.chunk]
+            win = self._window(self.mask[sel])
+            at = (slice(None),) + win.slices
+            mask, count = self.mask[sel][at], self.n_contact[sel]
+            if b is None:  # the uniform field of unit sum, corrected to zero gap change on the set
+                f0 = mask / np.maximum(count, 1).reshape(shape_k)
+                x = f0 + self._pcg(win, -win.compliance_product(f0), mask, count, None)
+            else:
+                start = None if x0 is None else x0[lo: lo + self.chunk][at]
+                x = self._pcg(win, b[lo: lo + self.chunk][at], mask, count, start)
+            out[(slice(lo, lo + sel.size),) + win.slices] = x
+        return out
+
+    def _pcg(self, win: _Window, b: np.ndarray, mask: np.ndarray, count: np.ndarray, x0) -> np.ndarray:
+        """Projected, preconditioned CG on a chunk, each column stopped at its own tolerance; the
+        converged columns leave the batch (its products cost per column)."""
+        k = b.shape[0]
         r = self._project(b, mask, count)
-        x = np.zeros_like(r)
         norm0 = np.sqrt((r * r).reshape(k, -1).sum(axis=1))
-        active = norm0 > 0
-        z = self._project(self._precondition(r), mask, count)
+        if x0 is None:
+            x = np.zeros_like(r)
+        else:
+            x = self._project(x0, mask, count)
+            r -= self._project(win.compliance_product(x), mask, count)
+        out = x
+        live = np.flatnonzero((norm0 > 0) & (np.sqrt((r * r).reshape(k, -1).sum(axis=1)) > self.tol * norm0))
+        if live.size == 0:
+            return out
+        x, r, mask, count, norm0 = x[live], r[live], mask[live], count[live], norm0[live]
+        z = self._project(win.precondition(r), mask, count)
         t = z.copy()
-        rz = (r * z).reshape(k, -1).sum(axis=1)
+        rz = (r * z).reshape(live.size, -1).sum(axis=1)
         it = 0
         for it in range(1, self.max_iter + 1):
-            if not active.any():
-                it -= 1
-                break
-            At = self._project(self._compliance(t), mask, count)
-            denom = (At * t).reshape(k, -1).sum(axis=1)
-            alpha = np.where(active & (denom > 0), rz / np.where(denom > 0, denom, 1.0), 0.0)
+            self.total_iterations += live.size
+            shape_k = (-1,) + (1,) * self.compliance.ndim
+            At = self._project(win.compliance_product(t), mask, count)
+            denom = (At * t).reshape(live.size, -1).sum(axis=1)
+            alpha = np.where(denom > 0, rz / np.where(denom > 0, denom, 1.0), 0.0)
             x += alpha.reshape(shape_k) * t
             r -= alpha.reshape(shape_k) * At
-            norm = np.sqrt((r * r).reshape(k, -1).sum(axis=1))
-            active &= norm > self.tol * norm0
-            z = self._project(self._precondition(r), mask, count)
-            rz_new = (r * z).reshape(k, -1).sum(axis=1)
-            beta = np.where(active, rz_new / np.where(rz > 0, rz, 1.0), 0.0)
+            active = np.sqrt((r * r).reshape(live.size, -1).sum(axis=1)) > self.tol * norm0
+            if not active.all():  # the converged columns are done: store them, drop them
+                out[live[~active]] = x[~active]
+                live, x, r, t, mask, count, norm0, rz = (a[active] for a in (live, x, r, t, mask, count, norm0, rz))
+                if live.size == 0:
+                    break
+            z = self._project(win.precondition(r), mask, count)
+            rz_new = (r * z).reshape(live.size, -1).sum(axis=1)
+            beta = rz_new / np.where(rz > 0, rz, 1.0)
             t = z + beta.reshape(shape_k) * t
             rz = rz_new
-        self.last_iterations = it
-        if active.any():
+        self.last_iterations = max(self.last_iterations, it)
+        if live.size:
+            out[live] = x
             warnings.warn(f"ContactLinearisation: conjugate gradients did not reach tol {self.tol:g} in "
-                          f"{self.max_iter} iterations for {int(active.sum())} of {k} right-hand sides",
-                          AccuracyWarning, stacklevel=3)
-        return x
+                          f"{self.max_iter} iterations for {live.size} of {k} right-hand sides",
+                          AccuracyWarning, stacklevel=4)
+        return out
