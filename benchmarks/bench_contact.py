@@ -166,7 +166,8 @@ class FineLoop:
     def __enter__(self):
         name = "preconditioned_cg" if METHOD["method"] == "auto" else METHOD["method"]
         self._name, self._inner = name, contact_solve.METHODS[name]
-        extra = {"preconditioner": self.preconditioner} if name == "preconditioned_cg" else {}
+        extra = {"preconditioner": self.preconditioner, "single_corrections": CORRECTIONS["single"]} \
+            if name == "preconditioned_cg" else {}
 
         def timed_method(compliance, g0, **kwargs):
             t0 = clock()
@@ -194,6 +195,8 @@ def rough_cell(n: int, spacing: float = 1e-6) -> tuple[np.ndarray, float]:
 
 #: the normal-contact method of every solve here (``--method``)
 METHOD = {"method": "auto"}
+#: float32 clip corrections in the preconditioned CG (``--float64-corrections`` turns them off)
+CORRECTIONS = {"single": True}
 
 
 def solve_contact(*args, **kwargs):
@@ -294,7 +297,8 @@ def memory_child(n: int, tol: float, kind: str = "auto") -> None:
 
 def section_a_memory(n: int, tol: float, kind: str = "auto") -> None:
     proc = subprocess.run([sys.executable, __file__, "--memory-child", str(n), "--tol", str(tol),
-                           "--method", METHOD["method"], "--preconditioner", kind],
+                           "--method", METHOD["method"], "--preconditioner", kind]
+                          + ([] if CORRECTIONS["single"] else ["--float64-corrections"]),
                           capture_output=True, text=True)
     if proc.returncode != 0:
         print(f"memory at {n}^2: the child failed: {proc.stderr.strip().splitlines()[-1:]}")
@@ -426,6 +430,9 @@ def main(argv=None) -> int:
                         help="the preconditioned CG's preconditioner in (a) and (d); several: each size is solved "
                              "with each in turn (auto: the two-level stiffness on periodic grids, the exact one, "
                              "fft, on isolated ones)")
+    parser.add_argument("--float64-corrections", action="store_true",
+                        help="(a), (d): recompute the displacement in float64 after every step that clips many "
+                             "nodes, as before the float32 corrections (preconditioned_cg(single_corrections=False))")
     parser.add_argument("--tol", type=float, default=1e-8, help="solver tolerance of every solve (and Tamaas's)")
     parser.add_argument("--condat-tol", type=float, default=1e-4,
                         help="Tamaas Condat's tolerance in (b) (its own cost criterion; 1e-8 gives no answer "
@@ -440,6 +447,7 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="tiny grids: checks the harness (about a minute)")
     parser.add_argument("--memory-child", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    CORRECTIONS["single"] = not args.float64_corrections
     if args.memory_child:
         METHOD["method"] = args.method
         memory_child(args.memory_child, args.tol, args.preconditioner[0])
@@ -452,7 +460,8 @@ def main(argv=None) -> int:
     sizes_d = args.sizes or ([32, 64] if args.quick else [256, 512, 1024, 2048])
     print(f"bench_contact: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}, numpy {np.__version__}, "
           f"tol {args.tol:g}, method {args.method}, one thread, elementwise passes: {passes()}, "
-          f"fastest of {REPEATS['n']}, {CLOCK['name']} clock")
+          f"fastest of {REPEATS['n']}, {CLOCK['name']} clock, clip corrections "
+          f"{'float32' if CORRECTIONS['single'] else 'float64'}")
     warm_up(args.preconditioner)
     if "a" in args.sections:
         section_a(sizes_a, args.tol, peer, args.peer_cap, args.preconditioner)

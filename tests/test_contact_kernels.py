@@ -140,6 +140,10 @@ CASES = {  # name: (shape, periodic, force control, preconditioner; "auto" picks
     "isolated plane strain, force": ((256,), False, True, "fft"),
     "isolated plane strain, approach": ((256,), False, False, "fft"),
 }
+#: cases solved with float64 recomputes only: a line load under approach control moves its pressures
+#: by round-off more than the others (see _agree), and float32 clip corrections (their 1e-7 of a
+#: correction) more than a 2e-16 change of the gap, which is the yardstick here
+FLOAT64_ONLY = {"isolated plane strain, approach"}
 
 
 def _scene(shape, periodic, force, rng):
@@ -180,6 +184,7 @@ def test_the_loop_gives_the_same_iterates_both_ways(monkeypatch, rng, case):
     shape, periodic, force, kind = CASES[case]
     comp, g0, load = _scene(shape, periodic, force, rng)
     load["preconditioner"] = kind
+    load["single_corrections"] = case not in FLOAT64_ONLY
     cold = _agree(monkeypatch, comp, g0, load, np.ones(shape))
     assert cold.iterations >= 10  # a real solve, with clipping and restarts
     # warm started from the solution shifted by one node

@@ -8,7 +8,8 @@ enforces it). Inside:
 - ``compliance``: the surface compliance of the skin per wavenumber and the operators that map
   surface tractions to surface displacements on a grid (:class:`ContactCompliance`), and
   ``coarse_stiffness``, the two-level approximation of the periodic stiffness that preconditions
-  the normal solver on periodic grids;
+  the normal solver on periodic grids, and ``single_correction``, its float32 correction of the
+  displacement after a step that clips many nodes;
 - ``solve``: the contact solver :func:`solve_contact` and its result :class:`ContactSolution`;
 - ``linearised``: the derivative of a solved normal contact at its contact set
   (:class:`ContactLinearisation`, the inversions' Jacobian);

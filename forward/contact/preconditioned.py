@@ -26,8 +26,11 @@ Products: one compliance product ``A t`` and one preconditioner product ``K r`` 
 isolated contact, or on a periodic grid the two-level stiffness: two passes and a pair of 1/64
 of the nodes). ``uz = A p`` is updated as ``uz - tau A t``; a pressure clipped to 0 adds its
 correction by direct summation of the influence coefficients when few nodes are clipped (up to
-``ContactCompliance.direct_limit``, about 8 on a periodic grid and 36 on a padded 256^2 one), and
-``uz`` is recomputed by FFT when more are, every 32 iterations, and before convergence is declared.
+``ContactCompliance.direct_limit``, about 8 on a periodic grid and 36 on a padded 256^2 one), by a
+float32 FFT pair when more are (:mod:`.single_correction`, while the accumulated bound of its
+round-off stays below :data:`SINGLE_SHARE` of the residual; 0.5 to 0.75 of the float64 product's
+time), and ``uz`` is recomputed by a float64 FFT pair otherwise, every 32 iterations, and before
+convergence is declared.
 Clipping of many nodes happens in most iterations until the contact set settles (self-affine
 surface, 10 % contact: hundreds to thousands of nodes for the first two thirds of the iterations,
 a few in the tail), so an iteration costs between two and three FFT pairs of the grid with the
@@ -48,18 +51,23 @@ from tactilab.core import jit
 
 from . import kernels
 from .normal import REFRESH, NormalResult
+from .single_correction import SingleCorrection
 
 #: start's contact fraction above which "auto" takes the exact stiffness (at 99 % contact it needs 12
 #: to 14 iterations against the two-level one's 16 to 17, and a full contact comes out exact)
 NEARLY_FULL = 0.95
+#: float32 corrections are used while their accumulated error bound stays below this share of the residual
+SINGLE_SHARE = 0.01
 
 
 def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approach: float | None, tol: float,
                       max_iter: int, p0: np.ndarray, extra_gap: np.ndarray | None = None,
-                      preconditioner: str = "auto") -> NormalResult:
+                      preconditioner: str = "auto", single_corrections: bool = True) -> NormalResult:
     """Solve the frictionless normal contact on one grid; the arguments of :func:`.normal.polonsky_keer`,
-    and ``preconditioner``, the kind of :meth:`ContactCompliance.preconditioner` (``"auto"`` takes the
-    exact stiffness when the start touches more than :data:`NEARLY_FULL` of the nodes)."""
+    ``preconditioner``, the kind of :meth:`ContactCompliance.preconditioner` (``"auto"`` takes the
+    exact stiffness when the start touches more than :data:`NEARLY_FULL` of the nodes), and
+    ``single_corrections``: after a step that clips many nodes, add their correction by a float32 FFT
+    pair (:mod:`.single_correction`) instead of recomputing ``uz`` in float64 (False: recompute)."""
     g0 = np.ascontiguousarray(g0 if extra_gap is None else g0 + extra_gap, dtype=float)  # the kernels loop flat
     scale = float(g0.max() - g0.min()) or float(np.abs(g0).max()) or 1.0
     target = tol * scale
@@ -82,10 +90,14 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     G_old, residual, delta = 0.0, np.inf, approach
     # clipped nodes up to which the displacement is corrected by direct summation, not an FFT pair
     limit = getattr(compliance, "direct_limit", 0)
-    nodes, values = np.empty(max(limit, 1), dtype=np.int64), np.empty(max(limit, 1))
+    # single corrections record every clipped node (16 bytes a node), direct summations the first few
+    single = SingleCorrection(compliance) if single_corrections else None
+    size = p.size if single is not None else max(limit, 1)
+    nodes, values = np.empty(size, dtype=np.int64), np.empty(size)
     # the elementwise passes: fused compiled kernels or their NumPy twins (one choice per solve)
     compiled = jit.enabled()
     factor, it = 1.0, 0  # factor: the force rescaling of p and u, applied by the next gap pass
+    drift = 0.0  # bound on |uz - A p| from the float32 corrections since the last float64 product, m
     while True:
         n_in, sum_in = kernels.gap(g0, u, p, g, inside, factor, compiled)
         factor = 1.0
@@ -97,7 +109,7 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         if residual <= target or it >= max_iter:
             if exact or it >= max_iter:
                 break
-            u, exact = A(p, out=u), True  # confirm on the exact displacement
+            u, exact, drift = A(p, out=u), True, 0.0  # confirm on the exact displacement
             products += 1
             continue
         z = K(r, out=z_pair[it % 2])
@@ -114,13 +126,18 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         tau = rt / denom if denom > 0 else 0.0
         m, sum_p = kernels.descend(p, t, tau, nodes, values, tmp, force, compiled)  # clipped at 0
         it += 1
-        if m > limit or it % REFRESH == 0:  # many clipped: the displacement is recomputed by FFT
+        cheap = m > limit and single is not None and \
+            drift + single.bound(values[:m]) <= SINGLE_SHARE * residual
+        if it % REFRESH == 0 or (m > limit and not cheap):  # uz recomputed by a float64 FFT pair
             _rescale(p, total, sum_p)
-            u, exact = A(p, out=u), True
+            u, exact, drift = A(p, out=u), True, 0.0
             products += 1
-        else:  # none or a few clipped: u = A p updated in place, the clipped ones by direct summation
+        else:  # u = A p updated in place, the pressure added to bring each clipped node back to 0 with it
             kernels.subtract_scaled(u, At, tau, tmp, compiled)
-            if m:  # the pressure added to bring each clipped node back to 0
+            if m > limit:  # many: by a float32 FFT pair
+                drift += single.bound(values[:m])
+                single.add(u, nodes[:m], values[:m])
+            elif m:  # a few: by direct summation
                 compliance.add_normal_point_loads(u, nodes[:m], values[:m])
             factor = total / sum_p if force else 1.0
             exact = False

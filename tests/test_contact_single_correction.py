@@ -1,0 +1,97 @@
+"""The normal solver's float32 clip correction (forward/contact/single_correction.py).
+
+Oracles: the float64 compliance product :meth:`ContactCompliance.normal` (the correction is the same
+operator in single precision: within its stated error bound, periodic and isolated, 2-D and plane
+strain); the dot test (symmetric to float32 round-off); ``self_compliance`` for the origin value of
+the bound; and the contact solver's answer and iterations with and without the float32 corrections
+(they change the path by round-off, not the solution: the float64 confirmation stays).
+"""
+
+import functools
+
+import numpy as np
+import pytest
+
+from tactilab.data_schemas import random_rough_surface
+from tactilab.forward import HalfSpace, solve_contact
+from tactilab.forward.contact import ContactCompliance
+from tactilab.forward.contact.preconditioned import preconditioned_cg
+from tactilab.forward.contact.single_correction import RELATIVE_ERROR, SingleCorrection
+
+SKIN = HalfSpace(1e6, 0.5)
+GRIDS = [((64, 48), True), ((64, 48), False), ((256,), True), ((256,), False)]
+
+
+def _sparse(shape, count, rng):
+    """A clip vector: ``count`` nodes at positive pressures (Pa), zero elsewhere."""
+    c = np.zeros(shape)
+    c.flat[rng.choice(c.size, count, replace=False)] = rng.random(count) * 1e4
+    return c
+
+
+@pytest.mark.parametrize(("shape", "periodic"), GRIDS)
+def test_equals_the_float64_product_within_its_bound(shape, periodic, rng):
+    C = ContactCompliance(SKIN, shape, 1e-6, periodic)
+    single = SingleCorrection(C)
+    c = _sparse(shape, 40, rng)
+    exact = C.normal(c)
+    error = float(np.abs(single.apply(c) - exact).max())
+    nodes = np.flatnonzero(c)
+    assert error <= single.bound(c.flat[nodes])  # the bound the solver relies on
+    assert error <= 1e-6 * float(np.abs(exact).max())  # float32 round-off: measured 1.0e-7 to 1.8e-7
+    assert single.bound(c.flat[nodes]) == pytest.approx(RELATIVE_ERROR * C.self_compliance[0] * c.sum(), rel=1e-12)
+
+
+@pytest.mark.parametrize(("shape", "periodic"), GRIDS)
+def test_dot_test_symmetric(shape, periodic, rng):
+    single = SingleCorrection(ContactCompliance(SKIN, shape, 1e-6, periodic))
+    a, b = _sparse(shape, 30, rng), _sparse(shape, 30, rng)
+    left, right = float((single.apply(a) * b).sum()), float((a * single.apply(b)).sum())
+    assert left == pytest.approx(right, rel=1e-5)
+
+
+def test_adds_in_place_and_leaves_its_work_arrays_zero(rng):
+    """``add`` accumulates into ``u``; a second call with other nodes sees none of the first's."""
+    C = ContactCompliance(SKIN, (32, 32), 1e-6, True)
+    single = SingleCorrection(C)
+    a, b = _sparse((32, 32), 20, rng), _sparse((32, 32), 20, rng)
+    u = np.ones((32, 32))
+    for c in (a, b):
+        nodes = np.flatnonzero(c)
+        single.add(u, nodes, c.flat[nodes])
+    np.testing.assert_allclose(u, 1.0 + C.normal(a + b), rtol=0, atol=1e-6 * float(np.abs(C.normal(a + b)).max()))
+
+
+def test_bad_input():
+    single = SingleCorrection(ContactCompliance(SKIN, (16, 16), 1e-6, True))
+    with pytest.raises(ValueError, match=r"c: expected the grid's shape \(16, 16\), got \(8, 8\)"):
+        single.apply(np.zeros((8, 8)))
+
+
+@pytest.mark.parametrize("periodic", [True, False])
+def test_solver_answer_and_iterations_do_not_change(periodic, rng):
+    """The float32 corrections replace float64 recomputes only while their accumulated error bound stays
+    a hundredth of the residual: fewer products, the answer within the tolerance, and the iterations the
+    same or a few more (a round-off change of the path: 31 and 33 measured on this cold isolated start,
+    the same on the periodic one)."""
+    n = 128
+    h = random_rough_surface((n, n), 1e-6, rms_slope=0.1, hurst=0.8, rng=rng)
+    g0 = -h
+    if not periodic:
+        x = (np.arange(n) - n // 2) * 1e-6
+        g0 = g0 + (x[None, :] ** 2 + x[:, None] ** 2) / (2 * 2e-4)
+    C = ContactCompliance(SKIN, (n, n), 1e-6, periodic)
+    load = dict(total=5e3 * n * n, approach=None, tol=1e-10, max_iter=500, p0=np.ones((n, n)))
+    on, off = (preconditioned_cg(C, g0, **load, single_corrections=s) for s in (True, False))
+    assert on.converged and off.converged
+    assert off.iterations <= on.iterations <= off.iterations + 2 and on.products < off.products
+    assert float(np.abs(on.pressure - off.pressure).max()) <= 1e-6 * float(off.pressure.max())
+
+
+def test_a_solve_with_single_corrections_keeps_its_tolerance(rng):
+    """The facade's answer with and without: equal to the solver's tolerance (1e-8 here)."""
+    h = random_rough_surface((64, 64), 1e-6, rms_slope=0.1, hurst=0.8, rng=rng)
+    out = [solve_contact(SKIN, -h, 1e-6, mean_pressure=5e3, periodic=True, tol=1e-8,
+                         method=functools.partial(preconditioned_cg, single_corrections=s)) for s in (True, False)]
+    assert out[0].converged and out[1].converged
+    np.testing.assert_allclose(out[0].pressure, out[1].pressure, rtol=0, atol=1e-6 * out[1].pressure.max())
