@@ -118,7 +118,7 @@ def main(argv=None):
     data = clean.outputs + sigma * rng.standard_normal(clean.outputs.shape)
     context = {"normal_force": LogNormal(args.force, 0.2), "friction": Normal(0.5, 0.1)}
     parts = {"scan solves": (ContactScan, "solve"), "Jacobians": (ScanJacobian, "matrix"),
-             "gradients": (ScanJacobian, "_rmatvec")}
+             "gradients": (ScanJacobian, "adjoint")}
     t0, c0 = time.perf_counter(), time.process_time()
     with clocks(parts) as spent:
         post = invert_scan(scan, data, sigma, prior=prior, context=context, rng=rng, n_draws=200,

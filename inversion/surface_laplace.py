@@ -196,12 +196,13 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
 
     last = {}  # the last solved z and its state: a stage's start and the final objective reuse it
 
-    def evaluate(z, sigma):
+    def evaluate(z, sigma, start=None):
+        """The state and objective at ``z``; ``start``: a solved state near z whose frames start z's."""
         ctx = _context(z[n:], transforms, fixed)
         if ctx is None or (uniform.any() and np.abs(z[n:][uniform]).max() > 1):
             return None, math.inf
         if last.get("z") is None or not np.array_equal(last["z"], z):
-            last["z"], last["state"] = z.copy(), scan.solve(heights(z), ctx)
+            last["z"], last["state"] = z.copy(), scan.solve(heights(z), ctx, start=start)
         state = last["state"]
         r = (data - state.outputs).ravel() / sigma
         return state, 0.5 * float(r @ r) + 0.5 * float(np.sum(penal * z * z))
@@ -271,8 +272,9 @@ def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, 
         if fresh:
             g = -(A.T @ r) + penal[unknowns] * z[unknowns] + gauge @ z[unknowns]
         else:  # the exact gradient by one adjoint solve per frame; the last Jacobian's Hessian
-            g = -_whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r)[unknowns] \
-                + penal[unknowns] * z[unknowns]
+            adj, kept["adjoint"] = _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r,
+                                                     kept.get("adjoint"))
+            g = -adj[unknowns] + penal[unknowns] * z[unknowns]
         age += 1
         step = np.zeros_like(z)
         step[unknowns] = -cho_solve(model, g)
@@ -289,7 +291,7 @@ def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, 
             step *= min(1.0, float(room.min()))
         alpha = 1.0
         for _ in range(30):
-            new_state, new_phi = evaluate(z + alpha * step, sigma)
+            new_state, new_phi = evaluate(z + alpha * step, sigma, start=state)  # frames start at this iterate's
             if new_state is not None and new_phi <= phi - 1e-4 * alpha * decrement:
                 break
             alpha *= 0.5
@@ -310,14 +312,17 @@ def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, 
     return z, state, f"stopped at max_iter = {max_iter} iterations (decrement {decrement:.2g} nats)", it
 
 
-def _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r) -> np.ndarray:
-    """``Jz^T r`` (whitened coordinates, over sigma) by the scan Jacobian's adjoint, without the matrix."""
-    jt = ScanJacobian(scan, state, free=names).rmatvec(r)
+def _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r, start=None):
+    """``Jz^T r`` (whitened coordinates, over sigma) by the scan Jacobian's adjoint, without the matrix,
+    and its restricted solves for the misfit ``r sigma`` (data units: the same scale in every continuation
+    stage), which ``start`` (the previous iterate's) starts."""
+    jt, solves = ScanJacobian(scan, state, free=names).adjoint(r * sigma, initial=start)  # the misfit, data units
+    jt = jt / sigma
     out = np.empty(n + len(transforms))
     out[:n] = root.T @ jt[:n]
     for i, tr in enumerate(transforms):
         out[n + i] = jt[n + i] * tr.slope(z[n + i])
-    return out / sigma
+    return out / sigma, solves
 
 
 def reads_nodes(scan, nodes: np.ndarray) -> np.ndarray:

@@ -268,19 +268,30 @@ class ContactScan:
         return self.output_scale(ctx) * (self.weights_p + self.direction * ctx["friction"] * self.weights_q)
 
     # ---------------------------------------------------------------- the solve
-    def solve(self, heights, context: dict | None = None) -> ScanState:
+    def solve(self, heights, context: dict | None = None, *, start: ScanState | None = None) -> ScanState:
         """Solve every frame at ``heights`` (``profile.shape``, m) and the context, with the scene
-        engine (:func:`tactilab.forward.solve_scan`, each frame warm-started from the previous one)."""
+        engine (:func:`tactilab.forward.solve_scan`, each frame warm-started from the previous one,
+        or with ``start``, an earlier solved scan at nearby heights, from that scan's same frame).
+
+        The frames skip the engine's check solve (its error estimate, which a scan state does not
+        report): the pressures are the same to the scan's ``tol``."""
         h = np.asarray(heights, dtype=float)
         if h.shape != self.profile.shape or not np.all(np.isfinite(h)):
             raise ValueError(f"heights: expected finite values of shape {self.profile.shape} (m), got {h.shape}")
+        if start is not None and (not isinstance(start, ScanState) or start.pressure.shape != (self.n_frames,
+                                                                                            *self.grid_shape)):
+            raise ValueError(f"start: expected a ScanState of this scan (pressure of shape "
+                             f"{(self.n_frames, *self.grid_shape)}), got {type(start).__name__}; or None")
         ctx = self.context(context)
         ratio = ctx["young_modulus"] / self.reference["young_modulus"]  # p = ratio * p_ref
         load = {"mean_pressure": self.mean_pressure / ratio} if self.mean_pressure is not None else \
             {"normal_force": ctx["normal_force"] / ratio}
         H = self.node_heights(h)
+        initial = None if start is None else \
+            start.pressure * (self.reference["young_modulus"] / start.context["young_modulus"])
         sol = solve_scan(self.skin, lambda i: self.shape_gap - H[i], (self.spacing,) * len(self.grid_shape),
-                         n_frames=self.n_frames, periodic=self.periodic, tol=self.tol, shifts=self._shifts, **load)
+                         n_frames=self.n_frames, periodic=self.periodic, tol=self.tol, shifts=self._shifts,
+                         initial=initial, estimate_error=False, **load)
         pressure = ratio * sol.pressure
         outputs = pressure.reshape(self.n_frames, -1) @ self.effective_weights(ctx)
         return ScanState(heights=h.copy(), context=ctx, pressure=pressure, contact=sol.contact, node_heights=H,
