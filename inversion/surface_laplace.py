@@ -145,7 +145,7 @@ def _context(z_c, transforms, fixed) -> dict | None:
 
 def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_iter=30, tol=1e-6,
                  touch_threshold=TOUCH_THRESHOLD, start=None, continuation=True,
-                 jacobian_every: int = 1, jacobian_tol: float = 1e-8) -> LaplaceResult:
+                 jacobian_every: int = 1, jacobian_tol: float = 1e-8, workers: int = 1) -> LaplaceResult:
     """Gauss-Newton MAP with a line search, then the Hessian there (see the module docstring).
 
     Parameters
@@ -172,6 +172,8 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         next continuation stage.
     jacobian_tol : float
         Relative residual of the Jacobian's restricted solves (:class:`ScanJacobian`'s ``tol``).
+    workers : int
+        FFT threads of the Jacobian's and the gradients' restricted solves (:class:`ScanJacobian`'s).
     """
     if int(max_iter) < 1:
         raise ValueError(f"max_iter: the Gauss-Newton search needs at least 1 iteration, got {max_iter!r}")
@@ -183,7 +185,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     names = [t.name for t in transforms]
 
     def jacobian(state):
-        return _jacobian(scan, state, names, jacobian_tol)
+        return _jacobian(scan, state, names, jacobian_tol, workers)
 
     n, k = scan.profile.size, len(transforms)
     flat_h = root is None
@@ -224,7 +226,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         stage_tol = tol if j == len(stages) - 1 else max(tol, STAGE_TOL)
         z, state, info, its = _descend(evaluate, jacobian, scan, data, noise_std * factor, z, names, transforms,
                                        root, penal, uniform, n, max_iter, stage_tol, history, int(jacobian_every),
-                                       kept)
+                                       kept, workers)
         total += its
         messages.append(info)
     message = messages[-1] + (f" (after {len(stages) - 1} continuation stages in the noise sd)" if len(stages) > 1
@@ -245,7 +247,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
 
 
 def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, penal, uniform, n, max_iter, tol,
-             history, every=1, kept=None):
+             history, every=1, kept=None, workers=1):
     """Gauss-Newton with an Armijo line search at one noise sd; returns (z, state, message, iterations).
     With ``every`` > 1 (and a prior) the Jacobian is rebuilt every ``every`` iterations (see
     gauss_newton); ``kept`` (a dict) holds the last one across calls (stages)."""
@@ -273,7 +275,7 @@ def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, 
             g = -(A.T @ r) + penal[unknowns] * z[unknowns] + gauge @ z[unknowns]
         else:  # the exact gradient by one adjoint solve per frame; the last Jacobian's Hessian
             adj, kept["adjoint"] = _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r,
-                                                     kept.get("adjoint"))
+                                                     kept.get("adjoint"), workers)
             g = -adj[unknowns] + penal[unknowns] * z[unknowns]
         age += 1
         step = np.zeros_like(z)
@@ -312,11 +314,11 @@ def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, 
     return z, state, f"stopped at max_iter = {max_iter} iterations (decrement {decrement:.2g} nats)", it
 
 
-def _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r, start=None):
+def _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r, start=None, workers=1):
     """``Jz^T r`` (whitened coordinates, over sigma) by the scan Jacobian's adjoint, without the matrix,
     and its restricted solves for the misfit ``r sigma`` (data units: the same scale in every continuation
     stage), which ``start`` (the previous iterate's) starts."""
-    jt, solves = ScanJacobian(scan, state, free=names).adjoint(r * sigma, initial=start)  # the misfit, data units
+    jt, solves = ScanJacobian(scan, state, free=names, workers=workers).adjoint(r * sigma, initial=start)
     jt = jt / sigma
     out = np.empty(n + len(transforms))
     out[:n] = root.T @ jt[:n]
@@ -344,9 +346,9 @@ def loaded_nodes(scan, state, threshold: float) -> np.ndarray:
     return load >= threshold * load.max() if load.max() > 0 else np.zeros(scan.profile.size, dtype=bool)
 
 
-def _jacobian(scan, state, names, tol):
+def _jacobian(scan, state, names, tol, workers=1):
     """The scan Jacobian (natural units) and the touched nodes (a non-zero column)."""
-    J = ScanJacobian(scan, state, free=names, tol=tol).matrix()
+    J = ScanJacobian(scan, state, free=names, tol=tol, workers=workers).matrix()
     return J, np.abs(J[:, : scan.profile.size]).max(axis=0) > 0
 
 
