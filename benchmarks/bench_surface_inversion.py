@@ -9,7 +9,8 @@ where one frame's solves serve every frame, and at the MAP) and exact gradients 
 steps in between), the posterior mean's rms error against the truth, the 90 % band's coverage of
 touched nodes, the context posterior, and the same error for the linearised inversion (the first
 Gauss-Newton step from the flat surface: the full-contact linearisation around the smooth finger's
-contact).
+contact). ``--workers`` threads (default 2, this machine's cores) run the FFTs of the Jacobian's and
+the gradients' solves and blocks of the scan solves' frames; the times are wall and process CPU.
 
     python benchmarks/bench_surface_inversion.py            # the size, minutes
     python benchmarks/bench_surface_inversion.py --quick --jacobian-every 1

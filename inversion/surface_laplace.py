@@ -173,7 +173,9 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     jacobian_tol : float
         Relative residual of the Jacobian's restricted solves (:class:`ScanJacobian`'s ``tol``).
     workers : int
-        FFT threads of the Jacobian's and the gradients' restricted solves (:class:`ScanJacobian`'s).
+        Threads: of the FFTs of the Jacobian's and the gradients' restricted solves
+        (:class:`ScanJacobian`'s), and over blocks of frames of the scan solves
+        (:meth:`ContactScan.solve`).
     """
     if int(max_iter) < 1:
         raise ValueError(f"max_iter: the Gauss-Newton search needs at least 1 iteration, got {max_iter!r}")
@@ -204,7 +206,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         if ctx is None or (uniform.any() and np.abs(z[n:][uniform]).max() > 1):
             return None, math.inf
         if last.get("z") is None or not np.array_equal(last["z"], z):
-            last["z"], last["state"] = z.copy(), scan.solve(heights(z), ctx, start=start)
+            last["z"], last["state"] = z.copy(), scan.solve(heights(z), ctx, start=start, workers=workers)
         state = last["state"]
         r = (data - state.outputs).ravel() / sigma
         return state, 0.5 * float(r @ r) + 0.5 * float(np.sum(penal * z * z))
