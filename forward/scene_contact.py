@@ -50,7 +50,7 @@ class ScanSolution:
     outputs : list of ndarray or None
         Per sensor array, shape (n_frames, n_sensors, n_components): Pa (stress) or tensor strain.
     warm_start : bool
-        Whether frames were started from the previous one.
+        Whether frames were warm-started (from the previous frame, or from ``initial``).
     seconds : dict
         Wall time of ``"contact"`` (the solves) and ``"readout"`` (weights and products), s.
     """
@@ -154,8 +154,8 @@ def _window(contact: np.ndarray) -> tuple[slice, ...]:
 
 def solve_scan(skin, gaps, spacing, *, n_frames: int | None = None, normal_force=None, mean_pressure=None,
                periodic: bool = False, friction: float = 0.0, slide_direction=(1.0, 0.0), slip_ratio=None,
-               shifts=None, warm_start: bool = True, sensors=None, keep_tractions: bool = True, tol: float = 1e-8,
-               batch: int = 64, progress: bool = False) -> ScanSolution:
+               shifts=None, warm_start: bool = True, initial=None, estimate_error: bool = True, sensors=None,
+               keep_tractions: bool = True, tol: float = 1e-8, batch: int = 64, progress: bool = False) -> ScanSolution:
     """Solve the contact of every frame of a scan and read the sensors from the solved tractions.
 
     Parameters
@@ -190,6 +190,13 @@ def solve_scan(skin, gaps, spacing, *, n_frames: int | None = None, normal_force
         Default 0 (the previous solution as it is).
     warm_start : bool
         Start each frame from the previous one (the cold solve's answer to ``tol``, tested).
+    initial : ndarray, shape (n_frames, *grid), optional
+        Pressures (Pa) to start each frame from instead of the previous frame: an earlier scan's
+        solution at nearby gaps (an iteration's previous iterate); the answer is the same to ``tol``.
+    estimate_error : bool
+        False: skip each warm-started frame's check solve on the grid of twice the spacing, which
+        costs about as much as the frame's own solve; their ``error_estimate`` is then NaN (not
+        estimated). A cold frame (the first, without ``initial``) still runs it: it is its start.
     sensors : SensorArray, sequence of SensorArray or SensorReadout, optional
         Sensors (finger frame) read through one weight matrix over a window of the grid around frame
         0's contact (or the given readout's window); a frame whose contact leaves the window rebuilds
@@ -237,6 +244,10 @@ def solve_scan(skin, gaps, spacing, *, n_frames: int | None = None, normal_force
     direction = direction / np.linalg.norm(direction)
     first = np.asarray(gap_of(0), dtype=float)
     shape = first.shape
+    starts = None if initial is None else np.asarray(initial, dtype=float)
+    if starts is not None and (starts.shape != (n, *shape) or not np.all(np.isfinite(starts)) or np.any(starts < 0)):
+        raise ValueError(f"initial: expected finite pressures >= 0 (Pa) of shape (n_frames, *grid) = {(n, *shape)}, "
+                         f"got shape {starts.shape}; e.g. an earlier scan's pressure")
     spacing = check.spacing(spacing, len(shape))
     cell = math.prod(spacing)
     store = {k: (np.zeros((n, *shape)) if keep_tractions else None) for k in ("pressure", "qx")}
@@ -285,9 +296,13 @@ def solve_scan(skin, gaps, spacing, *, n_frames: int | None = None, normal_force
                       else (q * direction[0], q * direction[1]))
         elif friction > 0:
             kw.update(condition="sliding", slide_direction=tuple(direction))
-        start = _moved(prev, int(steps[i])) if (warm_start and prev is not None) else None
+        if starts is not None:
+            start = starts[i]
+        else:
+            start = _moved(prev, int(steps[i])) if (warm_start and prev is not None) else None
         t0 = time.perf_counter()
-        sol = solve_contact(skin, g, spacing, periodic=periodic, friction=friction, tol=tol, initial=start, **kw)
+        sol = solve_contact(skin, g, spacing, periodic=periodic, friction=friction, tol=tol, initial=start,
+                            estimate_error=estimate_error, **kw)
         seconds["contact"] += time.perf_counter() - t0
         prev = sol
         stats["iterations"][i], stats["contact_fraction"][i] = sol.iterations, sol.contact_fraction
@@ -322,7 +337,7 @@ def solve_scan(skin, gaps, spacing, *, n_frames: int | None = None, normal_force
                         iterations=stats["iterations"].astype(int), contact_fraction=stats["contact_fraction"],
                         normal_force=stats["normal_force"], error_estimate=stats["error_estimate"],
                         converged=converged, outputs=None if readout is None else readout.split(outputs),
-                        warm_start=bool(warm_start), seconds=seconds)
+                        warm_start=bool(warm_start or starts is not None), seconds=seconds)
 
 
 def _inside(contact: np.ndarray, window: Sequence[slice]) -> bool:

@@ -45,6 +45,8 @@ class ScanJacobian(LinearOperator):
         Relative residual of the restricted solves (default 1e-8: on a fingertip's 212^2 grid the
         solutions then differ from those at 1e-10 by 5e-8 of their largest value, in 15 iterations
         instead of 22 at 1e-12; Gauss-Newton and the Laplace covariance need far less).
+    workers : int
+        FFT threads of the restricted solves (:class:`tactilab.forward.ContactLinearisation`'s).
 
     Attributes
     ----------
@@ -52,7 +54,7 @@ class ScanJacobian(LinearOperator):
         Model shape ``(n_profile + n_free,)`` and data shape ``(n_frames, n_out)``.
     """
 
-    def __init__(self, scan, state, free=(), *, tol: float = 1e-8):
+    def __init__(self, scan, state, free=(), *, tol: float = 1e-8, workers: int = 1):
         self.scan, self.state, self.free = scan, state, tuple(free)
         if scan.mean_pressure is not None and "normal_force" in self.free:
             raise ValueError("free: a periodic cell is loaded by its mean pressure, it has no normal_force to free")
@@ -60,7 +62,7 @@ class ScanJacobian(LinearOperator):
         n_model = self.n_h + len(self.free)
         self.dims, self.dimsd = (n_model,), (scan.n_frames, scan.n_out)
         super().__init__(dtype=np.float64, shape=(scan.n_frames * scan.n_out, n_model))
-        self.lin = ContactLinearisation(scan.compliance, state.contact, force_control=True, tol=tol)
+        self.lin = ContactLinearisation(scan.compliance, state.contact, force_control=True, tol=tol, workers=workers)
         ctx = state.context
         self.ratio = ctx["young_modulus"] / scan.reference["young_modulus"]
         self.W = scan.effective_weights(ctx)  # (n_nodes, n_out)
@@ -111,10 +113,29 @@ class ScanJacobian(LinearOperator):
         return out.reshape(-1)
 
     def _rmatvec(self, y):
+        return self.adjoint(y)[0]
+
+    def adjoint(self, y, initial=None) -> tuple[np.ndarray, np.ndarray]:
+        """``J^T y`` and its restricted solves, which can start the next adjoint's.
+
+        Parameters
+        ----------
+        y : ndarray, shape (n_frames * n_out,) or (n_frames, n_out)
+            Per unit of output (1 / Pa for stress).
+        initial : ndarray, shape (n_frames, *grid), optional
+            A start for the restricted solves: an earlier adjoint's (an earlier Gauss-Newton
+            iterate's, whose contact sets and residuals are close); the answer is the same to ``tol``.
+
+        Returns
+        -------
+        grad : ndarray, shape (n_profile + n_free,)
+        solves : ndarray, shape (n_frames, *grid)
+            The restricted solves ``S_t W y_t`` (m per unit of output), at the reference modulus.
+        """
         scan = self.scan
         y = np.asarray(y, dtype=float).reshape(scan.n_frames, scan.n_out)
         g = (y @ self.W.T).reshape(scan.n_frames, *scan.grid_shape)  # d<y, out> / dp per frame
-        sg = self.lin.solve(g)
+        sg = self.lin.solve(g, initial=initial)
         grad_h = scan.node_heights_adjoint(self.ratio * sg)
         extra = []
         for name in self.free:
@@ -124,7 +145,7 @@ class ScanJacobian(LinearOperator):
                 e = self._context_pressure(name)
                 val = float(np.sum(e * g)) if e is not None else 0.0
             extra.append(val + float(np.sum(self._context_output(name) * y)))
-        return np.concatenate([grad_h.reshape(-1), np.asarray(extra)])
+        return np.concatenate([grad_h.reshape(-1), np.asarray(extra)]), sg
 
     def _context_dot(self, name: str, g: np.ndarray, sg: np.ndarray) -> float:
         """``<dp/d theta, g>`` for the force and the modulus without the force responses' solves:
@@ -152,8 +173,9 @@ class ScanJacobian(LinearOperator):
         """The explicit Jacobian, shape (n_frames * n_out, n_profile + n_free), by adjoint solves.
 
         One restricted solve per distinct contact set and sensor output, batched over chunks of
-        sets (a chunk's right-hand sides are all its sets' outputs: they share their windows); rows
-        ordered frame by frame as the flattened outputs.
+        sets (a chunk's right-hand sides are all its sets' outputs: they share their windows), each
+        chunk's solves started from the previous chunk's last set's (the same right-hand sides on a
+        neighbouring frame's set); rows ordered frame by frame as the flattened outputs.
         """
         scan = self.scan
         n_out, grid = scan.n_out, scan.grid_shape
@@ -163,10 +185,15 @@ class ScanJacobian(LinearOperator):
         # flat surface every frame has the finger's own contact, so one frame's solves serve all)
         first, which = self._distinct()
         per = max(1, self.lin.chunk // n_out)
+        previous = None  # the last set's solves: a scan's neighbouring sets differ at a few nodes
         for lo in range(0, first.size, per):
             sets = first[lo: lo + per]
             rhs = np.broadcast_to(weights, (sets.size, n_out, *grid)).reshape(-1, *grid)
-            x = (self.ratio * self.lin.solve(rhs, frames=np.repeat(sets, n_out))).reshape(sets.size, n_out, *grid)
+            start = None if previous is None else \
+                np.broadcast_to(previous, (sets.size, n_out, *grid)).reshape(rhs.shape)
+            x = self.lin.solve(rhs, frames=np.repeat(sets, n_out), initial=start).reshape(sets.size, n_out, *grid)
+            previous = x[-1]
+            x = self.ratio * x
             cols = self._columns(x)
             for i in range(sets.size):
                 frames = np.flatnonzero(which == lo + i)

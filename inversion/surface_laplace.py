@@ -145,7 +145,7 @@ def _context(z_c, transforms, fixed) -> dict | None:
 
 def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_iter=30, tol=1e-6,
                  touch_threshold=TOUCH_THRESHOLD, start=None, continuation=True,
-                 jacobian_every: int = 1, jacobian_tol: float = 1e-8) -> LaplaceResult:
+                 jacobian_every: int = 1, jacobian_tol: float = 1e-8, workers: int = 1) -> LaplaceResult:
     """Gauss-Newton MAP with a line search, then the Hessian there (see the module docstring).
 
     Parameters
@@ -172,6 +172,10 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         next continuation stage.
     jacobian_tol : float
         Relative residual of the Jacobian's restricted solves (:class:`ScanJacobian`'s ``tol``).
+    workers : int
+        Threads: of the FFTs of the Jacobian's and the gradients' restricted solves
+        (:class:`ScanJacobian`'s), and over blocks of frames of the scan solves
+        (:meth:`ContactScan.solve`).
     """
     if int(max_iter) < 1:
         raise ValueError(f"max_iter: the Gauss-Newton search needs at least 1 iteration, got {max_iter!r}")
@@ -183,7 +187,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     names = [t.name for t in transforms]
 
     def jacobian(state):
-        return _jacobian(scan, state, names, jacobian_tol)
+        return _jacobian(scan, state, names, jacobian_tol, workers)
 
     n, k = scan.profile.size, len(transforms)
     flat_h = root is None
@@ -196,12 +200,13 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
 
     last = {}  # the last solved z and its state: a stage's start and the final objective reuse it
 
-    def evaluate(z, sigma):
+    def evaluate(z, sigma, start=None):
+        """The state and objective at ``z``; ``start``: a solved state near z whose frames start z's."""
         ctx = _context(z[n:], transforms, fixed)
         if ctx is None or (uniform.any() and np.abs(z[n:][uniform]).max() > 1):
             return None, math.inf
         if last.get("z") is None or not np.array_equal(last["z"], z):
-            last["z"], last["state"] = z.copy(), scan.solve(heights(z), ctx)
+            last["z"], last["state"] = z.copy(), scan.solve(heights(z), ctx, start=start, workers=workers)
         state = last["state"]
         r = (data - state.outputs).ravel() / sigma
         return state, 0.5 * float(r @ r) + 0.5 * float(np.sum(penal * z * z))
@@ -223,7 +228,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         stage_tol = tol if j == len(stages) - 1 else max(tol, STAGE_TOL)
         z, state, info, its = _descend(evaluate, jacobian, scan, data, noise_std * factor, z, names, transforms,
                                        root, penal, uniform, n, max_iter, stage_tol, history, int(jacobian_every),
-                                       kept)
+                                       kept, workers)
         total += its
         messages.append(info)
     message = messages[-1] + (f" (after {len(stages) - 1} continuation stages in the noise sd)" if len(stages) > 1
@@ -244,7 +249,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
 
 
 def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, penal, uniform, n, max_iter, tol,
-             history, every=1, kept=None):
+             history, every=1, kept=None, workers=1):
     """Gauss-Newton with an Armijo line search at one noise sd; returns (z, state, message, iterations).
     With ``every`` > 1 (and a prior) the Jacobian is rebuilt every ``every`` iterations (see
     gauss_newton); ``kept`` (a dict) holds the last one across calls (stages)."""
@@ -271,8 +276,9 @@ def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, 
         if fresh:
             g = -(A.T @ r) + penal[unknowns] * z[unknowns] + gauge @ z[unknowns]
         else:  # the exact gradient by one adjoint solve per frame; the last Jacobian's Hessian
-            g = -_whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r)[unknowns] \
-                + penal[unknowns] * z[unknowns]
+            adj, kept["adjoint"] = _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r,
+                                                     kept.get("adjoint"), workers)
+            g = -adj[unknowns] + penal[unknowns] * z[unknowns]
         age += 1
         step = np.zeros_like(z)
         step[unknowns] = -cho_solve(model, g)
@@ -289,7 +295,7 @@ def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, 
             step *= min(1.0, float(room.min()))
         alpha = 1.0
         for _ in range(30):
-            new_state, new_phi = evaluate(z + alpha * step, sigma)
+            new_state, new_phi = evaluate(z + alpha * step, sigma, start=state)  # frames start at this iterate's
             if new_state is not None and new_phi <= phi - 1e-4 * alpha * decrement:
                 break
             alpha *= 0.5
@@ -310,14 +316,17 @@ def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, 
     return z, state, f"stopped at max_iter = {max_iter} iterations (decrement {decrement:.2g} nats)", it
 
 
-def _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r) -> np.ndarray:
-    """``Jz^T r`` (whitened coordinates, over sigma) by the scan Jacobian's adjoint, without the matrix."""
-    jt = ScanJacobian(scan, state, free=names).rmatvec(r)
+def _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r, start=None, workers=1):
+    """``Jz^T r`` (whitened coordinates, over sigma) by the scan Jacobian's adjoint, without the matrix,
+    and its restricted solves for the misfit ``r sigma`` (data units: the same scale in every continuation
+    stage), which ``start`` (the previous iterate's) starts."""
+    jt, solves = ScanJacobian(scan, state, free=names, workers=workers).adjoint(r * sigma, initial=start)
+    jt = jt / sigma
     out = np.empty(n + len(transforms))
     out[:n] = root.T @ jt[:n]
     for i, tr in enumerate(transforms):
         out[n + i] = jt[n + i] * tr.slope(z[n + i])
-    return out / sigma
+    return out / sigma, solves
 
 
 def reads_nodes(scan, nodes: np.ndarray) -> np.ndarray:
@@ -339,9 +348,9 @@ def loaded_nodes(scan, state, threshold: float) -> np.ndarray:
     return load >= threshold * load.max() if load.max() > 0 else np.zeros(scan.profile.size, dtype=bool)
 
 
-def _jacobian(scan, state, names, tol):
+def _jacobian(scan, state, names, tol, workers=1):
     """The scan Jacobian (natural units) and the touched nodes (a non-zero column)."""
-    J = ScanJacobian(scan, state, free=names, tol=tol).matrix()
+    J = ScanJacobian(scan, state, free=names, tol=tol, workers=workers).matrix()
     return J, np.abs(J[:, : scan.profile.size]).max(axis=0) > 0
 
 

@@ -20,6 +20,7 @@ Limits: the frames are solved frictionless and the friction added as ``mu D p``,
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -268,22 +269,52 @@ class ContactScan:
         return self.output_scale(ctx) * (self.weights_p + self.direction * ctx["friction"] * self.weights_q)
 
     # ---------------------------------------------------------------- the solve
-    def solve(self, heights, context: dict | None = None) -> ScanState:
+    def solve(self, heights, context: dict | None = None, *, start: ScanState | None = None,
+              workers: int = 1) -> ScanState:
         """Solve every frame at ``heights`` (``profile.shape``, m) and the context, with the scene
-        engine (:func:`tactilab.forward.solve_scan`, each frame warm-started from the previous one)."""
+        engine (:func:`tactilab.forward.solve_scan`, each frame warm-started from the previous one,
+        or with ``start``, an earlier solved scan at nearby heights, from that scan's same frame).
+
+        The frames skip the engine's check solve (its error estimate, which a scan state does not
+        report): the pressures are the same to the scan's ``tol``. ``workers`` threads solve
+        contiguous blocks of frames (the engine's FFTs and compiled kernels release the GIL; its work
+        arrays are per thread); without ``start`` each block's first frame starts cold."""
         h = np.asarray(heights, dtype=float)
         if h.shape != self.profile.shape or not np.all(np.isfinite(h)):
             raise ValueError(f"heights: expected finite values of shape {self.profile.shape} (m), got {h.shape}")
+        if start is not None and (not isinstance(start, ScanState) or start.pressure.shape != (self.n_frames,
+                                                                                            *self.grid_shape)):
+            raise ValueError(f"start: expected a ScanState of this scan (pressure of shape "
+                             f"{(self.n_frames, *self.grid_shape)}), got {type(start).__name__}; or None")
         ctx = self.context(context)
         ratio = ctx["young_modulus"] / self.reference["young_modulus"]  # p = ratio * p_ref
         load = {"mean_pressure": self.mean_pressure / ratio} if self.mean_pressure is not None else \
             {"normal_force": ctx["normal_force"] / ratio}
         H = self.node_heights(h)
-        sol = solve_scan(self.skin, lambda i: self.shape_gap - H[i], (self.spacing,) * len(self.grid_shape),
-                         n_frames=self.n_frames, periodic=self.periodic, tol=self.tol, shifts=self._shifts, **load)
-        pressure = ratio * sol.pressure
+        initial = None if start is None else \
+            start.pressure * (self.reference["young_modulus"] / start.context["young_modulus"])
+        if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+            raise ValueError(f"workers: threads must be a positive integer, got {workers!r}; e.g. 1 or 2")
+
+        def block(frames: range):
+            return solve_scan(self.skin, lambda i: self.shape_gap - H[frames[i]],
+                              (self.spacing,) * len(self.grid_shape), n_frames=len(frames), periodic=self.periodic, tol=self.tol,
+                              shifts=None if self._shifts is None else self._shifts[frames.start: frames.stop],
+                              initial=None if initial is None else initial[frames.start: frames.stop],
+                              estimate_error=False, **load)
+
+        k = max(1, min(int(workers), self.n_frames))
+        edges = np.linspace(0, self.n_frames, k + 1).round().astype(int)
+        blocks = [range(a, b) for a, b in zip(edges[:-1], edges[1:])]
+        if k == 1:
+            sols = [block(blocks[0])]
+        else:
+            with ThreadPoolExecutor(max_workers=k) as pool:
+                sols = list(pool.map(block, blocks))
+        pressure = ratio * np.concatenate([s.pressure for s in sols])
+        contact = np.concatenate([s.contact for s in sols])
         outputs = pressure.reshape(self.n_frames, -1) @ self.effective_weights(ctx)
-        return ScanState(heights=h.copy(), context=ctx, pressure=pressure, contact=sol.contact, node_heights=H,
+        return ScanState(heights=h.copy(), context=ctx, pressure=pressure, contact=contact, node_heights=H,
                          outputs=outputs)
 
     def final_gap(self, state: ScanState) -> np.ndarray:

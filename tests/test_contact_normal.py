@@ -201,6 +201,24 @@ def test_warm_start_gives_the_cold_answer():
     assert np.allclose(other.pressure, ref.pressure, atol=1e-5 * p0)
 
 
+def test_a_pressure_start_without_the_check_solve_gives_the_cold_answer():
+    """estimate_error=False from a pressure array: no check solve, the same pressure to the solver's
+    tolerance, the estimate reported as not made (NaN); without a start the check solve still runs."""
+    g0, h, r, a, p0 = sphere(48)
+    cold = solve_contact(SKIN, g0, h, normal_force=0.5, tol=1e-10)
+    near = solve_contact(SKIN, g0 + 1e-8 * np.cos(r / a), h, normal_force=0.45, tol=1e-10)
+    fast = solve_contact(SKIN, g0, h, normal_force=0.5, tol=1e-10, initial=np.array(near.pressure),
+                         estimate_error=False)
+    bound = (fast.error_parts["solver"] + cold.error_parts["solver"]) * cold.pressure.max()
+    assert np.abs(fast.pressure - cold.pressure).max() <= max(bound, 1e-8 * p0)
+    assert np.isnan(fast.error_estimate) and np.isnan(fast.error_parts["discretisation"])
+    assert fast._coarse_pressure is None and np.isfinite(fast.error_parts["solver"])
+    alone = solve_contact(SKIN, g0, h, normal_force=0.5, tol=1e-10, estimate_error=False)
+    assert alone.error_estimate == pytest.approx(cold.error_estimate, rel=1e-3)
+    with pytest.raises(ValueError, match="initial: a pressure start must be finite, >= 0"):
+        solve_contact(SKIN, g0, h, normal_force=0.5, initial=-np.ones_like(g0))
+
+
 def test_warm_started_sliding_sequence_equals_cold_solves_frame_by_frame():
     """A fingertip sliding one node per frame over a rough plate, each frame started from the previous
     one shifted with the plate: the fine and the check solve both start warm, and every frame gives the

@@ -53,6 +53,24 @@ def test_warm_started_scan_equals_cold_solves_frame_by_frame(rng):
     assert warm.warm_start and not cold.warm_start
 
 
+def test_a_scan_started_from_an_earlier_scan_without_check_solves_equals_a_cold_one(rng):
+    """initial= (an earlier scan at nearby gaps) and estimate_error=False: the cold scan's pressures
+    to the solver's tolerance, the skipped estimates NaN; a cold first frame still estimates."""
+    gaps, _ = _scan(rng, frames=3)
+    kw = dict(normal_force=0.5, friction=0.5, slide_direction=(-1, 0), tol=1e-10)
+    cold = solve_scan(SKIN, gaps, DX, shifts=-1, **kw)
+    nearby = solve_scan(SKIN, gaps + 2e-8 * rng.standard_normal(gaps.shape), DX, shifts=-1, **kw)
+    fast = solve_scan(SKIN, gaps, DX, initial=nearby.pressure, estimate_error=False, **kw)
+    skipped = solve_scan(SKIN, gaps, DX, shifts=-1, estimate_error=False, **kw)
+    for got in (fast, skipped):
+        assert np.abs(got.pressure - cold.pressure).max() <= 1e-6 * cold.pressure.max()
+        assert np.array_equal(got.contact, cold.contact)
+    assert np.isnan(fast.error_estimate).all() and fast.warm_start
+    assert np.isfinite(skipped.error_estimate[0]) and np.isnan(skipped.error_estimate[1:]).all()
+    with pytest.raises(ValueError, match=r"initial: expected finite pressures >= 0 \(Pa\) of shape"):
+        solve_scan(SKIN, gaps, DX, initial=nearby.pressure[:2], **kw)
+
+
 def test_a_scan_that_does_not_move_is_a_static_press(rng):
     gaps, _ = _scan(rng, frames=1)
     still = np.repeat(gaps, 3, axis=0)

@@ -91,6 +91,26 @@ def _groove_problem(rng):
     return scan, truth, engine.outputs[0].reshape(pos.size, -1)
 
 
+def test_a_scan_started_from_an_earlier_iterate_equals_a_cold_one(rng):
+    """ContactScan.solve(start=...): each frame from the earlier state's same frame (other heights,
+    another force) gives the cold scan's pressures to the solver's tolerance and the engine's outputs."""
+    scan, truth, data = _groove_problem(rng)
+    cold = scan.solve(truth)
+    near = scan.solve(truth + 0.3e-6 * rng.standard_normal(truth.shape), {"normal_force": 7.0})
+    warm = scan.solve(truth, start=near)
+    assert np.abs(warm.pressure - cold.pressure).max() <= 1e-8 * cold.pressure.max()
+    assert np.array_equal(warm.contact, cold.contact)
+    assert np.abs(warm.outputs - data).max() <= 1e-8 * np.abs(data).max()
+    threads = scan.solve(truth, start=near, workers=3)  # three blocks of frames on three threads
+    assert np.array_equal(threads.pressure, warm.pressure) and np.array_equal(threads.contact, warm.contact)
+    blocks = scan.solve(truth, workers=2)  # without a start: each block's first frame cold
+    assert np.abs(blocks.pressure - cold.pressure).max() <= 1e-8 * cold.pressure.max()
+    with pytest.raises(ValueError, match="start: expected a ScanState of this scan"):
+        scan.solve(truth, start=cold.pressure)
+    with pytest.raises(ValueError, match="workers: threads must be a positive integer"):
+        scan.solve(truth, workers=0)
+
+
 def test_noise_free_partial_contact_recovers_the_touched_heights_and_bounds_the_groove(rng):
     scan, truth, data = _groove_problem(rng)
     sd = 2e-6

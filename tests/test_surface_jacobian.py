@@ -116,6 +116,20 @@ def test_scan_jacobian_dot_test_and_explicit_matrix(rng, quantity, geometry):
     assert np.allclose(got[-3:], want[-3:], rtol=1e-8, atol=0)
 
 
+def test_an_adjoint_started_from_an_earlier_one_gives_the_same_gradient(rng):
+    """ScanJacobian.adjoint(y, initial=...): started from another iterate's solves (other heights,
+    other residuals) it returns rmatvec's gradient to the solves' tolerance, and its solves."""
+    scan, heights, state = _scan(rng)
+    free = ("normal_force", "friction")
+    y = rng.standard_normal(scan.n_frames * scan.n_out)
+    want = ScanJacobian(scan, state, free=free, tol=1e-12).rmatvec(y)
+    other = scan.solve(heights + 0.05e-6 * rng.standard_normal(heights.shape))
+    _, start = ScanJacobian(scan, other, free=free, tol=1e-12).adjoint(y + 0.1 * rng.standard_normal(y.shape))
+    got, solves = ScanJacobian(scan, state, free=free, tol=1e-12).adjoint(y, initial=start)
+    assert np.abs(got - want).max() < 1e-9 * np.abs(want).max()
+    assert solves.shape == (scan.n_frames, *scan.grid_shape) and not solves[~state.contact].any()
+
+
 @pytest.mark.parametrize("quantity", ["stress", "strain"])
 def test_scan_jacobian_matches_finite_differences(rng, quantity):
     scan, heights, state = _scan(rng, quantity)
@@ -184,6 +198,11 @@ def test_windowed_chunked_solve_equals_the_dense_restricted_system(rng):
     assert lin.last_iterations <= 1 and np.abs(again - got).max() < 1e-9 * np.abs(got).max()
     other = lin.solve(rhs, initial=rng.standard_normal(rhs.shape))
     assert np.abs(other - got).max() < 1e-9 * np.abs(got).max()
+    # two FFT threads: the same solves (the threads split the stack)
+    two = ContactLinearisation(comp, masks, force_control=True, tol=1e-13, chunk=2, workers=2).solve(rhs)
+    assert np.abs(two - got).max() < 1e-12 * np.abs(got).max()
+    with pytest.raises(ValueError, match="workers: FFT threads must be a positive integer"):
+        ContactLinearisation(comp, masks, force_control=True, workers=0)
     with pytest.raises(ValueError, match="initial: expected finite values of the shape of rhs"):
         lin.solve(rhs, initial=np.zeros((2, n, n)))
     with pytest.raises(ValueError, match="chunk: right-hand sides per batched solve must be >= 1"):

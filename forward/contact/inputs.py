@@ -139,11 +139,16 @@ def check_inputs(skin, gap, spacing, *, normal_force, mean_pressure, approach, p
         max_iter = 10_000
     elif isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
         raise ValueError(f"max_iter: must be a positive integer, got {max_iter!r}; or None for the default")
-    if initial is not None and (getattr(initial, "pressure", None) is None or initial.pressure.shape != shape
-                                or tuple(initial.spacing) != spacing):
+    if isinstance(initial, np.ndarray):  # a pressure field (Pa) to start from
+        if initial.shape != shape or not np.all(np.isfinite(initial)) or np.any(initial < 0):
+            raise ValueError(f"initial: a pressure start must be finite, >= 0 (Pa) and of the gap's shape {shape}, "
+                             f"got shape {initial.shape}; e.g. an earlier solution's pressure")
+    elif initial is not None and (getattr(initial, "pressure", None) is None or initial.pressure.shape != shape
+                                  or tuple(initial.spacing) != spacing):
         got = getattr(getattr(initial, "pressure", None), "shape", None)
-        raise ValueError("initial: must be a ContactSolution of the same shape and spacing as the gap, got "
-                         f"{type(initial).__name__} of shape {got}; solve once without initial first")
+        raise ValueError("initial: must be a ContactSolution of the same shape and spacing as the gap (or its "
+                         f"pressure array), got {type(initial).__name__} of shape {got}; solve once without "
+                         "initial first")
     return ContactInputs(g0, spacing, bool(periodic), total, approach, mu, condition, Q, direction, method,
                          float(tol), int(max_iter), initial)
 
