@@ -30,7 +30,11 @@ correction by direct summation of the influence coefficients when few nodes are 
 float32 FFT pair when more are (:mod:`.single_correction`, while the accumulated bound of its
 round-off stays below :data:`SINGLE_SHARE` of the residual; 0.5 to 0.75 of the float64 product's
 time), and ``uz`` is recomputed by a float64 FFT pair otherwise, every 32 iterations, and before
-convergence is declared.
+convergence is declared. On periodic 2-D grids the direction's product ``A t`` itself runs as a
+float32 FFT pair (:meth:`.SingleCorrection.product`) while its round-off, added to the same bound,
+keeps it below the same share of the residual (float64 otherwise, and for a nearly full start):
+the same iterations, 0.4 to 0.7 floors less per iteration at 512^2 and 1024^2 (docs/contact.md,
+Table a3).
 Clipping of many nodes happens in most iterations until the contact set settles (self-affine
 surface, 10 % contact: hundreds to thousands of nodes for the first two thirds of the iterations,
 a few in the tail), so an iteration costs between two and three FFT pairs of the grid with the
@@ -149,7 +153,8 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
             drift += last_step
         cheap = m > limit and single is not None and \
             drift + single.bound(values[:m]) <= SINGLE_SHARE * residual
-        if it % REFRESH == 0 or (m > limit and not cheap) or drift > SINGLE_SHARE * residual:  # uz recomputed by a float64 FFT pair
+        # uz recomputed by a float64 FFT pair
+        if it % REFRESH == 0 or (m > limit and not cheap) or drift > SINGLE_SHARE * residual:
             _rescale(p, total, sum_p)
             u, exact, drift = A(p, out=u), True, 0.0
             products += 1

@@ -13,7 +13,9 @@ float64 time; the scatter, the conversion and the addition stay), with an error 
 hundredth of the gap residual (early, when many nodes clip, the residual is large), and keeps the
 exact float64 recompute every ``REFRESH`` iterations and before convergence is declared, so the
 answer's tolerance is unchanged; measured on the surfaces of docs/contact.md (Table a): the same
-iterations, a sixth to a third fewer float64 products (docs/contact.md, Cost).
+iterations, a sixth to a third fewer float64 products (docs/contact.md, Cost). :meth:`SingleCorrection.product`
+runs the solver's dense direction product ``A t`` the same way on periodic 2-D grids (docs/contact.md,
+Table a3).
 """
 
 from __future__ import annotations
