@@ -166,7 +166,8 @@ class FineLoop:
     def __enter__(self):
         name = "preconditioned_cg" if METHOD["method"] == "auto" else METHOD["method"]
         self._name, self._inner = name, contact_solve.METHODS[name]
-        extra = {"preconditioner": self.preconditioner, "single_corrections": CORRECTIONS["single"]} \
+        extra = {"preconditioner": self.preconditioner, "single_corrections": CORRECTIONS["single"],
+                 "single_products": CORRECTIONS["products"]} \
             if name == "preconditioned_cg" else {}
 
         def timed_method(compliance, g0, **kwargs):
@@ -196,7 +197,7 @@ def rough_cell(n: int, spacing: float = 1e-6) -> tuple[np.ndarray, float]:
 #: the normal-contact method of every solve here (``--method``)
 METHOD = {"method": "auto"}
 #: float32 clip corrections in the preconditioned CG (``--float64-corrections`` turns them off)
-CORRECTIONS = {"single": True}
+CORRECTIONS = {"single": True, "products": True}
 
 
 def solve_contact(*args, **kwargs):
@@ -298,7 +299,8 @@ def memory_child(n: int, tol: float, kind: str = "auto") -> None:
 def section_a_memory(n: int, tol: float, kind: str = "auto") -> None:
     proc = subprocess.run([sys.executable, __file__, "--memory-child", str(n), "--tol", str(tol),
                            "--method", METHOD["method"], "--preconditioner", kind]
-                          + ([] if CORRECTIONS["single"] else ["--float64-corrections"]),
+                          + ([] if CORRECTIONS["single"] else ["--float64-corrections"])
+                          + ([] if CORRECTIONS["products"] else ["--float64-products"]),
                           capture_output=True, text=True)
     if proc.returncode != 0:
         print(f"memory at {n}^2: the child failed: {proc.stderr.strip().splitlines()[-1:]}")
@@ -433,6 +435,9 @@ def main(argv=None) -> int:
     parser.add_argument("--float64-corrections", action="store_true",
                         help="(a), (d): recompute the displacement in float64 after every step that clips many "
                              "nodes, as before the float32 corrections (preconditioned_cg(single_corrections=False))")
+    parser.add_argument("--float64-products", action="store_true",
+                        help="(a), (d): every direction product of the preconditioned CG in float64, as before the "
+                             "mixed-precision ones on periodic grids (preconditioned_cg(single_products=False))")
     parser.add_argument("--tol", type=float, default=1e-8, help="solver tolerance of every solve (and Tamaas's)")
     parser.add_argument("--condat-tol", type=float, default=1e-4,
                         help="Tamaas Condat's tolerance in (b) (its own cost criterion; 1e-8 gives no answer "
@@ -448,6 +453,7 @@ def main(argv=None) -> int:
     parser.add_argument("--memory-child", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     CORRECTIONS["single"] = not args.float64_corrections
+    CORRECTIONS["products"] = not args.float64_products
     if args.memory_child:
         METHOD["method"] = args.method
         memory_child(args.memory_child, args.tol, args.preconditioner[0])
@@ -461,7 +467,8 @@ def main(argv=None) -> int:
     print(f"bench_contact: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}, numpy {np.__version__}, "
           f"tol {args.tol:g}, method {args.method}, one thread, elementwise passes: {passes()}, "
           f"fastest of {REPEATS['n']}, {CLOCK['name']} clock, clip corrections "
-          f"{'float32' if CORRECTIONS['single'] else 'float64'}")
+          f"{'float32' if CORRECTIONS['single'] else 'float64'}, direction products "
+          f"{'mixed' if CORRECTIONS['products'] else 'float64'}")
     warm_up(args.preconditioner)
     if "a" in args.sections:
         section_a(sizes_a, args.tol, peer, args.peer_cap, args.preconditioner)

@@ -115,6 +115,15 @@ def _dot_kernel(a, b):
 
 
 @jit.njit(reassociate=True)
+def _dot_peak_kernel(a, b):
+    total, peak = 0.0, 0.0
+    for i in range(a.size):
+        total += a[i] * b[i]
+        peak = max(peak, abs(a[i]))
+    return total, peak
+
+
+@jit.njit(reassociate=True)
 def _direction_kernel(t, z, S, beta, r):
     rt = 0.0
     if beta > 0.0:
@@ -311,6 +320,14 @@ def direction(t: np.ndarray, z: np.ndarray, S: np.ndarray, beta: float, r: np.nd
 def dot(a: np.ndarray, b: np.ndarray, compiled: bool) -> float:
     """``sum(a * b)`` in one pass (``a``, ``b``: arrays of the grid's shape)."""
     return float(_dot_kernel(_flat(a), _flat(b))) if compiled else _dot(a, b)
+
+
+def dot_peak(a: np.ndarray, b: np.ndarray, compiled: bool) -> tuple[float, float]:
+    """``sum(a * b)`` and ``max |a|`` in one pass (``a``, ``b``: arrays of the grid's shape)."""
+    if compiled:
+        total, peak = _dot_peak_kernel(_flat(a), _flat(b))
+        return float(total), float(peak)
+    return _dot(a, b), max(float(a.max()), -float(a.min()))
 
 
 def descend(p: np.ndarray, t: np.ndarray, tau: float, nodes: np.ndarray, values: np.ndarray, tmp: np.ndarray,

@@ -30,7 +30,11 @@ correction by direct summation of the influence coefficients when few nodes are 
 float32 FFT pair when more are (:mod:`.single_correction`, while the accumulated bound of its
 round-off stays below :data:`SINGLE_SHARE` of the residual; 0.5 to 0.75 of the float64 product's
 time), and ``uz`` is recomputed by a float64 FFT pair otherwise, every 32 iterations, and before
-convergence is declared.
+convergence is declared. On periodic 2-D grids the direction's product ``A t`` itself runs as a
+float32 FFT pair (:meth:`.SingleCorrection.product`) while its round-off, added to the same bound,
+keeps it below the same share of the residual (float64 otherwise, and for a nearly full start):
+the same iterations, 0.4 to 0.7 floors less per iteration at 512^2 and 1024^2 (docs/contact.md,
+Table a3).
 Clipping of many nodes happens in most iterations until the contact set settles (self-affine
 surface, 10 % contact: hundreds to thousands of nodes for the first two thirds of the iterations,
 a few in the tail), so an iteration costs between two and three FFT pairs of the grid with the
@@ -62,12 +66,16 @@ SINGLE_SHARE = 0.01
 
 def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approach: float | None, tol: float,
                       max_iter: int, p0: np.ndarray, extra_gap: np.ndarray | None = None,
-                      preconditioner: str = "auto", single_corrections: bool = True) -> NormalResult:
+                      preconditioner: str = "auto", single_corrections: bool = True,
+                      single_products: bool = True) -> NormalResult:
     """Solve the frictionless normal contact on one grid; the arguments of :func:`.normal.polonsky_keer`,
     ``preconditioner``, the kind of :meth:`ContactCompliance.preconditioner` (``"auto"`` takes the
     exact stiffness when the start touches more than :data:`NEARLY_FULL` of the nodes), and
     ``single_corrections``: after a step that clips many nodes, add their correction by a float32 FFT
-    pair (:mod:`.single_correction`) instead of recomputing ``uz`` in float64 (False: recompute)."""
+    pair (:mod:`.single_correction`) instead of recomputing ``uz`` in float64 (False: recompute), and
+    ``single_products``: on a periodic 2-D grid, compute the direction's product ``A t`` by a float32 FFT
+    pair while the accumulated bound of its round-off stays below :data:`SINGLE_SHARE` of the residual
+    (float64 products after, near convergence)."""
     g0 = np.ascontiguousarray(g0 if extra_gap is None else g0 + extra_gap, dtype=float)  # the kernels loop flat
     scale = float(g0.max() - g0.min()) or float(np.abs(g0).max()) or 1.0
     target = tol * scale
@@ -77,7 +85,8 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         s = p.sum()
         p = p * (total / s) if s > 0 else np.full(p.shape, total / p.size)
     if preconditioner == "auto" and np.count_nonzero(p) > NEARLY_FULL * p.size:
-        preconditioner = "fft"  # the exact stiffness inverts a full periodic contact: exact in one step
+        preconditioner = "fft"  # the exact stiffness inverts a full periodic contact: exact in one step,
+        single_products = False  # given a float64 product (a float32 one took 4 steps instead of 1 or 2)
     A, K = compliance.normal, compliance.preconditioner(preconditioner)
     # work arrays, reused: every pass over the grid costs about as much as a tenth of an FFT pair,
     # and a fresh grid-sized array about as much again (page faults)
@@ -91,12 +100,16 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     # clipped nodes up to which the displacement is corrected by direct summation, not an FFT pair
     limit = getattr(compliance, "direct_limit", 0)
     # single corrections record every clipped node (16 bytes a node), direct summations the first few
-    single = SingleCorrection(compliance) if single_corrections else None
+    mixer = SingleCorrection(compliance) if single_corrections or single_products else None
+    single = mixer if single_corrections else None
+    # mixed-precision direction products (float32 FFT pairs into mixer's kept arrays): periodic 2-D grids
+    mixed = single_products and mixer is not None and mixer.periodic_2d
     size = p.size if single is not None else max(limit, 1)
     nodes, values = np.empty(size, dtype=np.int64), np.empty(size)
     # the elementwise passes: fused compiled kernels or their NumPy twins (one choice per solve)
     compiled = jit.enabled()
     factor, it = 1.0, 0  # factor: the force rescaling of p and u, applied by the next gap pass
+    last_step = 0.0  # the last float32 product's share of drift, m
     drift = 0.0  # bound on |uz - A p| from the float32 corrections since the last float64 product, m
     while True:
         n_in, sum_in = kernels.gap(g0, u, p, g, inside, factor, compiled)
@@ -120,15 +133,28 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         beta = max(0.0, (G - rz_old) / G_old) if G_old > 0 else 0.0
         rt = kernels.direction(t, z, S, beta, r, compiled)  # nodes that left S leave the direction
         z_old, G_old = z, G
-        At = A(t, out=At)
-        products += 2
-        denom = kernels.dot(At, t, compiled)
+        # mixed: a float32 product while the round-off it adds to uz (predicted from the last one's) keeps
+        # the drift's bound below SINGLE_SHARE of the residual: far from convergence (a floor on the
+        # residual, 1e-4 of the scale, as well left a third more float64 products: docs/contact.md, Cost)
+        if mixed and drift + last_step <= SINGLE_SHARE * residual:
+            At = mixer.product(t, At)
+            products += 1
+            denom, peak = kernels.dot_peak(At, t, compiled)
+            drift_step = mixer.product_bound(peak)
+        else:
+            At = A(t, out=At)
+            products += 2
+            denom, drift_step = kernels.dot(At, t, compiled), 0.0
         tau = rt / denom if denom > 0 else 0.0
         m, sum_p = kernels.descend(p, t, tau, nodes, values, tmp, force, compiled)  # clipped at 0
         it += 1
+        if drift_step:
+            last_step = abs(tau) * drift_step
+            drift += last_step
         cheap = m > limit and single is not None and \
             drift + single.bound(values[:m]) <= SINGLE_SHARE * residual
-        if it % REFRESH == 0 or (m > limit and not cheap):  # uz recomputed by a float64 FFT pair
+        # uz recomputed by a float64 FFT pair
+        if it % REFRESH == 0 or (m > limit and not cheap) or drift > SINGLE_SHARE * residual:
             _rescale(p, total, sum_p)
             u, exact, drift = A(p, out=u), True, 0.0
             products += 1

@@ -13,7 +13,9 @@ float64 time; the scatter, the conversion and the addition stay), with an error 
 hundredth of the gap residual (early, when many nodes clip, the residual is large), and keeps the
 exact float64 recompute every ``REFRESH`` iterations and before convergence is declared, so the
 answer's tolerance is unchanged; measured on the surfaces of docs/contact.md (Table a): the same
-iterations, a sixth to a third fewer float64 products (docs/contact.md, Cost).
+iterations, a sixth to a third fewer float64 products (docs/contact.md, Cost). :meth:`SingleCorrection.product`
+runs the solver's dense direction product ``A t`` the same way on periodic 2-D grids (docs/contact.md,
+Table a3).
 """
 
 from __future__ import annotations
@@ -57,6 +59,11 @@ class SingleCorrection:
         self._local = threading.local()  # each thread's kept float32 work arrays
         self._czz = _at_origin(spectrum, self.fft_shape)
 
+    @property
+    def periodic_2d(self) -> bool:
+        """Whether the grid is a periodic 2-D one (the only kind :meth:`product` takes)."""
+        return self._mode == "periodic"
+
     def bound(self, values: np.ndarray) -> float:
         """A bound on max |error| of :meth:`add` (m) for the pressures ``values`` (Pa, >= 0)."""
         return RELATIVE_ERROR * self._czz * float(np.sum(values))
@@ -70,6 +77,30 @@ class SingleCorrection:
         nodes = np.flatnonzero(c)
         self.add(out, nodes, c.reshape(-1)[nodes])
         return out
+
+    def product(self, t: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """``out[...] = A t`` (m, float64) for a dense pressure ``t`` (Pa, float64, the grid's shape) by a
+        float32 FFT pair; periodic 2-D grids only (the solver's mixed-precision product, error of the
+        order of :data:`RELATIVE_ERROR` of max |A t|, bounded by :meth:`product_bound`)."""
+        if self._mode != "periodic":
+            raise ValueError(f"product: float32 dense products need a periodic 2-D grid, got a {self._mode} "
+                             "one; use the compliance's float64 product")
+        buffers = getattr(self._local, "buffers", None)
+        if buffers is None:
+            buffers = self._local.buffers = self._buffers()
+        data, spectrum = buffers
+        data[...] = t
+        try:
+            rfftn_into(data, spectrum, workers=1)
+            spectrum *= self.spectrum
+            out[...] = inverse_into(spectrum, data, workers=1)
+        finally:
+            data[...] = 0.0  # kept zero for add()
+        return out
+
+    def product_bound(self, peak: float) -> float:
+        """A bound on max |error| of :meth:`product` (m) for a result of max |A t| = ``peak`` (m)."""
+        return RELATIVE_ERROR * peak
 
     def add(self, u: np.ndarray, nodes: np.ndarray, values: np.ndarray) -> None:
         """``u += A c`` in place, ``c`` = ``values`` (Pa) at the flat grid indices ``nodes``."""
