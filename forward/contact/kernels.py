@@ -25,7 +25,7 @@ said; ``g`` gap in m, ``p`` pressure in Pa, ``u`` displacement in m):
 6. :func:`descend`: ``p -= tau t``, negative pressures clipped to 0 and the first ones recorded,
    the sum of ``p``;
 7. :func:`subtract_scaled`: ``u -= tau A t``, when the displacement is updated rather than
-   recomputed (the loop defers it to the next :func:`gap` pass instead, ``a=At, tau=tau``).
+   recomputed.
 """
 
 from __future__ import annotations
@@ -52,19 +52,13 @@ _MAGNITUDE = np.int64(0x7FFFFFFFFFFFFFFF)
 
 
 @jit.njit(reassociate=True)
-def _gap_kernel(g0, u, p, g, factor, a, tau):
+def _gap_kernel(g0, u, p, g, factor):
     n_in, total = 0, 0.0
-    pending, scaled = tau != 0.0, factor != 1.0
-    if pending or scaled:  # the last step's u -= tau a and the force's rescaling, in the same pass
+    if factor != 1.0:  # the force's rescaling, in the same pass
         for i in range(g.size):
-            w = u[i]
-            if pending:  # loop-invariant branches: unswitched by the compiler
-                w -= a[i] * tau
-            if scaled:
-                w *= factor
-                p[i] *= factor
-            u[i] = w
-            g[i] = v = g0[i] + w
+            u[i] *= factor
+            p[i] *= factor
+            g[i] = v = g0[i] + u[i]
             inside = p[i] > 0.0
             total += v * np.float64(inside)
             n_in += np.int64(inside)
@@ -186,9 +180,8 @@ def _subtract_scaled_kernel(u, a, scale):
 
 # -- the passes: compiled kernel or NumPy twin --------------------------------------------------
 def gap(g0: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray, inside: np.ndarray, factor: float,
-        compiled: bool, *, a: np.ndarray | None = None, tau: float = 0.0) -> tuple[int, float]:
-    """``u -= tau a`` (when ``a`` is given and ``tau`` not 0), rescale ``u`` and ``p`` by ``factor`` (when
-    not 1), then ``g = g0 + u`` and the contact set.
+        compiled: bool) -> tuple[int, float]:
+    """Rescale ``u`` and ``p`` by ``factor`` (when not 1), then ``g = g0 + u`` and the contact set.
 
     Parameters
     ----------
@@ -201,12 +194,6 @@ def gap(g0: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray, inside: np.
         The force rescaling left over from the previous iteration (1: none).
     compiled : bool
         Run the compiled kernel (else the NumPy twin).
-    a : ndarray, the grid's shape, optional
-        The last direction's product ``A t`` (m per unit step): the displacement's update
-        ``u -= tau a`` left over from the previous iteration, applied in this pass (it saves
-        :func:`subtract_scaled`'s pass over ``u``).
-    tau : float
-        The last step (dimensionless; 0: no update).
 
     Returns
     -------
@@ -215,14 +202,9 @@ def gap(g0: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray, inside: np.
     sum_in : float
         Sum of ``g`` over them, m.
     """
-    pending = a is not None and tau != 0.0
     if compiled:
-        n_in, total = _gap_kernel(_flat(g0), _flat(u), _flat(p), _flat(g), float(factor),
-                                  _flat(a if pending else u), float(tau) if pending else 0.0)
+        n_in, total = _gap_kernel(_flat(g0), _flat(u), _flat(p), _flat(g), float(factor))
         return int(n_in), float(total)
-    if pending:
-        np.multiply(a, tau, out=g)  # g, overwritten below, serves as the work array
-        u -= g
     if factor != 1.0:
         u *= factor
         p *= factor

@@ -109,12 +109,11 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     # the elementwise passes: fused compiled kernels or their NumPy twins (one choice per solve)
     compiled = jit.enabled()
     factor, it = 1.0, 0  # factor: the force rescaling of p and u, applied by the next gap pass
-    pending = 0.0  # the last step tau whose u -= tau A t the next gap pass applies (0: none)
     last_step = 0.0  # the last float32 product's share of drift, m
     drift = 0.0  # bound on |uz - A p| from the float32 corrections since the last float64 product, m
     while True:
-        n_in, sum_in = kernels.gap(g0, u, p, g, inside, factor, compiled, a=At, tau=pending)
-        factor, pending = 1.0, 0.0
+        n_in, sum_in = kernels.gap(g0, u, p, g, inside, factor, compiled)
+        factor = 1.0
         if force:
             delta = sum_in / n_in if n_in else float(g.min())
         # the working set S (in contact, or penetrating: entering), r = g on S; max |r| is |g| in
@@ -159,9 +158,8 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
             _rescale(p, total, sum_p)
             u, exact, drift = A(p, out=u), True, 0.0
             products += 1
-        else:  # u = A p updated, the pressure added to bring each clipped node back to 0 with it; the
-            # step's u -= tau A t waits for the next gap pass, which reads u anyway (one pass less)
-            pending = tau
+        else:  # u = A p updated in place, the pressure added to bring each clipped node back to 0 with it
+            kernels.subtract_scaled(u, At, tau, tmp, compiled)
             if m > limit:  # many: by a float32 FFT pair
                 drift += single.bound(values[:m])
                 single.add(u, nodes[:m], values[:m])
