@@ -13,7 +13,7 @@ threadpoolctl, or they spin against the other jobs).
 
 Measured on the surface inversion's Jacobian (docs/inversion.md, "Cost"): a frame's 18 outputs
 as one block took 4.4 iterations each instead of 5.6 at the tolerance 1e-4 (8.6 instead of 12.0
-at 1e-6), but the dense products cost as much as the saved FFTs there: no faster.
+at 1e-8), but the dense products cost as much as the saved FFTs there: no faster.
 """
 
 from __future__ import annotations
