@@ -170,6 +170,13 @@ def test_context_is_marginalised_and_recovered(rng):
     assert np.abs(lagged.std[t] / post.std[t] - 1).max() < 0.02
     for name in ("normal_force", "friction"):
         assert abs(lagged.context[name]["mean"] - post.context[name]["mean"]) < 0.1 * post.context[name]["sd"]
+    # the exact gradients solved to 1e-6 only: they steer, the MAP stays the same
+    loose = invert_scan(scan, noisy, sigma, prior=StationaryPrior(variance=(10e-6) ** 2, kind="white"),
+                        context={"normal_force": LogNormal(8.0, 0.3), "friction": Normal(0.3, 0.1)},
+                        rng=np.random.default_rng(7), jacobian_every=3, gradient_tol=1e-6)
+    assert np.array_equal(loose.touched, t)
+    assert np.abs(loose.mean[t] - lagged.mean[t]).max() < 0.01 * post.std[t].min()
+    assert np.abs(loose.std[t] / lagged.std[t] - 1).max() < 1e-3
 
 
 def test_surface_posterior_files_and_draws(rng, tmp_path):
@@ -215,6 +222,8 @@ def test_invert_scan_refuses_bad_input(rng):
         invert_scan(scan, data, 1.0, prior=prior, rng=rng, jacobian_every=0)
     with pytest.raises(ValueError, match=r"jacobian_tol: the restricted solves' relative residual must lie in"):
         invert_scan(scan, data, 1.0, prior=prior, rng=rng, jacobian_tol=0.0)
+    with pytest.raises(ValueError, match=r"gradient_tol: the gradients' relative residual must lie in"):
+        invert_scan(scan, data, 1.0, prior=prior, rng=rng, gradient_tol=1.0)
     with pytest.raises(ValueError, match="noise_std: the likelihood needs"):
         invert_scan(scan, data, 0.0, prior=prior, rng=rng)
     with pytest.raises(ValueError, match=r"data: expected finite values of shape \(2, 3\)"):
