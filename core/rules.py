@@ -259,3 +259,18 @@ def fraction(value, name: str, fix: str = "") -> float:
     if not 0.0 <= v <= 1.0:  # also refuses NaN
         raise ValueError(f"{name}: must be a fraction in [0, 1], got {show(value)}; {fix}")
     return v
+
+
+def workers(value, name: str = "workers") -> int:
+    """A count of threads (FFT workers, frames solved side by side): a positive integer.
+
+    Raises
+    ------
+    ValueError
+        ``"<name>: threads must be a positive integer, got <value>; e.g. 1 or 2"`` (booleans,
+        floats, zero and negatives included).
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name}: threads must be a positive integer, got {value!r}; e.g. 1 or 2 "
+                         "(this machine's cores: os.cpu_count())")
+    return int(value)

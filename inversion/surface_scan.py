@@ -293,8 +293,7 @@ class ContactScan:
         H = self.node_heights(h)
         initial = None if start is None else \
             start.pressure * (self.reference["young_modulus"] / start.context["young_modulus"])
-        if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
-            raise ValueError(f"workers: threads must be a positive integer, got {workers!r}; e.g. 1 or 2")
+        workers = rules.workers(workers)
 
         def block(frames: range):
             return solve_scan(self.skin, lambda i: self.shape_gap - H[frames[i]],

@@ -601,3 +601,11 @@ def test_relaxation_an_auxetic_material_gives_the_closed_form_pressure(nu):
     k = 2 * np.pi / (N * H)
     np.testing.assert_allclose(fwd.rigid_surface_pressure(heights, H, 1e6, nu).p,
                                material.plane_strain_modulus_pa * k / 2 * heights, atol=1e-9)
+
+
+@pytest.mark.parametrize("bad", [0, -1, 1.5, True, "2", None])
+def test_workers_is_one_rule(bad):
+    from tactilab.core import rules
+    assert rules.workers(2) == 2 and rules.workers(np.int64(1)) == 1
+    with pytest.raises(ValueError, match=r"workers: threads must be a positive integer, got .*; e.g. 1 or 2"):
+        rules.workers(bad)

@@ -201,7 +201,7 @@ def test_windowed_chunked_solve_equals_the_dense_restricted_system(rng):
     # two FFT threads: the same solves (the threads split the stack)
     two = ContactLinearisation(comp, masks, force_control=True, tol=1e-13, chunk=2, workers=2).solve(rhs)
     assert np.abs(two - got).max() < 1e-12 * np.abs(got).max()
-    with pytest.raises(ValueError, match="workers: FFT threads must be a positive integer"):
+    with pytest.raises(ValueError, match="workers: threads must be a positive integer"):
         ContactLinearisation(comp, masks, force_control=True, workers=0)
     with pytest.raises(ValueError, match="initial: expected finite values of the shape of rhs"):
         lin.solve(rhs, initial=np.zeros((2, n, n)))

@@ -34,8 +34,9 @@ import warnings
 import numpy as np
 from scipy import fft as sfft
 
+from tactilab.core import rules
+
 from ..halfspace import AccuracyWarning
-from .block_cg import block_pcg
 from .compliance import ContactCompliance
 
 __all__ = ["ContactLinearisation"]
@@ -140,10 +141,7 @@ class ContactLinearisation:
         if mask.dtype != bool or mask.shape[-compliance.ndim:] != compliance.shape or mask.ndim > compliance.ndim + 1:
             raise ValueError(f"contact: expected a boolean mask of shape {compliance.shape} or (m, "
                              f"*{compliance.shape}), got dtype {mask.dtype} and shape {mask.shape}")
-        if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
-            raise ValueError(f"workers: FFT threads must be a positive integer, got {workers!r}; e.g. 1 or "
-                             "os.cpu_count()")
-        self.workers = int(workers)
+        self.workers = rules.workers(workers)
         if chunk is not None and int(chunk) < 1:
             raise ValueError(f"chunk: right-hand sides per batched solve must be >= 1, got {chunk!r}; or None")
         self.compliance = compliance
@@ -237,68 +235,6 @@ class ContactLinearisation:
                                  f"{np.shape(initial)}")
         x = self._solve_chunks(b, self._masks(b.shape[0], frames), x0)
         return x[0] if single else x
-
-    def solve_groups(self, rhs, frames, initial=None) -> np.ndarray:
-        """``S rhs`` for groups of right-hand sides that share a contact set, by block CG.
-
-        Each group's right-hand sides search one joint Krylov space (:func:`.block_cg.block_pcg`):
-        fewer iterations each than :meth:`solve`'s independent ones, to the same tolerance.
-
-        Parameters
-        ----------
-        rhs : ndarray, shape ``(g, s, *grid)``
-            ``g`` groups of ``s`` height changes, m; group ``i`` on contact set ``frames[i]``.
-        frames : array_like of int, shape (g,)
-            Each group's contact set.
-        initial : ndarray, the shape of ``rhs``, optional
-            Starting pressure changes, Pa.
-
-        Returns
-        -------
-        ndarray, the shape of ``rhs``: the pressure changes, Pa (zero off the sets).
-        """
-        b = np.asarray(rhs, dtype=float)
-        if b.ndim != self.compliance.ndim + 2 or b.shape[2:] != self.compliance.shape or not np.all(np.isfinite(b)):
-            raise ValueError(f"rhs: expected finite groups of shape (g, s, *{self.compliance.shape}), got shape "
-                             f"{np.shape(rhs)}; use solve() for single right-hand sides")
-        if initial is not None:
-            initial = np.asarray(initial, dtype=float)
-            if initial.shape != b.shape or not np.all(np.isfinite(initial)):
-                raise ValueError(f"initial: expected finite values of the shape of rhs {b.shape}, got shape "
-                                 f"{np.shape(initial)}")
-        g, s = b.shape[:2]
-        idx = self._masks(g, frames)
-        out = np.zeros_like(b)
-        self.last_iterations, self.total_iterations = 0, 0
-        per = max(1, self.chunk // s)
-        for lo in range(0, g, per):
-            sel = idx[lo: lo + per]
-            win = self._window(self.mask[sel])
-            at = (slice(None), slice(None)) + win.slices
-            mask, count = self.mask[sel][(slice(None),) + win.slices], self.n_contact[sel]
-
-            def project(v, groups, mask=mask, count=count):
-                m, c = np.repeat(mask[groups], s, axis=0), np.repeat(count[groups], s)
-                return self._project(v.reshape(-1, *v.shape[2:]), m, c).reshape(v.shape)
-
-            def apply(v, groups, win=win, project=project):
-                return project(win.compliance_product(v.reshape(-1, *v.shape[2:])).reshape(v.shape), groups)
-
-            def precondition(v, groups, win=win, project=project):
-                return project(win.precondition(v.reshape(-1, *v.shape[2:])).reshape(v.shape), groups)
-
-            every = np.arange(sel.size)
-            bl = project(b[lo: lo + per][at], every)
-            x0 = None if initial is None else project(initial[lo: lo + per][at], every)
-            x, it, bad = block_pcg(apply, precondition, bl, x0, tol=self.tol, max_iter=self.max_iter)
-            self.last_iterations = max(self.last_iterations, it)
-            self.total_iterations += it * sel.size * s
-            if bad:
-                warnings.warn(f"ContactLinearisation: block conjugate gradients did not reach tol {self.tol:g} "
-                              f"in {self.max_iter} iterations for {bad} of {sel.size * s} right-hand sides",
-                              AccuracyWarning, stacklevel=2)
-            out[(slice(lo, lo + sel.size), slice(None)) + win.slices] = x
-        return out
 
     def force_response(self, frames=None) -> np.ndarray:
         """The pressure change per unit change of the nodal pressure sum (force control only).
