@@ -193,11 +193,6 @@ def work_block(spectrum_shape: tuple, cdtype, count: int) -> np.ndarray:
     return block
 
 
-def work_buffers(spectrum_shape: tuple, cdtype, count: int) -> list[np.ndarray]:
-    """``count`` complex arrays of ``spectrum_shape``: the rows of :func:`work_block`."""
-    return list(work_block(spectrum_shape, cdtype, count))
-
-
 #: Memory budget of the transfer-table cache (bytes). Tables are kept per (grid, spacing, dtype,
 #: nu, depth, output row, loads present); least recently used entries go first. One 512^2 call
 #: with six components from p, qx, qy holds 18 complex tables, about 38 MiB.
