@@ -29,7 +29,8 @@ from .finger_config import FingerConfig
 from .experiment_procedures import (  # noqa: F401 - the configs are part of this module's API
     LIKELIHOOD_FAMILIES, MAX_PLANNED_TRIALS, PARAMETERS, PROCEDURE_CONFIGS, TASKS, ConstantStimuliConfig,
     Frequency, Length, ProcedureConfigBase, PsiConfig, Speed, StaircaseConfig, StaircaseTrack, Time,
-    _Model, check_label, check_name, check_subject, procedure_config, register_procedure_config)
+    _Model, procedure_config, register_procedure_config)
+from .identifiers import check_label, check_name, check_subject  # noqa: F401 - part of this module's API
 from .protocol_levels import FILE_EDGE
 from .stimulus import MAX_FRAME_RATE_HZ, PITCH_RANGE_M, Stimulus  # noqa: F401 - part of this module's API
 

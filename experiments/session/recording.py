@@ -50,7 +50,7 @@ from pathlib import Path
 from typing import Any
 
 from tactilab.core.outputs import printable
-from tactilab.data_schemas.experiment_procedures import check_label
+from tactilab.data_schemas.identifiers import check_label
 from tactilab.data_schemas.experiment_records import TrialRecord
 
 #: Metadata every session has and every reader (status, export, resume) relies on.

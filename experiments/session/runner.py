@@ -301,7 +301,7 @@ def new_session(protocol: Protocol, path: str | Path, display: Display, response
     subject, session : str
         BIDS labels (1-32 letters or digits; pseudonymous codes, never names: a subject code
         that looks like a name or a date is refused, see
-        :func:`tactilab.data_schemas.experiment_procedures.check_subject`).
+        :func:`tactilab.data_schemas.identifiers.check_subject`).
     subject_pattern : str, optional
         The lab's own subject-code pattern (a regular expression the whole code must match),
         replacing the name and date heuristics.
