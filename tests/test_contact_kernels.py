@@ -1,4 +1,5 @@
-"""The fused passes of the contact loop (forward/contact/kernels.py): compiled kernels against their NumPy twins.
+"""The fused passes of the contact loop (forward/contact/kernels.py, step_kernels.py): compiled kernels against
+their NumPy twins.
 
 Oracle: the NumPy twin (the loop's original passes). Each pass gives bitwise the same arrays both
 ways and the same sums to round-off (the compiled sums add in SIMD lanes, NumPy's in blocks); the
@@ -14,7 +15,7 @@ import pytest
 
 from tactilab.data_schemas import random_rough_surface
 from tactilab.forward import HalfSpace, solve_contact
-from tactilab.forward.contact import ContactCompliance, kernels
+from tactilab.forward.contact import ContactCompliance, kernels, step_kernels
 from tactilab.forward.contact.preconditioned import preconditioned_cg
 
 SKIN = HalfSpace(1e6, 0.5)
@@ -24,6 +25,7 @@ SHAPE = (24, 36)  # not a multiple of the SIMD width: the kernels' tails run too
 def _fields(rng, shape=SHAPE):
     """Random inputs of every pass, the pressure in contact at a third of the nodes."""
     a = {name: rng.standard_normal(shape) for name in ("g0", "u", "g", "r", "t", "z", "z_old", "At")}
+    a["At32"], a["t32"] = rng.standard_normal(shape).astype(np.float32), np.zeros(shape, np.float32)
     a["p"] = np.where(rng.random(shape) < 1 / 3, rng.random(shape), 0.0)
     a["S"] = rng.random(shape) < 0.4
     return a
@@ -53,6 +55,23 @@ def test_gap_pass(rng, factor):
     assert cx[1] == pytest.approx(cy[1], rel=1e-12)
 
 
+@pytest.mark.parametrize("factor", [1.0, 1.25])
+def test_gap_pass_adds_a_pending_correction(rng, factor):
+    """The float32 clip correction left pending by the previous step, added to u before the rescaling:
+    u = (u + c) factor, against the same arithmetic in float64 (float32 widens exactly)."""
+    inside = np.empty(SHAPE, bool)
+
+    def run(a, c):
+        a["u0"] = a["u"].copy()
+        return kernels.gap(a["g0"], a["u"], a["p"], a["g"], inside, factor, c, pending=a["At32"])
+
+    (x, cx), (y, cy) = _both(rng, run)
+    _same_arrays(x, y, ("g", "u", "p"))
+    np.testing.assert_array_equal(x["u"], (x["u0"] + x["At32"].astype(float)) * factor)
+    np.testing.assert_array_equal(x["g"], x["g0"] + x["u"])
+    assert cx[0] == cy[0] and cx[1] == pytest.approx(cy[1], rel=1e-12)
+
+
 def test_residual_pass(rng):
     def run(a, c):
         inside = a["p"] > 0  # as the gap pass's twin leaves it
@@ -77,38 +96,53 @@ def test_project_pass(rng, force):
     np.testing.assert_allclose(cx, cy, rtol=1e-12)
 
 
+@pytest.mark.parametrize("single", [False, True])
 @pytest.mark.parametrize("beta", [0.0, 0.7])
-def test_direction_pass(rng, beta):
-    (x, cx), (y, cy) = _both(rng, lambda a, c: kernels.direction(a["t"], a["z"], a["S"], beta, a["r"], c))
-    _same_arrays(x, y, ("t",))
+def test_direction_pass(rng, beta, single):
+    def run(a, c):
+        return kernels.direction(a["t"], a["z"], a["S"], beta, a["r"], c, a["t32"] if single else None)
+
+    (x, cx), (y, cy) = _both(rng, run)
+    _same_arrays(x, y, ("t", "t32"))
     assert cx == pytest.approx(cy, rel=1e-12)
     assert cx == pytest.approx(float(np.sum(x["r"] * x["t"])), rel=1e-12)
+    if single:  # the float32 product's input: the direction rounded to nearest
+        np.testing.assert_array_equal(x["t32"], x["t"].astype(np.float32))
 
 
-def test_dot_pass(rng):
-    a, b = rng.standard_normal(SHAPE), rng.standard_normal(SHAPE)
-    assert kernels.dot(a, b, True) == pytest.approx(kernels.dot(a, b, False), rel=1e-12)
-
-
-def test_dot_peak_pass(rng):
-    """The dot and max |a| of the mixed-precision product's bound, one pass: NumPy's own as the oracle."""
-    a, b = rng.standard_normal(SHAPE), rng.standard_normal(SHAPE)
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_dot_pass(rng, dtype):
+    a, b = rng.standard_normal(SHAPE).astype(dtype), rng.standard_normal(SHAPE)
+    exact = float(np.sum(a.astype(float) * b))
     for compiled in (True, False):
-        total, peak = kernels.dot_peak(a, b, compiled)
-        assert total == pytest.approx(float(np.sum(a * b)), rel=1e-12)
+        assert step_kernels.dot(a, b, compiled) == pytest.approx(exact, rel=1e-12)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_dot_peak_pass(rng, dtype):
+    """The dot and max |a| of the mixed-precision product's bound, one pass: NumPy's own as the oracle
+    (a float32 product read as it is, widened exactly)."""
+    a, b = rng.standard_normal(SHAPE).astype(dtype), rng.standard_normal(SHAPE)
+    for compiled in (True, False):
+        total, peak = step_kernels.dot_peak(a, b, compiled)
+        assert total == pytest.approx(float(np.sum(a.astype(float) * b)), rel=1e-12)
         assert peak == float(np.abs(a).max())
 
 
+@pytest.mark.parametrize("product", ["At", "At32"])  # the float64 product, or the float32 one
 @pytest.mark.parametrize("room", [SHAPE[0] * SHAPE[1], 3])  # every clipped node recorded; the first three
-def test_descend_pass(rng, room):
+def test_descend_pass(rng, room, product):
     def run(a, c):
         nodes, values = np.full(room, -1, np.int64), np.zeros(room)
         a["step"] = a["p"] - a["t"] * 0.2
-        m, total = kernels.descend(a["p"], a["t"], 0.2, nodes, values, np.empty(SHAPE), True, c)
+        a["u_step"] = a["u"] - a[product].astype(float) * 0.2
+        m, total = step_kernels.descend(a["p"], a["t"], 0.2, nodes, values, np.empty(SHAPE), True, a["u"],
+                                        a[product], c)
         return m, total, nodes, values
 
     (x, cx), (y, cy) = _both(rng, run)
-    _same_arrays(x, y, ("p",))
+    _same_arrays(x, y, ("p", "u"))
+    np.testing.assert_array_equal(x["u"], x["u_step"])  # u -= tau A t in the same pass
     negative = np.flatnonzero(x["step"] < 0)
     assert cx[0] == cy[0] == negative.size > 3
     np.testing.assert_array_equal(x["p"], np.maximum(x["step"], 0.0))
@@ -117,11 +151,6 @@ def test_descend_pass(rng, room):
     for nodes, values in (cx[2:], cy[2:]):  # the first k clipped nodes, in order, and what clipping added
         np.testing.assert_array_equal(nodes[:k], negative[:k])
         np.testing.assert_array_equal(values[:k], -x["step"].reshape(-1)[negative[:k]])
-
-
-def test_subtract_scaled_pass(rng):
-    (x, _), (y, _) = _both(rng, lambda a, c: kernels.subtract_scaled(a["u"], a["At"], 0.4, np.empty(SHAPE), c))
-    _same_arrays(x, y, ("u",))
 
 
 def test_nan_propagates_both_ways(rng):
@@ -135,10 +164,10 @@ def test_nan_propagates_both_ways(rng):
         residual, _ = kernels.residual(a["g"], 0.0, a["p"], a["p"] > 0, a["S"], a["r"], compiled)
         assert np.isnan(residual)
         a["At"][2, 2] = np.nan
-        assert np.isnan(kernels.dot_peak(a["At"], a["t"], compiled)[0])  # the step tau turns NaN
+        assert np.isnan(step_kernels.dot_peak(a["At"], a["t"], compiled)[0])  # the step tau turns NaN
         a["t"][0, 0] = np.nan
         assert np.isnan(kernels.direction(a["t"], a["z"], a["S"], 0.5, a["r"], compiled) if a["S"][0, 0]
-                        else kernels.dot(a["t"], a["r"], compiled))
+                        else step_kernels.dot(a["t"], a["r"], compiled))
 
 
 # -- the whole loop -----------------------------------------------------------------------------

@@ -3,29 +3,27 @@
 Between its FFT products an iteration of :func:`.preconditioned.preconditioned_cg` makes about 30
 elementwise NumPy passes over the grid (each a read and a write of one or two grid arrays): 1.3 to
 1.5 FFT floors per iteration on a periodic grid (docs/contact.md, Cost). Here they are grouped
-into seven functions, each one loop over the grid when compiled (:mod:`tactilab.core.jit`: numba;
+into six functions, each one loop over the grid when compiled (:mod:`tactilab.core.jit`: numba;
 two for :func:`project` under force control) and the original NumPy calls otherwise (the NumPy
-twin, with ``TACTILAB_JIT=0`` or without numba): 0.55 to 0.7 floors. Each function takes
-``compiled`` (the caller asks :func:`tactilab.core.jit.enabled` once per solve) and gives the same
-elementwise values either way; only the order of the additions in a sum differs (the compiled sums
-add in SIMD lanes, NumPy's einsum and sum in blocks), so the two paths' iterates agree to round-off
+twin, with ``TACTILAB_JIT=0`` or without numba). Each function takes ``compiled`` (the caller asks
+:func:`tactilab.core.jit.enabled` once per solve) and gives the same elementwise values either way;
+only the order of the additions in a sum differs (the compiled sums add in SIMD lanes, NumPy's
+einsum and sum in blocks), so the two paths' iterates agree to round-off
 (tests/test_contact_kernels.py).
 
-The passes, in the order of an iteration (arrays of the grid's shape, C-contiguous, float64 unless
-said; ``g`` gap in m, ``p`` pressure in Pa, ``u`` displacement in m):
+The passes before the step, in the order of an iteration (arrays of the grid's shape, C-contiguous,
+float64 unless said; ``g`` gap in m, ``p`` pressure in Pa, ``u`` displacement in m):
 
-1. :func:`gap`: the pending force rescaling of ``p`` and ``u``, ``g = g0 + u``, and the count and
-   sum of ``g`` over the contact set ``p > 0``;
+1. :func:`gap`: the pending float32 clip correction and force rescaling of ``u`` (and the
+   rescaling of ``p``), ``g = g0 + u``, and the count and sum of ``g`` over the contact set ``p > 0``;
 2. :func:`residual`: ``g -= delta``, the working set ``S = (g < 0) | (p > 0)``, ``r = g S`` and
    ``max |r|``;
 3. :func:`project`: after ``z = K r``: ``z`` minus its mean on ``S`` (force control), masked by ``S``,
    and the products ``<r, z>``, ``<r, z_old>``;
-4. :func:`direction`: ``t = beta t S + z`` and ``<r, t>``;
-5. :func:`dot`: ``<A t, t>``;
-6. :func:`descend`: ``p -= tau t``, negative pressures clipped to 0 and the first ones recorded,
-   the sum of ``p``;
-7. :func:`subtract_scaled`: ``u -= tau A t``, when the displacement is updated rather than
-   recomputed.
+4. :func:`direction`: ``t = beta t S + z`` and ``<r, t>`` (and ``t`` in float32, the input of the
+   float32 product, when asked).
+
+The step's passes (``<A t, t>``, ``p -= tau t`` clipped, ``u -= tau A t``) are in :mod:`.step_kernels`.
 """
 
 from __future__ import annotations
@@ -71,6 +69,28 @@ def _gap_kernel(g0, u, p, g, factor):
     return n_in, total
 
 
+@jit.njit(reassociate=True)
+def _gap_pending_kernel(g0, u, p, g, factor, pending):
+    # as _gap_kernel, with a pending float32 clip correction added to u first (u = (u + c) factor)
+    n_in, total = 0, 0.0
+    if factor != 1.0:
+        for i in range(g.size):
+            u[i] = w = (u[i] + np.float64(pending[i])) * factor
+            p[i] *= factor
+            g[i] = v = g0[i] + w
+            inside = p[i] > 0.0
+            total += v * np.float64(inside)
+            n_in += np.int64(inside)
+        return n_in, total
+    for i in range(g.size):
+        u[i] = w = u[i] + np.float64(pending[i])
+        g[i] = v = g0[i] + w
+        inside = p[i] > 0.0
+        total += v * np.float64(inside)
+        n_in += np.int64(inside)
+    return n_in, total
+
+
 @jit.njit
 def _residual_kernel(g, delta, p, S, r):
     # max |r| on the bits: a float's magnitude orders as its bits without the sign, and NaN's bits
@@ -107,20 +127,20 @@ def _project_kernel(z, S, mean, r, z_old):
 
 
 @jit.njit(reassociate=True)
-def _dot_kernel(a, b):
-    total = 0.0
-    for i in range(a.size):
-        total += a[i] * b[i]
-    return total
-
-
-@jit.njit(reassociate=True)
-def _dot_peak_kernel(a, b):
-    total, peak = 0.0, 0.0
-    for i in range(a.size):
-        total += a[i] * b[i]
-        peak = max(peak, abs(a[i]))
-    return total, peak
+def _direction_single_kernel(t, z, S, beta, r, t32):
+    # as _direction_kernel, the direction also written in float32 (the float32 product's input)
+    rt = 0.0
+    if beta > 0.0:
+        for i in range(t.size):
+            t[i] = v = (t[i] * beta) * np.float64(S[i]) + z[i]
+            t32[i] = np.float32(v)
+            rt += r[i] * v
+    else:
+        for i in range(t.size):
+            t[i] = v = z[i]
+            t32[i] = np.float32(v)
+            rt += r[i] * v
+    return rt
 
 
 @jit.njit(reassociate=True)
@@ -137,51 +157,11 @@ def _direction_kernel(t, z, S, beta, r):
     return rt
 
 
-@jit.njit
-def _descend_kernel(p, t, tau, nodes, values):
-    # blocks of four nodes with four partial sums: the rare clipped node is a branch per block, which
-    # keeps the loop from running in SIMD lanes, so the sum is split by hand
-    s0 = s1 = s2 = s3 = 0.0
-    m, size = 0, p.size
-    tail = size - size % 4
-    for i in range(0, tail, 4):
-        v0, v1 = p[i] - t[i] * tau, p[i + 1] - t[i + 1] * tau
-        v2, v3 = p[i + 2] - t[i + 2] * tau, p[i + 3] - t[i + 3] * tau
-        if (v0 < 0.0) | (v1 < 0.0) | (v2 < 0.0) | (v3 < 0.0):
-            for j in range(i, i + 4):
-                v = p[j] - t[j] * tau
-                if v < 0.0:
-                    if m < nodes.size:
-                        nodes[m] = j
-                        values[m] = -v
-                    m += 1
-            v0, v1 = (0.0 if v0 < 0.0 else v0), (0.0 if v1 < 0.0 else v1)  # NaN stays, as np.maximum
-            v2, v3 = (0.0 if v2 < 0.0 else v2), (0.0 if v3 < 0.0 else v3)
-        p[i], p[i + 1], p[i + 2], p[i + 3] = v0, v1, v2, v3
-        s0, s1, s2, s3 = s0 + v0, s1 + v1, s2 + v2, s3 + v3
-    for i in range(tail, size):
-        v0 = p[i] - t[i] * tau
-        if v0 < 0.0:
-            if m < nodes.size:
-                nodes[m] = i
-                values[m] = -v0
-            m += 1
-            v0 = 0.0
-        p[i] = v0
-        s0 += v0
-    return m, (s0 + s1) + (s2 + s3)
-
-
-@jit.njit
-def _subtract_scaled_kernel(u, a, scale):
-    for i in range(u.size):
-        u[i] -= a[i] * scale
-
-
 # -- the passes: compiled kernel or NumPy twin --------------------------------------------------
 def gap(g0: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray, inside: np.ndarray, factor: float,
-        compiled: bool) -> tuple[int, float]:
-    """Rescale ``u`` and ``p`` by ``factor`` (when not 1), then ``g = g0 + u`` and the contact set.
+        compiled: bool, pending: np.ndarray | None = None) -> tuple[int, float]:
+    """Add ``pending`` to ``u``, rescale ``u`` and ``p`` by ``factor`` (when not 1), then ``g = g0 + u``
+    and the contact set.
 
     Parameters
     ----------
@@ -194,6 +174,8 @@ def gap(g0: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray, inside: np.
         The force rescaling left over from the previous iteration (1: none).
     compiled : bool
         Run the compiled kernel (else the NumPy twin).
+    pending : ndarray of float32, the grid's shape, optional
+        A clip correction (m) still to be added to ``u`` (before the rescaling).
 
     Returns
     -------
@@ -203,8 +185,13 @@ def gap(g0: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray, inside: np.
         Sum of ``g`` over them, m.
     """
     if compiled:
-        n_in, total = _gap_kernel(_flat(g0), _flat(u), _flat(p), _flat(g), float(factor))
+        if pending is not None:
+            n_in, total = _gap_pending_kernel(_flat(g0), _flat(u), _flat(p), _flat(g), float(factor), _flat(pending))
+        else:
+            n_in, total = _gap_kernel(_flat(g0), _flat(u), _flat(p), _flat(g), float(factor))
         return int(n_in), float(total)
+    if pending is not None:
+        u += pending
     if factor != 1.0:
         u *= factor
         p *= factor
@@ -283,7 +270,8 @@ def project(z: np.ndarray, S: np.ndarray, n_set: int, r: np.ndarray, z_old: np.n
     return _dot(r, z), _dot(r, z_old)
 
 
-def direction(t: np.ndarray, z: np.ndarray, S: np.ndarray, beta: float, r: np.ndarray, compiled: bool) -> float:
+def direction(t: np.ndarray, z: np.ndarray, S: np.ndarray, beta: float, r: np.ndarray, compiled: bool,
+              t32: np.ndarray | None = None) -> float:
     """The conjugate direction ``t = beta t S + z`` (``t = z`` when ``beta <= 0``), in place; ``<r, t>``.
 
     Parameters
@@ -300,6 +288,8 @@ def direction(t: np.ndarray, z: np.ndarray, S: np.ndarray, beta: float, r: np.nd
         The residual, m.
     compiled : bool
         Run the compiled kernel (else the NumPy twin).
+    t32 : ndarray of float32, the grid's shape, optional
+        Output: the new direction rounded to float32 (the float32 product's input), in the same pass.
 
     Returns
     -------
@@ -307,6 +297,8 @@ def direction(t: np.ndarray, z: np.ndarray, S: np.ndarray, beta: float, r: np.nd
         ``<r, t>``, m Pa.
     """
     if compiled:
+        if t32 is not None:
+            return float(_direction_single_kernel(_flat(t), _flat(z), _flat(S), float(beta), _flat(r), _flat(t32)))
         return float(_direction_kernel(_flat(t), _flat(z), _flat(S), float(beta), _flat(r)))
     if beta > 0:
         t *= beta
@@ -314,74 +306,6 @@ def direction(t: np.ndarray, z: np.ndarray, S: np.ndarray, beta: float, r: np.nd
         t += z
     else:
         t[...] = z
+    if t32 is not None:
+        t32[...] = t
     return _dot(r, t)
-
-
-def dot(a: np.ndarray, b: np.ndarray, compiled: bool) -> float:
-    """``sum(a * b)`` in one pass (``a``, ``b``: arrays of the grid's shape)."""
-    return float(_dot_kernel(_flat(a), _flat(b))) if compiled else _dot(a, b)
-
-
-def dot_peak(a: np.ndarray, b: np.ndarray, compiled: bool) -> tuple[float, float]:
-    """``sum(a * b)`` and ``max |a|`` in one pass (``a``, ``b``: arrays of the grid's shape)."""
-    if compiled:
-        total, peak = _dot_peak_kernel(_flat(a), _flat(b))
-        return float(total), float(peak)
-    return _dot(a, b), max(float(a.max()), -float(a.min()))
-
-
-def descend(p: np.ndarray, t: np.ndarray, tau: float, nodes: np.ndarray, values: np.ndarray, tmp: np.ndarray,
-            force: bool, compiled: bool) -> tuple[int, float]:
-    """The step ``p -= tau t`` with negative pressures clipped to 0, the first clipped ones recorded.
-
-    Parameters
-    ----------
-    p : ndarray, the grid's shape
-        Pressure, Pa, in place.
-    t : ndarray, the grid's shape
-        Direction, Pa per unit step.
-    tau : float
-        The step (dimensionless).
-    nodes : ndarray of int64, shape (k,)
-        Output: flat indices of the first ``k`` clipped nodes (those beyond are clipped, not recorded).
-    values : ndarray, shape (k,)
-        Output: the pressure added at each recorded node to bring it back to 0, Pa (positive).
-    tmp : ndarray, the grid's shape
-        Work array of the NumPy twin.
-    force : bool
-        Force control: return the sum of ``p`` (for the rescaling to the force).
-    compiled : bool
-        Run the compiled kernel (else the NumPy twin).
-
-    Returns
-    -------
-    m : int
-        Nodes clipped (all of them, recorded or not).
-    sum_p : float
-        Sum of the clipped ``p``, Pa (0 when not ``force`` in the NumPy twin, which skips it).
-    """
-    if compiled:
-        m, total = _descend_kernel(_flat(p), _flat(t), float(tau), nodes, values)
-        return int(m), float(total)
-    np.multiply(t, tau, out=tmp)
-    p -= tmp
-    m = 0
-    if float(p.min()) < 0:
-        flat = _flat(p)
-        clipped = np.flatnonzero(flat < 0.0)
-        m = clipped.size
-        k = min(m, nodes.size)
-        nodes[:k] = clipped[:k]
-        values[:k] = -flat[clipped[:k]]
-        np.maximum(p, 0.0, out=p)
-    return m, (float(p.sum()) if force else 0.0)
-
-
-def subtract_scaled(u: np.ndarray, a: np.ndarray, scale: float, tmp: np.ndarray, compiled: bool) -> None:
-    """``u -= scale * a`` in place (``u``, ``a``, ``tmp``: arrays of the grid's shape; ``tmp`` is the
-    NumPy twin's work array)."""
-    if compiled:
-        _subtract_scaled_kernel(_flat(u), _flat(a), float(scale))
-        return
-    np.multiply(a, scale, out=tmp)
-    u -= tmp

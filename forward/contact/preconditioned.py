@@ -53,7 +53,7 @@ import numpy as np
 
 from tactilab.core import jit
 
-from . import kernels
+from . import kernels, step_kernels
 from .normal import REFRESH, NormalResult
 from .single_correction import SingleCorrection
 
@@ -102,18 +102,19 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     # single corrections record every clipped node (16 bytes a node), direct summations the first few
     mixer = SingleCorrection(compliance) if single_corrections or single_products else None
     single = mixer if single_corrections else None
-    # mixed-precision direction products (float32 FFT pairs into mixer's kept arrays): periodic 2-D grids
-    mixed = single_products and mixer is not None and mixer.periodic_2d
+    # mixed-precision direction products (float32 FFT pairs into mixer's kept arrays): 2-D grids
+    mixed = single_products and mixer is not None and mixer.dense_2d
     size = p.size if single is not None else max(limit, 1)
     nodes, values = np.empty(size, dtype=np.int64), np.empty(size)
     # the elementwise passes: fused compiled kernels or their NumPy twins (one choice per solve)
     compiled = jit.enabled()
     factor, it = 1.0, 0  # factor: the force rescaling of p and u, applied by the next gap pass
+    pending = None  # a float32 clip correction (mixer's kept array), added to u by the next gap pass
     last_step = 0.0  # the last float32 product's share of drift, m
     drift = 0.0  # bound on |uz - A p| from the float32 corrections since the last float64 product, m
     while True:
-        n_in, sum_in = kernels.gap(g0, u, p, g, inside, factor, compiled)
-        factor = 1.0
+        n_in, sum_in = kernels.gap(g0, u, p, g, inside, factor, compiled, pending)
+        factor, pending = 1.0, None
         if force:
             delta = sum_in / n_in if n_in else float(g.min())
         # the working set S (in contact, or penetrating: entering), r = g on S; max |r| is |g| in
@@ -131,22 +132,25 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         # the conjugacy; restarting at every entering node (Fletcher-Reeves) took 51 iterations
         # instead of 30 at 512^2 and 89 instead of 40 at 1024^2 (periodic self-affine, 10 % contact)
         beta = max(0.0, (G - rz_old) / G_old) if G_old > 0 else 0.0
-        rt = kernels.direction(t, z, S, beta, r, compiled)  # nodes that left S leave the direction
-        z_old, G_old = z, G
         # mixed: a float32 product while the round-off it adds to uz (predicted from the last one's) keeps
         # the drift's bound below SINGLE_SHARE of the residual: far from convergence (a floor on the
         # residual, 1e-4 of the scale, as well left a third more float64 products: docs/contact.md, Cost)
-        if mixed and drift + last_step <= SINGLE_SHARE * residual:
-            At = mixer.product(t, At)
+        cheap_product = mixed and drift + last_step <= SINGLE_SHARE * residual
+        # nodes that left S leave the direction; a float32 copy of it feeds the float32 product
+        rt = kernels.direction(t, z, S, beta, r, compiled, mixer.direction_input() if cheap_product else None)
+        z_old, G_old = z, G
+        if cheap_product:
+            step_product = mixer.transform_direction()  # float32, mixer's kept array
             products += 1
-            denom, peak = kernels.dot_peak(At, t, compiled)
+            denom, peak = step_kernels.dot_peak(step_product, t, compiled)
             drift_step = mixer.product_bound(peak)
         else:
-            At = A(t, out=At)
+            step_product = At = A(t, out=At)
             products += 2
-            denom, drift_step = kernels.dot(At, t, compiled), 0.0
+            denom, drift_step = step_kernels.dot(At, t, compiled), 0.0
         tau = rt / denom if denom > 0 else 0.0
-        m, sum_p = kernels.descend(p, t, tau, nodes, values, tmp, force, compiled)  # clipped at 0
+        # p -= tau t, clipped at 0; u -= tau A t in the same pass (wasted where u is recomputed below)
+        m, sum_p = step_kernels.descend(p, t, tau, nodes, values, tmp, force, u, step_product, compiled)
         it += 1
         if drift_step:
             last_step = abs(tau) * drift_step
@@ -159,10 +163,12 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
             u, exact, drift = A(p, out=u), True, 0.0
             products += 1
         else:  # u = A p updated in place, the pressure added to bring each clipped node back to 0 with it
-            kernels.subtract_scaled(u, At, tau, tmp, compiled)
-            if m > limit:  # many: by a float32 FFT pair
+            if m > limit:  # many: by a float32 FFT pair, on 2-D grids added by the next gap pass
                 drift += single.bound(values[:m])
-                single.add(u, nodes[:m], values[:m])
+                if single.dense_2d:
+                    pending = single.correction(nodes[:m], values[:m])
+                else:
+                    single.add(u, nodes[:m], values[:m])
             elif m:  # a few: by direct summation
                 compliance.add_normal_point_loads(u, nodes[:m], values[:m])
             factor = total / sum_p if force else 1.0

@@ -45,7 +45,10 @@ class SingleCorrection:
     -----
     ``add(u, nodes, values)`` adds ``A c`` (m) to ``u`` in place (float64, the grid's shape), ``c``
     being ``values`` (Pa) at the flat indices ``nodes`` and 0 elsewhere; ``apply(c)`` returns it for a
-    dense ``c``. A kept float32 grid per thread holds ``c`` (zero between calls; the spectra are fresh).
+    dense ``c``; :meth:`correction` returns it in float32 (a kept array). :meth:`product` computes a dense
+    ``A t`` (2-D grids); the solver feeds it through :meth:`direction_input` and
+    :meth:`transform_direction` without converting. Kept float32 work arrays per thread (about 14 bytes
+    per grid node periodic, 20 bytes per grid node isolated).
     """
 
     def __init__(self, compliance):
@@ -60,9 +63,9 @@ class SingleCorrection:
         self._czz = _at_origin(spectrum, self.fft_shape)
 
     @property
-    def periodic_2d(self) -> bool:
-        """Whether the grid is a periodic 2-D one (the only kind :meth:`product` takes)."""
-        return self._mode == "periodic"
+    def dense_2d(self) -> bool:
+        """Whether the grid is a 2-D one, periodic or isolated (the kinds :meth:`product` takes)."""
+        return self._mode != "1-D"
 
     def bound(self, values: np.ndarray) -> float:
         """A bound on max |error| of :meth:`add` (m) for the pressures ``values`` (Pa, >= 0)."""
@@ -80,22 +83,35 @@ class SingleCorrection:
 
     def product(self, t: np.ndarray, out: np.ndarray) -> np.ndarray:
         """``out[...] = A t`` (m, float64) for a dense pressure ``t`` (Pa, float64, the grid's shape) by a
-        float32 FFT pair; periodic 2-D grids only (the solver's mixed-precision product, error of the
-        order of :data:`RELATIVE_ERROR` of max |A t|, bounded by :meth:`product_bound`)."""
-        if self._mode != "periodic":
-            raise ValueError(f"product: float32 dense products need a periodic 2-D grid, got a {self._mode} "
-                             "one; use the compliance's float64 product")
-        buffers = getattr(self._local, "buffers", None)
-        if buffers is None:
-            buffers = self._local.buffers = self._buffers()
-        data, spectrum = buffers
-        data[...] = t
-        try:
-            rfftn_into(data, spectrum, workers=1)
+        float32 FFT pair; 2-D grids only (error of the order of :data:`RELATIVE_ERROR` of max |A t|,
+        bounded by :meth:`product_bound`). The solver's path is :meth:`direction_input` and
+        :meth:`transform_direction`, which spare the two conversions."""
+        if self._mode == "1-D":
+            raise ValueError("product: float32 dense products need a 2-D grid, got a 1-D one (plane strain); use "
+                             "the compliance's float64 product")
+        self.direction_input()[...] = t
+        out[...] = self.transform_direction()
+        return out
+
+    def direction_input(self) -> np.ndarray:
+        """The kept float32 grid (the grid's shape, C-contiguous, this thread's) that
+        :meth:`transform_direction` transforms: the solver's direction kernel writes ``t`` into it."""
+        return self._work()["input"]
+
+    def transform_direction(self) -> np.ndarray:
+        """``A t`` (m, float32, the grid's shape) for ``t`` in :meth:`direction_input`, by a float32 FFT
+        pair; the result is a kept array, valid until this thread's next call."""
+        work = self._work()
+        out, spectrum = work["product"], work["spectrum"]
+        if self._mode == "periodic":
+            rfftn_into(work["input"], spectrum, workers=1)
             spectrum *= self.spectrum
-            out[...] = inverse_into(spectrum, data, workers=1)
-        finally:
-            data[...] = 0.0  # kept zero for add()
+            return inverse_into(spectrum, out, workers=1)
+        rows = work["rows"]
+        rows[:, : self.shape[1]] = work["input"]
+        rows[:, self.shape[1]:] = 0.0  # the previous inverse wrote there
+        self._padded(rows, rows, spectrum)
+        out[...] = rows[:, : self.shape[1]]
         return out
 
     def product_bound(self, peak: float) -> float:
@@ -110,39 +126,58 @@ class SingleCorrection:
             spectrum = sfft.rfft(work, n=self.fft_shape[0], workers=1) * self.spectrum
             u += sfft.irfft(spectrum, n=self.fft_shape[0], workers=1)[: self.shape[0]]
             return
-        buffers = getattr(self._local, "buffers", None)
-        if buffers is None:
-            buffers = self._local.buffers = self._buffers()
-        data, spectrum = buffers
-        data[np.unravel_index(nodes, self.shape)] = values
-        try:
-            self._transform(u, data, spectrum)
-        finally:
-            data[...] = 0.0  # kept zero for the next call
+        u += self.correction(nodes, values)
 
-    def _transform(self, u: np.ndarray, data: np.ndarray, spectrum: np.ndarray) -> None:
-        """``u += A c`` for ``c`` in the kept grid ``data`` (overwritten) through the work ``spectrum``."""
-        if self._mode == "periodic":
-            rfftn_into(data, spectrum, workers=1)
-            spectrum *= self.spectrum
-            u += inverse_into(spectrum, data, workers=1)
-            return
-        # isolated 2-D: pruned as ContactCompliance's padded product (the padding's rows never transformed)
-        ny, nx = self.shape
+    def correction(self, nodes: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """``A c`` (m, float32, the grid's shape; 2-D grids), ``c`` = ``values`` (Pa) at the flat grid
+        indices ``nodes``: a kept array, valid until this thread's next call (the solver adds it to ``u``
+        in its next gap pass)."""
+        work = self._work()
+        scatter, spectrum, out = work["scatter"], work["spectrum"], work["pending"]
+        index = np.unravel_index(nodes, self.shape)
+        scatter[index] = values
+        try:
+            if self._mode == "periodic":
+                rfftn_into(scatter, spectrum, workers=1)  # the input is kept: zeroed at the nodes after
+                spectrum *= self.spectrum
+                inverse_into(spectrum, out, workers=1)
+            else:
+                rows = work["rows"]
+                self._padded(scatter, rows, spectrum)
+                out[...] = rows[:, : self.shape[1]]
+        finally:
+            scatter[index] = 0.0  # kept zero for the next call: only the nodes were written
+        return out
+
+    def _padded(self, data: np.ndarray, rows: np.ndarray, spectrum: np.ndarray) -> None:
+        """``rows`` = the padded float32 product of ``data`` (``(ny, 2 nx)``, its right half zero),
+        pruned as ContactCompliance's padded product (the padding's rows never transformed); the grid's
+        part is ``rows[:, :nx]``. ``data`` is read only (``rows`` may be it)."""
+        ny = self.shape[0]
         rfft_last_into(data, spectrum[:ny], workers=1)
         spectrum[ny:] = 0.0
         fft_first_inplace(spectrum, True, workers=1)
         spectrum *= self.spectrum
         fft_first_inplace(spectrum, False, workers=1)
-        u += irfft_last_into(spectrum[:ny], data, workers=1)[:, :nx]
+        irfft_last_into(spectrum[:ny], rows, workers=1)
 
-    def _buffers(self) -> tuple[np.ndarray, np.ndarray]:
-        """The kept float32 grid (zero between calls; padded rows of twice the width when isolated) and
-        the complex64 work spectrum."""
-        ny, nx = self.shape
-        if self._mode == "periodic":
-            return np.zeros((ny, nx), np.float32), np.empty((ny, nx // 2 + 1), np.complex64)
-        return np.zeros((ny, 2 * nx), np.float32), np.empty((2 * ny, nx + 1), np.complex64)
+    def _work(self) -> dict[str, np.ndarray]:
+        """This thread's kept float32 work arrays: ``scatter`` (the corrections' input, zero between calls;
+        padded rows of twice the width when isolated), ``spectrum`` (complex64), ``input`` / ``product`` /
+        ``pending`` (grid-shaped: the direction, its product, the last correction) and, when isolated,
+        ``rows`` (the padded transforms' output)."""
+        work = getattr(self._local, "work", None)
+        if work is None:
+            ny, nx = self.shape
+            grid = {name: np.zeros((ny, nx), np.float32) for name in ("input", "product", "pending")}
+            if self._mode == "periodic":
+                work = dict(grid, scatter=np.zeros((ny, nx), np.float32),
+                            spectrum=np.empty((ny, nx // 2 + 1), np.complex64))
+            else:
+                work = dict(grid, scatter=np.zeros((ny, 2 * nx), np.float32), rows=np.zeros((ny, 2 * nx), np.float32),
+                            spectrum=np.empty((2 * ny, nx + 1), np.complex64))
+            self._local.work = work
+        return work
 
 
 def _at_origin(spectrum: np.ndarray, shape: tuple[int, ...]) -> float:

@@ -1,0 +1,155 @@
+"""The step of the preconditioned contact loop (:mod:`.preconditioned`): its fused passes, compiled or in NumPy.
+
+After the direction ``t`` and its compliance product ``A t`` (float64, or float32 from the
+mixed-precision product of :mod:`.single_correction`: each compiled kernel is specialised by
+numba for either dtype, the NumPy twin promotes float32 to float64 exactly), the loop takes
+
+5. :func:`dot` / :func:`dot_peak`: ``<A t, t>`` (and ``max |A t|``, the float32 product's bound);
+6. :func:`descend`: ``p -= tau t`` with negative pressures clipped to 0 and the first ones recorded,
+   the sum of ``p``, and in the same pass ``u -= tau A t`` (wasted on the iterations that recompute
+   ``u`` in float64 instead: one in three to five on the surfaces of docs/contact.md).
+
+Each function takes ``compiled`` (:func:`tactilab.core.jit.enabled`, asked once per solve) and
+gives the same elementwise values either way; only the order of the additions in a sum differs, as
+in :mod:`.kernels` (the passes before the step), whose conventions these follow
+(tests/test_contact_kernels.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tactilab.core import jit
+
+from .normal import _dot
+
+
+def _flat(a: np.ndarray) -> np.ndarray:
+    """A 1-D view of a C-contiguous array (the kernels loop over one index)."""
+    return a.reshape(-1)
+
+
+@jit.njit(reassociate=True)
+def _dot_kernel(a, b):
+    total = 0.0
+    for i in range(a.size):
+        total += np.float64(a[i]) * b[i]
+    return total
+
+
+@jit.njit(reassociate=True)
+def _dot_peak_kernel(a, b):
+    total, peak = 0.0, 0.0
+    for i in range(a.size):
+        v = np.float64(a[i])
+        total += v * b[i]
+        peak = max(peak, abs(v))
+    return total, peak
+
+
+@jit.njit
+def _descend_kernel(p, t, tau, nodes, values, u, a):
+    # blocks of four nodes with four partial sums: the rare clipped node is a branch per block, which
+    # keeps the loop from running in SIMD lanes, so the sum is split by hand
+    s0 = s1 = s2 = s3 = 0.0
+    m, size = 0, p.size
+    tail = size - size % 4
+    for i in range(0, tail, 4):
+        u[i] -= np.float64(a[i]) * tau
+        u[i + 1] -= np.float64(a[i + 1]) * tau
+        u[i + 2] -= np.float64(a[i + 2]) * tau
+        u[i + 3] -= np.float64(a[i + 3]) * tau
+        v0, v1 = p[i] - t[i] * tau, p[i + 1] - t[i + 1] * tau
+        v2, v3 = p[i + 2] - t[i + 2] * tau, p[i + 3] - t[i + 3] * tau
+        if (v0 < 0.0) | (v1 < 0.0) | (v2 < 0.0) | (v3 < 0.0):
+            for j in range(i, i + 4):
+                v = p[j] - t[j] * tau
+                if v < 0.0:
+                    if m < nodes.size:
+                        nodes[m] = j
+                        values[m] = -v
+                    m += 1
+            v0, v1 = (0.0 if v0 < 0.0 else v0), (0.0 if v1 < 0.0 else v1)  # NaN stays, as np.maximum
+            v2, v3 = (0.0 if v2 < 0.0 else v2), (0.0 if v3 < 0.0 else v3)
+        p[i], p[i + 1], p[i + 2], p[i + 3] = v0, v1, v2, v3
+        s0, s1, s2, s3 = s0 + v0, s1 + v1, s2 + v2, s3 + v3
+    for i in range(tail, size):
+        u[i] -= np.float64(a[i]) * tau
+        v0 = p[i] - t[i] * tau
+        if v0 < 0.0:
+            if m < nodes.size:
+                nodes[m] = i
+                values[m] = -v0
+            m += 1
+            v0 = 0.0
+        p[i] = v0
+        s0 += v0
+    return m, (s0 + s1) + (s2 + s3)
+
+
+def dot(a: np.ndarray, b: np.ndarray, compiled: bool) -> float:
+    """``sum(a * b)`` in one pass (``a``: float64 or float32, ``b``: float64, arrays of the grid's shape)."""
+    return float(_dot_kernel(_flat(a), _flat(b))) if compiled else _dot(a, b)
+
+
+def dot_peak(a: np.ndarray, b: np.ndarray, compiled: bool) -> tuple[float, float]:
+    """``sum(a * b)`` and ``max |a|`` in one pass (``a``: float64 or float32, ``b``: float64, arrays of
+    the grid's shape)."""
+    if compiled:
+        total, peak = _dot_peak_kernel(_flat(a), _flat(b))
+        return float(total), float(peak)
+    return _dot(a, b), max(float(a.max()), -float(a.min()))
+
+
+def descend(p: np.ndarray, t: np.ndarray, tau: float, nodes: np.ndarray, values: np.ndarray, tmp: np.ndarray,
+            force: bool, u: np.ndarray, At: np.ndarray, compiled: bool) -> tuple[int, float]:
+    """The step ``p -= tau t`` with negative pressures clipped to 0, the first clipped ones recorded, and
+    the displacement's update ``u -= tau A t``.
+
+    Parameters
+    ----------
+    p : ndarray, the grid's shape
+        Pressure, Pa, in place.
+    t : ndarray, the grid's shape
+        Direction, Pa per unit step.
+    tau : float
+        The step (dimensionless).
+    nodes : ndarray of int64, shape (k,)
+        Output: flat indices of the first ``k`` clipped nodes (those beyond are clipped, not recorded).
+    values : ndarray, shape (k,)
+        Output: the pressure added at each recorded node to bring it back to 0, Pa (positive).
+    tmp : ndarray, the grid's shape
+        Work array of the NumPy twin.
+    force : bool
+        Force control: return the sum of ``p`` (for the rescaling to the force).
+    u : ndarray, the grid's shape
+        Displacement, m, in place (its clip corrections are the caller's).
+    At : ndarray, the grid's shape, float64 or float32
+        The direction's compliance product, m per unit step.
+    compiled : bool
+        Run the compiled kernel (else the NumPy twin).
+
+    Returns
+    -------
+    m : int
+        Nodes clipped (all of them, recorded or not).
+    sum_p : float
+        Sum of the clipped ``p``, Pa (0 when not ``force`` in the NumPy twin, which skips it).
+    """
+    if compiled:
+        m, total = _descend_kernel(_flat(p), _flat(t), float(tau), nodes, values, _flat(u), _flat(At))
+        return int(m), float(total)
+    np.multiply(At, np.float64(tau), out=tmp)  # a float64 scalar: float32 products promote, as compiled
+    u -= tmp
+    np.multiply(t, tau, out=tmp)
+    p -= tmp
+    m = 0
+    if float(p.min()) < 0:
+        flat = _flat(p)
+        clipped = np.flatnonzero(flat < 0.0)
+        m = clipped.size
+        k = min(m, nodes.size)
+        nodes[:k] = clipped[:k]
+        values[:k] = -flat[clipped[:k]]
+        np.maximum(p, 0.0, out=p)
+    return m, (float(p.sum()) if force else 0.0)
