@@ -8,8 +8,8 @@ The scenes of ``bench_contact.py``: section a's periodic self-affine surface (fl
 one irfft2 of the grid) and section d's isolated fingertip (floor: the same of the grid zero-padded
 to twice each side). Each solve's fine loop (``preconditioned_cg`` on the finest grid) is split
 into its compliance products (``ContactCompliance.normal``: per iteration, and each one's cost),
-the preconditioner (``ContactCompliance.preconditioner(kind)``'s operator: the exact ``stiffness`` or the
-two-level one, whichever the kind gives on the grid), the direct summation of a few clipped nodes
+the preconditioner (``ContactCompliance.preconditioner(kind)``'s operator: the exact ``stiffness``, in
+float32 beside float32 direction products, or the two-level one, whichever the kind gives on the grid), the direct summation of a few clipped nodes
 (``add_normal_point_loads``), the float32 corrections after steps that clip many nodes
 (``SingleCorrection.correction``, or ``add`` in plane strain), the float32 direction products
 (``SingleCorrection.transform_direction``, columns ``f32A`` and ``f32A/it``), the elementwise passes
@@ -28,6 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_contact as bench  # noqa: E402  (the scenes, the floor, the clock, the method table)
 
 from tactilab.forward.contact import ContactCompliance, kernels, step_kernels  # noqa: E402
+from tactilab.forward.contact.coarse_stiffness import TwoLevelStiffness  # noqa: E402
 from tactilab.forward.contact.single_correction import SingleCorrection  # noqa: E402
 
 PRODUCTS = ("normal", "add_normal_point_loads")
@@ -71,18 +72,6 @@ class Phases:
                 return out
             return timed
 
-        def preconditioner(f):
-            def timed(comp, kind="auto"):
-                operator = f(comp, kind)
-
-                def timed_operator(r, out=None):
-                    t0 = bench.clock()
-                    result = operator(r, out=out)
-                    self._count("stiffness", bench.clock() - t0, comp.shape)
-                    return result
-                return timed_operator
-            return timed
-
         def solver(f):
             def timed(comp, g0, **kwargs):
                 t0 = bench.clock()
@@ -98,7 +87,10 @@ class Phases:
         self._patch(SingleCorrection, "add", lambda f: method(f, "single"))
         self._patch(SingleCorrection, "correction", lambda f: method(f, "single"))
         self._patch(SingleCorrection, "transform_direction", lambda f: method(f, "single_product"))
-        self._patch(ContactCompliance, "preconditioner", preconditioner)
+        # the preconditioner: the exact stiffness (float64, or float32 beside float32 products) or the two-level one
+        self._patch(ContactCompliance, "stiffness", lambda f: method(f, "stiffness"))
+        self._patch(SingleCorrection, "stiffness", lambda f: method(f, "stiffness"))
+        self._patch(TwoLevelStiffness, "__call__", lambda f: method(f, "stiffness"))
         for name, module in PASSES.items():
             self._patch(module, name, lambda f, name=name: function(f, name))
         self._patch_method_table(solver)

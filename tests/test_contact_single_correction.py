@@ -167,3 +167,18 @@ def test_solver_with_single_products_keeps_its_answer(monkeypatch, rng, compiled
     assert off.iterations <= on.iterations <= off.iterations + 2 and on.products < off.products
     assert float(np.abs(on.pressure - off.pressure).max()) <= 1e-6 * float(off.pressure.max())
     assert on.approach == pytest.approx(off.approach, rel=0, abs=1e-8 * float(np.ptp(h)))
+
+
+@pytest.mark.parametrize("periodic", [True, False])
+def test_float32_stiffness_equals_the_exact_one(rng, periodic):
+    """The preconditioner by a float32 pair: the float64 :meth:`ContactCompliance.stiffness` as the oracle
+    (float32 round-off: measured 1e-7 of the peak), symmetric to that round-off (the dot test)."""
+    C = ContactCompliance(SKIN, (64, 48), 1e-6, periodic)
+    single = SingleCorrection(C)
+    g, s = rng.standard_normal((2, 64, 48)) * 1e-6
+    out = np.full((64, 48), np.nan)
+    assert single.stiffness(g, out) is out
+    exact = C.stiffness(g)
+    assert float(np.abs(out - exact).max()) <= 1e-6 * float(np.abs(exact).max())
+    left, right = float((single.stiffness(g, out.copy()) * s).sum()), float((g * single.stiffness(s, out)).sum())
+    assert left == pytest.approx(right, rel=1e-5)

@@ -104,6 +104,8 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     single = mixer if single_corrections else None
     # mixed-precision direction products (float32 FFT pairs into mixer's kept arrays): 2-D grids
     mixed = single_products and mixer is not None and mixer.dense_2d
+    if mixed and K == compliance.stiffness:  # the exact stiffness (isolated grids): by a float32 pair too
+        K = mixer.stiffness
     size = p.size if single is not None else max(limit, 1)
     nodes, values = np.empty(size, dtype=np.int64), np.empty(size)
     # the elementwise passes: fused compiled kernels or their NumPy twins (one choice per solve)
