@@ -138,6 +138,13 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         # the drift's bound below SINGLE_SHARE of the residual: far from convergence (a floor on the
         # residual, 1e-4 of the scale, as well left a third more float64 products: docs/contact.md, Cost)
         cheap_product = mixed and drift + last_step <= SINGLE_SHARE * residual
+        if mixed and not cheap_product and drift and last_step <= SINGLE_SHARE * residual:
+            # the drift, not the product, is in the way: uz recomputed now and a float32 product, rather
+            # than a float64 product and uz recomputed after it (two float64 pairs where one does); this
+            # iteration's gap had the drift, as it would have had with a float64 product
+            u, exact, drift = A(p, out=u), True, 0.0
+            products += 1
+            cheap_product = True
         # nodes that left S leave the direction; a float32 copy of it feeds the float32 product
         rt = kernels.direction(t, z, S, beta, r, compiled, mixer.direction_input() if cheap_product else None)
         z_old, G_old = z, G
