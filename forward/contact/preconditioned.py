@@ -53,9 +53,8 @@ import numpy as np
 
 from tactilab.core import jit
 
-from . import kernels, step_kernels
+from . import kernels, single_correction, step_kernels
 from .normal import REFRESH, NormalResult
-from .single_correction import SingleCorrection
 
 #: start's contact fraction above which "auto" takes the exact stiffness (at 99 % contact it needs 12
 #: to 14 iterations against the two-level one's 16 to 17, and a full contact comes out exact)
@@ -100,7 +99,7 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     # clipped nodes up to which the displacement is corrected by direct summation, not an FFT pair
     limit = getattr(compliance, "direct_limit", 0)
     # single corrections record every clipped node (16 bytes a node), direct summations the first few
-    mixer = SingleCorrection(compliance) if single_corrections or single_products else None
+    mixer = single_correction.kept(compliance) if single_corrections or single_products else None
     single = mixer if single_corrections else None
     # mixed-precision direction products (float32 FFT pairs into mixer's kept arrays): 2-D grids
     mixed = single_products and mixer is not None and mixer.dense_2d
