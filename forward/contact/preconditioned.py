@@ -49,6 +49,9 @@ round-off (docs/contact.md, Cost, has the measured share of each).
 
 from __future__ import annotations
 
+import threading
+import weakref
+
 import numpy as np
 
 from tactilab.core import jit
@@ -89,9 +92,9 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     A, K = compliance.normal, compliance.preconditioner(preconditioner)
     # work arrays, reused: every pass over the grid costs about as much as a tenth of an FFT pair,
     # and a fresh grid-sized array about as much again (page faults)
-    g, r, tmp, t, At, u = (np.empty_like(p) for _ in range(6))
-    z_pair = (np.empty_like(p), np.empty_like(p))  # z and z_old alternate
-    inside, S = np.empty(p.shape, dtype=bool), np.empty(p.shape, dtype=bool)
+    g = np.empty_like(p)  # returned: fresh
+    r, tmp, t, At, u, z, z_other, inside, S = _work_arrays(compliance, p.shape)
+    z_pair = (z, z_other)  # z and z_old alternate
     u = A(p, out=u)
     products, exact = 1, True
     z_old = np.zeros_like(p)
@@ -182,6 +185,31 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
             factor = total / sum_p if force else 1.0
             exact = False
     return NormalResult(p, float(delta), g, it, residual <= target, residual, products)
+
+
+#: the most bytes of work arrays kept per grid operator and thread between solves (grids up to 512^2: the
+#: first touch of fresh arrays cost 0.05 to 0.1 floors per iteration there; larger grids allocate per solve)
+KEPT_BYTES = 32 * 2**20
+_KEPT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_KEPT_LOCK = threading.Lock()
+
+
+def _work_arrays(compliance, shape: tuple[int, ...]) -> tuple[np.ndarray, ...]:
+    """The loop's work arrays (seven float64 and two bool arrays of ``shape``, contents undefined): kept per
+    grid operator and thread while the operator lives and they fit :data:`KEPT_BYTES`, fresh otherwise."""
+    def fresh():
+        return tuple(np.empty(shape) for _ in range(7)) + tuple(np.empty(shape, dtype=bool) for _ in range(2))
+
+    if 7 * 8 * int(np.prod(shape)) > KEPT_BYTES:
+        return fresh()
+    with _KEPT_LOCK:
+        local = _KEPT.get(compliance)
+        if local is None:
+            local = _KEPT[compliance] = threading.local()
+    arrays = getattr(local, "arrays", None)
+    if arrays is None or arrays[0].shape != tuple(shape):
+        arrays = local.arrays = fresh()
+    return arrays
 
 
 def _rescale(p: np.ndarray, total: float | None, sum_p: float) -> None:
