@@ -301,3 +301,20 @@ def test_flat_circular_punch_under_approach_control():
     assert sol.normal_force == pytest.approx(2 * a * ES * delta, rel=0.03)
     uniform = solve_contact(SKIN, np.zeros((n, n)), h, approach=delta)  # a uniform gap moves too
     assert uniform.contact.all() and uniform.converged
+
+
+def test_the_loops_work_arrays_are_kept_for_two_small_grids():
+    """Kept per thread for the last two grid shapes (a fine grid and its check grid); a grid beyond
+    KEPT_BYTES gets fresh arrays and frees the kept ones."""
+    from tactilab.forward.contact import preconditioned
+
+    first = preconditioned._work_arrays((32, 32))
+    assert preconditioned._work_arrays((32, 32))[0] is first[0]
+    assert len(first) == 9 and first[0].shape == (32, 32) and first[-1].dtype == bool
+    preconditioned._work_arrays((16, 16))
+    assert preconditioned._work_arrays((32, 32))[0] is first[0]
+    preconditioned._work_arrays((8, 8))  # a third shape: the least recent, (16, 16), goes
+    assert list(preconditioned._KEPT.arrays) == [(32, 32), (8, 8)]
+    n = int(np.sqrt(preconditioned.KEPT_BYTES // 2 // 58)) + 8
+    big = preconditioned._work_arrays((n, n))
+    assert preconditioned._work_arrays((n, n))[0] is not big[0] and not preconditioned._KEPT.arrays

@@ -132,7 +132,7 @@ def test_solver_path_of_the_dense_product(rng, shape, periodic):
     single = SingleCorrection(ContactCompliance(SKIN, shape, 1e-6, periodic))
     t = rng.standard_normal(shape) * 1e3
     single.direction_input()[...] = t
-    fast = single.transform_direction()
+    fast = single.transform_direction().copy()  # a kept array: the next call writes it
     assert fast.dtype == np.float32 and fast.shape == shape and fast.flags.c_contiguous
     np.testing.assert_array_equal(fast.astype(float), single.product(t, np.empty(shape)))
 
@@ -182,3 +182,20 @@ def test_float32_stiffness_equals_the_exact_one(rng, periodic):
     assert float(np.abs(out - exact).max()) <= 1e-6 * float(np.abs(exact).max())
     left, right = float((single.stiffness(g, out.copy()) * s).sum()), float((g * single.stiffness(s, out)).sum())
     assert left == pytest.approx(right, rel=1e-5)
+
+
+def test_kept_per_compliance_while_small():
+    """Small grids' float32 products are kept per operator (the same object for the next solve), larger ones
+    made per solve; a kept one does not keep its operator alive."""
+    import gc
+
+    from tactilab.forward.contact import single_correction
+
+    small = ContactCompliance(SKIN, (64, 64), 1e-6, True)
+    assert single_correction.kept(small) is single_correction.kept(small)
+    large = ContactCompliance(SKIN, (512, 512), 1e-6, True)  # 4 MiB > KEPT_BYTES
+    assert single_correction.kept(large) is not single_correction.kept(large)
+    count = len(single_correction._KEPT)
+    del small
+    gc.collect()
+    assert len(single_correction._KEPT) == count - 1

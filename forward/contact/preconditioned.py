@@ -49,8 +49,8 @@ round-off (docs/contact.md, Cost, has the measured share of each).
 
 from __future__ import annotations
 
+import collections
 import threading
-import weakref
 
 import numpy as np
 
@@ -93,7 +93,7 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     # work arrays, reused: every pass over the grid costs about as much as a tenth of an FFT pair,
     # and a fresh grid-sized array about as much again (page faults)
     g = np.empty_like(p)  # returned: fresh
-    r, tmp, t, At, u, z, z_other, inside, S = _work_arrays(compliance, p.shape)
+    r, tmp, t, At, u, z, z_other, inside, S = _work_arrays(p.shape)
     z_pair = (z, z_other)  # z and z_old alternate
     u = A(p, out=u)
     products, exact = 1, True
@@ -187,29 +187,35 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     return NormalResult(p, float(delta), g, it, residual <= target, residual, products)
 
 
-#: the most bytes of work arrays kept per grid operator and thread between solves (grids up to 512^2: the
-#: first touch of fresh arrays cost 0.05 to 0.1 floors per iteration there; larger grids allocate per solve)
-KEPT_BYTES = 32 * 2**20
-_KEPT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-_KEPT_LOCK = threading.Lock()
+#: the most bytes of work arrays kept per thread between solves, for the last two grids solved (a fine grid
+#: and its check grid: grids up to 512^2, where the first touch of fresh arrays showed as 0.05 to 0.1
+#: floors per iteration); a solve on a larger grid allocates its own and frees the kept ones first
+KEPT_BYTES = 40 * 2**20
+_KEPT = threading.local()
 
 
-def _work_arrays(compliance, shape: tuple[int, ...]) -> tuple[np.ndarray, ...]:
-    """The loop's work arrays (seven float64 and two bool arrays of ``shape``, contents undefined): kept per
-    grid operator and thread while the operator lives and they fit :data:`KEPT_BYTES`, fresh otherwise."""
-    def fresh():
-        return tuple(np.empty(shape) for _ in range(7)) + tuple(np.empty(shape, dtype=bool) for _ in range(2))
-
-    if 7 * 8 * int(np.prod(shape)) > KEPT_BYTES:
-        return fresh()
-    with _KEPT_LOCK:
-        local = _KEPT.get(compliance)
-        if local is None:
-            local = _KEPT[compliance] = threading.local()
-    arrays = getattr(local, "arrays", None)
-    if arrays is None or arrays[0].shape != tuple(shape):
-        arrays = local.arrays = fresh()
+def _work_arrays(shape: tuple[int, ...]) -> tuple[np.ndarray, ...]:
+    """The loop's work arrays (seven float64 and two bool arrays of ``shape``, contents undefined), kept per
+    thread for the last two grid shapes while they fit :data:`KEPT_BYTES`."""
+    shape = tuple(shape)
+    kept = getattr(_KEPT, "arrays", None)
+    if kept is None:
+        kept = _KEPT.arrays = collections.OrderedDict()
+    if shape in kept:
+        kept.move_to_end(shape)
+        return kept[shape]
+    size = 58 * int(np.prod(shape))  # bytes: seven float64 and two bool arrays
+    if size > KEPT_BYTES // 2:
+        kept.clear()  # a large grid: its memory comes first
+        return _fresh(shape)
+    arrays = kept[shape] = _fresh(shape)
+    while len(kept) > 2:
+        kept.popitem(last=False)
     return arrays
+
+
+def _fresh(shape: tuple[int, ...]) -> tuple[np.ndarray, ...]:
+    return tuple(np.empty(shape) for _ in range(7)) + tuple(np.empty(shape, dtype=bool) for _ in range(2))
 
 
 def _rescale(p: np.ndarray, total: float | None, sum_p: float) -> None:

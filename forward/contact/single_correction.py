@@ -34,15 +34,22 @@ RELATIVE_ERROR = 1e-6
 
 
 #: the float32 products kept per compliance operator (the solver's operators are kept between solves:
-#: starts.grid_operator), so that a solve on a grid solved before skips their set-up (the complex64
-#: spectrum, the origin value, the first touch of the work arrays: 2 floors of the grid at 256^2, 0.6 at
-#: 1024^2, 0.9 padded floors at an isolated 1024^2)
+#: starts.grid_operator) where they hold at most this many bytes (grids up to 256^2): a solve on a grid solved
+#: before skips their set-up (the complex64 spectrum, the origin value, the first touch of the work arrays:
+#: 2 floors of the grid per solve at 256^2, a padded floor isolated); larger ones are made per solve (0.8
+#: floors at 512^2, 0.6 at 1024^2: kept, the 512^2 one raised the peak RSS of a 1024^2 solve by 20 MiB, by
+#: the heap's fragmentation, not by its own 4 MiB)
+KEPT_BYTES = 3 * 2**20
 _KEPT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _KEPT_LOCK = threading.Lock()
 
 
 def kept(compliance) -> SingleCorrection:
-    """The :class:`SingleCorrection` of ``compliance``, made on first use and kept while it lives."""
+    """The :class:`SingleCorrection` of ``compliance``: kept while ``compliance`` lives if it holds at most
+    :data:`KEPT_BYTES`, else a new one."""
+    per_node = 16 if compliance.periodic or len(compliance.shape) == 1 else 48  # bytes (work arrays, spectrum)
+    if per_node * int(np.prod(compliance.shape)) > KEPT_BYTES:
+        return SingleCorrection(compliance)
     with _KEPT_LOCK:
         single = _KEPT.get(compliance)
         if single is None:
@@ -65,8 +72,8 @@ class SingleCorrection:
     being ``values`` (Pa) at the flat indices ``nodes`` and 0 elsewhere; ``apply(c)`` returns it for a
     dense ``c``; :meth:`correction` returns it in float32 (a kept array). :meth:`product` computes a dense
     ``A t`` (2-D grids); the solver feeds it through :meth:`direction_input` and
-    :meth:`transform_direction` without converting. Kept float32 work arrays per thread (about 14 bytes
-    per grid node periodic, 20 bytes per grid node isolated).
+    :meth:`transform_direction` without converting. Kept float32 work arrays per thread (about 12 bytes
+    per grid node periodic, 40 isolated).
     """
 
     def __init__(self, compliance):
@@ -79,7 +86,9 @@ class SingleCorrection:
         self.spectrum = (spectrum / rows).astype(np.complex64)
         self._local = threading.local()  # each thread's kept float32 work arrays
         self._czz = _at_origin(spectrum, self.fft_shape)
-        self._compliance, self._stiffness = compliance, None  # the stiffness's float32 multiplier, made on first use
+        # the stiffness's float32 multiplier, made on first use (a weak reference: _KEPT's values must not
+        # keep its keys alive)
+        self._compliance, self._stiffness = weakref.ref(compliance), None
 
     @property
     def dense_2d(self) -> bool:
@@ -115,19 +124,19 @@ class SingleCorrection:
     def direction_input(self) -> np.ndarray:
         """The kept float32 grid (the grid's shape, C-contiguous, this thread's) that
         :meth:`transform_direction` transforms: the solver's direction kernel writes ``t`` into it."""
-        return self._work()["input"]
+        return self._work()["grid"]
 
     def transform_direction(self) -> np.ndarray:
         """``A t`` (m, float32, the grid's shape) for ``t`` in :meth:`direction_input`, by a float32 FFT
-        pair; the result is a kept array, valid until this thread's next call."""
+        pair; the result is a kept array (the input's), valid until this thread's next call of any method."""
         work = self._work()
-        out, spectrum = work["product"], work["spectrum"]
+        out, spectrum = work["grid"], work["spectrum"]  # the input is read before the result is written
         if self._mode == "periodic":
-            rfftn_into(work["input"], spectrum, workers=1)
+            rfftn_into(out, spectrum, workers=1)
             spectrum *= self.spectrum
             return inverse_into(spectrum, out, workers=1)
         rows = work["rows"]
-        rows[:, : self.shape[1]] = work["input"]
+        rows[:, : self.shape[1]] = out
         rows[:, self.shape[1]:] = 0.0  # the previous inverse wrote there
         self._padded(rows, rows, spectrum)
         out[...] = rows[:, : self.shape[1]]
@@ -137,18 +146,18 @@ class SingleCorrection:
         """``out[...] = K gap`` (Pa, float64) for a gap (m, float64, the grid's shape; 2-D grids): the
         compliance's exact stiffness (:meth:`ContactCompliance.stiffness`, the preconditioner of isolated
         grids) by a float32 FFT pair of the unpadded grid, to about 1e-7 of its values. A preconditioner
-        needs no more: the convergence test reads the gap, not ``K``. Shares the kept float32 grids of
-        :meth:`direction_input` and :meth:`transform_direction` (the solver applies it before either)."""
+        needs no more: the convergence test reads the gap, not ``K``. Shares the kept float32 grid of
+        :meth:`direction_input` (the solver applies it before writing the direction)."""
         work = self._work()
-        data, result = work["input"], work["product"]
+        data = work["grid"]
         spectrum = work["spectrum"] if self._mode == "periodic" else work.setdefault(
             "grid_spectrum", np.empty((self.shape[0], self.shape[1] // 2 + 1), np.complex64))
         if self._stiffness is None:  # inverse_into leaves its 1 / ny to the multiplier
-            self._stiffness = (self._compliance.stiffness_spectrum() / self.shape[0]).astype(np.complex64)
+            self._stiffness = (self._compliance().stiffness_spectrum() / self.shape[0]).astype(np.complex64)
         data[...] = gap
         rfftn_into(data, spectrum, workers=1)
         spectrum *= self._stiffness
-        out[...] = inverse_into(spectrum, result, workers=1)
+        out[...] = inverse_into(spectrum, data, workers=1)
         return out
 
     def product_bound(self, peak: float) -> float:
@@ -167,10 +176,10 @@ class SingleCorrection:
 
     def correction(self, nodes: np.ndarray, values: np.ndarray) -> np.ndarray:
         """``A c`` (m, float32, the grid's shape; 2-D grids), ``c`` = ``values`` (Pa) at the flat grid
-        indices ``nodes``: a kept array, valid until this thread's next call (the solver adds it to ``u``
-        in its next gap pass)."""
+        indices ``nodes``: a kept array, valid until this thread's next call of any method (the solver adds
+        it to ``u`` in its next gap pass)."""
         work = self._work()
-        scatter, spectrum, out = work["scatter"], work["spectrum"], work["pending"]
+        scatter, spectrum, out = work["scatter"], work["spectrum"], work["grid"]
         # flat indices into the scatter grid (np.unravel_index cost up to a quarter of a floor at 256^2)
         index = nodes if self._mode == "periodic" else nodes + (nodes // self.shape[1]) * self.shape[1]
         flat = scatter.reshape(-1)
@@ -201,20 +210,20 @@ class SingleCorrection:
         irfft_last_into(spectrum[:ny], rows, workers=1)
 
     def _work(self) -> dict[str, np.ndarray]:
-        """This thread's kept float32 work arrays: ``scatter`` (the corrections' input, zero between calls;
-        padded rows of twice the width when isolated), ``spectrum`` (complex64), ``input`` / ``product`` /
-        ``pending`` (grid-shaped: the direction, its product, the last correction) and, when isolated,
-        ``rows`` (the padded transforms' output)."""
+        """This thread's kept float32 work arrays: ``grid`` (the grid's shape: in turn the direction, its
+        product, a correction and the stiffness's input and output; each is used up before the next is
+        written, in the solver's order), ``scatter`` (the corrections' input, zero between calls; padded
+        rows of twice the width when isolated), ``spectrum`` (complex64) and, when isolated, ``rows`` (the
+        padded transforms' output) and ``grid_spectrum`` (the unpadded stiffness's, made on first use)."""
         work = getattr(self._local, "work", None)
         if work is None:
             ny, nx = self.shape
-            grid = {name: np.zeros((ny, nx), np.float32) for name in ("input", "product", "pending")}
             if self._mode == "periodic":
-                work = dict(grid, scatter=np.zeros((ny, nx), np.float32),
+                work = dict(grid=np.zeros((ny, nx), np.float32), scatter=np.zeros((ny, nx), np.float32),
                             spectrum=np.empty((ny, nx // 2 + 1), np.complex64))
             else:
-                work = dict(grid, scatter=np.zeros((ny, 2 * nx), np.float32), rows=np.zeros((ny, 2 * nx), np.float32),
-                            spectrum=np.empty((2 * ny, nx + 1), np.complex64))
+                work = dict(grid=np.zeros((ny, nx), np.float32), scatter=np.zeros((ny, 2 * nx), np.float32),
+                            rows=np.zeros((ny, 2 * nx), np.float32), spectrum=np.empty((2 * ny, nx + 1), np.complex64))
             self._local.work = work
         return work
 
