@@ -25,7 +25,7 @@ SHAPE = (24, 36)  # not a multiple of the SIMD width: the kernels' tails run too
 def _fields(rng, shape=SHAPE):
     """Random inputs of every pass, the pressure in contact at a third of the nodes."""
     a = {name: rng.standard_normal(shape) for name in ("g0", "u", "g", "r", "t", "z", "z_old", "At")}
-    a["At32"], a["t32"] = rng.standard_normal(shape).astype(np.float32), np.zeros(shape, np.float32)
+    a["At32"] = rng.standard_normal(shape).astype(np.float32)
     a["p"] = np.where(rng.random(shape) < 1 / 3, rng.random(shape), 0.0)
     a["S"] = rng.random(shape) < 0.4
     return a
@@ -96,24 +96,48 @@ def test_project_pass(rng, force):
     np.testing.assert_allclose(cx, cy, rtol=1e-12)
 
 
-@pytest.mark.parametrize("single", [False, True])
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
 @pytest.mark.parametrize("beta", [0.0, 0.7])
-def test_direction_pass(rng, beta, single):
+def test_direction_pass(rng, beta, dtype):
+    """float64 vectors, or float32 ones beside float32 products: computed in float64, rounded once, and
+    <r, t> of the stored t, on both paths."""
     def run(a, c):
-        return kernels.direction(a["t"], a["z"], a["S"], beta, a["r"], c, a["t32"] if single else None)
+        a["t"], a["z"] = a["t"].astype(dtype), a["z"].astype(dtype)
+        a["t0"] = a["t"].astype(float)
+        return kernels.direction(a["t"], a["z"], a["S"], beta, a["r"], c)
 
     (x, cx), (y, cy) = _both(rng, run)
-    _same_arrays(x, y, ("t", "t32"))
+    _same_arrays(x, y, ("t",))
+    assert x["t"].dtype == dtype
+    expected = x["t0"] * beta * x["S"] + x["z"] if beta > 0 else x["z"]
+    np.testing.assert_array_equal(x["t"], expected.astype(dtype))
     assert cx == pytest.approx(cy, rel=1e-12)
-    assert cx == pytest.approx(float(np.sum(x["r"] * x["t"])), rel=1e-12)
-    if single:  # the float32 product's input: the direction rounded to nearest
-        np.testing.assert_array_equal(x["t32"], x["t"].astype(np.float32))
+    assert cx == pytest.approx(float(np.sum(x["r"] * x["t"].astype(float))), rel=1e-12)
+
+
+@pytest.mark.parametrize("force", [True, False])
+def test_project_pass_float32(rng, force):
+    """The float32 preconditioned residual: (z - mean on S) S in float64, rounded once, the products of the
+    rounded values, both paths."""
+    def run(a, c):
+        a["z"], a["z_old"] = a["z"].astype(np.float32), a["z_old"].astype(np.float32)
+        a["z0"] = a["z"].astype(float)
+        return kernels.project(a["z"], a["S"], int(np.count_nonzero(a["S"])), a["r"], a["z_old"], force, c)
+
+    (x, cx), (y, cy) = _both(rng, run)
+    np.testing.assert_allclose(x["z"], y["z"], rtol=1e-6, atol=1e-7)  # the mean is a sum: one rounding apart
+    assert x["z"].dtype == np.float32 and np.all(x["z"][~x["S"]] == 0)
+    mean = float((x["z0"] * x["S"]).sum()) / np.count_nonzero(x["S"]) if force else 0.0
+    np.testing.assert_allclose(x["z"], ((x["z0"] - mean) * x["S"]).astype(np.float32), rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(cx, cy, rtol=1e-12)
+    np.testing.assert_allclose(cx, [float(np.sum(x["r"] * x["z"].astype(float))),
+                                    float(np.sum(x["r"] * x["z_old"].astype(float)))], rtol=1e-12)
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_dot_pass(rng, dtype):
-    a, b = rng.standard_normal(SHAPE).astype(dtype), rng.standard_normal(SHAPE)
-    exact = float(np.sum(a.astype(float) * b))
+    a, b = rng.standard_normal(SHAPE).astype(dtype), rng.standard_normal(SHAPE).astype(dtype)
+    exact = float(np.sum(a.astype(float) * b.astype(float)))
     for compiled in (True, False):
         assert step_kernels.dot(a, b, compiled) == pytest.approx(exact, rel=1e-12)
 
@@ -122,19 +146,21 @@ def test_dot_pass(rng, dtype):
 def test_dot_peak_pass(rng, dtype):
     """The dot and max |a| of the mixed-precision product's bound, one pass: NumPy's own as the oracle
     (a float32 product read as it is, widened exactly)."""
-    a, b = rng.standard_normal(SHAPE).astype(dtype), rng.standard_normal(SHAPE)
+    a, b = rng.standard_normal(SHAPE).astype(dtype), rng.standard_normal(SHAPE).astype(dtype)
     for compiled in (True, False):
         total, peak = step_kernels.dot_peak(a, b, compiled)
-        assert total == pytest.approx(float(np.sum(a.astype(float) * b)), rel=1e-12)
+        assert total == pytest.approx(float(np.sum(a.astype(float) * b.astype(float))), rel=1e-12)
         assert peak == float(np.abs(a).max())
 
 
-@pytest.mark.parametrize("product", ["At", "At32"])  # the float64 product, or the float32 one
+@pytest.mark.parametrize("product", ["At", "At32"])  # float64 vectors, or float32 ones and product
 @pytest.mark.parametrize("room", [SHAPE[0] * SHAPE[1], 3])  # every clipped node recorded; the first three
 def test_descend_pass(rng, room, product):
     def run(a, c):
         nodes, values = np.full(room, -1, np.int64), np.zeros(room)
-        a["step"] = a["p"] - a["t"] * 0.2
+        if product == "At32":
+            a["t"] = a["t"].astype(np.float32)
+        a["step"] = a["p"] - a["t"].astype(float) * 0.2
         a["u_step"] = a["u"] - a[product].astype(float) * 0.2
         m, total = step_kernels.descend(a["p"], a["t"], 0.2, nodes, values, np.empty(SHAPE), True, a["u"],
                                         a[product], c)

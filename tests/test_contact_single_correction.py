@@ -127,12 +127,13 @@ def test_dense_product_equals_the_float64_product_within_its_bound(rng, periodic
 
 @pytest.mark.parametrize(("shape", "periodic"), GRIDS[:2])
 def test_solver_path_of_the_dense_product(rng, shape, periodic):
-    """The solver's path: the direction written into the kept float32 input, its product returned in
-    float32 (no conversion), equal to :meth:`SingleCorrection.product` bitwise."""
+    """The solver's path: a float32 direction transformed as it is, its product returned in float32 (no
+    conversion), equal to :meth:`SingleCorrection.product` bitwise; the direction left as it was."""
     single = SingleCorrection(ContactCompliance(SKIN, shape, 1e-6, periodic))
     t = rng.standard_normal(shape) * 1e3
-    single.direction_input()[...] = t
-    fast = single.transform_direction().copy()  # a kept array: the next call writes it
+    t32 = t.astype(np.float32)
+    fast = single.transform_direction(t32).copy()  # a kept array: the next call writes it
+    np.testing.assert_array_equal(t32, t.astype(np.float32))
     assert fast.dtype == np.float32 and fast.shape == shape and fast.flags.c_contiguous
     np.testing.assert_array_equal(fast.astype(float), single.product(t, np.empty(shape)))
 
@@ -180,6 +181,9 @@ def test_float32_stiffness_equals_the_exact_one(rng, periodic):
     assert single.stiffness(g, out) is out
     exact = C.stiffness(g)
     assert float(np.abs(out - exact).max()) <= 1e-6 * float(np.abs(exact).max())
+    out32 = np.full((64, 48), np.nan, np.float32)  # the solver's float32 output: the same values
+    assert single.stiffness(g, out32) is out32
+    np.testing.assert_array_equal(out32, out.astype(np.float32))
     left, right = float((single.stiffness(g, out.copy()) * s).sum()), float((g * single.stiffness(s, out)).sum())
     assert left == pytest.approx(right, rel=1e-5)
 

@@ -75,7 +75,7 @@ class TwoLevelStiffness:
     spacing : float or tuple of float
         The node spacing ``h`` in m, or ``(dx, dy)`` with ``dx == dy`` (square pixels).
 
-    Calling it maps a gap (m, shape ``(ny, nx)``) to a pressure (Pa), like
+    Calling it maps a gap (m, shape ``(ny, nx)``) to a pressure (Pa; into ``out``, float64 or float32), like
     :meth:`ContactCompliance.stiffness`.
     """
 
@@ -134,6 +134,9 @@ class TwoLevelStiffness:
         inverse_into(spectrum, coarse, workers=1)
         if compiled:
             _stencil_plus_blocks(gap, self.centre, self.neighbour, coarse, FACTOR, out, row)
+        elif out.dtype != np.float64:  # a float32 output (the solver's beside float32 products): in float64,
+            # rounded once, as the compiled kernel does
+            out[...] = _stencil_plus_blocks_numpy(gap, self.centre, self.neighbour, coarse, FACTOR, np.empty(self.shape))
         else:
             _stencil_plus_blocks_numpy(gap, self.centre, self.neighbour, coarse, FACTOR, out)
         return out

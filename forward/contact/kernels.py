@@ -20,8 +20,12 @@ float64 unless said; ``g`` gap in m, ``p`` pressure in Pa, ``u`` displacement in
    ``max |r|``;
 3. :func:`project`: after ``z = K r``: ``z`` minus its mean on ``S`` (force control), masked by ``S``,
    and the products ``<r, z>``, ``<r, z_old>``;
-4. :func:`direction`: ``t = beta t S + z`` and ``<r, t>`` (and ``t`` in float32, the input of the
-   float32 product, when asked).
+4. :func:`direction`: ``t = beta t S + z`` and ``<r, t>``.
+
+Beside float32 direction products the direction ``t`` and the preconditioned residuals ``z`` are
+float32 arrays (the float32 product's input as they are; a third less memory traffic in the passes
+that read them): each value is computed in float64 and rounded once, and the sums read the rounded
+values, on both paths.
 
 The step's passes (``<A t, t>``, ``p -= tau t`` clipped, ``u -= tau A t``) are in :mod:`.step_kernels`.
 """
@@ -112,48 +116,33 @@ def _residual_kernel(g, delta, p, S, r):
 def _masked_sum_kernel(z, S):
     total = 0.0
     for i in range(z.size):
-        total += z[i] * np.float64(S[i])
+        total += np.float64(z[i]) * np.float64(S[i])
     return total
 
 
 @jit.njit(reassociate=True)
 def _project_kernel(z, S, mean, r, z_old):
+    # z float64 or float32 (then the value is rounded to it before the products: read back)
     rz, rz_old = 0.0, 0.0
     for i in range(z.size):
-        z[i] = v = (z[i] - mean) * np.float64(S[i])
-        rz += r[i] * v
+        z[i] = (z[i] - mean) * np.float64(S[i])
+        rz += r[i] * z[i]
         rz_old += r[i] * z_old[i]
     return rz, rz_old
 
 
 @jit.njit(reassociate=True)
-def _direction_single_kernel(t, z, S, beta, r, t32):
-    # as _direction_kernel, the direction also written in float32 (the float32 product's input)
-    rt = 0.0
-    if beta > 0.0:
-        for i in range(t.size):
-            t[i] = v = (t[i] * beta) * np.float64(S[i]) + z[i]
-            t32[i] = np.float32(v)
-            rt += r[i] * v
-    else:
-        for i in range(t.size):
-            t[i] = v = z[i]
-            t32[i] = np.float32(v)
-            rt += r[i] * v
-    return rt
-
-
-@jit.njit(reassociate=True)
 def _direction_kernel(t, z, S, beta, r):
+    # t, z float64 or float32 (then the value is rounded to t before the product: read back)
     rt = 0.0
     if beta > 0.0:
         for i in range(t.size):
-            t[i] = v = (t[i] * beta) * np.float64(S[i]) + z[i]
-            rt += r[i] * v
+            t[i] = (t[i] * beta) * np.float64(S[i]) + z[i]
+            rt += r[i] * t[i]
     else:  # a restart
         for i in range(t.size):
-            t[i] = v = z[i]
-            rt += r[i] * v
+            t[i] = z[i]
+            rt += r[i] * t[i]
     return rt
 
 
@@ -264,22 +253,29 @@ def project(z: np.ndarray, S: np.ndarray, n_set: int, r: np.ndarray, z_old: np.n
         mean = _masked_sum_kernel(zf, sf) / n_set if force else 0.0
         rz, rz_old = _project_kernel(zf, sf, float(mean), _flat(r), _flat(z_old))
         return float(rz), float(rz_old)
+    if z.dtype != np.float64:  # float32 vectors: in float64, rounded once, as compiled
+        wide = z.astype(float)
+        if force:
+            wide -= _dot(wide, S) / n_set
+        wide *= S
+        z[...] = wide
+        return _dot(r, z.astype(float)), _dot(r, z_old.astype(float))
     if force:  # minus its mean on S (then masked): np.subtract(..., where=S) costs half an FFT pair
         z -= _dot(z, S) / n_set
     z *= S
     return _dot(r, z), _dot(r, z_old)
 
 
-def direction(t: np.ndarray, z: np.ndarray, S: np.ndarray, beta: float, r: np.ndarray, compiled: bool,
-              t32: np.ndarray | None = None) -> float:
+def direction(t: np.ndarray, z: np.ndarray, S: np.ndarray, beta: float, r: np.ndarray, compiled: bool) -> float:
     """The conjugate direction ``t = beta t S + z`` (``t = z`` when ``beta <= 0``), in place; ``<r, t>``.
 
     Parameters
     ----------
     t : ndarray, the grid's shape
-        The previous direction, Pa; overwritten by the new one.
+        The previous direction, Pa; overwritten by the new one (float64, or float32 beside float32
+        products: computed in float64 and rounded once).
     z : ndarray, the grid's shape
-        The projected preconditioned residual (:func:`project`), Pa.
+        The projected preconditioned residual (:func:`project`), Pa, of ``t``'s dtype.
     S : ndarray of bool, the grid's shape
         The working set (nodes that left it leave the direction).
     beta : float
@@ -288,24 +284,22 @@ def direction(t: np.ndarray, z: np.ndarray, S: np.ndarray, beta: float, r: np.nd
         The residual, m.
     compiled : bool
         Run the compiled kernel (else the NumPy twin).
-    t32 : ndarray of float32, the grid's shape, optional
-        Output: the new direction rounded to float32 (the float32 product's input), in the same pass.
 
     Returns
     -------
     float
-        ``<r, t>``, m Pa.
+        ``<r, t>``, m Pa (of the stored ``t``).
     """
     if compiled:
-        if t32 is not None:
-            return float(_direction_single_kernel(_flat(t), _flat(z), _flat(S), float(beta), _flat(r), _flat(t32)))
         return float(_direction_kernel(_flat(t), _flat(z), _flat(S), float(beta), _flat(r)))
+    if t.dtype != np.float64:  # float32 vectors: in float64, rounded once, as compiled
+        wide = t * np.float64(beta) * S + z if beta > 0 else z.astype(float)
+        t[...] = wide
+        return _dot(r, t.astype(float))
     if beta > 0:
         t *= beta
         t *= S
         t += z
     else:
         t[...] = z
-    if t32 is not None:
-        t32[...] = t
     return _dot(r, t)

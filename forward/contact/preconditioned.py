@@ -94,10 +94,8 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     # and a fresh grid-sized array about as much again (page faults)
     g = np.empty_like(p)  # returned: fresh
     r, tmp, t, At, u, z, z_other, inside, S = _work_arrays(p.shape)
-    z_pair = (z, z_other)  # z and z_old alternate
     u = A(p, out=u)
     products, exact = 1, True
-    z_old = np.zeros_like(p)
     G_old, residual, delta = 0.0, np.inf, approach
     # clipped nodes up to which the displacement is corrected by direct summation, not an FFT pair
     limit = getattr(compliance, "direct_limit", 0)
@@ -106,8 +104,13 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     single = mixer if single_corrections else None
     # mixed-precision direction products (float32 FFT pairs into mixer's kept arrays): 2-D grids
     mixed = single_products and mixer is not None and mixer.dense_2d
-    if mixed and K == compliance.stiffness:  # the exact stiffness (isolated grids): by a float32 pair too
-        K = mixer.stiffness
+    if mixed:  # the direction and the preconditioned residuals in float32: the float32 product's input as
+        # they are, a third less memory traffic in the passes that read them (docs/contact.md, Cost)
+        t, z, z_other = _work_arrays(p.shape, np.float32, 3, 0)
+        if K == compliance.stiffness:  # the exact stiffness (isolated grids): by a float32 pair too
+            K = mixer.stiffness
+    z_pair = (z, z_other)  # z and z_old alternate
+    z_old = np.zeros_like(z)
     size = p.size if single is not None else max(limit, 1)
     nodes, values = np.empty(size, dtype=np.int64), np.empty(size)
     # the elementwise passes: fused compiled kernels or their NumPy twins (one choice per solve)
@@ -147,11 +150,10 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
             u, exact, drift = A(p, out=u), True, 0.0
             products += 1
             cheap_product = True
-        # nodes that left S leave the direction; a float32 copy of it feeds the float32 product
-        rt = kernels.direction(t, z, S, beta, r, compiled, mixer.direction_input() if cheap_product else None)
+        rt = kernels.direction(t, z, S, beta, r, compiled)  # nodes that left S leave the direction
         z_old, G_old = z, G
         if cheap_product:
-            step_product = mixer.transform_direction()  # float32, mixer's kept array
+            step_product = mixer.transform_direction(t)  # float32, mixer's kept array
             products += 1
             denom, peak = step_kernels.dot_peak(step_product, t, compiled)
             drift_step = mixer.product_bound(peak)
@@ -188,34 +190,31 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
 
 
 #: the most bytes of work arrays kept per thread between solves, for the last two grids solved (a fine grid
-#: and its check grid: grids up to 512^2, where the first touch of fresh arrays showed as 0.05 to 0.1
-#: floors per iteration); a solve on a larger grid allocates its own and frees the kept ones first
+#: and its check grid, each with its float64 and float32 sets: grids up to 512^2, where the first touch of
+#: fresh arrays showed as 0.05 to 0.1 floors per iteration); a solve on a larger grid allocates its own and
+#: frees the kept ones first
 KEPT_BYTES = 40 * 2**20
 _KEPT = threading.local()
 
 
-def _work_arrays(shape: tuple[int, ...]) -> tuple[np.ndarray, ...]:
-    """The loop's work arrays (seven float64 and two bool arrays of ``shape``, contents undefined), kept per
-    thread for the last two grid shapes while they fit :data:`KEPT_BYTES`."""
-    shape = tuple(shape)
+def _work_arrays(shape: tuple[int, ...], dtype=np.float64, count: int = 7, bools: int = 2) -> tuple[np.ndarray, ...]:
+    """The loop's work arrays (``count`` arrays of ``dtype``, then ``bools`` bool arrays, of ``shape``, contents
+    undefined), kept per thread for the last two grids' sets while they fit :data:`KEPT_BYTES`."""
+    key = (tuple(shape), np.dtype(dtype).str, count, bools)
     kept = getattr(_KEPT, "arrays", None)
     if kept is None:
         kept = _KEPT.arrays = collections.OrderedDict()
-    if shape in kept:
-        kept.move_to_end(shape)
-        return kept[shape]
-    size = 58 * int(np.prod(shape))  # bytes: seven float64 and two bool arrays
-    if size > KEPT_BYTES // 2:
+    if key in kept:
+        kept.move_to_end(key)
+        return kept[key]
+    fresh = tuple(np.empty(shape, dtype) for _ in range(count)) + tuple(np.empty(shape, bool) for _ in range(bools))
+    if sum(a.nbytes for a in fresh) > KEPT_BYTES // 2:
         kept.clear()  # a large grid: its memory comes first
-        return _fresh(shape)
-    arrays = kept[shape] = _fresh(shape)
-    while len(kept) > 2:
+        return fresh
+    kept[key] = fresh
+    while len(kept) > 4:  # two grids, each with its float64 set and, beside float32 products, its float32 one
         kept.popitem(last=False)
-    return arrays
-
-
-def _fresh(shape: tuple[int, ...]) -> tuple[np.ndarray, ...]:
-    return tuple(np.empty(shape) for _ in range(7)) + tuple(np.empty(shape, dtype=bool) for _ in range(2))
+    return fresh
 
 
 def _rescale(p: np.ndarray, total: float | None, sum_p: float) -> None:

@@ -71,8 +71,8 @@ class SingleCorrection:
     ``add(u, nodes, values)`` adds ``A c`` (m) to ``u`` in place (float64, the grid's shape), ``c``
     being ``values`` (Pa) at the flat indices ``nodes`` and 0 elsewhere; ``apply(c)`` returns it for a
     dense ``c``; :meth:`correction` returns it in float32 (a kept array). :meth:`product` computes a dense
-    ``A t`` (2-D grids); the solver feeds it through :meth:`direction_input` and
-    :meth:`transform_direction` without converting. Kept float32 work arrays per thread (about 12 bytes
+    ``A t`` (2-D grids); the solver's float32 direction goes through :meth:`transform_direction` without
+    converting. Kept float32 work arrays per thread (about 12 bytes
     per grid node periodic, 40 isolated).
     """
 
@@ -110,44 +110,42 @@ class SingleCorrection:
         return out
 
     def product(self, t: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """``out[...] = A t`` (m, float64) for a dense pressure ``t`` (Pa, float64, the grid's shape) by a
-        float32 FFT pair; 2-D grids only (error of the order of :data:`RELATIVE_ERROR` of max |A t|,
-        bounded by :meth:`product_bound`). The solver's path is :meth:`direction_input` and
-        :meth:`transform_direction`, which spare the two conversions."""
+        """``out[...] = A t`` (m) for a dense pressure ``t`` (Pa, the grid's shape) by a float32 FFT pair;
+        2-D grids only (error of the order of :data:`RELATIVE_ERROR` of max |A t|, bounded by
+        :meth:`product_bound`). The solver's path is :meth:`transform_direction`, which spares the
+        conversions."""
         if self._mode == "1-D":
             raise ValueError("product: float32 dense products need a 2-D grid, got a 1-D one (plane strain); use "
                              "the compliance's float64 product")
-        self.direction_input()[...] = t
-        out[...] = self.transform_direction()
+        grid = self._work()["grid"]
+        grid[...] = t
+        out[...] = self.transform_direction(grid)
         return out
 
-    def direction_input(self) -> np.ndarray:
-        """The kept float32 grid (the grid's shape, C-contiguous, this thread's) that
-        :meth:`transform_direction` transforms: the solver's direction kernel writes ``t`` into it."""
-        return self._work()["grid"]
-
-    def transform_direction(self) -> np.ndarray:
-        """``A t`` (m, float32, the grid's shape) for ``t`` in :meth:`direction_input`, by a float32 FFT
-        pair; the result is a kept array (the input's), valid until this thread's next call of any method."""
+    def transform_direction(self, t: np.ndarray) -> np.ndarray:
+        """``A t`` (m, float32, the grid's shape) for a float32 direction ``t`` (Pa, the grid's shape,
+        C-contiguous; the solver's own, or the kept grid), by a float32 FFT pair; the result is a kept
+        array, valid until this thread's next call of any method."""
         work = self._work()
-        out, spectrum = work["grid"], work["spectrum"]  # the input is read before the result is written
+        out, spectrum = work["grid"], work["spectrum"]  # t is read before the result is written
         if self._mode == "periodic":
-            rfftn_into(out, spectrum, workers=1)
+            rfftn_into(t, spectrum, workers=1)
             spectrum *= self.spectrum
             return inverse_into(spectrum, out, workers=1)
         rows = work["rows"]
-        rows[:, : self.shape[1]] = out
+        rows[:, : self.shape[1]] = t
         rows[:, self.shape[1]:] = 0.0  # the previous inverse wrote there
         self._padded(rows, rows, spectrum)
         out[...] = rows[:, : self.shape[1]]
         return out
 
     def stiffness(self, gap: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """``out[...] = K gap`` (Pa, float64) for a gap (m, float64, the grid's shape; 2-D grids): the
-        compliance's exact stiffness (:meth:`ContactCompliance.stiffness`, the preconditioner of isolated
-        grids) by a float32 FFT pair of the unpadded grid, to about 1e-7 of its values. A preconditioner
-        needs no more: the convergence test reads the gap, not ``K``. Shares the kept float32 grid of
-        :meth:`direction_input` (the solver applies it before writing the direction)."""
+        """``out[...] = K gap`` (Pa; ``out`` float64, or float32 as the solver's beside float32 products)
+        for a gap (m, float64, the grid's shape; 2-D grids): the compliance's exact stiffness
+        (:meth:`ContactCompliance.stiffness`, the preconditioner of isolated grids) by a float32 FFT pair of
+        the unpadded grid, to about 1e-7 of its values. A preconditioner needs no more: the convergence
+        test reads the gap, not ``K``. Uses the kept float32 grid (the solver applies it before the
+        direction's product)."""
         work = self._work()
         data = work["grid"]
         spectrum = work["spectrum"] if self._mode == "periodic" else work.setdefault(
@@ -157,6 +155,8 @@ class SingleCorrection:
         data[...] = gap
         rfftn_into(data, spectrum, workers=1)
         spectrum *= self._stiffness
+        if out.dtype == np.float32 and out.flags.c_contiguous:
+            return inverse_into(spectrum, out, workers=1)
         out[...] = inverse_into(spectrum, data, workers=1)
         return out
 
@@ -210,9 +210,9 @@ class SingleCorrection:
         irfft_last_into(spectrum[:ny], rows, workers=1)
 
     def _work(self) -> dict[str, np.ndarray]:
-        """This thread's kept float32 work arrays: ``grid`` (the grid's shape: in turn the direction, its
-        product, a correction and the stiffness's input and output; each is used up before the next is
-        written, in the solver's order), ``scatter`` (the corrections' input, zero between calls; padded
+        """This thread's kept float32 work arrays: ``grid`` (the grid's shape: in turn the direction's
+        product, a correction, the stiffness's input; each is used up before the next is written, in the
+        solver's order), ``scatter`` (the corrections' input, zero between calls; padded
         rows of twice the width when isolated), ``spectrum`` (complex64) and, when isolated, ``rows`` (the
         padded transforms' output) and ``grid_spectrum`` (the unpadded stiffness's, made on first use)."""
         work = getattr(self._local, "work", None)

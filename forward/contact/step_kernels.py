@@ -29,11 +29,16 @@ def _flat(a: np.ndarray) -> np.ndarray:
     return a.reshape(-1)
 
 
+def _wide(a: np.ndarray) -> np.ndarray:
+    """``a`` in float64 (the NumPy twins' sums of float32 arrays add in float64, as the kernels do)."""
+    return a if a.dtype == np.float64 else a.astype(float)
+
+
 @jit.njit(reassociate=True)
 def _dot_kernel(a, b):
     total = 0.0
     for i in range(a.size):
-        total += np.float64(a[i]) * b[i]
+        total += np.float64(a[i]) * np.float64(b[i])
     return total
 
 
@@ -49,7 +54,7 @@ def _dot_peak_kernel(a, b):
     bits = a.view(np.int64)
     total, peak = 0.0, np.int64(0)
     for i in range(a.size):
-        total += a[i] * b[i]
+        total += a[i] * np.float64(b[i])
         peak = max(peak, bits[i] & _MAGNITUDE64)
     return total, peak
 
@@ -60,7 +65,7 @@ def _dot_peak32_kernel(a, b):
     bits = a.view(np.int32)
     total, peak = 0.0, np.int32(0)
     for i in range(a.size):
-        total += np.float64(a[i]) * b[i]
+        total += np.float64(a[i]) * np.float64(b[i])
         peak = max(peak, bits[i] & _MAGNITUDE32)
     return total, peak
 
@@ -106,12 +111,12 @@ def _descend_kernel(p, t, tau, nodes, values, u, a):
 
 
 def dot(a: np.ndarray, b: np.ndarray, compiled: bool) -> float:
-    """``sum(a * b)`` in one pass (``a``: float64 or float32, ``b``: float64, arrays of the grid's shape)."""
-    return float(_dot_kernel(_flat(a), _flat(b))) if compiled else _dot(a, b)
+    """``sum(a * b)`` in one pass, in float64 (``a``, ``b``: float64 or float32 arrays of the grid's shape)."""
+    return float(_dot_kernel(_flat(a), _flat(b))) if compiled else _dot(_wide(a), _wide(b))
 
 
 def dot_peak(a: np.ndarray, b: np.ndarray, compiled: bool) -> tuple[float, float]:
-    """``sum(a * b)`` and ``max |a|`` in one pass (``a``: float64 or float32, ``b``: float64, arrays of
+    """``sum(a * b)`` (in float64) and ``max |a|`` in one pass (``a``, ``b``: float64 or float32 arrays of
     the grid's shape)."""
     if compiled:
         if a.dtype == np.float32:
@@ -119,7 +124,7 @@ def dot_peak(a: np.ndarray, b: np.ndarray, compiled: bool) -> tuple[float, float
             return float(total), float(np.int32(bits).view(np.float32))
         total, bits = _dot_peak_kernel(_flat(a), _flat(b))
         return float(total), float(np.int64(bits).view(np.float64))
-    return _dot(a, b), max(float(a.max()), -float(a.min()))
+    return _dot(_wide(a), _wide(b)), max(float(a.max()), -float(a.min()))
 
 
 def descend(p: np.ndarray, t: np.ndarray, tau: float, nodes: np.ndarray, values: np.ndarray, tmp: np.ndarray,
@@ -132,7 +137,7 @@ def descend(p: np.ndarray, t: np.ndarray, tau: float, nodes: np.ndarray, values:
     p : ndarray, the grid's shape
         Pressure, Pa, in place.
     t : ndarray, the grid's shape
-        Direction, Pa per unit step.
+        Direction, Pa per unit step (float64, or float32 beside float32 products).
     tau : float
         The step (dimensionless).
     nodes : ndarray of int64, shape (k,)
@@ -162,7 +167,7 @@ def descend(p: np.ndarray, t: np.ndarray, tau: float, nodes: np.ndarray, values:
         return int(m), float(total)
     np.multiply(At, np.float64(tau), out=tmp)  # a float64 scalar: float32 products promote, as compiled
     u -= tmp
-    np.multiply(t, tau, out=tmp)
+    np.multiply(t, np.float64(tau), out=tmp)
     p -= tmp
     m = 0
     if float(p.min()) < 0:
