@@ -83,6 +83,24 @@ def test_residual_pass(rng):
     assert cx[0] == np.abs(x["r"]).max() and cx[1] == np.count_nonzero(x["S"])
 
 
+def test_residual_pass_float32(rng):
+    """The float32 residual beside float32 products: g keeps it in float64 (S applied), r its rounding,
+    max |r| of the unrounded values (the convergence test's), both paths."""
+    def run(a, c):
+        a["r"] = a["r"].astype(np.float32)
+        a["g_in"] = a["g"].copy()
+        return kernels.residual(a["g"], 0.3, a["p"], a["p"] > 0, a["S"], a["r"], c)
+
+    (x, cx), (y, cy) = _both(rng, run)
+    _same_arrays(x, y, ("g", "S", "r"))
+    assert cx == cy
+    shifted = x["g_in"] - 0.3
+    np.testing.assert_array_equal(x["S"], (shifted < 0) | (x["p"] > 0))
+    np.testing.assert_array_equal(x["g"], shifted * x["S"])
+    np.testing.assert_array_equal(x["r"], x["g"].astype(np.float32))
+    assert cx[0] == np.abs(x["g"]).max() and cx[1] == np.count_nonzero(x["S"])
+
+
 @pytest.mark.parametrize("force", [True, False])
 def test_project_pass(rng, force):
     def run(a, c):

@@ -22,10 +22,11 @@ float64 unless said; ``g`` gap in m, ``p`` pressure in Pa, ``u`` displacement in
    and the products ``<r, z>``, ``<r, z_old>``;
 4. :func:`direction`: ``t = beta t S + z`` and ``<r, t>``.
 
-Beside float32 direction products the direction ``t`` and the preconditioned residuals ``z`` are
-float32 arrays (the float32 product's input as they are; a third less memory traffic in the passes
-that read them): each value is computed in float64 and rounded once, and the sums read the rounded
-values, on both paths.
+Beside float32 direction products the residual ``r``, the direction ``t`` and the preconditioned
+residuals ``z`` are float32 arrays (the float32 product's input as they are; a third less memory
+traffic in the passes that read them): each value is computed in float64 and rounded once, and the
+sums read the rounded values, on both paths; the convergence test's ``max |r|`` is of the unrounded
+residual.
 
 The step's passes (``<A t, t>``, ``p -= tau t`` clipped, ``u -= tau A t``) are in :mod:`.step_kernels`.
 """
@@ -107,6 +108,23 @@ def _residual_kernel(g, delta, p, S, r):
         s = (v < 0.0) | (p[i] > 0.0)
         S[i] = s
         r[i] = v * np.float64(s)  # as NumPy's g * S: NaN stays NaN off the set
+        n_set += np.int64(s)
+        largest = max(largest, bits[i] & _MAGNITUDE)
+    return largest, n_set
+
+
+@jit.njit
+def _residual_single_kernel(g, delta, p, S, r):
+    # as _residual_kernel, r stored in float32; g keeps r in float64, whose bits give max |r| (the
+    # convergence test's, unrounded)
+    bits = g.view(np.int64)
+    n_set, largest = 0, np.int64(0)
+    for i in range(g.size):
+        v = g[i] - delta
+        s = (v < 0.0) | (p[i] > 0.0)
+        S[i] = s
+        g[i] = w = v * np.float64(s)
+        r[i] = w
         n_set += np.int64(s)
         largest = max(largest, bits[i] & _MAGNITUDE)
     return largest, n_set
@@ -204,7 +222,8 @@ def residual(g: np.ndarray, delta: float, p: np.ndarray, inside: np.ndarray, S: 
     S : ndarray of bool, the grid's shape
         Output: the working set.
     r : ndarray, the grid's shape
-        Output: the residual, m.
+        Output: the residual, m: float64, or float32 beside float32 products (then ``g`` holds the
+        residual in float64 on return, not the gap, and ``max |r|`` is of those unrounded values).
     compiled : bool
         Run the compiled kernel (else the NumPy twin).
 
@@ -215,12 +234,18 @@ def residual(g: np.ndarray, delta: float, p: np.ndarray, inside: np.ndarray, S: 
     n_set : int
         Nodes in ``S``.
     """
+    single = r.dtype == np.float32
     if compiled:
-        bits, n_set = _residual_kernel(_flat(g), float(delta), _flat(p), _flat(S), _flat(r))
+        kernel = _residual_single_kernel if single else _residual_kernel
+        bits, n_set = kernel(_flat(g), float(delta), _flat(p), _flat(S), _flat(r))
         return float(np.int64(bits).view(np.float64)), int(n_set)
     g -= delta
     np.less(g, 0.0, out=S)
     S |= inside  # the working set: in contact, or penetrating (entering)
+    if single:
+        g *= S
+        r[...] = g
+        return max(float(g.max()), -float(g.min())), int(np.count_nonzero(S))
     np.multiply(g, S, out=r)
     return max(float(r.max()), -float(r.min())), int(np.count_nonzero(S))
 

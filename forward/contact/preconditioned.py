@@ -104,9 +104,10 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     single = mixer if single_corrections else None
     # mixed-precision direction products (float32 FFT pairs into mixer's kept arrays): 2-D grids
     mixed = single_products and mixer is not None and mixer.dense_2d
-    if mixed:  # the direction and the preconditioned residuals in float32: the float32 product's input as
-        # they are, a third less memory traffic in the passes that read them (docs/contact.md, Cost)
-        t, z, z_other = _work_arrays(p.shape, np.float32, 3, 0)
+    if mixed:  # the residual, the direction and the preconditioned residuals in float32: the float32
+        # product's input as they are, a third less memory traffic in the passes that read them
+        # (docs/contact.md, Cost); the residual pass then leaves the float64 residual in g
+        r, t, z, z_other = _work_arrays(p.shape, np.float32, 4, 0)
         if K == compliance.stiffness:  # the exact stiffness (isolated grids): by a float32 pair too
             K = mixer.stiffness
     z_pair = (z, z_other)  # z and z_old alternate
@@ -186,6 +187,9 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
                 compliance.add_normal_point_loads(u, nodes[:m], values[:m])
             factor = total / sum_p if force else 1.0
             exact = False
+    if r.dtype == np.float32:  # g holds the residual: the gap again, as the gap and residual passes make it
+        np.add(g0, u, out=g)
+        g -= delta
     return NormalResult(p, float(delta), g, it, residual <= target, residual, products)
 
 

@@ -141,7 +141,7 @@ class SingleCorrection:
 
     def stiffness(self, gap: np.ndarray, out: np.ndarray) -> np.ndarray:
         """``out[...] = K gap`` (Pa; ``out`` float64, or float32 as the solver's beside float32 products)
-        for a gap (m, float64, the grid's shape; 2-D grids): the compliance's exact stiffness
+        for a gap (m, the grid's shape, float64 or float32; 2-D grids): the compliance's exact stiffness
         (:meth:`ContactCompliance.stiffness`, the preconditioner of isolated grids) by a float32 FFT pair of
         the unpadded grid, to about 1e-7 of its values. A preconditioner needs no more: the convergence
         test reads the gap, not ``K``. Uses the kept float32 grid (the solver applies it before the
@@ -152,8 +152,11 @@ class SingleCorrection:
             "grid_spectrum", np.empty((self.shape[0], self.shape[1] // 2 + 1), np.complex64))
         if self._stiffness is None:  # inverse_into leaves its 1 / ny to the multiplier
             self._stiffness = (self._compliance().stiffness_spectrum() / self.shape[0]).astype(np.complex64)
-        data[...] = gap
-        rfftn_into(data, spectrum, workers=1)
+        if gap.dtype == np.float32 and gap.flags.c_contiguous:  # the solver's float32 residual, as it is
+            rfftn_into(gap, spectrum, workers=1)
+        else:
+            data[...] = gap
+            rfftn_into(data, spectrum, workers=1)
         spectrum *= self._stiffness
         if out.dtype == np.float32 and out.flags.c_contiguous:
             return inverse_into(spectrum, out, workers=1)
