@@ -10,7 +10,7 @@ to twice each side). Each solve's fine loop (``preconditioned_cg`` on the finest
 into its compliance products (``ContactCompliance.normal``: per iteration, and each one's cost),
 the preconditioner (``ContactCompliance.preconditioner(kind)``'s operator: the exact ``stiffness``, in
 float32 beside float32 direction products, or the two-level one, whichever the kind gives on the grid), the direct summation of a few clipped nodes
-(``add_normal_point_loads``), the float32 corrections after steps that clip many nodes
+(``add_normal_point_loads``, or ``PointLoads.add`` in float32 beside float32 corrections), the float32 corrections after steps that clip many nodes
 (``SingleCorrection.correction``, or ``add`` in plane strain), the float32 direction products
 (``SingleCorrection.transform_direction``, columns ``f32A`` and ``f32A/it``), the elementwise passes
 (``forward/contact/kernels.py`` and ``step_kernels.py``, compiled or NumPy) and the rest (Python between them). The fastest of ``--repeats`` solves is kept, and the
@@ -29,6 +29,7 @@ import bench_contact as bench  # noqa: E402  (the scenes, the floor, the clock, 
 
 from tactilab.forward.contact import ContactCompliance, kernels, step_kernels  # noqa: E402
 from tactilab.forward.contact.coarse_stiffness import TwoLevelStiffness  # noqa: E402
+from tactilab.forward.contact.point_loads import PointLoads  # noqa: E402
 from tactilab.forward.contact.single_correction import SingleCorrection  # noqa: E402
 
 PRODUCTS = ("normal", "add_normal_point_loads")
@@ -86,6 +87,7 @@ class Phases:
             self._patch(ContactCompliance, name, lambda f, name=name: method(f, name))
         self._patch(SingleCorrection, "add", lambda f: method(f, "single"))
         self._patch(SingleCorrection, "correction", lambda f: method(f, "single"))
+        self._patch(PointLoads, "add", lambda f: method(f, "add_normal_point_loads"))
         self._patch(SingleCorrection, "transform_direction", lambda f: method(f, "single_product"))
         # the preconditioner: the exact stiffness (float64, or float32 beside float32 products) or the two-level one
         self._patch(ContactCompliance, "stiffness", lambda f: method(f, "stiffness"))

@@ -203,3 +203,27 @@ def test_kept_per_compliance_while_small():
     del small
     gc.collect()
     assert len(single_correction._KEPT) == count - 1
+
+
+@pytest.mark.parametrize("periodic", [True, False])
+def test_float32_point_loads_equal_the_float64_summation(monkeypatch, rng, periodic):
+    """A few point loads summed from float32 coefficients (the solver's beside float32 corrections): the
+    float64 direct summation as the oracle, within the stated bound (measured: 1e-8 to 3e-8 of the peak
+    against a bound of 1e-6); corner and edge nodes (the periodic wrap-around and the padded windows); the
+    compiled kernel and its NumPy twin bitwise equal."""
+    shape = (24, 40)
+    C = ContactCompliance(SKIN, shape, 1e-6, periodic)
+    points = SingleCorrection(C).points
+    nodes = np.concatenate([[0, shape[1] - 1, C.shape[0] * shape[1] - 1], rng.choice(24 * 40, 9, replace=False)])
+    values = rng.random(nodes.size) * 1e4
+    exact = np.zeros(shape)
+    C.add_normal_point_loads(exact, nodes, values)
+    out = {}
+    for compiled in ("1", "0"):
+        monkeypatch.setenv("TACTILAB_JIT", compiled)
+        out[compiled] = np.full(shape, 1e-9)
+        points.add(out[compiled], nodes, values)
+    np.testing.assert_array_equal(out["1"], out["0"])
+    error = float(np.abs(out["1"] - 1e-9 - exact).max())
+    assert error <= points.bound(values)
+    assert points.bound(values) <= 1e-5 * float(np.abs(exact).max())  # and not a vacuous one

@@ -27,6 +27,7 @@ import numpy as np
 from scipy import fft as sfft
 
 from ..halfspace import fft_first_inplace, inverse_into, irfft_last_into, rfft_last_into, rfftn_into
+from .point_loads import PointLoads
 
 #: the correction's error bound relative to ``Czz sum(c)``, the most ``A c`` can reach (measured: 1.0e-7 to
 #: 1.8e-7 of max |A c|; the tests hold it to this)
@@ -88,7 +89,7 @@ class SingleCorrection:
         self._czz = _at_origin(spectrum, self.fft_shape)
         # the stiffness's float32 multiplier, made on first use (a weak reference: _KEPT's values must not
         # keep its keys alive)
-        self._compliance, self._stiffness = weakref.ref(compliance), None
+        self._compliance, self._stiffness, self._points = weakref.ref(compliance), None, None
 
     @property
     def dense_2d(self) -> bool:
@@ -176,6 +177,14 @@ class SingleCorrection:
             u += sfft.irfft(spectrum, n=self.fft_shape[0], workers=1)[: self.shape[0]]
             return
         u += self.correction(nodes, values)
+
+    @property
+    def points(self) -> PointLoads:
+        """The direct summation of a few point loads from float32 coefficients (:mod:`.point_loads`, 2-D
+        grids), made on first use and kept with this object."""
+        if self._points is None:
+            self._points = PointLoads(self._compliance())
+        return self._points
 
     def correction(self, nodes: np.ndarray, values: np.ndarray) -> np.ndarray:
         """``A c`` (m, float32, the grid's shape; 2-D grids), ``c`` = ``values`` (Pa) at the flat grid
