@@ -40,11 +40,6 @@ from tactilab.core import jit
 from .normal import _dot
 
 
-def _flat(a: np.ndarray) -> np.ndarray:
-    """A 1-D view of a C-contiguous array (the kernels loop over one index)."""
-    return a.reshape(-1)
-
-
 # -- the compiled kernels: one loop each, no temporaries -----------------------------------------
 # Sums are reassociated (jit.njit(reassociate=True): SIMD lanes, twice as fast as one running sum,
 # whose adder latency took as long as the memory traffic); every other value is computed as in the
@@ -56,6 +51,7 @@ _MAGNITUDE = np.int64(0x7FFFFFFFFFFFFFFF)
 
 @jit.njit(reassociate=True)
 def _gap_kernel(g0, u, p, g, factor):
+    g0, u, p, g = g0.reshape(g0.size), u.reshape(u.size), p.reshape(p.size), g.reshape(g.size)  # 1-D views
     n_in, total = 0, 0.0
     if factor != 1.0:  # the force's rescaling, in the same pass
         for i in range(g.size):
@@ -76,6 +72,8 @@ def _gap_kernel(g0, u, p, g, factor):
 
 @jit.njit(reassociate=True)
 def _gap_pending_kernel(g0, u, p, g, factor, pending):
+    g0, u, p = g0.reshape(g0.size), u.reshape(u.size), p.reshape(p.size)  # 1-D views
+    g, pending = g.reshape(g.size), pending.reshape(pending.size)  # 1-D views
     # as _gap_kernel, with a pending float32 clip correction added to u first (u = (u + c) factor)
     n_in, total = 0, 0.0
     if factor != 1.0:
@@ -98,6 +96,7 @@ def _gap_pending_kernel(g0, u, p, g, factor, pending):
 
 @jit.njit
 def _residual_kernel(g, delta, p, S, r):
+    g, p, S, r = g.reshape(g.size), p.reshape(p.size), S.reshape(S.size), r.reshape(r.size)  # 1-D views
     # max |r| on the bits: a float's magnitude orders as its bits without the sign, and NaN's bits
     # exceed infinity's, so the integer maximum is max |r|, or NaN if any r is NaN, and it runs in
     # SIMD lanes where a float maximum that must keep NaN does not (4x slower)
@@ -115,6 +114,7 @@ def _residual_kernel(g, delta, p, S, r):
 
 @jit.njit
 def _residual_single_kernel(g, delta, p, S, r):
+    g, p, S, r = g.reshape(g.size), p.reshape(p.size), S.reshape(S.size), r.reshape(r.size)  # 1-D views
     # as _residual_kernel, r stored in float32; g keeps r in float64, whose bits give max |r| (the
     # convergence test's, unrounded)
     bits = g.view(np.int64)
@@ -132,6 +132,7 @@ def _residual_single_kernel(g, delta, p, S, r):
 
 @jit.njit(reassociate=True)
 def _masked_sum_kernel(z, S):
+    z, S = z.reshape(z.size), S.reshape(S.size)  # 1-D views
     total = 0.0
     for i in range(z.size):
         total += np.float64(z[i]) * np.float64(S[i])
@@ -140,6 +141,8 @@ def _masked_sum_kernel(z, S):
 
 @jit.njit(reassociate=True)
 def _project_kernel(z, S, mean, r, z_old):
+    z, S = z.reshape(z.size), S.reshape(S.size)  # 1-D views
+    r, z_old = r.reshape(r.size), z_old.reshape(z_old.size)  # 1-D views
     # z float64 or float32 (then the value is rounded to it before the products: read back)
     rz, rz_old = 0.0, 0.0
     for i in range(z.size):
@@ -151,6 +154,7 @@ def _project_kernel(z, S, mean, r, z_old):
 
 @jit.njit(reassociate=True)
 def _direction_kernel(t, z, S, beta, r):
+    t, z, S, r = t.reshape(t.size), z.reshape(z.size), S.reshape(S.size), r.reshape(r.size)  # 1-D views
     # t, z float64 or float32 (then the value is rounded to t before the product: read back)
     rt = 0.0
     if beta > 0.0:
@@ -193,9 +197,9 @@ def gap(g0: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray, inside: np.
     """
     if compiled:
         if pending is not None:
-            n_in, total = _gap_pending_kernel(_flat(g0), _flat(u), _flat(p), _flat(g), float(factor), _flat(pending))
+            n_in, total = _gap_pending_kernel(g0, u, p, g, float(factor), pending)
         else:
-            n_in, total = _gap_kernel(_flat(g0), _flat(u), _flat(p), _flat(g), float(factor))
+            n_in, total = _gap_kernel(g0, u, p, g, float(factor))
         return int(n_in), float(total)
     if pending is not None:
         u += pending
@@ -237,7 +241,7 @@ def residual(g: np.ndarray, delta: float, p: np.ndarray, inside: np.ndarray, S: 
     single = r.dtype == np.float32
     if compiled:
         kernel = _residual_single_kernel if single else _residual_kernel
-        bits, n_set = kernel(_flat(g), float(delta), _flat(p), _flat(S), _flat(r))
+        bits, n_set = kernel(g, float(delta), p, S, r)
         return float(np.int64(bits).view(np.float64)), int(n_set)
     g -= delta
     np.less(g, 0.0, out=S)
@@ -274,9 +278,9 @@ def project(z: np.ndarray, S: np.ndarray, n_set: int, r: np.ndarray, z_old: np.n
         ``<r, z>`` and ``<r, z_old>``, m Pa.
     """
     if compiled:
-        zf, sf = _flat(z), _flat(S)
+        zf, sf = z, S
         mean = _masked_sum_kernel(zf, sf) / n_set if force else 0.0
-        rz, rz_old = _project_kernel(zf, sf, float(mean), _flat(r), _flat(z_old))
+        rz, rz_old = _project_kernel(zf, sf, float(mean), r, z_old)
         return float(rz), float(rz_old)
     if z.dtype != np.float64:  # float32 vectors: in float64, rounded once, as compiled
         wide = z.astype(float)
@@ -316,7 +320,7 @@ def direction(t: np.ndarray, z: np.ndarray, S: np.ndarray, beta: float, r: np.nd
         ``<r, t>``, m Pa (of the stored ``t``).
     """
     if compiled:
-        return float(_direction_kernel(_flat(t), _flat(z), _flat(S), float(beta), _flat(r)))
+        return float(_direction_kernel(t, z, S, float(beta), r))
     if t.dtype != np.float64:  # float32 vectors: in float64, rounded once, as compiled
         wide = t * np.float64(beta) * S + z if beta > 0 else z.astype(float)
         t[...] = wide

@@ -36,6 +36,7 @@ def _wide(a: np.ndarray) -> np.ndarray:
 
 @jit.njit(reassociate=True)
 def _dot_kernel(a, b):
+    a, b = a.reshape(a.size), b.reshape(b.size)  # 1-D views
     total = 0.0
     for i in range(a.size):
         total += np.float64(a[i]) * np.float64(b[i])
@@ -48,6 +49,7 @@ _MAGNITUDE64, _MAGNITUDE32 = np.int64(0x7FFFFFFFFFFFFFFF), np.int32(0x7FFFFFFF)
 
 @jit.njit(reassociate=True)
 def _dot_peak_kernel(a, b):
+    a, b = a.reshape(a.size), b.reshape(b.size)  # 1-D views
     # max |a| on the bits, as kernels._residual_kernel: a float's magnitude orders as its bits without
     # the sign and NaN's exceed infinity's, so the integer maximum runs in SIMD lanes and keeps NaN
     # (a float maximum that keeps NaN does not: it took as long as the rest of the pass)
@@ -61,6 +63,7 @@ def _dot_peak_kernel(a, b):
 
 @jit.njit(reassociate=True)
 def _dot_peak32_kernel(a, b):
+    a, b = a.reshape(a.size), b.reshape(b.size)  # 1-D views
     # as _dot_peak_kernel for a float32 product, widened exactly
     bits = a.view(np.int32)
     total, peak = 0.0, np.int32(0)
@@ -72,6 +75,7 @@ def _dot_peak32_kernel(a, b):
 
 @jit.njit
 def _descend_kernel(p, t, tau, nodes, values, u, a):
+    p, t, u, a = p.reshape(p.size), t.reshape(t.size), u.reshape(u.size), a.reshape(a.size)  # 1-D views
     # blocks of four nodes with four partial sums: the rare clipped node is a branch per block, which
     # keeps the loop from running in SIMD lanes, so the sum is split by hand
     s0 = s1 = s2 = s3 = 0.0
@@ -112,7 +116,7 @@ def _descend_kernel(p, t, tau, nodes, values, u, a):
 
 def dot(a: np.ndarray, b: np.ndarray, compiled: bool) -> float:
     """``sum(a * b)`` in one pass, in float64 (``a``, ``b``: float64 or float32 arrays of the grid's shape)."""
-    return float(_dot_kernel(_flat(a), _flat(b))) if compiled else _dot(_wide(a), _wide(b))
+    return float(_dot_kernel(a, b)) if compiled else _dot(_wide(a), _wide(b))
 
 
 def dot_peak(a: np.ndarray, b: np.ndarray, compiled: bool) -> tuple[float, float]:
@@ -120,9 +124,9 @@ def dot_peak(a: np.ndarray, b: np.ndarray, compiled: bool) -> tuple[float, float
     the grid's shape)."""
     if compiled:
         if a.dtype == np.float32:
-            total, bits = _dot_peak32_kernel(_flat(a), _flat(b))
+            total, bits = _dot_peak32_kernel(a, b)
             return float(total), float(np.int32(bits).view(np.float32))
-        total, bits = _dot_peak_kernel(_flat(a), _flat(b))
+        total, bits = _dot_peak_kernel(a, b)
         return float(total), float(np.int64(bits).view(np.float64))
     return _dot(_wide(a), _wide(b)), max(float(a.max()), -float(a.min()))
 
@@ -163,7 +167,7 @@ def descend(p: np.ndarray, t: np.ndarray, tau: float, nodes: np.ndarray, values:
         Sum of the clipped ``p``, Pa (0 when not ``force`` in the NumPy twin, which skips it).
     """
     if compiled:
-        m, total = _descend_kernel(_flat(p), _flat(t), float(tau), nodes, values, _flat(u), _flat(At))
+        m, total = _descend_kernel(p, t, float(tau), nodes, values, u, At)
         return int(m), float(total)
     np.multiply(At, np.float64(tau), out=tmp)  # a float64 scalar: float32 products promote, as compiled
     u -= tmp
