@@ -34,7 +34,7 @@ from tactilab.forward.contact.single_correction import SingleCorrection  # noqa:
 
 PRODUCTS = ("normal", "add_normal_point_loads")
 PASSES = {"gap": kernels, "residual": kernels, "project": kernels, "direction": kernels, "dot": step_kernels,
-          "dot_peak": step_kernels, "descend": step_kernels}
+          "descend": step_kernels}
 
 
 class Phases:

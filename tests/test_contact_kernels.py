@@ -160,15 +160,24 @@ def test_dot_pass(rng, dtype):
         assert step_kernels.dot(a, b, compiled) == pytest.approx(exact, rel=1e-12)
 
 
-@pytest.mark.parametrize("dtype", [np.float64, np.float32])
-def test_dot_peak_pass(rng, dtype):
-    """The dot and max |a| of the mixed-precision product's bound, one pass: NumPy's own as the oracle
-    (a float32 product read as it is, widened exactly)."""
-    a, b = rng.standard_normal(SHAPE).astype(dtype), rng.standard_normal(SHAPE).astype(dtype)
+@pytest.mark.parametrize("nx", [36, 35])  # an even last axis (a Nyquist column) and an odd one
+def test_scale_energy_pass(rng, nx):
+    """The float32 product's multiplier pass: the spectrum scaled in place (as NumPy's complex64 times
+    float32) and sum(m |T|^2) over the full spectrum by Parseval: the real-space <A t, t> of a real
+    multiplier's product as the oracle (float32 round-off), both paths."""
+    t = rng.standard_normal((24, nx)).astype(np.float32)
+    m = rng.random((24, nx // 2 + 1)).astype(np.float32)
+    m = (m + m[(-np.arange(24)) % 24]) / 2  # even in ky, so that the product of a real t is real
+    out = {}
     for compiled in (True, False):
-        total, peak = step_kernels.dot_peak(a, b, compiled)
-        assert total == pytest.approx(float(np.sum(a.astype(float) * b.astype(float))), rel=1e-12)
-        assert peak == float(np.abs(a).max())
+        spectrum = np.fft.rfft2(t).astype(np.complex64)
+        before = spectrum.copy()
+        energy = step_kernels.scale_energy(spectrum, m, nx % 2 == 0, compiled)
+        np.testing.assert_array_equal(spectrum, before * m)
+        out[compiled] = (energy, spectrum)
+    assert out[True][0] == pytest.approx(out[False][0], rel=1e-12)
+    At = np.fft.irfft2(out[True][1].astype(complex), s=(24, nx))
+    assert out[True][0] / t.size == pytest.approx(float(np.sum(At * t)), rel=1e-5)
 
 
 @pytest.mark.parametrize("product", ["At", "At32"])  # float64 vectors, or float32 ones and product
@@ -180,8 +189,9 @@ def test_descend_pass(rng, room, product):
             a["t"] = a["t"].astype(np.float32)
         a["step"] = a["p"] - a["t"].astype(float) * 0.2
         a["u_step"] = a["u"] - a[product].astype(float) * 0.2
-        m, total = step_kernels.descend(a["p"], a["t"], 0.2, nodes, values, np.empty(SHAPE), True, a["u"],
-                                        a[product], c)
+        m, total, peak = step_kernels.descend(a["p"], a["t"], 0.2, nodes, values, np.empty(SHAPE), True, a["u"],
+                                              a[product], c)
+        assert peak == float(np.abs(a[product]).max())  # the float32 product's bound: max |A t|
         return m, total, nodes, values
 
     (x, cx), (y, cy) = _both(rng, run)
@@ -209,8 +219,10 @@ def test_nan_propagates_both_ways(rng):
         assert np.isnan(residual)
         a["At"][2, 2] = np.nan
         a["At32"][2, 2] = np.nan
-        for product in (a["At"], a["At32"]):  # the step tau turns NaN, and so does the float32 bound's peak
-            assert all(np.isnan(step_kernels.dot_peak(product, a["t"], compiled)))
+        assert np.isnan(step_kernels.dot(a["At"], a["t"], compiled))  # the step tau turns NaN
+        for product in (a["At"], a["At32"]):  # and so does the float32 bound's peak
+            args = (a["p"].copy(), a["t"], 0.1, np.zeros(4, np.int64), np.zeros(4), np.empty(SHAPE), True, a["u"].copy())
+            assert np.isnan(step_kernels.descend(*args, product, compiled)[2])
         a["t"][0, 0] = np.nan
         assert np.isnan(kernels.direction(a["t"], a["z"], a["S"], 0.5, a["r"], compiled) if a["S"][0, 0]
                         else step_kernels.dot(a["t"], a["r"], compiled))

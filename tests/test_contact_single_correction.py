@@ -132,8 +132,16 @@ def test_solver_path_of_the_dense_product(rng, shape, periodic):
     single = SingleCorrection(ContactCompliance(SKIN, shape, 1e-6, periodic))
     t = rng.standard_normal(shape) * 1e3
     t32 = t.astype(np.float32)
-    fast = single.transform_direction(t32).copy()  # a kept array: the next call writes it
+    fast, energy = single.transform_direction(t32)
+    fast = fast.copy()  # a kept array: the next call writes it
     np.testing.assert_array_equal(t32, t.astype(np.float32))
+    # <A t, t> by Parseval from t's spectrum: the real-space sum of the float32 product as the oracle (to
+    # float32 round-off), both paths of the multiplier's pass
+    exact = float(np.sum(ContactCompliance(SKIN, shape, 1e-6, periodic).normal(t32.astype(float)) * t32))
+    assert energy == pytest.approx(exact, rel=2e-6)
+    again, twin = single.transform_direction(t32, compiled=False)
+    np.testing.assert_array_equal(again, fast)
+    assert twin == pytest.approx(energy, rel=1e-12)
     assert fast.dtype == np.float32 and fast.shape == shape and fast.flags.c_contiguous
     np.testing.assert_array_equal(fast.astype(float), single.product(t, np.empty(shape)))
 

@@ -162,21 +162,20 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
             cheap_product = True
         rt = kernels.direction(t, z, S, beta, r, compiled)  # nodes that left S leave the direction
         z_old, G_old = z, G
-        if cheap_product:
-            step_product = mixer.transform_direction(t)  # float32, mixer's kept array
+        if cheap_product:  # float32, mixer's kept array; <A t, t> by Parseval in the same transforms
+            step_product, denom = mixer.transform_direction(t, compiled)
             products += 1
-            denom, peak = step_kernels.dot_peak(step_product, t, compiled)
-            drift_step = mixer.product_bound(peak)
         else:
             step_product = At = A(t, out=At)
             products += 2
-            denom, drift_step = step_kernels.dot(At, t, compiled), 0.0
+            denom = step_kernels.dot(At, t, compiled)
         tau = rt / denom if denom > 0 else 0.0
-        # p -= tau t, clipped at 0; u -= tau A t in the same pass (wasted where u is recomputed below)
-        m, sum_p = step_kernels.descend(p, t, tau, nodes, values, tmp, force, u, step_product, compiled)
+        # p -= tau t, clipped at 0; u -= tau A t in the same pass (wasted where u is recomputed below), and
+        # max |A t|, the float32 product's error bound
+        m, sum_p, peak = step_kernels.descend(p, t, tau, nodes, values, tmp, force, u, step_product, compiled)
         it += 1
-        if drift_step:
-            last_step = abs(tau) * drift_step
+        if cheap_product:
+            last_step = abs(tau) * mixer.product_bound(peak)
             drift += last_step
         cheap = m > limit and single is not None and \
             drift + single.bound(values[:m]) <= SINGLE_SHARE * residual

@@ -28,6 +28,7 @@ from scipy import fft as sfft
 
 from ..halfspace import fft_first_inplace, inverse_into, irfft_last_into, rfft_last_into, rfftn_into
 from .point_loads import PointLoads
+from .step_kernels import scale_energy
 
 #: the correction's error bound relative to ``Czz sum(c)``, the most ``A c`` can reach (measured: 1.0e-7 to
 #: 1.8e-7 of max |A c|; the tests hold it to this)
@@ -65,7 +66,8 @@ class SingleCorrection:
     ----------
     compliance : ContactCompliance
         Its ``spectrum("uz", "p")`` (m/Pa per wave, on its ``fft_shape``: the grid, or the grid
-        zero-padded to twice each side for an isolated contact) is kept in complex64.
+        zero-padded to twice each side for an isolated contact) is kept in float32 (real: the
+        compliance is symmetric).
 
     Notes
     -----
@@ -84,7 +86,8 @@ class SingleCorrection:
         spectrum = compliance.spectrum("uz", "p")
         # the 2-D inverses below leave their 1 / (rows) to the multiplier, as ContactCompliance's do
         rows = {"periodic": self.shape[0], "padded": self.fft_shape[0]}.get(self._mode, 1)
-        self.spectrum = (spectrum / rows).astype(np.complex64)
+        # real: the normal compliance is symmetric (an even kernel), its spectrum real to round-off
+        self.spectrum = (spectrum.real / rows).astype(np.float32)
         self._local = threading.local()  # each thread's kept float32 work arrays
         self._czz = _at_origin(spectrum, self.fft_shape)
         # the stiffness's float32 multiplier, made on first use (a weak reference: _KEPT's values must not
@@ -120,25 +123,28 @@ class SingleCorrection:
                              "the compliance's float64 product")
         grid = self._work()["grid"]
         grid[...] = t
-        out[...] = self.transform_direction(grid)
+        out[...] = self.transform_direction(grid)[0]
         return out
 
-    def transform_direction(self, t: np.ndarray) -> np.ndarray:
+    def transform_direction(self, t: np.ndarray, compiled: bool = True) -> tuple[np.ndarray, float]:
         """``A t`` (m, float32, the grid's shape) for a float32 direction ``t`` (Pa, the grid's shape,
-        C-contiguous; the solver's own, or the kept grid), by a float32 FFT pair; the result is a kept
-        array, valid until this thread's next call of any method."""
+        C-contiguous; the solver's own, or the kept grid) by a float32 FFT pair, and ``<A t, t>`` (m Pa)
+        by Parseval from ``t``'s spectrum in the multiplier's pass (:func:`.step_kernels.scale_energy`,
+        compiled or its NumPy twin); the result is a kept array, valid until this thread's next call of
+        any method."""
         work = self._work()
         out, spectrum = work["grid"], work["spectrum"]  # t is read before the result is written
         if self._mode == "periodic":
             rfftn_into(t, spectrum, workers=1)
-            spectrum *= self.spectrum
-            return inverse_into(spectrum, out, workers=1)
+            energy = scale_energy(spectrum, self.spectrum, self.shape[1] % 2 == 0, compiled)
+            inverse_into(spectrum, out, workers=1)
+            return out, energy / self.shape[1]
         rows = work["rows"]
         rows[:, : self.shape[1]] = t
         rows[:, self.shape[1]:] = 0.0  # the previous inverse wrote there
-        self._padded(rows, rows, spectrum)
+        energy = self._padded(rows, rows, spectrum, compiled)
         out[...] = rows[:, : self.shape[1]]
-        return out
+        return out, energy / self.fft_shape[1]
 
     def stiffness(self, gap: np.ndarray, out: np.ndarray) -> np.ndarray:
         """``out[...] = K gap`` (Pa; ``out`` float64, or float32 as the solver's beside float32 products)
@@ -209,17 +215,23 @@ class SingleCorrection:
             flat[index] = 0.0  # kept zero for the next call: only the nodes were written
         return out
 
-    def _padded(self, data: np.ndarray, rows: np.ndarray, spectrum: np.ndarray) -> None:
+    def _padded(self, data: np.ndarray, rows: np.ndarray, spectrum: np.ndarray, compiled: bool | None = None) -> float:
         """``rows`` = the padded float32 product of ``data`` (``(ny, 2 nx)``, its right half zero),
         pruned as ContactCompliance's padded product (the padding's rows never transformed); the grid's
-        part is ``rows[:, :nx]``. ``data`` is read only (``rows`` may be it)."""
+        part is ``rows[:, :nx]``. ``data`` is read only (``rows`` may be it). With ``compiled`` (True or
+        False) the multiplier's pass also returns ``sum(multiplier |spectrum|^2)`` (:func:`scale_energy`)."""
         ny = self.shape[0]
         rfft_last_into(data, spectrum[:ny], workers=1)
         spectrum[ny:] = 0.0
         fft_first_inplace(spectrum, True, workers=1)
-        spectrum *= self.spectrum
+        energy = 0.0
+        if compiled is None:
+            spectrum *= self.spectrum
+        else:
+            energy = scale_energy(spectrum, self.spectrum, True, compiled)
         fft_first_inplace(spectrum, False, workers=1)
         irfft_last_into(spectrum[:ny], rows, workers=1)
+        return energy
 
     def _work(self) -> dict[str, np.ndarray]:
         """This thread's kept float32 work arrays: ``grid`` (the grid's shape: in turn the direction's
