@@ -302,22 +302,3 @@ def test_flat_circular_punch_under_approach_control():
     uniform = solve_contact(SKIN, np.zeros((n, n)), h, approach=delta)  # a uniform gap moves too
     assert uniform.contact.all() and uniform.converged
 
-
-def test_the_loops_work_arrays_are_kept_for_two_small_grids():
-    """Kept per thread for the last two grids' sets (a fine grid and its check grid, float64 and float32);
-    a grid beyond KEPT_BYTES gets fresh arrays and frees the kept ones."""
-    from tactilab.forward.contact import preconditioned
-
-    preconditioned._KEPT.arrays = None  # as a new thread
-    first = preconditioned._work_arrays((32, 32))
-    assert preconditioned._work_arrays((32, 32))[0] is first[0]
-    assert len(first) == 9 and first[0].shape == (32, 32) and first[0].dtype == float and first[-1].dtype == bool
-    single = preconditioned._work_arrays((32, 32), np.float32, 3, 0)
-    assert len(single) == 3 and single[0].dtype == np.float32 and single[0] is not first[0]
-    for shape in ((16, 16), (8, 8), (4, 4)):
-        preconditioned._work_arrays(shape)
-    # four sets kept, the least recent first out
-    assert [key[0] for key in preconditioned._KEPT.arrays] == [(32, 32), (16, 16), (8, 8), (4, 4)]
-    n = int(np.sqrt(preconditioned.KEPT_BYTES // 2 // 58)) + 8
-    big = preconditioned._work_arrays((n, n))
-    assert preconditioned._work_arrays((n, n))[0] is not big[0] and not preconditioned._KEPT.arrays

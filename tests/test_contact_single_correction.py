@@ -205,7 +205,7 @@ def test_kept_per_compliance_while_small():
 
     small = ContactCompliance(SKIN, (64, 64), 1e-6, True)
     assert single_correction.kept(small) is single_correction.kept(small)
-    large = ContactCompliance(SKIN, (512, 512), 1e-6, True)  # 4 MiB > KEPT_BYTES
+    large = ContactCompliance(SKIN, (1024, 1024), 1e-6, True)  # 18 MiB > KEPT_BYTES
     assert single_correction.kept(large) is not single_correction.kept(large)
     count = len(single_correction._KEPT)
     del small

@@ -49,14 +49,12 @@ round-off (docs/contact.md, Cost, has the measured share of each).
 
 from __future__ import annotations
 
-import collections
-import threading
-
 import numpy as np
 
 from tactilab.core import jit
 
 from . import kernels, single_correction, step_kernels
+from .work_arrays import work_arrays
 from .normal import REFRESH, NormalResult
 
 #: start's contact fraction above which "auto" takes the exact stiffness (at 99 % contact it needs 12
@@ -96,7 +94,7 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     # work arrays, reused: every pass over the grid costs about as much as a tenth of an FFT pair,
     # and a fresh grid-sized array about as much again (page faults)
     g = np.empty_like(p)  # returned: fresh
-    r, tmp, t, At, u, z, z_other, inside, S = _work_arrays(p.shape)
+    r, tmp, t, At, u, z, z_other, inside, S = work_arrays(p.shape)
     u = A(p, out=u)
     products, exact = 1, True
     G_old, residual, delta = 0.0, np.inf, approach
@@ -112,7 +110,7 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     if mixed:  # the residual, the direction and the preconditioned residuals in float32: the float32
         # product's input as they are, a third less memory traffic in the passes that read them
         # (docs/contact.md, Cost); the residual pass then leaves the float64 residual in g
-        r, t, z, z_other = _work_arrays(p.shape, np.float32, 4, 0)
+        r, t, z, z_other = work_arrays(p.shape, np.float32, 4, 0)
         if K == compliance.stiffness:  # the exact stiffness (isolated grids): by a float32 pair too
             K = mixer.stiffness
     z_pair = (z, z_other)  # z and z_old alternate
@@ -202,47 +200,6 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
         np.add(g0, u, out=g)
         g -= delta
     return NormalResult(p, float(delta), g, it, residual <= target, residual, products)
-
-
-#: the most bytes of work arrays kept per thread between solves, for the last two grids solved (a fine grid
-#: and its check grid, each with its float64 and float32 sets: grids up to 512^2, where the first touch of
-#: fresh arrays showed as 0.05 to 0.1 floors per iteration); a solve on a larger grid allocates its own and
-#: frees the kept ones first
-KEPT_BYTES = 40 * 2**20
-_KEPT = threading.local()
-
-
-def _work_arrays(shape: tuple[int, ...], dtype=np.float64, count: int = 7, bools: int = 2) -> tuple[np.ndarray, ...]:
-    """The loop's work arrays (``count`` arrays of ``dtype``, then ``bools`` bool arrays, of ``shape``, contents
-    undefined), kept per thread for the last two grids' sets while they fit :data:`KEPT_BYTES`."""
-    key = (tuple(shape), np.dtype(dtype).str, count, bools)
-    kept = getattr(_KEPT, "arrays", None)
-    if kept is None:
-        kept = _KEPT.arrays = collections.OrderedDict()
-    if key in kept:
-        kept.move_to_end(key)
-        return kept[key]
-    fresh = _block(shape, [np.dtype(dtype)] * count + [np.dtype(bool)] * bools)
-    if sum(a.nbytes for a in fresh) > KEPT_BYTES // 2:
-        kept.clear()  # a large grid: its memory comes first
-        return fresh
-    kept[key] = fresh
-    while len(kept) > 4:  # two grids, each with its float64 set and, beside float32 products, its float32 one
-        kept.popitem(last=False)
-    return fresh
-
-
-def _block(shape: tuple[int, ...], dtypes: list) -> tuple[np.ndarray, ...]:
-    """Arrays of ``shape`` and ``dtypes`` carved from one allocation (one mapping for a large grid, returned to
-    the system whole: separate grid-sized arrays left the heap fragmented, 35 MiB more peak memory at 1024^2)."""
-    size = int(np.prod(shape))
-    offsets, total = [], 0
-    for dtype in dtypes:
-        total = -(-total // 64) * 64  # each array on a cache line
-        offsets.append(total)
-        total += size * dtype.itemsize
-    memory = np.empty(total, np.uint8)
-    return tuple(memory[o:o + size * d.itemsize].view(d).reshape(shape) for o, d in zip(offsets, dtypes))
 
 
 def _rescale(p: np.ndarray, total: float | None, sum_p: float) -> None:

@@ -29,6 +29,7 @@ from scipy import fft as sfft
 from ..halfspace import fft_first_inplace, inverse_into, irfft_last_into, rfft_last_into, rfftn_into
 from .point_loads import PointLoads
 from .step_kernels import scale_energy
+from .work_arrays import carve
 
 #: the correction's error bound relative to ``Czz sum(c)``, the most ``A c`` can reach (measured: 1.0e-7 to
 #: 1.8e-7 of max |A c|; the tests hold it to this)
@@ -36,12 +37,12 @@ RELATIVE_ERROR = 1e-6
 
 
 #: the float32 products kept per compliance operator (the solver's operators are kept between solves:
-#: starts.grid_operator) where they hold at most this many bytes (grids up to 256^2): a solve on a grid solved
-#: before skips their set-up (the complex64 spectrum, the origin value, the first touch of the work arrays:
-#: 2 floors of the grid per solve at 256^2, a padded floor isolated); larger ones are made per solve (0.8
-#: floors at 512^2, 0.6 at 1024^2: kept, the 512^2 one raised the peak RSS of a 1024^2 solve by 20 MiB, by
-#: the heap's fragmentation, not by its own 4 MiB)
-KEPT_BYTES = 3 * 2**20
+#: starts.grid_operator) where they hold at most this many bytes (periodic grids up to 512^2, isolated up to
+#: 256^2): a solve on a grid solved before skips their set-up (the float32 spectrum, the origin value, the
+#: point loads' coefficients, the first touch of the work arrays: 2 floors of the grid per solve at 256^2,
+#: 3 at 512^2); larger ones are made per solve (work arrays kept separately, the 512^2 one raised the peak
+#: memory of a 1024^2 solve by 20 MiB, by the heap's fragmentation: now one allocation, work_arrays.carve)
+KEPT_BYTES = 6 * 2**20
 _KEPT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _KEPT_LOCK = threading.Lock()
 
@@ -49,7 +50,7 @@ _KEPT_LOCK = threading.Lock()
 def kept(compliance) -> SingleCorrection:
     """The :class:`SingleCorrection` of ``compliance``: kept while ``compliance`` lives if it holds at most
     :data:`KEPT_BYTES`, else a new one."""
-    per_node = 16 if compliance.periodic or len(compliance.shape) == 1 else 48  # bytes (work arrays, spectrum)
+    per_node = 18 if compliance.periodic or len(compliance.shape) == 1 else 64  # bytes: work, spectrum, points
     if per_node * int(np.prod(compliance.shape)) > KEPT_BYTES:
         return SingleCorrection(compliance)
     with _KEPT_LOCK:
@@ -240,15 +241,14 @@ class SingleCorrection:
         rows of twice the width when isolated), ``spectrum`` (complex64) and, when isolated, ``rows`` (the
         padded transforms' output) and ``grid_spectrum`` (the unpadded stiffness's, made on first use)."""
         work = getattr(self._local, "work", None)
-        if work is None:
+        if work is None:  # one allocation (work_arrays.carve): a large grid's is returned to the system whole
             ny, nx = self.shape
-            if self._mode == "periodic":
-                work = dict(grid=np.zeros((ny, nx), np.float32), scatter=np.zeros((ny, nx), np.float32),
-                            spectrum=np.empty((ny, nx // 2 + 1), np.complex64))
-            else:
-                work = dict(grid=np.zeros((ny, nx), np.float32), scatter=np.zeros((ny, 2 * nx), np.float32),
-                            rows=np.zeros((ny, 2 * nx), np.float32), spectrum=np.empty((2 * ny, nx + 1), np.complex64))
-            self._local.work = work
+            names = ("grid", "scatter", "spectrum") if self._mode == "periodic" else ("grid", "scatter", "rows", "spectrum")
+            specs = [((ny, nx), np.float32), ((ny, nx), np.float32), ((ny, nx // 2 + 1), np.complex64)] \
+                if self._mode == "periodic" else [((ny, nx), np.float32), ((ny, 2 * nx), np.float32),
+                                                  ((ny, 2 * nx), np.float32), ((2 * ny, nx + 1), np.complex64)]
+            work = self._local.work = dict(zip(names, carve(specs)))
+            work["scatter"][...] = 0.0
         return work
 
 
