@@ -53,6 +53,7 @@ def test_gap_pass(rng, factor):
     _same_arrays(x, y, ("g", "u", "p"))
     assert cx[0] == cy[0] == np.count_nonzero(x["p"] > 0)
     assert cx[1] == pytest.approx(cy[1], rel=1e-12)
+    assert cx[2] == cy[2] == 0.0  # no pending correction
 
 
 @pytest.mark.parametrize("factor", [1.0, 1.25])
@@ -70,6 +71,7 @@ def test_gap_pass_adds_a_pending_correction(rng, factor):
     np.testing.assert_array_equal(x["u"], (x["u0"] + x["At32"].astype(float)) * factor)
     np.testing.assert_array_equal(x["g"], x["g0"] + x["u"])
     assert cx[0] == cy[0] and cx[1] == pytest.approx(cy[1], rel=1e-12)
+    assert cx[2] == cy[2] == float(np.abs(x["At32"]).max())  # max |c|: the correction's bound a posteriori
 
 
 def test_residual_pass(rng):
@@ -213,8 +215,10 @@ def test_nan_propagates_both_ways(rng):
         a["g0"][3, 4] = np.nan
         a["p"][3, 4] = 1.0
         inside = np.empty(SHAPE, bool)
-        n_in, total = kernels.gap(a["g0"], a["u"], a["p"], a["g"], inside, 1.0, compiled)
+        n_in, total, _ = kernels.gap(a["g0"], a["u"], a["p"], a["g"], inside, 1.0, compiled)
         assert np.isnan(total)
+        a["At32"][1, 1] = np.nan  # a NaN in a pending correction: its max, the drift's bound, turns NaN
+        assert np.isnan(kernels.gap(a["g0"], a["u"], a["p"], a["g"], inside, 1.0, compiled, a["At32"])[2])
         residual, _ = kernels.residual(a["g"], 0.0, a["p"], a["p"] > 0, a["S"], a["r"], compiled)
         assert np.isnan(residual)
         a["At"][2, 2] = np.nan

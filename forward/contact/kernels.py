@@ -45,8 +45,8 @@ from .normal import _dot
 # whose adder latency took as long as the memory traffic); every other value is computed as in the
 # NumPy twin. Masks enter as 0/1 factors, not branches (the working set is scattered).
 
-#: the bits of a float64 without its sign
-_MAGNITUDE = np.int64(0x7FFFFFFFFFFFFFFF)
+#: the bits of a float64 / float32 without its sign
+_MAGNITUDE, _MAGNITUDE32 = np.int64(0x7FFFFFFFFFFFFFFF), np.int32(0x7FFFFFFF)
 
 
 @jit.njit(reassociate=True)
@@ -71,27 +71,23 @@ def _gap_kernel(g0, u, p, g, factor):
 
 
 @jit.njit(reassociate=True)
-def _gap_pending_kernel(g0, u, p, g, factor, pending):
+def _gap_pending_kernel(g0, u, p, g, factor, pending, bits):
     g0, u, p = g0.reshape(g0.size), u.reshape(u.size), p.reshape(p.size)  # 1-D views
-    g, pending = g.reshape(g.size), pending.reshape(pending.size)  # 1-D views
-    # as _gap_kernel, with a pending float32 clip correction added to u first (u = (u + c) factor)
-    n_in, total = 0, 0.0
-    if factor != 1.0:
-        for i in range(g.size):
-            u[i] = w = (u[i] + np.float64(pending[i])) * factor
-            p[i] *= factor
-            g[i] = v = g0[i] + w
-            inside = p[i] > 0.0
-            total += v * np.float64(inside)
-            n_in += np.int64(inside)
-        return n_in, total
+    g, pending, bits = g.reshape(g.size), pending.reshape(pending.size), bits.reshape(bits.size)  # 1-D views
+    # as _gap_kernel, with a pending float32 clip correction added to u first (u = (u + c) factor), and
+    # max |c| on its bits (as _residual_kernel's maximum: NaN kept)
+    n_in, total, largest = 0, 0.0, np.int32(0)
     for i in range(g.size):
-        u[i] = w = u[i] + np.float64(pending[i])
+        c = np.float64(pending[i])
+        u[i] = w = (u[i] + c) * factor if factor != 1.0 else u[i] + c
+        if factor != 1.0:
+            p[i] *= factor
         g[i] = v = g0[i] + w
         inside = p[i] > 0.0
         total += v * np.float64(inside)
         n_in += np.int64(inside)
-    return n_in, total
+        largest = max(largest, bits[i] & _MAGNITUDE32)
+    return n_in, total, largest
 
 
 @jit.njit
@@ -194,21 +190,25 @@ def gap(g0: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray, inside: np.
         Nodes in contact (``p > 0``).
     sum_in : float
         Sum of ``g`` over them, m.
+    peak : float
+        ``max |pending|``, m (0 without one; NaN if any is NaN): the correction's a-posteriori error bound.
     """
     if compiled:
         if pending is not None:
-            n_in, total = _gap_pending_kernel(g0, u, p, g, float(factor), pending)
-        else:
-            n_in, total = _gap_kernel(g0, u, p, g, float(factor))
-        return int(n_in), float(total)
+            n_in, total, bits = _gap_pending_kernel(g0, u, p, g, float(factor), pending, pending.view(np.int32))
+            return int(n_in), float(total), float(np.int32(bits).view(np.float32))
+        n_in, total = _gap_kernel(g0, u, p, g, float(factor))
+        return int(n_in), float(total), 0.0
+    peak = 0.0
     if pending is not None:
         u += pending
+        peak = max(float(pending.max()), -float(pending.min()))
     if factor != 1.0:
         u *= factor
         p *= factor
     np.add(g0, u, out=g)
     np.greater(p, 0.0, out=inside)
-    return int(np.count_nonzero(inside)), _dot(g, inside)  # a masked sum (where=) is 5x slower
+    return int(np.count_nonzero(inside)), _dot(g, inside), peak  # a masked sum (where=) is 5x slower
 
 
 def residual(g: np.ndarray, delta: float, p: np.ndarray, inside: np.ndarray, S: np.ndarray, r: np.ndarray,

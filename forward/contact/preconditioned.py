@@ -128,7 +128,9 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     last_step = 0.0  # the last float32 product's share of drift, m
     drift = 0.0  # bound on |uz - A p| from the float32 corrections since the last float64 product, m
     while True:
-        n_in, sum_in = kernels.gap(g0, u, p, g, inside, factor, compiled, pending)
+        n_in, sum_in, peak = kernels.gap(g0, u, p, g, inside, factor, compiled, pending)
+        if pending is not None:  # the correction's bound a posteriori, from its max (as the products')
+            drift += single.product_bound(peak) - prior
         factor, pending = 1.0, None
         if force:
             delta = sum_in / n_in if n_in else float(g.min())
@@ -184,7 +186,8 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
             products += 1
         else:  # u = A p updated in place, the pressure added to bring each clipped node back to 0 with it
             if m > limit:  # many: by a float32 FFT pair, on 2-D grids added by the next gap pass
-                drift += single.bound(values[:m])
+                prior = single.bound(values[:m])  # a priori (Czz sum(c), the most |A c| can reach)
+                drift += prior
                 if single.dense_2d:
                     pending = single.correction(nodes[:m], values[:m])
                 else:
