@@ -26,15 +26,18 @@ Products: one compliance product ``A t`` and one preconditioner product ``K r`` 
 isolated contact, or on a periodic grid the two-level stiffness: two passes and a pair of 1/64
 of the nodes). ``uz = A p`` is updated as ``uz - tau A t``; a pressure clipped to 0 adds its
 correction by direct summation of the influence coefficients when few nodes are clipped (up to
-``ContactCompliance.direct_limit``, about 8 on a periodic grid and 36 on a padded 256^2 one), by a
-float32 FFT pair when more are (:mod:`.single_correction`, while the accumulated bound of its
-round-off stays below :data:`SINGLE_SHARE` of the residual; 0.5 to 0.75 of the float64 product's
-time), and ``uz`` is recomputed by a float64 FFT pair otherwise, every 32 iterations, and before
-convergence is declared. On periodic 2-D grids the direction's product ``A t`` itself runs as a
-float32 FFT pair (:meth:`.SingleCorrection.product`) while its round-off, added to the same bound,
-keeps it below the same share of the residual (float64 otherwise, and for a nearly full start):
-the same iterations, 0.4 to 0.7 floors less per iteration at 512^2 and 1024^2 (docs/contact.md,
-Table a3).
+``ContactCompliance.direct_limit``, about 8 on a periodic grid and 36 on a padded 256^2 one; beside
+float32 corrections :data:`POINTS_SHARE` times that, from float32 coefficients, :mod:`.point_loads`),
+by a float32 FFT pair when more are (:mod:`.single_correction`, while the accumulated bound of its
+round-off stays below :data:`SINGLE_SHARE` of the residual; added by the next gap pass), and ``uz``
+is recomputed by a float64 FFT pair otherwise, every 32 iterations, and before convergence is
+declared. On 2-D grids the direction's product ``A t`` itself runs as a float32 FFT pair
+(:meth:`.SingleCorrection.transform_direction`, ``<A t, t>`` by Parseval in its multiplier's pass)
+while its round-off, added to the same bound, keeps it below the same share of the residual (where
+the drift blocks it, ``uz`` is recomputed first; float64 products for a nearly full start); the
+residual, the direction and the preconditioned residuals are then float32 arrays, and the exact
+stiffness a float32 pair: the same iterations, the loop per iteration within 2x of the FFT floor
+(docs/contact.md, Table a4).
 Clipping of many nodes happens in most iterations until the contact set settles (self-affine
 surface, 10 % contact: hundreds to thousands of nodes for the first two thirds of the iterations,
 a few in the tail), so an iteration costs between two and three FFT pairs of the grid with the
@@ -42,9 +45,10 @@ exact stiffness (between one and two with the two-level one), where Polonsky-Kee
 two: the iterations saved pay for it twice over.
 
 Between the products an iteration makes about 30 elementwise passes over the grid in NumPy; they
-run as seven fused loops compiled by numba (:mod:`.kernels`, through :mod:`tactilab.core.jit`), or as
-the NumPy twin where numba is absent or ``TACTILAB_JIT=0``: the same iterates either way, to
-round-off (docs/contact.md, Cost, has the measured share of each).
+run as six fused loops compiled by numba (:mod:`.kernels` and :mod:`.step_kernels`, through
+:mod:`tactilab.core.jit`), or as the NumPy twin where numba is absent or ``TACTILAB_JIT=0``: the same
+iterates either way, to round-off (docs/contact.md, Table a4, has the measured share of each). Work
+arrays come from :mod:`.work_arrays` (kept between solves of small grids).
 """
 
 from __future__ import annotations

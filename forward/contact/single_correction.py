@@ -13,9 +13,12 @@ float64 time; the scatter, the conversion and the addition stay), with an error 
 hundredth of the gap residual (early, when many nodes clip, the residual is large), and keeps the
 exact float64 recompute every ``REFRESH`` iterations and before convergence is declared, so the
 answer's tolerance is unchanged; measured on the surfaces of docs/contact.md (Table a): the same
-iterations, a sixth to a third fewer float64 products (docs/contact.md, Cost). :meth:`SingleCorrection.product`
-runs the solver's dense direction product ``A t`` the same way on periodic 2-D grids (docs/contact.md,
-Table a3).
+iterations, a sixth to a third fewer float64 products (docs/contact.md, Cost). The correction comes
+back in float32 (:meth:`SingleCorrection.correction`), for the solver's next gap pass to add, and its
+bound a posteriori is :meth:`SingleCorrection.product_bound` of its max. The solver's dense direction
+product ``A t`` runs the same way on 2-D grids (:meth:`SingleCorrection.transform_direction`), and so
+do the exact stiffness (:meth:`SingleCorrection.stiffness`) and, from float32 coefficients, the direct
+summation of a few clipped nodes (:attr:`SingleCorrection.points`; docs/contact.md, Table a4).
 """
 
 from __future__ import annotations
