@@ -79,10 +79,12 @@ def preconditioned_cg(compliance, g0: np.ndarray, *, total: float | None, approa
     ``preconditioner``, the kind of :meth:`ContactCompliance.preconditioner` (``"auto"`` takes the
     exact stiffness when the start touches more than :data:`NEARLY_FULL` of the nodes), and
     ``single_corrections``: after a step that clips many nodes, add their correction by a float32 FFT
-    pair (:mod:`.single_correction`) instead of recomputing ``uz`` in float64 (False: recompute), and
-    ``single_products``: on a periodic 2-D grid, compute the direction's product ``A t`` by a float32 FFT
-    pair while the accumulated bound of its round-off stays below :data:`SINGLE_SHARE` of the residual
-    (float64 products after, near convergence)."""
+    pair (:mod:`.single_correction`; a few nodes by direct summation from float32 coefficients) instead of
+    recomputing ``uz`` in float64 (False: recompute; a few nodes from float64 coefficients), and
+    ``single_products``: on a 2-D grid, compute the direction's product ``A t`` by a float32 FFT pair while
+    the accumulated bound of its round-off stays below :data:`SINGLE_SHARE` of the residual, with the
+    residual, the direction and the preconditioned residuals in float32 and the exact stiffness by a
+    float32 pair (False: all in float64)."""
     g0 = np.ascontiguousarray(g0 if extra_gap is None else g0 + extra_gap, dtype=float)  # the kernels loop flat
     scale = float(g0.max() - g0.min()) or float(np.abs(g0).max()) or 1.0
     target = tol * scale
