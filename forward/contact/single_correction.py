@@ -29,6 +29,8 @@ import weakref
 import numpy as np
 from scipy import fft as sfft
 
+from tactilab.core import jit
+
 from ..halfspace import fft_first_inplace, inverse_into, irfft_last_into, rfft_last_into, rfftn_into
 from .point_loads import PointLoads
 from .step_kernels import scale_energy
@@ -130,12 +132,13 @@ class SingleCorrection:
         out[...] = self.transform_direction(grid)[0]
         return out
 
-    def transform_direction(self, t: np.ndarray, compiled: bool = True) -> tuple[np.ndarray, float]:
+    def transform_direction(self, t: np.ndarray, compiled: bool | None = None) -> tuple[np.ndarray, float]:
         """``A t`` (m, float32, the grid's shape) for a float32 direction ``t`` (Pa, the grid's shape,
         C-contiguous; the solver's own, or the kept grid) by a float32 FFT pair, and ``<A t, t>`` (m Pa)
         by Parseval from ``t``'s spectrum in the multiplier's pass (:func:`.step_kernels.scale_energy`,
-        compiled or its NumPy twin); the result is a kept array, valid until this thread's next call of
-        any method."""
+        compiled or its NumPy twin; None: compiled where numba runs); the result is a kept array, valid
+        until this thread's next call of any method."""
+        compiled = jit.enabled() if compiled is None else compiled
         work = self._work()
         out, spectrum = work["grid"], work["spectrum"]  # t is read before the result is written
         if self._mode == "periodic":
