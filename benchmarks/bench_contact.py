@@ -437,7 +437,7 @@ def main(argv=None) -> int:
                              "nodes, as before the float32 corrections (preconditioned_cg(single_corrections=False))")
     parser.add_argument("--float64-products", action="store_true",
                         help="(a), (d): every direction product of the preconditioned CG in float64, as before the "
-                             "mixed-precision ones on periodic grids (preconditioned_cg(single_products=False))")
+                             "mixed-precision ones on 2-D grids (preconditioned_cg(single_products=False))")
     parser.add_argument("--tol", type=float, default=1e-8, help="solver tolerance of every solve (and Tamaas's)")
     parser.add_argument("--condat-tol", type=float, default=1e-4,
                         help="Tamaas Condat's tolerance in (b) (its own cost criterion; 1e-8 gives no answer "

@@ -8,11 +8,12 @@ The scenes of ``bench_contact.py``: section a's periodic self-affine surface (fl
 one irfft2 of the grid) and section d's isolated fingertip (floor: the same of the grid zero-padded
 to twice each side). Each solve's fine loop (``preconditioned_cg`` on the finest grid) is split
 into its compliance products (``ContactCompliance.normal``: per iteration, and each one's cost),
-the preconditioner (``ContactCompliance.preconditioner(kind)``'s operator: the exact ``stiffness`` or the
-two-level one, whichever the kind gives on the grid), the direct summation of a few clipped nodes
-(``add_normal_point_loads``), the float32 corrections after steps that clip many nodes
-(``SingleCorrection.add``), the elementwise passes (``forward/contact/kernels.py``, compiled or
-NumPy) and the rest (Python between them). The fastest of ``--repeats`` solves is kept, and the
+the preconditioner (``ContactCompliance.preconditioner(kind)``'s operator: the exact ``stiffness``, in
+float32 beside float32 direction products, or the two-level one, whichever the kind gives on the grid), the direct summation of a few clipped nodes
+(``add_normal_point_loads``, or ``PointLoads.add`` in float32 beside float32 corrections), the float32 corrections after steps that clip many nodes
+(``SingleCorrection.correction``, or ``add`` in plane strain), the float32 direction products
+(``SingleCorrection.transform_direction``, columns ``f32A`` and ``f32A/it``), the elementwise passes
+(``forward/contact/kernels.py`` and ``step_kernels.py``, compiled or NumPy) and the rest (Python between them). The fastest of ``--repeats`` solves is kept, and the
 fastest of as many floors; the wrappers that time the parts add two clock reads per call.
 """
 
@@ -26,11 +27,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_contact as bench  # noqa: E402  (the scenes, the floor, the clock, the method table)
 
-from tactilab.forward.contact import ContactCompliance, kernels  # noqa: E402
+from tactilab.forward.contact import ContactCompliance, kernels, step_kernels  # noqa: E402
+from tactilab.forward.contact.coarse_stiffness import TwoLevelStiffness  # noqa: E402
+from tactilab.forward.contact.point_loads import PointLoads  # noqa: E402
 from tactilab.forward.contact.single_correction import SingleCorrection  # noqa: E402
 
 PRODUCTS = ("normal", "add_normal_point_loads")
-PASSES = ("gap", "residual", "project", "direction", "dot", "descend", "subtract_scaled")
+PASSES = {"gap": kernels, "residual": kernels, "project": kernels, "direction": kernels, "dot": step_kernels,
+          "descend": step_kernels}
 
 
 class Phases:
@@ -69,18 +73,6 @@ class Phases:
                 return out
             return timed
 
-        def preconditioner(f):
-            def timed(comp, kind="auto"):
-                operator = f(comp, kind)
-
-                def timed_operator(r, out=None):
-                    t0 = bench.clock()
-                    result = operator(r, out=out)
-                    self._count("stiffness", bench.clock() - t0, comp.shape)
-                    return result
-                return timed_operator
-            return timed
-
         def solver(f):
             def timed(comp, g0, **kwargs):
                 t0 = bench.clock()
@@ -94,9 +86,15 @@ class Phases:
         for name in PRODUCTS:
             self._patch(ContactCompliance, name, lambda f, name=name: method(f, name))
         self._patch(SingleCorrection, "add", lambda f: method(f, "single"))
-        self._patch(ContactCompliance, "preconditioner", preconditioner)
-        for name in PASSES:
-            self._patch(kernels, name, lambda f, name=name: function(f, name))
+        self._patch(SingleCorrection, "correction", lambda f: method(f, "single"))
+        self._patch(PointLoads, "add", lambda f: method(f, "add_normal_point_loads"))
+        self._patch(SingleCorrection, "transform_direction", lambda f: method(f, "single_product"))
+        # the preconditioner: the exact stiffness (float64, or float32 beside float32 products) or the two-level one
+        self._patch(ContactCompliance, "stiffness", lambda f: method(f, "stiffness"))
+        self._patch(SingleCorrection, "stiffness", lambda f: method(f, "stiffness"))
+        self._patch(TwoLevelStiffness, "__call__", lambda f: method(f, "stiffness"))
+        for name, module in PASSES.items():
+            self._patch(module, name, lambda f, name=name: function(f, name))
         self._patch_method_table(solver)
         return self
 
@@ -131,7 +129,7 @@ def measure(n: int, periodic: bool, tol: float, kind: str = "auto") -> dict:
     floor = bench.floor_of((n, n), periodic)
     seconds, iterations, products = best.loop
     per = {name: best.time.get(name, 0.0) / iterations / floor
-           for name in PRODUCTS + ("stiffness", "single") + PASSES}
+           for name in PRODUCTS + ("stiffness", "single", "single_product") + tuple(PASSES)}
     passes = sum(per[name] for name in PASSES)
     loop = seconds / iterations / floor
     calls = best.calls.get("normal", 0)
@@ -139,8 +137,10 @@ def measure(n: int, periodic: bool, tol: float, kind: str = "auto") -> dict:
                 normal_per_iteration=calls / iterations,
                 normal_each=best.time.get("normal", 0.0) / max(calls, 1) / floor, normal=per["normal"],
                 stiffness=per["stiffness"], point_loads=per["add_normal_point_loads"], single=per["single"],
-                single_per_iteration=best.calls.get("single", 0) / iterations, passes=passes,
-                rest=loop - passes - per["normal"] - per["stiffness"] - per["add_normal_point_loads"] - per["single"])
+                single_per_iteration=best.calls.get("single", 0) / iterations, single_product=per["single_product"],
+                single_product_per_iteration=best.calls.get("single_product", 0) / iterations, passes=passes,
+                rest=loop - passes - per["normal"] - per["stiffness"] - per["add_normal_point_loads"] - per["single"]
+                - per["single_product"])
 
 
 def main(argv=None) -> int:
@@ -157,14 +157,14 @@ def main(argv=None) -> int:
           f"fastest of {bench.REPEATS['n']}, {args.clock} clock, tol {args.tol:g}, one thread")
     bench.warm_up([args.preconditioner])
     print(f"{'n':>6} {'grid':<9}{'iter':>5}{'prod/it':>8}{'loop':>7}{'A':>7}{'A/it':>6}{'A each':>7}{'K':>6}"
-          f"{'points':>7}{'f32':>6}{'f32/it':>7}{'passes':>7}{'rest':>6}   (FFT floors per iteration)")
+          f"{'points':>7}{'f32':>6}{'f32/it':>7}{'f32A':>6}{'f32A/it':>8}{'passes':>7}{'rest':>6}   (FFT floors per iteration)")
     for n in args.sizes:
         for periodic in (True, False):
             r = measure(n, periodic, args.tol, args.preconditioner)
             print(f"{n:6d} {'periodic' if periodic else 'isolated':<9}{r['iterations']:5d}{r['products']:8.2f}"
                   f"{r['loop']:7.2f}{r['normal']:7.2f}{r['normal_per_iteration']:6.2f}{r['normal_each']:7.2f}"
                   f"{r['stiffness']:6.2f}{r['point_loads']:7.2f}{r['single']:6.2f}{r['single_per_iteration']:7.2f}"
-                  f"{r['passes']:7.2f}{r['rest']:6.2f}", flush=True)
+                  f"{r['single_product']:6.2f}{r['single_product_per_iteration']:8.2f}{r['passes']:7.2f}{r['rest']:6.2f}", flush=True)
     return 0
 
 

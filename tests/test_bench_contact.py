@@ -60,6 +60,6 @@ def test_bench_contact_phases_splits_the_fine_loop(capsys, monkeypatch, kind):
     rows = [line.split() for line in capsys.readouterr().out.splitlines() if line.strip().startswith("32 ")]
     assert [r[1] for r in rows] == ["periodic", "isolated"]
     for r in rows:
-        loop, parts = float(r[4]), [float(r[i]) for i in (5, 8, 9, 10, 12, 13)]  # A, K, points, f32, passes, rest
+        loop, parts = float(r[4]), [float(r[i]) for i in (5, 8, 9, 10, 12, 14, 15)]  # A, K, points, f32, f32A, passes, rest
         assert int(r[2]) > 0 and loop > 0 and float(r[5]) > 0 and float(r[8]) > 0
-        assert sum(parts) == pytest.approx(loop, abs=0.035)  # printed to 0.01 each
+        assert sum(parts) == pytest.approx(loop, abs=0.04)  # printed to 0.01 each

@@ -81,6 +81,18 @@ def test_compiled_kernel_equals_its_numpy_twin(monkeypatch, rng):
     assert K2(r, out=out) is out and np.array_equal(out, twin)
 
 
+@pytest.mark.parametrize("compiled", ["1", "0"])
+def test_float32_input_and_output(monkeypatch, rng, compiled):
+    """The solver's float32 residual and output beside float32 products: computed in float64 from the
+    float32 values and rounded once, on both paths."""
+    monkeypatch.setenv("TACTILAB_JIT", compiled)
+    K2 = cs.TwoLevelStiffness(HalfSpace(E, 0.5), (64, 40), (2e-5, 2e-5))
+    r32 = rng.standard_normal((64, 40)).astype(np.float32)
+    out32 = np.empty((64, 40), np.float32)
+    assert K2(r32, out=out32) is out32
+    np.testing.assert_array_equal(out32, K2(r32.astype(float)).astype(np.float32))
+
+
 @pytest.mark.parametrize("shape,spacing,periodic", [((64, 64), 1e-4, False), ((64,), 1e-4, True),
                                                     ((60, 64), 1e-4, True), ((64, 64), (1e-4, 2e-4), True),
                                                     ((8, 64), 1e-4, True)])

@@ -1,4 +1,5 @@
-"""The fused passes of the contact loop (forward/contact/kernels.py): compiled kernels against their NumPy twins.
+"""The fused passes of the contact loop (forward/contact/kernels.py, step_kernels.py): compiled kernels against
+their NumPy twins.
 
 Oracle: the NumPy twin (the loop's original passes). Each pass gives bitwise the same arrays both
 ways and the same sums to round-off (the compiled sums add in SIMD lanes, NumPy's in blocks); the
@@ -14,7 +15,7 @@ import pytest
 
 from tactilab.data_schemas import random_rough_surface
 from tactilab.forward import HalfSpace, solve_contact
-from tactilab.forward.contact import ContactCompliance, kernels
+from tactilab.forward.contact import ContactCompliance, kernels, step_kernels
 from tactilab.forward.contact.preconditioned import preconditioned_cg
 
 SKIN = HalfSpace(1e6, 0.5)
@@ -24,6 +25,7 @@ SHAPE = (24, 36)  # not a multiple of the SIMD width: the kernels' tails run too
 def _fields(rng, shape=SHAPE):
     """Random inputs of every pass, the pressure in contact at a third of the nodes."""
     a = {name: rng.standard_normal(shape) for name in ("g0", "u", "g", "r", "t", "z", "z_old", "At")}
+    a["At32"] = rng.standard_normal(shape).astype(np.float32)
     a["p"] = np.where(rng.random(shape) < 1 / 3, rng.random(shape), 0.0)
     a["S"] = rng.random(shape) < 0.4
     return a
@@ -51,6 +53,25 @@ def test_gap_pass(rng, factor):
     _same_arrays(x, y, ("g", "u", "p"))
     assert cx[0] == cy[0] == np.count_nonzero(x["p"] > 0)
     assert cx[1] == pytest.approx(cy[1], rel=1e-12)
+    assert cx[2] == cy[2] == 0.0  # no pending correction
+
+
+@pytest.mark.parametrize("factor", [1.0, 1.25])
+def test_gap_pass_adds_a_pending_correction(rng, factor):
+    """The float32 clip correction left pending by the previous step, added to u before the rescaling:
+    u = (u + c) factor, against the same arithmetic in float64 (float32 widens exactly)."""
+    inside = np.empty(SHAPE, bool)
+
+    def run(a, c):
+        a["u0"] = a["u"].copy()
+        return kernels.gap(a["g0"], a["u"], a["p"], a["g"], inside, factor, c, pending=a["At32"])
+
+    (x, cx), (y, cy) = _both(rng, run)
+    _same_arrays(x, y, ("g", "u", "p"))
+    np.testing.assert_array_equal(x["u"], (x["u0"] + x["At32"].astype(float)) * factor)
+    np.testing.assert_array_equal(x["g"], x["g0"] + x["u"])
+    assert cx[0] == cy[0] and cx[1] == pytest.approx(cy[1], rel=1e-12)
+    assert cx[2] == cy[2] == float(np.abs(x["At32"]).max())  # max |c|: the correction's bound a posteriori
 
 
 def test_residual_pass(rng):
@@ -62,6 +83,24 @@ def test_residual_pass(rng):
     _same_arrays(x, y, ("g", "S", "r"))
     assert cx == cy  # a maximum and a count: exact
     assert cx[0] == np.abs(x["r"]).max() and cx[1] == np.count_nonzero(x["S"])
+
+
+def test_residual_pass_float32(rng):
+    """The float32 residual beside float32 products: g keeps it in float64 (S applied), r its rounding,
+    max |r| of the unrounded values (the convergence test's), both paths."""
+    def run(a, c):
+        a["r"] = a["r"].astype(np.float32)
+        a["g_in"] = a["g"].copy()
+        return kernels.residual(a["g"], 0.3, a["p"], a["p"] > 0, a["S"], a["r"], c)
+
+    (x, cx), (y, cy) = _both(rng, run)
+    _same_arrays(x, y, ("g", "S", "r"))
+    assert cx == cy
+    shifted = x["g_in"] - 0.3
+    np.testing.assert_array_equal(x["S"], (shifted < 0) | (x["p"] > 0))
+    np.testing.assert_array_equal(x["g"], shifted * x["S"])
+    np.testing.assert_array_equal(x["r"], x["g"].astype(np.float32))
+    assert cx[0] == np.abs(x["g"]).max() and cx[1] == np.count_nonzero(x["S"])
 
 
 @pytest.mark.parametrize("force", [True, False])
@@ -77,38 +116,89 @@ def test_project_pass(rng, force):
     np.testing.assert_allclose(cx, cy, rtol=1e-12)
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
 @pytest.mark.parametrize("beta", [0.0, 0.7])
-def test_direction_pass(rng, beta):
-    (x, cx), (y, cy) = _both(rng, lambda a, c: kernels.direction(a["t"], a["z"], a["S"], beta, a["r"], c))
+def test_direction_pass(rng, beta, dtype):
+    """float64 vectors, or float32 ones beside float32 products: computed in float64, rounded once, and
+    <r, t> of the stored t, on both paths."""
+    def run(a, c):
+        a["t"], a["z"] = a["t"].astype(dtype), a["z"].astype(dtype)
+        a["t0"] = a["t"].astype(float)
+        return kernels.direction(a["t"], a["z"], a["S"], beta, a["r"], c)
+
+    (x, cx), (y, cy) = _both(rng, run)
     _same_arrays(x, y, ("t",))
+    assert x["t"].dtype == dtype
+    expected = x["t0"] * beta * x["S"] + x["z"] if beta > 0 else x["z"]
+    np.testing.assert_array_equal(x["t"], expected.astype(dtype))
     assert cx == pytest.approx(cy, rel=1e-12)
-    assert cx == pytest.approx(float(np.sum(x["r"] * x["t"])), rel=1e-12)
+    assert cx == pytest.approx(float(np.sum(x["r"] * x["t"].astype(float))), rel=1e-12)
 
 
-def test_dot_pass(rng):
-    a, b = rng.standard_normal(SHAPE), rng.standard_normal(SHAPE)
-    assert kernels.dot(a, b, True) == pytest.approx(kernels.dot(a, b, False), rel=1e-12)
+@pytest.mark.parametrize("force", [True, False])
+def test_project_pass_float32(rng, force):
+    """The float32 preconditioned residual: (z - mean on S) S in float64, rounded once, the products of the
+    rounded values, both paths."""
+    def run(a, c):
+        a["z"], a["z_old"] = a["z"].astype(np.float32), a["z_old"].astype(np.float32)
+        a["z0"] = a["z"].astype(float)
+        return kernels.project(a["z"], a["S"], int(np.count_nonzero(a["S"])), a["r"], a["z_old"], force, c)
+
+    (x, cx), (y, cy) = _both(rng, run)
+    np.testing.assert_allclose(x["z"], y["z"], rtol=1e-6, atol=1e-7)  # the mean is a sum: one rounding apart
+    assert x["z"].dtype == np.float32 and np.all(x["z"][~x["S"]] == 0)
+    mean = float((x["z0"] * x["S"]).sum()) / np.count_nonzero(x["S"]) if force else 0.0
+    np.testing.assert_allclose(x["z"], ((x["z0"] - mean) * x["S"]).astype(np.float32), rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(cx, cy, rtol=1e-12)
+    np.testing.assert_allclose(cx, [float(np.sum(x["r"] * x["z"].astype(float))),
+                                    float(np.sum(x["r"] * x["z_old"].astype(float)))], rtol=1e-12)
 
 
-def test_dot_peak_pass(rng):
-    """The dot and max |a| of the mixed-precision product's bound, one pass: NumPy's own as the oracle."""
-    a, b = rng.standard_normal(SHAPE), rng.standard_normal(SHAPE)
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_dot_pass(rng, dtype):
+    a, b = rng.standard_normal(SHAPE).astype(dtype), rng.standard_normal(SHAPE).astype(dtype)
+    exact = float(np.sum(a.astype(float) * b.astype(float)))
     for compiled in (True, False):
-        total, peak = kernels.dot_peak(a, b, compiled)
-        assert total == pytest.approx(float(np.sum(a * b)), rel=1e-12)
-        assert peak == float(np.abs(a).max())
+        assert step_kernels.dot(a, b, compiled) == pytest.approx(exact, rel=1e-12)
 
 
+@pytest.mark.parametrize("nx", [36, 35])  # an even last axis (a Nyquist column) and an odd one
+def test_scale_energy_pass(rng, nx):
+    """The float32 product's multiplier pass: the spectrum scaled in place (as NumPy's complex64 times
+    float32) and sum(m |T|^2) over the full spectrum by Parseval: the real-space <A t, t> of a real
+    multiplier's product as the oracle (float32 round-off), both paths."""
+    t = rng.standard_normal((24, nx)).astype(np.float32)
+    m = rng.random((24, nx // 2 + 1)).astype(np.float32)
+    m = (m + m[(-np.arange(24)) % 24]) / 2  # even in ky, so that the product of a real t is real
+    out = {}
+    for compiled in (True, False):
+        spectrum = np.fft.rfft2(t).astype(np.complex64)
+        before = spectrum.copy()
+        energy = step_kernels.scale_energy(spectrum, m, nx % 2 == 0, compiled)
+        np.testing.assert_array_equal(spectrum, before * m)
+        out[compiled] = (energy, spectrum)
+    assert out[True][0] == pytest.approx(out[False][0], rel=1e-12)
+    At = np.fft.irfft2(out[True][1].astype(complex), s=(24, nx))
+    assert out[True][0] / t.size == pytest.approx(float(np.sum(At * t)), rel=1e-5)
+
+
+@pytest.mark.parametrize("product", ["At", "At32"])  # float64 vectors, or float32 ones and product
 @pytest.mark.parametrize("room", [SHAPE[0] * SHAPE[1], 3])  # every clipped node recorded; the first three
-def test_descend_pass(rng, room):
+def test_descend_pass(rng, room, product):
     def run(a, c):
         nodes, values = np.full(room, -1, np.int64), np.zeros(room)
-        a["step"] = a["p"] - a["t"] * 0.2
-        m, total = kernels.descend(a["p"], a["t"], 0.2, nodes, values, np.empty(SHAPE), True, c)
+        if product == "At32":
+            a["t"] = a["t"].astype(np.float32)
+        a["step"] = a["p"] - a["t"].astype(float) * 0.2
+        a["u_step"] = a["u"] - a[product].astype(float) * 0.2
+        m, total, peak = step_kernels.descend(a["p"], a["t"], 0.2, nodes, values, np.empty(SHAPE), True, a["u"],
+                                              a[product], c)
+        assert peak == float(np.abs(a[product]).max())  # the float32 product's bound: max |A t|
         return m, total, nodes, values
 
     (x, cx), (y, cy) = _both(rng, run)
-    _same_arrays(x, y, ("p",))
+    _same_arrays(x, y, ("p", "u"))
+    np.testing.assert_array_equal(x["u"], x["u_step"])  # u -= tau A t in the same pass
     negative = np.flatnonzero(x["step"] < 0)
     assert cx[0] == cy[0] == negative.size > 3
     np.testing.assert_array_equal(x["p"], np.maximum(x["step"], 0.0))
@@ -119,26 +209,27 @@ def test_descend_pass(rng, room):
         np.testing.assert_array_equal(values[:k], -x["step"].reshape(-1)[negative[:k]])
 
 
-def test_subtract_scaled_pass(rng):
-    (x, _), (y, _) = _both(rng, lambda a, c: kernels.subtract_scaled(a["u"], a["At"], 0.4, np.empty(SHAPE), c))
-    _same_arrays(x, y, ("u",))
-
-
 def test_nan_propagates_both_ways(rng):
     for compiled in (True, False):
         a = _fields(np.random.default_rng(5))
         a["g0"][3, 4] = np.nan
         a["p"][3, 4] = 1.0
         inside = np.empty(SHAPE, bool)
-        n_in, total = kernels.gap(a["g0"], a["u"], a["p"], a["g"], inside, 1.0, compiled)
+        n_in, total, _ = kernels.gap(a["g0"], a["u"], a["p"], a["g"], inside, 1.0, compiled)
         assert np.isnan(total)
+        a["At32"][1, 1] = np.nan  # a NaN in a pending correction: its max, the drift's bound, turns NaN
+        assert np.isnan(kernels.gap(a["g0"], a["u"], a["p"], a["g"], inside, 1.0, compiled, a["At32"])[2])
         residual, _ = kernels.residual(a["g"], 0.0, a["p"], a["p"] > 0, a["S"], a["r"], compiled)
         assert np.isnan(residual)
         a["At"][2, 2] = np.nan
-        assert np.isnan(kernels.dot_peak(a["At"], a["t"], compiled)[0])  # the step tau turns NaN
+        a["At32"][2, 2] = np.nan
+        assert np.isnan(step_kernels.dot(a["At"], a["t"], compiled))  # the step tau turns NaN
+        for product in (a["At"], a["At32"]):  # and so does the float32 bound's peak
+            args = (a["p"].copy(), a["t"], 0.1, np.zeros(4, np.int64), np.zeros(4), np.empty(SHAPE), True, a["u"].copy())
+            assert np.isnan(step_kernels.descend(*args, product, compiled)[2])
         a["t"][0, 0] = np.nan
         assert np.isnan(kernels.direction(a["t"], a["z"], a["S"], 0.5, a["r"], compiled) if a["S"][0, 0]
-                        else kernels.dot(a["t"], a["r"], compiled))
+                        else step_kernels.dot(a["t"], a["r"], compiled))
 
 
 # -- the whole loop -----------------------------------------------------------------------------

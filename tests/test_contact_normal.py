@@ -301,3 +301,4 @@ def test_flat_circular_punch_under_approach_control():
     assert sol.normal_force == pytest.approx(2 * a * ES * delta, rel=0.03)
     uniform = solve_contact(SKIN, np.zeros((n, n)), h, approach=delta)  # a uniform gap moves too
     assert uniform.contact.all() and uniform.converged
+

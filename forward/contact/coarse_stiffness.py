@@ -29,11 +29,15 @@ costs two passes over the grid and a tiny FFT pair instead of a full pair. It ap
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 from scipy import fft as sfft
 
 from tactilab.core import jit
 from tactilab.core import rules as check
+
+from ..halfspace import inverse_into, rfftn_into
 
 #: block size of the coarse grid (nodes per side)
 FACTOR = 8
@@ -71,8 +75,8 @@ class TwoLevelStiffness:
     spacing : float or tuple of float
         The node spacing ``h`` in m, or ``(dx, dy)`` with ``dx == dy`` (square pixels).
 
-    Calling it maps a gap (m, shape ``(ny, nx)``) to a pressure (Pa), like
-    :meth:`ContactCompliance.stiffness`.
+    Calling it maps a gap (m, shape ``(ny, nx)``, float64 or float32) to a pressure (Pa; into ``out``, float64 or
+    float32), like :meth:`ContactCompliance.stiffness`.
     """
 
     def __init__(self, skin, shape: tuple[int, int], spacing):
@@ -104,19 +108,37 @@ class TwoLevelStiffness:
                  * np.cos(np.minimum(np.abs(ky) / knyq, 1.0) * np.pi / 2) ** 2)
         diff = (exact - self.scale * (a + b * lam)) * taper
         self.correction = diff / FACTOR**2  # R's mean: the kernel sums the blocks
+        # the coarse pair through kept per-thread arrays (scipy's calls on fresh ones cost a quarter of this
+        # operator at 256^2); inverse_into leaves its 1 / rows to the multiplier
+        self._scaled = (self.correction / self.coarse[0]).astype(complex)
+        self._local = threading.local()
 
     def __call__(self, gap: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        gap = np.ascontiguousarray(gap, dtype=float)
+        gap = np.ascontiguousarray(gap, dtype=np.float32 if gap.dtype == np.float32 else float)  # float32: the solver's
         if gap.shape != self.shape:
             raise ValueError(f"gap: expected shape {self.shape} (the grid), got {gap.shape}")
         out = np.empty(self.shape) if out is None else out
         compiled = jit.enabled()
-        nx = self.shape[1]  # small work arrays, fresh per call: a kept operator may serve several threads
-        sums = _block_sums(gap, FACTOR, np.empty(self.coarse), np.empty(nx)) if compiled else \
-            _block_sums_numpy(gap, FACTOR)
-        coarse = sfft.irfft2(sfft.rfft2(sums, workers=1) * self.correction, s=self.coarse, workers=1)
+        work = getattr(self._local, "work", None)  # small work arrays, per thread: a kept operator may serve several
+        if work is None:
+            cy, cx = self.coarse
+            work = self._local.work = (np.empty(self.coarse), np.empty((cy, cx // 2 + 1), complex),
+                                       np.empty(self.coarse), np.empty(self.shape[1]))
+        sums, spectrum, coarse, row = work
+        if not compiled and gap.dtype != np.float64:
+            gap = gap.astype(float)  # the NumPy twin in float64, as the kernels compute
         if compiled:
-            _stencil_plus_blocks(gap, self.centre, self.neighbour, coarse, FACTOR, out, np.empty(nx))
+            _block_sums(gap, FACTOR, sums, row)
+        else:
+            sums[...] = _block_sums_numpy(gap, FACTOR)
+        rfftn_into(sums, spectrum, workers=1)
+        spectrum *= self._scaled
+        inverse_into(spectrum, coarse, workers=1)
+        if compiled:
+            _stencil_plus_blocks(gap, self.centre, self.neighbour, coarse, FACTOR, out, row)
+        elif out.dtype != np.float64:  # a float32 output (the solver's beside float32 products): in float64,
+            # rounded once, as the compiled kernel does
+            out[...] = _stencil_plus_blocks_numpy(gap, self.centre, self.neighbour, coarse, FACTOR, np.empty(self.shape))
         else:
             _stencil_plus_blocks_numpy(gap, self.centre, self.neighbour, coarse, FACTOR, out)
         return out
@@ -157,11 +179,13 @@ def _stencil_plus_blocks(r, centre, neighbour, coarse, f, out, wide):  # pragma:
         above = r[i - 1] if i > 0 else r[ny - 1]
         below = r[i + 1] if i < ny - 1 else r[0]
         o = out[i]
-        o[0] = centre * mid[0] - neighbour * (above[0] + below[0] + mid[nx - 1] + mid[1]) + wide[0]
+        f64 = np.float64  # a float32 residual widened before the sums, as the NumPy twin computes
+        o[0] = centre * mid[0] - neighbour * (f64(above[0]) + f64(below[0]) + f64(mid[nx - 1]) + f64(mid[1])) + wide[0]
         for j in range(1, nx - 1):  # no branch inside: vectorised
-            o[j] = centre * mid[j] - neighbour * (above[j] + below[j] + mid[j - 1] + mid[j + 1]) + wide[j]
-        o[nx - 1] = (centre * mid[nx - 1] - neighbour * (above[nx - 1] + below[nx - 1] + mid[nx - 2] + mid[0])
-                     + wide[nx - 1])
+            o[j] = (centre * mid[j] - neighbour * (f64(above[j]) + f64(below[j]) + f64(mid[j - 1]) + f64(mid[j + 1]))
+                    + wide[j])
+        o[nx - 1] = (centre * mid[nx - 1] - neighbour * (f64(above[nx - 1]) + f64(below[nx - 1]) + f64(mid[nx - 2])
+                                                         + f64(mid[0])) + wide[nx - 1])
     return out
 
 

@@ -207,6 +207,18 @@ class ContactCompliance:
         Exactly the inverse of :meth:`normal` on zero-mean fields of a periodic grid; for an isolated
         grid an approximate inverse (the solvers' preconditioner), at the cost of an unpadded FFT pair.
         """
+        self.stiffness_spectrum()
+        gap = self._check(gap, "gap")
+        if self.ndim == 2:  # periodic or not, the stiffness acts on the unpadded grid: kept work arrays
+            return self._periodic_product(gap, "stiffness", out)
+        spectrum = sfft.rfftn(gap, axes=self._axes, workers=1)
+        spectrum *= self._spectra["stiffness"]
+        out = np.empty(self.shape) if out is None else out
+        out[...] = sfft.irfftn(spectrum, s=self.shape, axes=self._axes, workers=1)
+        return out
+
+    def stiffness_spectrum(self) -> np.ndarray:
+        """The multiplier of :meth:`stiffness` on the unpadded grid's rfft half spectrum, Pa/m (kept)."""
         if "stiffness" not in self._spectra:
             kx = 2 * np.pi * sfft.rfftfreq(self.shape[-1], self.spacing[0])
             if self.ndim == 1:
@@ -220,14 +232,7 @@ class ContactCompliance:
             # the pressure (an isolated contact under a given approach); force control removes the mean
             stiff.flat[0] = stiff[stiff > 0].min() if (stiff > 0).any() else 0.0
             self._spectra["stiffness"] = stiff
-        gap = self._check(gap, "gap")
-        if self.ndim == 2:  # periodic or not, the stiffness acts on the unpadded grid: kept work arrays
-            return self._periodic_product(gap, "stiffness", out)
-        spectrum = sfft.rfftn(gap, axes=self._axes, workers=1)
-        spectrum *= self._spectra["stiffness"]
-        out = np.empty(self.shape) if out is None else out
-        out[...] = sfft.irfftn(spectrum, s=self.shape, axes=self._axes, workers=1)
-        return out
+        return self._spectra["stiffness"]
 
     def preconditioner(self, kind: str = "auto"):
         """The normal solvers' preconditioner, a callable ``(gap, out=None) -> pressure`` (m -> Pa).

@@ -3,29 +3,32 @@
 Between its FFT products an iteration of :func:`.preconditioned.preconditioned_cg` makes about 30
 elementwise NumPy passes over the grid (each a read and a write of one or two grid arrays): 1.3 to
 1.5 FFT floors per iteration on a periodic grid (docs/contact.md, Cost). Here they are grouped
-into seven functions, each one loop over the grid when compiled (:mod:`tactilab.core.jit`: numba;
+into six functions, each one loop over the grid when compiled (:mod:`tactilab.core.jit`: numba;
 two for :func:`project` under force control) and the original NumPy calls otherwise (the NumPy
-twin, with ``TACTILAB_JIT=0`` or without numba): 0.55 to 0.7 floors. Each function takes
-``compiled`` (the caller asks :func:`tactilab.core.jit.enabled` once per solve) and gives the same
-elementwise values either way; only the order of the additions in a sum differs (the compiled sums
-add in SIMD lanes, NumPy's einsum and sum in blocks), so the two paths' iterates agree to round-off
+twin, with ``TACTILAB_JIT=0`` or without numba). Each function takes ``compiled`` (the caller asks
+:func:`tactilab.core.jit.enabled` once per solve) and gives the same elementwise values either way;
+only the order of the additions in a sum differs (the compiled sums add in SIMD lanes, NumPy's
+einsum and sum in blocks), so the two paths' iterates agree to round-off
 (tests/test_contact_kernels.py).
 
-The passes, in the order of an iteration (arrays of the grid's shape, C-contiguous, float64 unless
-said; ``g`` gap in m, ``p`` pressure in Pa, ``u`` displacement in m):
+The passes before the step, in the order of an iteration (arrays of the grid's shape, C-contiguous,
+float64 unless said; ``g`` gap in m, ``p`` pressure in Pa, ``u`` displacement in m):
 
-1. :func:`gap`: the pending force rescaling of ``p`` and ``u``, ``g = g0 + u``, and the count and
-   sum of ``g`` over the contact set ``p > 0``;
+1. :func:`gap`: the pending float32 clip correction and force rescaling of ``u`` (and the
+   rescaling of ``p``), ``g = g0 + u``, and the count and sum of ``g`` over the contact set ``p > 0``;
 2. :func:`residual`: ``g -= delta``, the working set ``S = (g < 0) | (p > 0)``, ``r = g S`` and
    ``max |r|``;
 3. :func:`project`: after ``z = K r``: ``z`` minus its mean on ``S`` (force control), masked by ``S``,
    and the products ``<r, z>``, ``<r, z_old>``;
-4. :func:`direction`: ``t = beta t S + z`` and ``<r, t>``;
-5. :func:`dot`: ``<A t, t>``;
-6. :func:`descend`: ``p -= tau t``, negative pressures clipped to 0 and the first ones recorded,
-   the sum of ``p``;
-7. :func:`subtract_scaled`: ``u -= tau A t``, when the displacement is updated rather than
-   recomputed.
+4. :func:`direction`: ``t = beta t S + z`` and ``<r, t>``.
+
+Beside float32 direction products the residual ``r``, the direction ``t`` and the preconditioned
+residuals ``z`` are float32 arrays (the float32 product's input as they are; a third less memory
+traffic in the passes that read them): each value is computed in float64 and rounded once, and the
+sums read the rounded values, on both paths; the convergence test's ``max |r|`` is of the unrounded
+residual.
+
+The step's passes (``<A t, t>``, ``p -= tau t`` clipped, ``u -= tau A t``) are in :mod:`.step_kernels`.
 """
 
 from __future__ import annotations
@@ -37,22 +40,18 @@ from tactilab.core import jit
 from .normal import _dot
 
 
-def _flat(a: np.ndarray) -> np.ndarray:
-    """A 1-D view of a C-contiguous array (the kernels loop over one index)."""
-    return a.reshape(-1)
-
-
 # -- the compiled kernels: one loop each, no temporaries -----------------------------------------
 # Sums are reassociated (jit.njit(reassociate=True): SIMD lanes, twice as fast as one running sum,
 # whose adder latency took as long as the memory traffic); every other value is computed as in the
 # NumPy twin. Masks enter as 0/1 factors, not branches (the working set is scattered).
 
-#: the bits of a float64 without its sign
-_MAGNITUDE = np.int64(0x7FFFFFFFFFFFFFFF)
+#: the bits of a float64 / float32 without its sign
+_MAGNITUDE, _MAGNITUDE32 = np.int64(0x7FFFFFFFFFFFFFFF), np.int32(0x7FFFFFFF)
 
 
 @jit.njit(reassociate=True)
 def _gap_kernel(g0, u, p, g, factor):
+    g0, u, p, g = g0.reshape(g0.size), u.reshape(u.size), p.reshape(p.size), g.reshape(g.size)  # 1-D views
     n_in, total = 0, 0.0
     if factor != 1.0:  # the force's rescaling, in the same pass
         for i in range(g.size):
@@ -71,8 +70,29 @@ def _gap_kernel(g0, u, p, g, factor):
     return n_in, total
 
 
+@jit.njit(reassociate=True)
+def _gap_pending_kernel(g0, u, p, g, factor, pending, bits):
+    g0, u, p = g0.reshape(g0.size), u.reshape(u.size), p.reshape(p.size)  # 1-D views
+    g, pending, bits = g.reshape(g.size), pending.reshape(pending.size), bits.reshape(bits.size)  # 1-D views
+    # as _gap_kernel, with a pending float32 clip correction added to u first (u = (u + c) factor), and
+    # max |c| on its bits (as _residual_kernel's maximum: NaN kept)
+    n_in, total, largest = 0, 0.0, np.int32(0)
+    for i in range(g.size):
+        c = np.float64(pending[i])
+        u[i] = w = (u[i] + c) * factor if factor != 1.0 else u[i] + c
+        if factor != 1.0:
+            p[i] *= factor
+        g[i] = v = g0[i] + w
+        inside = p[i] > 0.0
+        total += v * np.float64(inside)
+        n_in += np.int64(inside)
+        largest = max(largest, bits[i] & _MAGNITUDE32)
+    return n_in, total, largest
+
+
 @jit.njit
 def _residual_kernel(g, delta, p, S, r):
+    g, p, S, r = g.reshape(g.size), p.reshape(p.size), S.reshape(S.size), r.reshape(r.size)  # 1-D views
     # max |r| on the bits: a float's magnitude orders as its bits without the sign, and NaN's bits
     # exceed infinity's, so the integer maximum is max |r|, or NaN if any r is NaN, and it runs in
     # SIMD lanes where a float maximum that must keep NaN does not (4x slower)
@@ -88,100 +108,67 @@ def _residual_kernel(g, delta, p, S, r):
     return largest, n_set
 
 
+@jit.njit
+def _residual_single_kernel(g, delta, p, S, r):
+    g, p, S, r = g.reshape(g.size), p.reshape(p.size), S.reshape(S.size), r.reshape(r.size)  # 1-D views
+    # as _residual_kernel, r stored in float32; g keeps r in float64, whose bits give max |r| (the
+    # convergence test's, unrounded)
+    bits = g.view(np.int64)
+    n_set, largest = 0, np.int64(0)
+    for i in range(g.size):
+        v = g[i] - delta
+        s = (v < 0.0) | (p[i] > 0.0)
+        S[i] = s
+        g[i] = w = v * np.float64(s)
+        r[i] = w
+        n_set += np.int64(s)
+        largest = max(largest, bits[i] & _MAGNITUDE)
+    return largest, n_set
+
+
 @jit.njit(reassociate=True)
 def _masked_sum_kernel(z, S):
+    z, S = z.reshape(z.size), S.reshape(S.size)  # 1-D views
     total = 0.0
     for i in range(z.size):
-        total += z[i] * np.float64(S[i])
+        total += np.float64(z[i]) * np.float64(S[i])
     return total
 
 
 @jit.njit(reassociate=True)
 def _project_kernel(z, S, mean, r, z_old):
+    z, S = z.reshape(z.size), S.reshape(S.size)  # 1-D views
+    r, z_old = r.reshape(r.size), z_old.reshape(z_old.size)  # 1-D views
+    # z float64 or float32 (then the value is rounded to it before the products: read back)
     rz, rz_old = 0.0, 0.0
     for i in range(z.size):
-        z[i] = v = (z[i] - mean) * np.float64(S[i])
-        rz += r[i] * v
+        z[i] = (z[i] - mean) * np.float64(S[i])
+        rz += r[i] * z[i]
         rz_old += r[i] * z_old[i]
     return rz, rz_old
 
 
 @jit.njit(reassociate=True)
-def _dot_kernel(a, b):
-    total = 0.0
-    for i in range(a.size):
-        total += a[i] * b[i]
-    return total
-
-
-@jit.njit(reassociate=True)
-def _dot_peak_kernel(a, b):
-    total, peak = 0.0, 0.0
-    for i in range(a.size):
-        total += a[i] * b[i]
-        peak = max(peak, abs(a[i]))
-    return total, peak
-
-
-@jit.njit(reassociate=True)
 def _direction_kernel(t, z, S, beta, r):
+    t, z, S, r = t.reshape(t.size), z.reshape(z.size), S.reshape(S.size), r.reshape(r.size)  # 1-D views
+    # t, z float64 or float32 (then the value is rounded to t before the product: read back)
     rt = 0.0
     if beta > 0.0:
         for i in range(t.size):
-            t[i] = v = (t[i] * beta) * np.float64(S[i]) + z[i]
-            rt += r[i] * v
+            t[i] = (t[i] * beta) * np.float64(S[i]) + z[i]
+            rt += r[i] * t[i]
     else:  # a restart
         for i in range(t.size):
-            t[i] = v = z[i]
-            rt += r[i] * v
+            t[i] = z[i]
+            rt += r[i] * t[i]
     return rt
-
-
-@jit.njit
-def _descend_kernel(p, t, tau, nodes, values):
-    # blocks of four nodes with four partial sums: the rare clipped node is a branch per block, which
-    # keeps the loop from running in SIMD lanes, so the sum is split by hand
-    s0 = s1 = s2 = s3 = 0.0
-    m, size = 0, p.size
-    tail = size - size % 4
-    for i in range(0, tail, 4):
-        v0, v1 = p[i] - t[i] * tau, p[i + 1] - t[i + 1] * tau
-        v2, v3 = p[i + 2] - t[i + 2] * tau, p[i + 3] - t[i + 3] * tau
-        if (v0 < 0.0) | (v1 < 0.0) | (v2 < 0.0) | (v3 < 0.0):
-            for j in range(i, i + 4):
-                v = p[j] - t[j] * tau
-                if v < 0.0:
-                    if m < nodes.size:
-                        nodes[m] = j
-                        values[m] = -v
-                    m += 1
-            v0, v1 = (0.0 if v0 < 0.0 else v0), (0.0 if v1 < 0.0 else v1)  # NaN stays, as np.maximum
-            v2, v3 = (0.0 if v2 < 0.0 else v2), (0.0 if v3 < 0.0 else v3)
-        p[i], p[i + 1], p[i + 2], p[i + 3] = v0, v1, v2, v3
-        s0, s1, s2, s3 = s0 + v0, s1 + v1, s2 + v2, s3 + v3
-    for i in range(tail, size):
-        v0 = p[i] - t[i] * tau
-        if v0 < 0.0:
-            if m < nodes.size:
-                nodes[m] = i
-                values[m] = -v0
-            m += 1
-            v0 = 0.0
-        p[i] = v0
-        s0 += v0
-    return m, (s0 + s1) + (s2 + s3)
-
-
-@jit.njit
-def _subtract_scaled_kernel(u, a, scale):
-    for i in range(u.size):
-        u[i] -= a[i] * scale
 
 
 # -- the passes: compiled kernel or NumPy twin --------------------------------------------------
 def gap(g0: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray, inside: np.ndarray, factor: float,
-        compiled: bool) -> tuple[int, float]:
-    """Rescale ``u`` and ``p`` by ``factor`` (when not 1), then ``g = g0 + u`` and the contact set.
+        compiled: bool, pending: np.ndarray | None = None) -> tuple[int, float]:
+    """Add ``pending`` to ``u``, rescale ``u`` and ``p`` by ``factor`` (when not 1), then ``g = g0 + u``
+    and the contact set.
 
     Parameters
     ----------
@@ -194,6 +181,8 @@ def gap(g0: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray, inside: np.
         The force rescaling left over from the previous iteration (1: none).
     compiled : bool
         Run the compiled kernel (else the NumPy twin).
+    pending : ndarray of float32, the grid's shape, optional
+        A clip correction (m) still to be added to ``u`` (before the rescaling).
 
     Returns
     -------
@@ -201,16 +190,25 @@ def gap(g0: np.ndarray, u: np.ndarray, p: np.ndarray, g: np.ndarray, inside: np.
         Nodes in contact (``p > 0``).
     sum_in : float
         Sum of ``g`` over them, m.
+    peak : float
+        ``max |pending|``, m (0 without one; NaN if any is NaN): the correction's a-posteriori error bound.
     """
     if compiled:
-        n_in, total = _gap_kernel(_flat(g0), _flat(u), _flat(p), _flat(g), float(factor))
-        return int(n_in), float(total)
+        if pending is not None:
+            n_in, total, bits = _gap_pending_kernel(g0, u, p, g, float(factor), pending, pending.view(np.int32))
+            return int(n_in), float(total), float(np.int32(bits).view(np.float32))
+        n_in, total = _gap_kernel(g0, u, p, g, float(factor))
+        return int(n_in), float(total), 0.0
+    peak = 0.0
+    if pending is not None:
+        u += pending
+        peak = max(float(pending.max()), -float(pending.min()))
     if factor != 1.0:
         u *= factor
         p *= factor
     np.add(g0, u, out=g)
     np.greater(p, 0.0, out=inside)
-    return int(np.count_nonzero(inside)), _dot(g, inside)  # a masked sum (where=) is 5x slower
+    return int(np.count_nonzero(inside)), _dot(g, inside), peak  # a masked sum (where=) is 5x slower
 
 
 def residual(g: np.ndarray, delta: float, p: np.ndarray, inside: np.ndarray, S: np.ndarray, r: np.ndarray,
@@ -228,7 +226,8 @@ def residual(g: np.ndarray, delta: float, p: np.ndarray, inside: np.ndarray, S: 
     S : ndarray of bool, the grid's shape
         Output: the working set.
     r : ndarray, the grid's shape
-        Output: the residual, m.
+        Output: the residual, m: float64, or float32 beside float32 products (then ``g`` holds the
+        residual in float64 on return, not the gap, and ``max |r|`` is of those unrounded values).
     compiled : bool
         Run the compiled kernel (else the NumPy twin).
 
@@ -239,12 +238,18 @@ def residual(g: np.ndarray, delta: float, p: np.ndarray, inside: np.ndarray, S: 
     n_set : int
         Nodes in ``S``.
     """
+    single = r.dtype == np.float32
     if compiled:
-        bits, n_set = _residual_kernel(_flat(g), float(delta), _flat(p), _flat(S), _flat(r))
+        kernel = _residual_single_kernel if single else _residual_kernel
+        bits, n_set = kernel(g, float(delta), p, S, r)
         return float(np.int64(bits).view(np.float64)), int(n_set)
     g -= delta
     np.less(g, 0.0, out=S)
     S |= inside  # the working set: in contact, or penetrating (entering)
+    if single:
+        g *= S
+        r[...] = g
+        return max(float(g.max()), -float(g.min())), int(np.count_nonzero(S))
     np.multiply(g, S, out=r)
     return max(float(r.max()), -float(r.min())), int(np.count_nonzero(S))
 
@@ -273,10 +278,17 @@ def project(z: np.ndarray, S: np.ndarray, n_set: int, r: np.ndarray, z_old: np.n
         ``<r, z>`` and ``<r, z_old>``, m Pa.
     """
     if compiled:
-        zf, sf = _flat(z), _flat(S)
+        zf, sf = z, S
         mean = _masked_sum_kernel(zf, sf) / n_set if force else 0.0
-        rz, rz_old = _project_kernel(zf, sf, float(mean), _flat(r), _flat(z_old))
+        rz, rz_old = _project_kernel(zf, sf, float(mean), r, z_old)
         return float(rz), float(rz_old)
+    if z.dtype != np.float64:  # float32 vectors: in float64, rounded once, as compiled
+        wide = z.astype(float)
+        if force:
+            wide -= _dot(wide, S) / n_set
+        wide *= S
+        z[...] = wide
+        return _dot(r, z.astype(float)), _dot(r, z_old.astype(float))
     if force:  # minus its mean on S (then masked): np.subtract(..., where=S) costs half an FFT pair
         z -= _dot(z, S) / n_set
     z *= S
@@ -289,9 +301,10 @@ def direction(t: np.ndarray, z: np.ndarray, S: np.ndarray, beta: float, r: np.nd
     Parameters
     ----------
     t : ndarray, the grid's shape
-        The previous direction, Pa; overwritten by the new one.
+        The previous direction, Pa; overwritten by the new one (float64, or float32 beside float32
+        products: computed in float64 and rounded once).
     z : ndarray, the grid's shape
-        The projected preconditioned residual (:func:`project`), Pa.
+        The projected preconditioned residual (:func:`project`), Pa, of ``t``'s dtype.
     S : ndarray of bool, the grid's shape
         The working set (nodes that left it leave the direction).
     beta : float
@@ -304,10 +317,14 @@ def direction(t: np.ndarray, z: np.ndarray, S: np.ndarray, beta: float, r: np.nd
     Returns
     -------
     float
-        ``<r, t>``, m Pa.
+        ``<r, t>``, m Pa (of the stored ``t``).
     """
     if compiled:
-        return float(_direction_kernel(_flat(t), _flat(z), _flat(S), float(beta), _flat(r)))
+        return float(_direction_kernel(t, z, S, float(beta), r))
+    if t.dtype != np.float64:  # float32 vectors: in float64, rounded once, as compiled
+        wide = t * np.float64(beta) * S + z if beta > 0 else z.astype(float)
+        t[...] = wide
+        return _dot(r, t.astype(float))
     if beta > 0:
         t *= beta
         t *= S
@@ -315,73 +332,3 @@ def direction(t: np.ndarray, z: np.ndarray, S: np.ndarray, beta: float, r: np.nd
     else:
         t[...] = z
     return _dot(r, t)
-
-
-def dot(a: np.ndarray, b: np.ndarray, compiled: bool) -> float:
-    """``sum(a * b)`` in one pass (``a``, ``b``: arrays of the grid's shape)."""
-    return float(_dot_kernel(_flat(a), _flat(b))) if compiled else _dot(a, b)
-
-
-def dot_peak(a: np.ndarray, b: np.ndarray, compiled: bool) -> tuple[float, float]:
-    """``sum(a * b)`` and ``max |a|`` in one pass (``a``, ``b``: arrays of the grid's shape)."""
-    if compiled:
-        total, peak = _dot_peak_kernel(_flat(a), _flat(b))
-        return float(total), float(peak)
-    return _dot(a, b), max(float(a.max()), -float(a.min()))
-
-
-def descend(p: np.ndarray, t: np.ndarray, tau: float, nodes: np.ndarray, values: np.ndarray, tmp: np.ndarray,
-            force: bool, compiled: bool) -> tuple[int, float]:
-    """The step ``p -= tau t`` with negative pressures clipped to 0, the first clipped ones recorded.
-
-    Parameters
-    ----------
-    p : ndarray, the grid's shape
-        Pressure, Pa, in place.
-    t : ndarray, the grid's shape
-        Direction, Pa per unit step.
-    tau : float
-        The step (dimensionless).
-    nodes : ndarray of int64, shape (k,)
-        Output: flat indices of the first ``k`` clipped nodes (those beyond are clipped, not recorded).
-    values : ndarray, shape (k,)
-        Output: the pressure added at each recorded node to bring it back to 0, Pa (positive).
-    tmp : ndarray, the grid's shape
-        Work array of the NumPy twin.
-    force : bool
-        Force control: return the sum of ``p`` (for the rescaling to the force).
-    compiled : bool
-        Run the compiled kernel (else the NumPy twin).
-
-    Returns
-    -------
-    m : int
-        Nodes clipped (all of them, recorded or not).
-    sum_p : float
-        Sum of the clipped ``p``, Pa (0 when not ``force`` in the NumPy twin, which skips it).
-    """
-    if compiled:
-        m, total = _descend_kernel(_flat(p), _flat(t), float(tau), nodes, values)
-        return int(m), float(total)
-    np.multiply(t, tau, out=tmp)
-    p -= tmp
-    m = 0
-    if float(p.min()) < 0:
-        flat = _flat(p)
-        clipped = np.flatnonzero(flat < 0.0)
-        m = clipped.size
-        k = min(m, nodes.size)
-        nodes[:k] = clipped[:k]
-        values[:k] = -flat[clipped[:k]]
-        np.maximum(p, 0.0, out=p)
-    return m, (float(p.sum()) if force else 0.0)
-
-
-def subtract_scaled(u: np.ndarray, a: np.ndarray, scale: float, tmp: np.ndarray, compiled: bool) -> None:
-    """``u -= scale * a`` in place (``u``, ``a``, ``tmp``: arrays of the grid's shape; ``tmp`` is the
-    NumPy twin's work array)."""
-    if compiled:
-        _subtract_scaled_kernel(_flat(u), _flat(a), float(scale))
-        return
-    np.multiply(a, scale, out=tmp)
-    u -= tmp

@@ -13,23 +13,56 @@ float64 time; the scatter, the conversion and the addition stay), with an error 
 hundredth of the gap residual (early, when many nodes clip, the residual is large), and keeps the
 exact float64 recompute every ``REFRESH`` iterations and before convergence is declared, so the
 answer's tolerance is unchanged; measured on the surfaces of docs/contact.md (Table a): the same
-iterations, a sixth to a third fewer float64 products (docs/contact.md, Cost). :meth:`SingleCorrection.product`
-runs the solver's dense direction product ``A t`` the same way on periodic 2-D grids (docs/contact.md,
-Table a3).
+iterations, a sixth to a third fewer float64 products (docs/contact.md, Cost). The correction comes
+back in float32 (:meth:`SingleCorrection.correction`), for the solver's next gap pass to add, and its
+bound a posteriori is :meth:`SingleCorrection.product_bound` of its max. The solver's dense direction
+product ``A t`` runs the same way on 2-D grids (:meth:`SingleCorrection.transform_direction`), and so
+do the exact stiffness (:meth:`SingleCorrection.stiffness`) and, from float32 coefficients, the direct
+summation of a few clipped nodes (:attr:`SingleCorrection.points`; docs/contact.md, Table a4).
 """
 
 from __future__ import annotations
 
 import threading
+import weakref
 
 import numpy as np
 from scipy import fft as sfft
 
+from tactilab.core import jit
+
 from ..halfspace import fft_first_inplace, inverse_into, irfft_last_into, rfft_last_into, rfftn_into
+from .point_loads import PointLoads
+from .step_kernels import scale_energy
+from .work_arrays import carve
 
 #: the correction's error bound relative to ``Czz sum(c)``, the most ``A c`` can reach (measured: 1.0e-7 to
 #: 1.8e-7 of max |A c|; the tests hold it to this)
 RELATIVE_ERROR = 1e-6
+
+
+#: the float32 products kept per compliance operator (the solver's operators are kept between solves:
+#: starts.grid_operator) where they hold at most this many bytes (periodic grids up to 512^2, isolated up to
+#: 256^2): a solve on a grid solved before skips their set-up (the float32 spectrum, the origin value, the
+#: point loads' coefficients, the first touch of the work arrays: 2 floors of the grid per solve at 256^2,
+#: 3 at 512^2); larger ones are made per solve (work arrays kept separately, the 512^2 one raised the peak
+#: memory of a 1024^2 solve by 20 MiB, by the heap's fragmentation: now one allocation, work_arrays.carve)
+KEPT_BYTES = 6 * 2**20
+_KEPT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_KEPT_LOCK = threading.Lock()
+
+
+def kept(compliance) -> SingleCorrection:
+    """The :class:`SingleCorrection` of ``compliance``: kept while ``compliance`` lives if it holds at most
+    :data:`KEPT_BYTES`, else a new one."""
+    per_node = 18 if compliance.periodic or len(compliance.shape) == 1 else 64  # bytes: work, spectrum, points
+    if per_node * int(np.prod(compliance.shape)) > KEPT_BYTES:
+        return SingleCorrection(compliance)
+    with _KEPT_LOCK:
+        single = _KEPT.get(compliance)
+        if single is None:
+            single = _KEPT[compliance] = SingleCorrection(compliance)
+        return single
 
 
 class SingleCorrection:
@@ -39,13 +72,17 @@ class SingleCorrection:
     ----------
     compliance : ContactCompliance
         Its ``spectrum("uz", "p")`` (m/Pa per wave, on its ``fft_shape``: the grid, or the grid
-        zero-padded to twice each side for an isolated contact) is kept in complex64.
+        zero-padded to twice each side for an isolated contact) is kept in float32 (real: the
+        compliance is symmetric).
 
     Notes
     -----
     ``add(u, nodes, values)`` adds ``A c`` (m) to ``u`` in place (float64, the grid's shape), ``c``
     being ``values`` (Pa) at the flat indices ``nodes`` and 0 elsewhere; ``apply(c)`` returns it for a
-    dense ``c``. A kept float32 grid per thread holds ``c`` (zero between calls; the spectra are fresh).
+    dense ``c``; :meth:`correction` returns it in float32 (a kept array). :meth:`product` computes a dense
+    ``A t`` (2-D grids); the solver's float32 direction goes through :meth:`transform_direction` without
+    converting. Kept float32 work arrays per thread (about 12 bytes
+    per grid node periodic, 40 isolated).
     """
 
     def __init__(self, compliance):
@@ -55,14 +92,18 @@ class SingleCorrection:
         spectrum = compliance.spectrum("uz", "p")
         # the 2-D inverses below leave their 1 / (rows) to the multiplier, as ContactCompliance's do
         rows = {"periodic": self.shape[0], "padded": self.fft_shape[0]}.get(self._mode, 1)
-        self.spectrum = (spectrum / rows).astype(np.complex64)
+        # real: the normal compliance is symmetric (an even kernel), its spectrum real to round-off
+        self.spectrum = (spectrum.real / rows).astype(np.float32)
         self._local = threading.local()  # each thread's kept float32 work arrays
         self._czz = _at_origin(spectrum, self.fft_shape)
+        # the stiffness's float32 multiplier, made on first use (a weak reference: _KEPT's values must not
+        # keep its keys alive)
+        self._compliance, self._stiffness, self._points = weakref.ref(compliance), None, None
 
     @property
-    def periodic_2d(self) -> bool:
-        """Whether the grid is a periodic 2-D one (the only kind :meth:`product` takes)."""
-        return self._mode == "periodic"
+    def dense_2d(self) -> bool:
+        """Whether the grid is a 2-D one, periodic or isolated (the kinds :meth:`product` takes)."""
+        return self._mode != "1-D"
 
     def bound(self, values: np.ndarray) -> float:
         """A bound on max |error| of :meth:`add` (m) for the pressures ``values`` (Pa, >= 0)."""
@@ -79,23 +120,61 @@ class SingleCorrection:
         return out
 
     def product(self, t: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """``out[...] = A t`` (m, float64) for a dense pressure ``t`` (Pa, float64, the grid's shape) by a
-        float32 FFT pair; periodic 2-D grids only (the solver's mixed-precision product, error of the
-        order of :data:`RELATIVE_ERROR` of max |A t|, bounded by :meth:`product_bound`)."""
-        if self._mode != "periodic":
-            raise ValueError(f"product: float32 dense products need a periodic 2-D grid, got a {self._mode} "
-                             "one; use the compliance's float64 product")
-        buffers = getattr(self._local, "buffers", None)
-        if buffers is None:
-            buffers = self._local.buffers = self._buffers()
-        data, spectrum = buffers
-        data[...] = t
-        try:
+        """``out[...] = A t`` (m) for a dense pressure ``t`` (Pa, the grid's shape) by a float32 FFT pair;
+        2-D grids only (error of the order of :data:`RELATIVE_ERROR` of max |A t|, bounded by
+        :meth:`product_bound`). The solver's path is :meth:`transform_direction`, which spares the
+        conversions."""
+        if self._mode == "1-D":
+            raise ValueError("product: float32 dense products need a 2-D grid, got a 1-D one (plane strain); use "
+                             "the compliance's float64 product")
+        grid = self._work()["grid"]
+        grid[...] = t
+        out[...] = self.transform_direction(grid)[0]
+        return out
+
+    def transform_direction(self, t: np.ndarray, compiled: bool | None = None) -> tuple[np.ndarray, float]:
+        """``A t`` (m, float32, the grid's shape) for a float32 direction ``t`` (Pa, the grid's shape,
+        C-contiguous; the solver's own, or the kept grid) by a float32 FFT pair, and ``<A t, t>`` (m Pa)
+        by Parseval from ``t``'s spectrum in the multiplier's pass (:func:`.step_kernels.scale_energy`,
+        compiled or its NumPy twin; None: compiled where numba runs); the result is a kept array, valid
+        until this thread's next call of any method."""
+        compiled = jit.enabled() if compiled is None else compiled
+        work = self._work()
+        out, spectrum = work["grid"], work["spectrum"]  # t is read before the result is written
+        if self._mode == "periodic":
+            rfftn_into(t, spectrum, workers=1)
+            energy = scale_energy(spectrum, self.spectrum, self.shape[1] % 2 == 0, compiled)
+            inverse_into(spectrum, out, workers=1)
+            return out, energy / self.shape[1]
+        rows = work["rows"]
+        rows[:, : self.shape[1]] = t
+        rows[:, self.shape[1]:] = 0.0  # the previous inverse wrote there
+        energy = self._padded(rows, rows, spectrum, compiled)
+        out[...] = rows[:, : self.shape[1]]
+        return out, energy / self.fft_shape[1]
+
+    def stiffness(self, gap: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """``out[...] = K gap`` (Pa; ``out`` float64, or float32 as the solver's beside float32 products)
+        for a gap (m, the grid's shape, float64 or float32; 2-D grids): the compliance's exact stiffness
+        (:meth:`ContactCompliance.stiffness`, the preconditioner of isolated grids) by a float32 FFT pair of
+        the unpadded grid, to about 1e-7 of its values. A preconditioner needs no more: the convergence
+        test reads the gap, not ``K``. Uses the kept float32 grid (the solver applies it before the
+        direction's product)."""
+        work = self._work()
+        data = work["grid"]
+        spectrum = work["spectrum"] if self._mode == "periodic" else work.setdefault(
+            "grid_spectrum", np.empty((self.shape[0], self.shape[1] // 2 + 1), np.complex64))
+        if self._stiffness is None:  # inverse_into leaves its 1 / ny to the multiplier
+            self._stiffness = (self._compliance().stiffness_spectrum() / self.shape[0]).astype(np.complex64)
+        if gap.dtype == np.float32 and gap.flags.c_contiguous:  # the solver's float32 residual, as it is
+            rfftn_into(gap, spectrum, workers=1)
+        else:
+            data[...] = gap
             rfftn_into(data, spectrum, workers=1)
-            spectrum *= self.spectrum
-            out[...] = inverse_into(spectrum, data, workers=1)
-        finally:
-            data[...] = 0.0  # kept zero for add()
+        spectrum *= self._stiffness
+        if out.dtype == np.float32 and out.flags.c_contiguous:
+            return inverse_into(spectrum, out, workers=1)
+        out[...] = inverse_into(spectrum, data, workers=1)
         return out
 
     def product_bound(self, peak: float) -> float:
@@ -110,39 +189,73 @@ class SingleCorrection:
             spectrum = sfft.rfft(work, n=self.fft_shape[0], workers=1) * self.spectrum
             u += sfft.irfft(spectrum, n=self.fft_shape[0], workers=1)[: self.shape[0]]
             return
-        buffers = getattr(self._local, "buffers", None)
-        if buffers is None:
-            buffers = self._local.buffers = self._buffers()
-        data, spectrum = buffers
-        data[np.unravel_index(nodes, self.shape)] = values
-        try:
-            self._transform(u, data, spectrum)
-        finally:
-            data[...] = 0.0  # kept zero for the next call
+        u += self.correction(nodes, values)
 
-    def _transform(self, u: np.ndarray, data: np.ndarray, spectrum: np.ndarray) -> None:
-        """``u += A c`` for ``c`` in the kept grid ``data`` (overwritten) through the work ``spectrum``."""
-        if self._mode == "periodic":
-            rfftn_into(data, spectrum, workers=1)
-            spectrum *= self.spectrum
-            u += inverse_into(spectrum, data, workers=1)
-            return
-        # isolated 2-D: pruned as ContactCompliance's padded product (the padding's rows never transformed)
-        ny, nx = self.shape
+    @property
+    def points(self) -> PointLoads:
+        """The direct summation of a few point loads from float32 coefficients (:mod:`.point_loads`, 2-D
+        grids), made on first use and kept with this object."""
+        if self._points is None:
+            self._points = PointLoads(self._compliance())
+        return self._points
+
+    def correction(self, nodes: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """``A c`` (m, float32, the grid's shape; 2-D grids), ``c`` = ``values`` (Pa) at the flat grid
+        indices ``nodes``: a kept array, valid until this thread's next call of any method (the solver adds
+        it to ``u`` in its next gap pass)."""
+        work = self._work()
+        scatter, spectrum, out = work["scatter"], work["spectrum"], work["grid"]
+        # flat indices into the scatter grid (np.unravel_index cost up to a quarter of a floor at 256^2)
+        index = nodes if self._mode == "periodic" else nodes + (nodes // self.shape[1]) * self.shape[1]
+        flat = scatter.reshape(-1)
+        flat[index] = values
+        try:
+            if self._mode == "periodic":
+                rfftn_into(scatter, spectrum, workers=1)  # the input is kept: zeroed at the nodes after
+                spectrum *= self.spectrum
+                inverse_into(spectrum, out, workers=1)
+            else:
+                rows = work["rows"]
+                self._padded(scatter, rows, spectrum)
+                out[...] = rows[:, : self.shape[1]]
+        finally:
+            flat[index] = 0.0  # kept zero for the next call: only the nodes were written
+        return out
+
+    def _padded(self, data: np.ndarray, rows: np.ndarray, spectrum: np.ndarray, compiled: bool | None = None) -> float:
+        """``rows`` = the padded float32 product of ``data`` (``(ny, 2 nx)``, its right half zero),
+        pruned as ContactCompliance's padded product (the padding's rows never transformed); the grid's
+        part is ``rows[:, :nx]``. ``data`` is read only (``rows`` may be it). With ``compiled`` (True or
+        False) the multiplier's pass also returns ``sum(multiplier |spectrum|^2)`` (:func:`scale_energy`)."""
+        ny = self.shape[0]
         rfft_last_into(data, spectrum[:ny], workers=1)
         spectrum[ny:] = 0.0
         fft_first_inplace(spectrum, True, workers=1)
-        spectrum *= self.spectrum
+        energy = 0.0
+        if compiled is None:
+            spectrum *= self.spectrum
+        else:
+            energy = scale_energy(spectrum, self.spectrum, True, compiled)
         fft_first_inplace(spectrum, False, workers=1)
-        u += irfft_last_into(spectrum[:ny], data, workers=1)[:, :nx]
+        irfft_last_into(spectrum[:ny], rows, workers=1)
+        return energy
 
-    def _buffers(self) -> tuple[np.ndarray, np.ndarray]:
-        """The kept float32 grid (zero between calls; padded rows of twice the width when isolated) and
-        the complex64 work spectrum."""
-        ny, nx = self.shape
-        if self._mode == "periodic":
-            return np.zeros((ny, nx), np.float32), np.empty((ny, nx // 2 + 1), np.complex64)
-        return np.zeros((ny, 2 * nx), np.float32), np.empty((2 * ny, nx + 1), np.complex64)
+    def _work(self) -> dict[str, np.ndarray]:
+        """This thread's kept float32 work arrays: ``grid`` (the grid's shape: in turn the direction's
+        product, a correction, the stiffness's input; each is used up before the next is written, in the
+        solver's order), ``scatter`` (the corrections' input, zero between calls; padded
+        rows of twice the width when isolated), ``spectrum`` (complex64) and, when isolated, ``rows`` (the
+        padded transforms' output) and ``grid_spectrum`` (the unpadded stiffness's, made on first use)."""
+        work = getattr(self._local, "work", None)
+        if work is None:  # one allocation (work_arrays.carve): a large grid's is returned to the system whole
+            ny, nx = self.shape
+            names = ("grid", "scatter", "spectrum") if self._mode == "periodic" else ("grid", "scatter", "rows", "spectrum")
+            specs = [((ny, nx), np.float32), ((ny, nx), np.float32), ((ny, nx // 2 + 1), np.complex64)] \
+                if self._mode == "periodic" else [((ny, nx), np.float32), ((ny, 2 * nx), np.float32),
+                                                  ((ny, 2 * nx), np.float32), ((2 * ny, nx + 1), np.complex64)]
+            work = self._local.work = dict(zip(names, carve(specs)))
+            work["scatter"][...] = 0.0
+        return work
 
 
 def _at_origin(spectrum: np.ndarray, shape: tuple[int, ...]) -> float:
