@@ -63,7 +63,7 @@ def invert_scan(scan, data, noise_std: float, *, prior: StationaryPrior | None =
                 method: str = "laplace", rng: np.random.Generator, n_draws: int = 400, truth=None,
                 max_iter: int = 30, continuation: bool = True, mcmc_options: dict | None = None,
                 jacobian_every: int = 1, jacobian_tol: float = 1e-8, workers: int = 1,
-                gradient_tol: float = 1e-8) -> SurfacePosterior:
+                gradient_tol: float = 1e-8, solve_dtype=np.float64) -> SurfacePosterior:
     """The surface posterior of a prepared scan (see the module docstring).
 
     Parameters
@@ -110,6 +110,9 @@ def invert_scan(scan, data, noise_std: float, *, prior: StationaryPrior | None =
     gradient_tol : float
         Relative residual of the exact gradients' restricted solves (default 1e-8; with
         ``jacobian_every`` > 1): see :func:`~tactilab.inversion.surface_laplace.gauss_newton`.
+    solve_dtype : float64 or float32
+        Precision of the iterations of those restricted solves (default float64); float32 halves
+        their FFT work and is refined until the float64 residual meets both tolerances.
 
     Returns
     -------
@@ -137,7 +140,8 @@ def invert_scan(scan, data, noise_std: float, *, prior: StationaryPrior | None =
     mean0 = 0.0 if prior is None else prior.mean
     lap = gauss_newton(scan, d, float(noise_std), root, mean0, transforms, fixed, max_iter=max_iter,
                        continuation=continuation, jacobian_every=jacobian_every,
-                       jacobian_tol=jacobian_tol, workers=workers, gradient_tol=gradient_tol)
+                       jacobian_tol=jacobian_tol, workers=workers, gradient_tol=gradient_tol,
+                       solve_dtype=solve_dtype)
     n, names = scan.profile.size, [t.name for t in transforms]
     if lap.chi2 > d.size + 4 * np.sqrt(2 * d.size):  # the residual is 4 sd above its expectation
         warnings.warn(f"chi2: the MAP leaves chi2 = {lap.chi2:.4g} for {d.size} data (expected {d.size} +- "

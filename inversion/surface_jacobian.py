@@ -47,6 +47,9 @@ class ScanJacobian(LinearOperator):
         instead of 22 at 1e-12; Gauss-Newton and the Laplace covariance need far less).
     workers : int
         FFT threads of the restricted solves (:class:`tactilab.forward.ContactLinearisation`'s).
+    dtype : float64 or float32
+        Precision of the restricted solves' iterations (:class:`tactilab.forward.ContactLinearisation`'s:
+        float32 is refined until the float64 residual meets ``tol``).
 
     Attributes
     ----------
@@ -54,7 +57,7 @@ class ScanJacobian(LinearOperator):
         Model shape ``(n_profile + n_free,)`` and data shape ``(n_frames, n_out)``.
     """
 
-    def __init__(self, scan, state, free=(), *, tol: float = 1e-8, workers: int = 1):
+    def __init__(self, scan, state, free=(), *, tol: float = 1e-8, workers: int = 1, dtype=np.float64):
         self.scan, self.state, self.free = scan, state, tuple(free)
         if scan.mean_pressure is not None and "normal_force" in self.free:
             raise ValueError("free: a periodic cell is loaded by its mean pressure, it has no normal_force to free")
@@ -62,7 +65,8 @@ class ScanJacobian(LinearOperator):
         n_model = self.n_h + len(self.free)
         self.dims, self.dimsd = (n_model,), (scan.n_frames, scan.n_out)
         super().__init__(dtype=np.float64, shape=(scan.n_frames * scan.n_out, n_model))
-        self.lin = ContactLinearisation(scan.compliance, state.contact, force_control=True, tol=tol, workers=workers)
+        self.lin = ContactLinearisation(scan.compliance, state.contact, force_control=True, tol=tol, workers=workers,
+                                        dtype=dtype)
         ctx = state.context
         self.ratio = ctx["young_modulus"] / scan.reference["young_modulus"]
         self.W = scan.effective_weights(ctx)  # (n_nodes, n_out)

@@ -177,6 +177,13 @@ def test_context_is_marginalised_and_recovered(rng):
     assert np.array_equal(loose.touched, t)
     assert np.abs(loose.mean[t] - lagged.mean[t]).max() < 0.01 * post.std[t].min()
     assert np.abs(loose.std[t] / lagged.std[t] - 1).max() < 1e-3
+    # their iterations in float32 (refined to the same tolerances in float64): the same MAP and Hessian
+    single = invert_scan(scan, noisy, sigma, prior=StationaryPrior(variance=(10e-6) ** 2, kind="white"),
+                         context={"normal_force": LogNormal(8.0, 0.3), "friction": Normal(0.3, 0.1)},
+                         rng=np.random.default_rng(7), jacobian_every=3, gradient_tol=1e-6, solve_dtype=np.float32)
+    assert np.array_equal(single.touched, t)
+    assert np.abs(single.mean[t] - loose.mean[t]).max() < 0.01 * post.std[t].min()
+    assert np.abs(single.std[t] / loose.std[t] - 1).max() < 1e-3
 
 
 def test_surface_posterior_files_and_draws(rng, tmp_path):
@@ -224,6 +231,8 @@ def test_invert_scan_refuses_bad_input(rng):
         invert_scan(scan, data, 1.0, prior=prior, rng=rng, jacobian_tol=0.0)
     with pytest.raises(ValueError, match=r"gradient_tol: the gradients' relative residual must lie in"):
         invert_scan(scan, data, 1.0, prior=prior, rng=rng, gradient_tol=1.0)
+    with pytest.raises(ValueError, match="solve_dtype: expected float32 or float64, got float16"):
+        invert_scan(scan, data, 1.0, prior=prior, rng=rng, solve_dtype=np.float16)
     with pytest.raises(ValueError, match="noise_std: the likelihood needs"):
         invert_scan(scan, data, 0.0, prior=prior, rng=rng)
     with pytest.raises(ValueError, match=r"data: expected finite values of shape \(2, 3\)"):

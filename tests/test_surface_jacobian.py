@@ -209,6 +209,34 @@ def test_windowed_chunked_solve_equals_the_dense_restricted_system(rng):
         ContactLinearisation(comp, masks, force_control=True, chunk=0)
 
 
+@pytest.mark.parametrize("tol", [1e-4, 1e-6, 1e-10])
+def test_float32_iterations_meet_the_tolerance_in_float64(rng, tol):
+    """dtype=float32: the single-precision passes are refined until the float64 residual of the
+    restricted system (projected on the zero-sum fields of the set, with the dense compliance) is
+    below tol, also far below float32's round-off (1e-10: several passes); started or not."""
+    n, dx = 24, 40e-6
+    skin = HalfSpace(E=E, nu=0.5)
+    comp = ContactCompliance(skin, (n, n), (dx, dx), False)
+    sols = [solve_contact(skin, _sphere(n, dx, rng), dx, normal_force=f, tol=1e-12) for f in (0.002, 0.004, 0.003)]
+    masks = np.stack([s.contact for s in sols])
+    A = np.column_stack([comp.normal(e.reshape(n, n)).ravel() for e in np.eye(n * n)])
+    rhs = rng.standard_normal((3, n, n))
+    want = ContactLinearisation(comp, masks, force_control=True, tol=1e-13).solve(rhs)
+    single = ContactLinearisation(comp, masks, force_control=True, tol=tol, chunk=2, dtype=np.float32)
+    for start in (None, want + 0.01 * np.abs(want).max() * rng.standard_normal(want.shape) * masks):
+        got = single.solve(rhs, initial=start)
+        assert got.dtype == np.float64 and not got[~masks].any()
+        for k in range(3):
+            c = np.flatnonzero(masks[k].ravel())
+            b = rhs[k].ravel()[c] - rhs[k].ravel()[c].mean()
+            r = rhs[k].ravel()[c] - A[np.ix_(c, c)] @ got[k].ravel()[c]
+            assert np.linalg.norm(r - r.mean()) <= tol * np.linalg.norm(b)
+            assert abs(got[k].sum()) < 1e-9 * np.abs(got[k]).sum()
+        assert np.abs(got - want).max() < 1e3 * tol * np.abs(want).max()
+    with pytest.raises(ValueError, match="dtype: expected float32 or float64, got float16"):
+        ContactLinearisation(comp, masks, force_control=True, dtype=np.float16)
+
+
 def test_frames_with_one_contact_set_share_their_solves(rng):
     """At a flat surface every frame has the finger's own contact: matrix() solves one frame and
     reads it into every frame's rows (each through its own interpolation), as matvec does frame by frame."""
