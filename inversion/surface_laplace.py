@@ -291,8 +291,8 @@ def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, 
         if fresh:
             g = -(A.T @ r) + penal[unknowns] * z[unknowns] + gauge @ z[unknowns]
         else:  # the exact gradient by one adjoint solve per frame; the last Jacobian's Hessian
-            adj, kept["adjoint"] = _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r,
-                                                     kept.get("adjoint"), workers, gradient_tol, dtype)
+            adj = _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r, kept, workers,
+                                    gradient_tol, dtype)
             g = -adj[unknowns] + penal[unknowns] * z[unknowns]
         age += 1
         step = np.zeros_like(z)
@@ -331,19 +331,23 @@ def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, 
     return z, state, f"stopped at max_iter = {max_iter} iterations (decrement {decrement:.2g} nats)", it
 
 
-def _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r, start=None, workers=1, tol=1e-8,
+def _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r, kept, workers=1, tol=1e-8,
                       dtype=np.float64):
-    """``Jz^T r`` (whitened coordinates, over sigma) by the scan Jacobian's adjoint, without the matrix,
-    and its restricted solves for the misfit ``r sigma`` (data units: the same scale in every continuation
-    stage), which ``start`` (the previous iterate's) starts."""
-    jt, solves = ScanJacobian(scan, state, free=names, tol=tol, workers=workers, dtype=dtype).adjoint(r * sigma,
-                                                                                                   initial=start)
-    jt = jt / sigma
+    """``Jz^T r`` (whitened coordinates, over sigma) by the scan Jacobian's adjoint, without the matrix.
+    Its restricted solves are for the misfit ``r sigma`` (data units: the same in every continuation
+    stage); ``kept`` holds the last ones (``"adjoint"``: they start the next iterate's) and the state
+    they belong to with ``J^T (r sigma)`` (``"misfit"``: a stage that starts where the last one ended
+    reuses it)."""
+    if kept.get("misfit") is None or kept["misfit"][0] is not state:
+        jac = ScanJacobian(scan, state, free=names, tol=tol, workers=workers, dtype=dtype)
+        jt, kept["adjoint"] = jac.adjoint(r * sigma, initial=kept.get("adjoint"))
+        kept["misfit"] = (state, jt)
+    jt = kept["misfit"][1] / sigma
     out = np.empty(n + len(transforms))
     out[:n] = root.T @ jt[:n]
     for i, tr in enumerate(transforms):
         out[n + i] = jt[n + i] * tr.slope(z[n + i])
-    return out / sigma, solves
+    return out / sigma
 
 
 def reads_nodes(scan, nodes: np.ndarray) -> np.ndarray:

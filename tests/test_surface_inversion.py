@@ -18,6 +18,7 @@ from tactilab.data_schemas.sensors import SensorArray
 from tactilab.forward import HalfSpace, SensorReadout, finger_gap, solve_scan
 from tactilab.inversion.gaussian import StationaryPrior, gaussian_posterior
 from tactilab.inversion.priors import LogNormal, Normal
+from tactilab.inversion.surface_jacobian import ScanJacobian
 from tactilab.inversion.surface import invert_scan
 from tactilab.inversion.surface_laplace import prior_root
 from tactilab.inversion.surface_scan import ContactScan, ProfileGrid
@@ -148,7 +149,7 @@ def test_noise_free_partial_contact_recovers_the_touched_heights_and_bounds_the_
 
 
 @pytest.mark.slow  # a few seconds; the whole suite runs it
-def test_context_is_marginalised_and_recovered(rng):
+def test_context_is_marginalised_and_recovered(rng, monkeypatch):
     scan, truth, data = _groove_problem(rng)
     sigma = 0.01 * np.abs(data).max()
     noisy = data + sigma * rng.standard_normal(data.shape)
@@ -177,13 +178,17 @@ def test_context_is_marginalised_and_recovered(rng):
     assert np.array_equal(loose.touched, t)
     assert np.abs(loose.mean[t] - lagged.mean[t]).max() < 0.01 * post.std[t].min()
     assert np.abs(loose.std[t] / lagged.std[t] - 1).max() < 1e-3
-    # their iterations in float32 (refined to the same tolerances in float64): the same MAP and Hessian
+    # their iterations in float32 (refined to the same tolerances in float64): the same MAP and Hessian;
+    # a continuation stage starting where the last ended reuses its gradient's solves (no state twice)
+    seen, adjoint = [], ScanJacobian.adjoint
+    monkeypatch.setattr(ScanJacobian, "adjoint", lambda self, *a, **k: seen.append(self.state) or adjoint(self, *a, **k))
     single = invert_scan(scan, noisy, sigma, prior=StationaryPrior(variance=(10e-6) ** 2, kind="white"),
                          context={"normal_force": LogNormal(8.0, 0.3), "friction": Normal(0.3, 0.1)},
                          rng=np.random.default_rng(7), jacobian_every=3, gradient_tol=1e-6, solve_dtype=np.float32)
     assert np.array_equal(single.touched, t)
     assert np.abs(single.mean[t] - loose.mean[t]).max() < 0.01 * post.std[t].min()
     assert np.abs(single.std[t] / loose.std[t] - 1).max() < 1e-3
+    assert "continuation stages" in single.message and len(seen) == len({id(x) for x in seen}) > 1
 
 
 def test_surface_posterior_files_and_draws(rng, tmp_path):
