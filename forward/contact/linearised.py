@@ -316,9 +316,9 @@ class ContactLinearisation:
         r = self._project(b, mask, count)
         target = self.tol * np.sqrt((r * r).reshape(k, -1).sum(axis=1))
         x = np.zeros_like(r)
-        if x0 is not None:
+        if x0 is not None:  # the start's residual in float32: the float64 check below catches its round-off
             x = self._project(x0, mask, count)
-            r -= self._project(win.compliance_product(x), mask, count)
+            r -= self._project(win.compliance_product(x.astype(np.float32)), mask, count)
         for _ in range(REFINEMENTS):
             norm = np.sqrt((r * r).reshape(k, -1).sum(axis=1))
             live = np.flatnonzero(norm > target)
