@@ -165,6 +165,10 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         The free context parameters.
     fixed : dict
         Fixed context values.
+    tol : float
+        Nats: the last stage stops when the Gauss-Newton decrement falls below it (or the objective
+        stalls, :data:`STALL`); the MAP is then within about ``sqrt(2 tol)`` posterior sd of the
+        optimum in the Hessian's norm.
     jacobian_every : int
         Iterations per explicit Jacobian (1: every iteration). Above 1 (with a prior), the last
         Jacobian drives the steps of the next ``jacobian_every - 1`` iterations while the gradient

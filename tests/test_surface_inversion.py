@@ -189,6 +189,15 @@ def test_context_is_marginalised_and_recovered(rng, monkeypatch):
     assert np.abs(single.mean[t] - loose.mean[t]).max() < 0.01 * post.std[t].min()
     assert np.abs(single.std[t] / loose.std[t] - 1).max() < 1e-3
     assert "continuation stages" in single.message and len(seen) == len({id(x) for x in seen}) > 1
+    # the search stopped at a decrement of 0.1 nats (here the stall test stops the default first, on a kink):
+    # a MAP within sqrt(0.1) sd per node
+    early = invert_scan(scan, noisy, sigma, prior=StationaryPrior(variance=(10e-6) ** 2, kind="white"),
+                        context={"normal_force": LogNormal(8.0, 0.3), "friction": Normal(0.3, 0.1)},
+                        rng=np.random.default_rng(7), jacobian_every=3, gradient_tol=1e-6, solve_dtype=np.float32,
+                        map_tol=0.1)
+    assert "converged: Gauss-Newton decrement" in early.message, early.message
+    dev = np.abs(early.mean[t] - single.mean[t]) / single.std[t]
+    assert dev.max() < np.sqrt(0.1)
 
 
 def test_surface_posterior_files_and_draws(rng, tmp_path):
@@ -238,6 +247,8 @@ def test_invert_scan_refuses_bad_input(rng):
         invert_scan(scan, data, 1.0, prior=prior, rng=rng, gradient_tol=1.0)
     with pytest.raises(ValueError, match="solve_dtype: expected float32 or float64, got float16"):
         invert_scan(scan, data, 1.0, prior=prior, rng=rng, solve_dtype=np.float16)
+    with pytest.raises(ValueError, match="map_tol: the Gauss-Newton decrement at which the search stops must be > 0"):
+        invert_scan(scan, data, 1.0, prior=prior, rng=rng, map_tol=float("nan"))
     with pytest.raises(ValueError, match="noise_std: the likelihood needs"):
         invert_scan(scan, data, 0.0, prior=prior, rng=rng)
     with pytest.raises(ValueError, match=r"data: expected finite values of shape \(2, 3\)"):
