@@ -24,6 +24,9 @@ window is the same operator (exact, not an approximation); a fingertip's contact
 its grid's width then costs a quarter of the padded FFT work. The padded products are pruned (the
 rows of zeros are not transformed, the rows off the window not returned). A start ``initial`` (a
 neighbouring frame's or an earlier iterate's solution) cuts the iterations where it is close.
+Chunks are small enough to stay in cache (:data:`CHUNK_BYTES`), ``workers`` threads take whole
+chunks, and ``dtype=float32`` runs the iterations in single precision (half the FFT work) in
+passes on the float64 residual until that residual meets ``tol``.
 """
 
 from __future__ import annotations
