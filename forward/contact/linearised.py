@@ -208,11 +208,13 @@ class ContactLinearisation:
         return self._windows[slices]
 
     def _project(self, x: np.ndarray, mask: np.ndarray, count: np.ndarray) -> np.ndarray:
-        """Onto the admissible fields: zero off the set, zero sum on it under force control."""
+        """Onto the admissible fields: zero off the set, zero sum on it under force control (``mask``
+        as float32 ones and zeros: no casts of booleans in the products)."""
         x = x * mask
         if self.force_control:
             mean = (x.reshape(x.shape[0], -1).sum(axis=1) / np.maximum(count, 1)).astype(x.dtype)
-            x -= mean.reshape((-1,) + (1,) * self.compliance.ndim) * mask
+            x -= mean.reshape((-1,) + (1,) * self.compliance.ndim)
+            x *= mask
         return x
 
     def _masks(self, k: int, frames) -> np.ndarray:
@@ -290,7 +292,7 @@ class ContactLinearisation:
             with self._lock:  # the windows' cache is shared by the threads
                 win = self._window(self.mask[sel])
             at = (slice(None),) + win.slices
-            mask, count = self.mask[sel][at], self.n_contact[sel]
+            mask, count = self.mask[sel][at].astype(np.float32), self.n_contact[sel]
             if b is None:  # the uniform field of unit sum, corrected to zero gap change on the set
                 f0 = mask / np.maximum(count, 1).reshape(shape_k)
                 x = f0 + self._pcg(win, -win.compliance_product(f0), mask, count, None)
