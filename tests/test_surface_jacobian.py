@@ -237,6 +237,19 @@ def test_float32_iterations_meet_the_tolerance_in_float64(rng, tol):
         ContactLinearisation(comp, masks, force_control=True, dtype=np.float16)
 
 
+@pytest.mark.parametrize("shape, periodic", [((64,), True), ((64,), False), ((32, 32), True)])
+def test_float32_iterations_on_periodic_and_line_grids(rng, shape, periodic):
+    """The float32 passes on the other products (periodic cells, 1-D grids): the float64 solve's answer
+    to the tolerance (1e-8: several passes)."""
+    skin = HalfSpace(E=E, nu=0.5)
+    comp = ContactCompliance(skin, shape, (20e-6,) * len(shape), periodic)
+    mask = rng.random(shape) < 0.6
+    rhs = rng.standard_normal((3, *shape))
+    want = ContactLinearisation(comp, mask, force_control=True, tol=1e-13).solve(rhs)
+    got = ContactLinearisation(comp, mask, force_control=True, tol=1e-8, dtype=np.float32).solve(rhs)
+    assert np.abs(got - want).max() < 1e-6 * np.abs(want).max()
+
+
 def test_frames_with_one_contact_set_share_their_solves(rng):
     """At a flat surface every frame has the finger's own contact: matrix() solves one frame and
     reads it into every frame's rows (each through its own interpolation), as matvec does frame by frame."""
