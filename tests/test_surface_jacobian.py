@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tactilab.forward import ContactCompliance, ContactLinearisation, HalfSpace, dottest, solve_contact
+from tactilab.forward import AccuracyWarning, ContactCompliance, ContactLinearisation, HalfSpace, dottest, solve_contact
 from tactilab.inversion.surface_jacobian import ScanJacobian
 from tactilab.inversion.surface_scan import ContactScan, ProfileGrid
 
@@ -235,6 +235,9 @@ def test_float32_iterations_meet_the_tolerance_in_float64(rng, tol):
         assert np.abs(got - want).max() < 1e3 * tol * np.abs(want).max()
     with pytest.raises(ValueError, match="dtype: expected float32 or float64, got float16"):
         ContactLinearisation(comp, masks, force_control=True, dtype=np.float16)
+    capped = ContactLinearisation(comp, masks, force_control=True, tol=tol, max_iter=1, dtype=np.float32)
+    with pytest.warns(AccuracyWarning, match="did not reach tol .* in 6 float32 passes of at most 1 iterations"):
+        capped.solve(rhs)
 
 
 @pytest.mark.parametrize("shape, periodic", [((64,), True), ((64,), False), ((32, 32), True)])

@@ -335,14 +335,14 @@ class ContactLinearisation:
             x[live] += self._project(d.astype(np.float64), mask[live], count[live])  # zero sum in float64
             r[live] = self._project(b[live] - win.compliance_product(x[live]), mask[live], count[live])
         norm = np.sqrt((r * r).reshape(k, -1).sum(axis=1))
-        self._warn(int(np.count_nonzero(norm > target)), k)
+        self._warn(int(np.count_nonzero(norm > target)), k, f"{REFINEMENTS} float32 passes of at most")
         return x
 
-    def _warn(self, failed: int, k: int):
+    def _warn(self, failed: int, k: int, passes: str = ""):
         if failed:
             warnings.warn(f"ContactLinearisation: conjugate gradients did not reach tol {self.tol:g} in "
-                          f"{self.max_iter} iterations for {failed} of {k} right-hand sides",
-                          AccuracyWarning, stacklevel=5)
+                          f"{passes}{' ' if passes else ''}{self.max_iter} iterations for {failed} of {k} "
+                          "right-hand sides", AccuracyWarning, stacklevel=5)
 
     def _cg(self, win: _Window, b: np.ndarray, mask: np.ndarray, count: np.ndarray, x0,
             rtol) -> tuple[np.ndarray, np.ndarray]:
