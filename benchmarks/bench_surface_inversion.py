@@ -9,8 +9,8 @@ where one frame's solves serve every frame, and at the MAP) and exact gradients 
 steps in between), the posterior mean's rms error against the truth, the 90 % band's coverage of
 touched nodes, the context posterior, and the same error for the linearised inversion (the first
 Gauss-Newton step from the flat surface: the full-contact linearisation around the smooth finger's
-contact). ``--workers`` threads (default 2, this machine's cores) run the FFTs of the Jacobian's and
-the gradients' solves and blocks of the scan solves' frames; the times are wall and process CPU.
+contact). ``--workers`` threads (default 2, this machine's cores) run chunks of the Jacobian's and the
+gradients' solves and blocks of the scan solves' frames; the times are wall and process CPU.
 
     python benchmarks/bench_surface_inversion.py            # the issue's size, minutes
     python benchmarks/bench_surface_inversion.py --quick --jacobian-every 1
@@ -113,7 +113,7 @@ def main(argv=None):
                    help="the exact gradients' restricted solves' tolerance (they steer; the MAP was unchanged)")
     p.add_argument("--map-tol", type=float, default=5e-3,
                    help="nats: the Gauss-Newton decrement at which the MAP search stops (invert_scan's map_tol)")
-    p.add_argument("--workers", type=int, default=2, help="FFT threads of the Jacobian's and gradients' solves")
+    p.add_argument("--workers", type=int, default=2, help="threads over chunks of the Jacobian's and gradients' solves and blocks of frames")
     p.add_argument("--solve-dtype", choices=("float32", "float64"), default="float32",
                    help="precision of the Jacobian's and gradients' restricted solves' iterations (float32 is refined "
                         "until the float64 residual meets their tolerances)")

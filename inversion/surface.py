@@ -104,7 +104,7 @@ def invert_scan(scan, data, noise_std: float, *, prior: StationaryPrior | None =
         ``jacobian_every`` > 1 the MAP is the exact gradient's zero): 1e-4 moved a 60-frame
         fingertip scan's posterior sds by at most 5e-5 of the largest.
     workers : int
-        Threads (default 1): of the FFTs of the Jacobian's and the gradients' restricted solves
+        Threads (default 1): over chunks of the Jacobian's and the gradients' restricted solves
         (:class:`tactilab.forward.ContactLinearisation`), and over blocks of frames of the scan
         solves (:meth:`ContactScan.solve`).
     gradient_tol : float

@@ -46,7 +46,7 @@ class ScanJacobian(LinearOperator):
         solutions then differ from those at 1e-10 by 5e-8 of their largest value, in 15 iterations
         instead of 22 at 1e-12; Gauss-Newton and the Laplace covariance need far less).
     workers : int
-        FFT threads of the restricted solves (:class:`tactilab.forward.ContactLinearisation`'s).
+        Threads over chunks of the restricted solves (:class:`tactilab.forward.ContactLinearisation`'s).
     dtype : float64 or float32
         Precision of the restricted solves' iterations (:class:`tactilab.forward.ContactLinearisation`'s:
         float32 is refined until the float64 residual meets ``tol``).

@@ -167,8 +167,8 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         Fixed context values.
     tol : float
         Nats: the last stage stops when the Gauss-Newton decrement falls below it (or the objective
-        stalls, :data:`STALL`); the MAP is then within about ``sqrt(2 tol)`` posterior sd of the
-        optimum in the Hessian's norm.
+        stalls, :data:`STALL`); the Gauss-Newton step left is then ``sqrt(tol)`` long in the
+        Hessian's norm (posterior sd), the objective about ``tol / 2`` nats above its minimum.
     jacobian_every : int
         Iterations per explicit Jacobian (1: every iteration). Above 1 (with a prior), the last
         Jacobian drives the steps of the next ``jacobian_every - 1`` iterations while the gradient
@@ -180,7 +180,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     jacobian_tol : float
         Relative residual of the Jacobian's restricted solves (:class:`ScanJacobian`'s ``tol``).
     workers : int
-        Threads: of the FFTs of the Jacobian's and the gradients' restricted solves
+        Threads: over chunks of the Jacobian's and the gradients' restricted solves
         (:class:`ScanJacobian`'s), and over blocks of frames of the scan solves
         (:meth:`ContactScan.solve`).
     gradient_tol : float
