@@ -22,6 +22,8 @@ builds it explicitly by adjoint solves, one batched solve (all frames) per senso
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
@@ -179,7 +181,8 @@ class ScanJacobian(LinearOperator):
         One restricted solve per distinct contact set and sensor output, batched over chunks of
         sets (a chunk's right-hand sides are all its sets' outputs: they share their windows), each
         chunk's solves started from the previous chunk's last set's (the same right-hand sides on a
-        neighbouring frame's set); rows ordered frame by frame as the flattened outputs.
+        neighbouring frame's set); with ``workers`` threads, each solves a contiguous run of sets;
+        rows ordered frame by frame as the flattened outputs.
         """
         scan = self.scan
         n_out, grid = scan.n_out, scan.grid_shape
@@ -189,19 +192,31 @@ class ScanJacobian(LinearOperator):
         # flat surface every frame has the finger's own contact, so one frame's solves serve all)
         first, which = self._distinct()
         per = max(1, self.lin.chunk // n_out)
-        previous = None  # the last set's solves: a scan's neighbouring sets differ at a few nodes
-        for lo in range(0, first.size, per):
-            sets = first[lo: lo + per]
-            rhs = np.broadcast_to(weights, (sets.size, n_out, *grid)).reshape(-1, *grid)
-            start = None if previous is None else \
-                np.broadcast_to(previous, (sets.size, n_out, *grid)).reshape(rhs.shape)
-            x = self.lin.solve(rhs, frames=np.repeat(sets, n_out), initial=start).reshape(sets.size, n_out, *grid)
-            previous = x[-1]
-            x = self.ratio * x
-            cols = self._columns(x)
-            for i in range(sets.size):
-                frames = np.flatnonzero(which == lo + i)
-                J[frames, :, : self.n_h] = self._adjoint_rows(cols[i], frames)
+        starts = np.arange(0, first.size, per)
+        lin = self.lin
+
+        def stream(chunks: np.ndarray, solver: ContactLinearisation):
+            previous = None  # the last set's solves: a scan's neighbouring sets differ at a few nodes
+            for lo in chunks:
+                sets = first[lo: lo + per]
+                rhs = np.broadcast_to(weights, (sets.size, n_out, *grid)).reshape(-1, *grid)
+                start = None if previous is None else \
+                    np.broadcast_to(previous, (sets.size, n_out, *grid)).reshape(rhs.shape)
+                x = solver.solve(rhs, frames=np.repeat(sets, n_out), initial=start).reshape(sets.size, n_out, *grid)
+                previous = x[-1]
+                cols = self._columns(self.ratio * x)
+                for i in range(sets.size):
+                    frames = np.flatnonzero(which == lo + i)
+                    J[frames, :, : self.n_h] = self._adjoint_rows(cols[i], frames)
+
+        k = min(lin.workers, starts.size)
+        if k == 1:
+            stream(starts, lin)
+        else:  # contiguous runs of sets, one thread each (one solver each: no waiting on each other's chunks)
+            solvers = [ContactLinearisation(scan.compliance, lin.mask, force_control=True, tol=lin.tol,
+                                            chunk=lin.chunk, dtype=lin.dtype) for _ in range(k)]
+            with ThreadPoolExecutor(max_workers=k) as pool:
+                list(pool.map(stream, np.array_split(starts, k), solvers))
         for k, name in enumerate(self.free):
             extra = self._context_pressure(name)
             if extra is not None:

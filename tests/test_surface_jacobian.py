@@ -105,6 +105,11 @@ def test_scan_jacobian_dot_test_and_explicit_matrix(rng, quantity, geometry):
     assert dottest(jac, rng, rtol=1e-8) < 1e-8
     v = rng.standard_normal(jac.shape[1])
     dense = jac.matrix()
+    # two threads, each a contiguous run of the frames' sets with its own solver: the same matrix
+    two = ScanJacobian(scan, state, free=("normal_force", "friction", "young_modulus"), tol=1e-12, workers=2)
+    two.lin.chunk = scan.n_out  # one set per chunk: 4 chunks, 2 runs
+    assert two._distinct()[0].size == scan.n_frames == 4
+    assert np.abs(two.matrix() - dense).max() < 1e-9 * np.abs(dense).max()
     assert np.abs(dense @ v - jac.matvec(v)).max() < 1e-9 * np.abs(dense @ v).max()
     # a fresh operator's adjoint reads the force and modulus columns without the force responses
     # (<f, g> = <f0, g> - <A f0, S g>): the same as the matrix built from them
