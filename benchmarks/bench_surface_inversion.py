@@ -9,8 +9,8 @@ where one frame's solves serve every frame, and at the MAP) and exact gradients 
 steps in between), the posterior mean's rms error against the truth, the 90 % band's coverage of
 touched nodes, the context posterior, and the same error for the linearised inversion (the first
 Gauss-Newton step from the flat surface: the full-contact linearisation around the smooth finger's
-contact). ``--workers`` threads (default 2, this machine's cores) run the FFTs of the Jacobian's and
-the gradients' solves and blocks of the scan solves' frames; the times are wall and process CPU.
+contact). ``--workers`` threads (default 2, this machine's cores) run chunks of the Jacobian's and the
+gradients' solves and blocks of the scan solves' frames; the times are wall and process CPU.
 
     python benchmarks/bench_surface_inversion.py            # the issue's size, minutes
     python benchmarks/bench_surface_inversion.py --quick --jacobian-every 1
@@ -111,7 +111,12 @@ def main(argv=None):
                         "gradient's zero)")
     p.add_argument("--gradient-tol", type=float, default=1e-6,
                    help="the exact gradients' restricted solves' tolerance (they steer; the MAP was unchanged)")
-    p.add_argument("--workers", type=int, default=2, help="FFT threads of the Jacobian's and gradients' solves")
+    p.add_argument("--map-tol", type=float, default=5e-3,
+                   help="nats: the Gauss-Newton decrement at which the MAP search stops (invert_scan's map_tol)")
+    p.add_argument("--workers", type=int, default=2, help="threads over chunks of the Jacobian's and gradients' solves and blocks of frames")
+    p.add_argument("--solve-dtype", choices=("float32", "float64"), default="float32",
+                   help="precision of the Jacobian's and gradients' restricted solves' iterations (float32 is refined "
+                        "until the float64 residual meets their tolerances)")
     args = p.parse_args(argv)
     if args.quick:
         args.force, args.frames, args.grid_spacing, args.depth, args.margin = 0.02, 8, 40e-6, 0.3e-3, 1.5
@@ -131,7 +136,7 @@ def main(argv=None):
     with clocks(parts) as spent:
         post = invert_scan(scan, data, sigma, prior=prior, context=context, rng=rng, n_draws=200,
                            jacobian_every=args.jacobian_every, jacobian_tol=args.jacobian_tol, workers=args.workers,
-                           gradient_tol=args.gradient_tol)
+                           gradient_tol=args.gradient_tol, solve_dtype=args.solve_dtype, map_tol=args.map_tol)
     t_map, c_map = time.perf_counter() - t0, time.process_time() - c0
     lin = invert_scan(scan, data, sigma, prior=prior, context=context, rng=rng, n_draws=20, max_iter=1,
                        continuation=False)
@@ -139,7 +144,8 @@ def main(argv=None):
     offset = np.mean(post.mean[t] - truth[t])  # the absolute level is not identified
     z90 = norm.ppf(0.95)
     print(f"grid {scan.grid_shape}, {scan.n_frames} frames, {scan.n_out} outputs, profile {scan.profile.size} nodes; "
-          f"Jacobian tol {args.jacobian_tol:g}, gradient tol {args.gradient_tol:g}, {args.workers} FFT workers")
+          f"Jacobian tol {args.jacobian_tol:g}, gradient tol {args.gradient_tol:g} ({args.solve_dtype} iterations), "
+          f"{args.workers} threads; MAP decrement tol {args.map_tol:g} nats")
     print(f"one scan solve: {t_solve:.2f} s; MAP + Laplace: {t_map:.1f} s (process CPU {c_map:.1f} s); {post.message}")
     rest, c_rest = t_map - sum(v[1] for v in spent.values()), c_map - sum(v[2] for v in spent.values())
     print("  of which " + "; ".join(f"{k}: {v[0]} x, {v[1]:.1f} s (CPU {v[2]:.1f} s)" for k, v in spent.items())

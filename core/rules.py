@@ -235,14 +235,14 @@ def finite_array(value, name: str, unit: str) -> np.ndarray:
     return arr
 
 
-def float_dtype(value) -> np.dtype:
+def float_dtype(value, name: str = "dtype") -> np.dtype:
     """float32 or float64."""
     try:
         dt = np.dtype(value)
     except TypeError:
-        raise ValueError(f"dtype: expected float32 or float64, got {value!r}") from None
+        raise ValueError(f"{name}: expected float32 or float64, got {value!r}") from None
     if dt not in (np.dtype(np.float32), np.dtype(np.float64)):
-        raise ValueError(f"dtype: expected float32 or float64, got {dt}; use float64 for tolerances below 1e-6")
+        raise ValueError(f"{name}: expected float32 or float64, got {dt}; use float64 for tolerances below 1e-6")
     return dt
 
 

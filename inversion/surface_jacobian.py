@@ -22,6 +22,8 @@ builds it explicitly by adjoint solves, one batched solve (all frames) per senso
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
@@ -46,7 +48,10 @@ class ScanJacobian(LinearOperator):
         solutions then differ from those at 1e-10 by 5e-8 of their largest value, in 15 iterations
         instead of 22 at 1e-12; Gauss-Newton and the Laplace covariance need far less).
     workers : int
-        FFT threads of the restricted solves (:class:`tactilab.forward.ContactLinearisation`'s).
+        Threads over chunks of the restricted solves (:class:`tactilab.forward.ContactLinearisation`'s).
+    dtype : float64 or float32
+        Precision of the restricted solves' iterations (:class:`tactilab.forward.ContactLinearisation`'s:
+        float32 is refined until the float64 residual meets ``tol``).
 
     Attributes
     ----------
@@ -54,7 +59,7 @@ class ScanJacobian(LinearOperator):
         Model shape ``(n_profile + n_free,)`` and data shape ``(n_frames, n_out)``.
     """
 
-    def __init__(self, scan, state, free=(), *, tol: float = 1e-8, workers: int = 1):
+    def __init__(self, scan, state, free=(), *, tol: float = 1e-8, workers: int = 1, dtype=np.float64):
         self.scan, self.state, self.free = scan, state, tuple(free)
         if scan.mean_pressure is not None and "normal_force" in self.free:
             raise ValueError("free: a periodic cell is loaded by its mean pressure, it has no normal_force to free")
@@ -62,7 +67,8 @@ class ScanJacobian(LinearOperator):
         n_model = self.n_h + len(self.free)
         self.dims, self.dimsd = (n_model,), (scan.n_frames, scan.n_out)
         super().__init__(dtype=np.float64, shape=(scan.n_frames * scan.n_out, n_model))
-        self.lin = ContactLinearisation(scan.compliance, state.contact, force_control=True, tol=tol, workers=workers)
+        self.lin = ContactLinearisation(scan.compliance, state.contact, force_control=True, tol=tol, workers=workers,
+                                        dtype=dtype)
         ctx = state.context
         self.ratio = ctx["young_modulus"] / scan.reference["young_modulus"]
         self.W = scan.effective_weights(ctx)  # (n_nodes, n_out)
@@ -175,7 +181,8 @@ class ScanJacobian(LinearOperator):
         One restricted solve per distinct contact set and sensor output, batched over chunks of
         sets (a chunk's right-hand sides are all its sets' outputs: they share their windows), each
         chunk's solves started from the previous chunk's last set's (the same right-hand sides on a
-        neighbouring frame's set); rows ordered frame by frame as the flattened outputs.
+        neighbouring frame's set); with ``workers`` threads, each solves a contiguous run of sets;
+        rows ordered frame by frame as the flattened outputs.
         """
         scan = self.scan
         n_out, grid = scan.n_out, scan.grid_shape
@@ -185,19 +192,31 @@ class ScanJacobian(LinearOperator):
         # flat surface every frame has the finger's own contact, so one frame's solves serve all)
         first, which = self._distinct()
         per = max(1, self.lin.chunk // n_out)
-        previous = None  # the last set's solves: a scan's neighbouring sets differ at a few nodes
-        for lo in range(0, first.size, per):
-            sets = first[lo: lo + per]
-            rhs = np.broadcast_to(weights, (sets.size, n_out, *grid)).reshape(-1, *grid)
-            start = None if previous is None else \
-                np.broadcast_to(previous, (sets.size, n_out, *grid)).reshape(rhs.shape)
-            x = self.lin.solve(rhs, frames=np.repeat(sets, n_out), initial=start).reshape(sets.size, n_out, *grid)
-            previous = x[-1]
-            x = self.ratio * x
-            cols = self._columns(x)
-            for i in range(sets.size):
-                frames = np.flatnonzero(which == lo + i)
-                J[frames, :, : self.n_h] = self._adjoint_rows(cols[i], frames)
+        starts = np.arange(0, first.size, per)
+        lin = self.lin
+
+        def stream(chunks: np.ndarray, solver: ContactLinearisation):
+            previous = None  # the last set's solves: a scan's neighbouring sets differ at a few nodes
+            for lo in chunks:
+                sets = first[lo: lo + per]
+                rhs = np.broadcast_to(weights, (sets.size, n_out, *grid)).reshape(-1, *grid)
+                start = None if previous is None else \
+                    np.broadcast_to(previous, (sets.size, n_out, *grid)).reshape(rhs.shape)
+                x = solver.solve(rhs, frames=np.repeat(sets, n_out), initial=start).reshape(sets.size, n_out, *grid)
+                previous = x[-1]
+                cols = self._columns(self.ratio * x)
+                for i in range(sets.size):
+                    frames = np.flatnonzero(which == lo + i)
+                    J[frames, :, : self.n_h] = self._adjoint_rows(cols[i], frames)
+
+        k = min(lin.workers, starts.size)
+        if k == 1:
+            stream(starts, lin)
+        else:  # contiguous runs of sets, one thread each (one solver each: no waiting on each other's chunks)
+            solvers = [ContactLinearisation(scan.compliance, lin.mask, force_control=True, tol=lin.tol,
+                                            chunk=lin.chunk, dtype=lin.dtype) for _ in range(k)]
+            with ThreadPoolExecutor(max_workers=k) as pool:
+                list(pool.map(stream, np.array_split(starts, k), solvers))
         for k, name in enumerate(self.free):
             extra = self._context_pressure(name)
             if extra is not None:

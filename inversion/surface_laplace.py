@@ -42,6 +42,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
+from tactilab.core import rules
+
 from .priors import LogNormal, Normal, Uniform
 from .surface_jacobian import ScanJacobian
 
@@ -146,7 +148,7 @@ def _context(z_c, transforms, fixed) -> dict | None:
 def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_iter=30, tol=1e-6,
                  touch_threshold=TOUCH_THRESHOLD, start=None, continuation=True,
                  jacobian_every: int = 1, jacobian_tol: float = 1e-8, workers: int = 1,
-                 gradient_tol: float = 1e-8) -> LaplaceResult:
+                 gradient_tol: float = 1e-8, solve_dtype=np.float64) -> LaplaceResult:
     """Gauss-Newton MAP with a line search, then the Hessian there (see the module docstring).
 
     Parameters
@@ -163,6 +165,10 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         The free context parameters.
     fixed : dict
         Fixed context values.
+    tol : float
+        Nats: the last stage stops when the Gauss-Newton decrement falls below it (or the objective
+        stalls, :data:`STALL`); the Gauss-Newton step left is then ``sqrt(tol)`` long in the
+        Hessian's norm (posterior sd), the objective about ``tol / 2`` nats above its minimum.
     jacobian_every : int
         Iterations per explicit Jacobian (1: every iteration). Above 1 (with a prior), the last
         Jacobian drives the steps of the next ``jacobian_every - 1`` iterations while the gradient
@@ -174,13 +180,17 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     jacobian_tol : float
         Relative residual of the Jacobian's restricted solves (:class:`ScanJacobian`'s ``tol``).
     workers : int
-        Threads: of the FFTs of the Jacobian's and the gradients' restricted solves
+        Threads: over chunks of the Jacobian's and the gradients' restricted solves
         (:class:`ScanJacobian`'s), and over blocks of frames of the scan solves
         (:meth:`ContactScan.solve`).
     gradient_tol : float
         Relative residual of the exact gradients' restricted solves (``jacobian_every`` > 1): they
         only steer, the line search takes the objective itself; 1e-6 left the MAP of the issue's
         fingertip scan unchanged in four digits.
+    solve_dtype : float64 or float32
+        Precision of the iterations of the Jacobian's and the gradients' restricted solves
+        (:class:`ScanJacobian`'s ``dtype``): float32 halves their FFT work and is refined until the
+        float64 residual meets ``jacobian_tol`` and ``gradient_tol``.
     """
     if int(max_iter) < 1:
         raise ValueError(f"max_iter: the Gauss-Newton search needs at least 1 iteration, got {max_iter!r}")
@@ -192,10 +202,11 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
     if not 0 < gradient_tol < 1:
         raise ValueError(f"gradient_tol: the gradients' relative residual must lie in (0, 1), got "
                          f"{gradient_tol!r}; e.g. 1e-8")
+    solve_dtype = rules.float_dtype(solve_dtype, "solve_dtype")
     names = [t.name for t in transforms]
 
     def jacobian(state):
-        return _jacobian(scan, state, names, jacobian_tol, workers)
+        return _jacobian(scan, state, names, jacobian_tol, workers, solve_dtype)
 
     n, k = scan.profile.size, len(transforms)
     flat_h = root is None
@@ -236,7 +247,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
         stage_tol = tol if j == len(stages) - 1 else max(tol, STAGE_TOL)
         z, state, info, its = _descend(evaluate, jacobian, scan, data, noise_std * factor, z, names, transforms,
                                        root, penal, uniform, n, max_iter, stage_tol, history, int(jacobian_every),
-                                       kept, workers, gradient_tol)
+                                       kept, workers, gradient_tol, solve_dtype)
         total += its
         messages.append(info)
     message = messages[-1] + (f" (after {len(stages) - 1} continuation stages in the noise sd)" if len(stages) > 1
@@ -257,7 +268,7 @@ def gauss_newton(scan, data, noise_std, root, mean, transforms, fixed, *, max_it
 
 
 def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, penal, uniform, n, max_iter, tol,
-             history, every=1, kept=None, workers=1, gradient_tol=1e-8):
+             history, every=1, kept=None, workers=1, gradient_tol=1e-8, dtype=np.float64):
     """Gauss-Newton with an Armijo line search at one noise sd; returns (z, state, message, iterations).
     With ``every`` > 1 (and a prior) the Jacobian is rebuilt every ``every`` iterations (see
     gauss_newton); ``kept`` (a dict) holds the last one across calls (stages)."""
@@ -284,8 +295,8 @@ def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, 
         if fresh:
             g = -(A.T @ r) + penal[unknowns] * z[unknowns] + gauge @ z[unknowns]
         else:  # the exact gradient by one adjoint solve per frame; the last Jacobian's Hessian
-            adj, kept["adjoint"] = _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r,
-                                                     kept.get("adjoint"), workers, gradient_tol)
+            adj = _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r, kept, workers,
+                                    gradient_tol, dtype)
             g = -adj[unknowns] + penal[unknowns] * z[unknowns]
         age += 1
         step = np.zeros_like(z)
@@ -324,17 +335,23 @@ def _descend(evaluate, jacobian, scan, data, sigma, z, names, transforms, root, 
     return z, state, f"stopped at max_iter = {max_iter} iterations (decrement {decrement:.2g} nats)", it
 
 
-def _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r, start=None, workers=1, tol=1e-8):
-    """``Jz^T r`` (whitened coordinates, over sigma) by the scan Jacobian's adjoint, without the matrix,
-    and its restricted solves for the misfit ``r sigma`` (data units: the same scale in every continuation
-    stage), which ``start`` (the previous iterate's) starts."""
-    jt, solves = ScanJacobian(scan, state, free=names, tol=tol, workers=workers).adjoint(r * sigma, initial=start)
-    jt = jt / sigma
+def _whitened_adjoint(scan, state, names, transforms, z, root, sigma, n, r, kept, workers=1, tol=1e-8,
+                      dtype=np.float64):
+    """``Jz^T r`` (whitened coordinates, over sigma) by the scan Jacobian's adjoint, without the matrix.
+    Its restricted solves are for the misfit ``r sigma`` (data units: the same in every continuation
+    stage); ``kept`` holds the last ones (``"adjoint"``: they start the next iterate's) and the state
+    they belong to with ``J^T (r sigma)`` (``"misfit"``: a stage that starts where the last one ended
+    reuses it)."""
+    if kept.get("misfit") is None or kept["misfit"][0] is not state:
+        jac = ScanJacobian(scan, state, free=names, tol=tol, workers=workers, dtype=dtype)
+        jt, kept["adjoint"] = jac.adjoint(r * sigma, initial=kept.get("adjoint"))
+        kept["misfit"] = (state, jt)
+    jt = kept["misfit"][1] / sigma
     out = np.empty(n + len(transforms))
     out[:n] = root.T @ jt[:n]
     for i, tr in enumerate(transforms):
         out[n + i] = jt[n + i] * tr.slope(z[n + i])
-    return out / sigma, solves
+    return out / sigma
 
 
 def reads_nodes(scan, nodes: np.ndarray) -> np.ndarray:
@@ -356,9 +373,9 @@ def loaded_nodes(scan, state, threshold: float) -> np.ndarray:
     return load >= threshold * load.max() if load.max() > 0 else np.zeros(scan.profile.size, dtype=bool)
 
 
-def _jacobian(scan, state, names, tol, workers=1):
+def _jacobian(scan, state, names, tol, workers=1, dtype=np.float64):
     """The scan Jacobian (natural units) and the touched nodes (a non-zero column)."""
-    J = ScanJacobian(scan, state, free=names, tol=tol, workers=workers).matrix()
+    J = ScanJacobian(scan, state, free=names, tol=tol, workers=workers, dtype=dtype).matrix()
     return J, np.abs(J[:, : scan.profile.size]).max(axis=0) > 0
 
 

@@ -278,7 +278,8 @@ class ContactScan:
         The frames skip the engine's check solve (its error estimate, which a scan state does not
         report): the pressures are the same to the scan's ``tol``. ``workers`` threads solve
         contiguous blocks of frames (the engine's FFTs and compiled kernels release the GIL; its work
-        arrays are per thread); without ``start`` each block's first frame starts cold."""
+        arrays are per thread); without ``start`` each block's first frame starts cold, and frames
+        that all read the same heights (a flat surface: the Gauss-Newton start) are solved once."""
         h = np.asarray(heights, dtype=float)
         if h.shape != self.profile.shape or not np.all(np.isfinite(h)):
             raise ValueError(f"heights: expected finite values of shape {self.profile.shape} (m), got {h.shape}")
@@ -302,16 +303,21 @@ class ContactScan:
                               initial=None if initial is None else initial[frames.start: frames.stop],
                               estimate_error=False, **load)
 
-        k = max(1, min(int(workers), self.n_frames))
-        edges = np.linspace(0, self.n_frames, k + 1).round().astype(int)
-        blocks = [range(a, b) for a, b in zip(edges[:-1], edges[1:])]
-        if k == 1:
-            sols = [block(blocks[0])]
+        if start is None and np.all(H == H[:1]):  # every frame reads the same heights (a flat surface): one solve
+            sol = block(range(0, 1))
+            pressure = ratio * np.broadcast_to(sol.pressure, (self.n_frames, *self.grid_shape)).copy()
+            contact = np.broadcast_to(sol.contact, pressure.shape).copy()
         else:
-            with ThreadPoolExecutor(max_workers=k) as pool:
-                sols = list(pool.map(block, blocks))
-        pressure = ratio * np.concatenate([s.pressure for s in sols])
-        contact = np.concatenate([s.contact for s in sols])
+            k = max(1, min(int(workers), self.n_frames))
+            edges = np.linspace(0, self.n_frames, k + 1).round().astype(int)
+            blocks = [range(a, b) for a, b in zip(edges[:-1], edges[1:])]
+            if k == 1:
+                sols = [block(blocks[0])]
+            else:
+                with ThreadPoolExecutor(max_workers=k) as pool:
+                    sols = list(pool.map(block, blocks))
+            pressure = ratio * np.concatenate([s.pressure for s in sols])
+            contact = np.concatenate([s.contact for s in sols])
         outputs = pressure.reshape(self.n_frames, -1) @ self.effective_weights(ctx)
         return ScanState(heights=h.copy(), context=ctx, pressure=pressure, contact=contact, node_heights=H,
                          outputs=outputs)

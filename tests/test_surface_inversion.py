@@ -18,6 +18,7 @@ from tactilab.data_schemas.sensors import SensorArray
 from tactilab.forward import HalfSpace, SensorReadout, finger_gap, solve_scan
 from tactilab.inversion.gaussian import StationaryPrior, gaussian_posterior
 from tactilab.inversion.priors import LogNormal, Normal
+from tactilab.inversion.surface_jacobian import ScanJacobian
 from tactilab.inversion.surface import invert_scan
 from tactilab.inversion.surface_laplace import prior_root
 from tactilab.inversion.surface_scan import ContactScan, ProfileGrid
@@ -105,6 +106,13 @@ def test_a_scan_started_from_an_earlier_iterate_equals_a_cold_one(rng):
     assert np.array_equal(threads.pressure, warm.pressure) and np.array_equal(threads.contact, warm.contact)
     blocks = scan.solve(truth, workers=2)  # without a start: each block's first frame cold
     assert np.abs(blocks.pressure - cold.pressure).max() <= 1e-8 * cold.pressure.max()
+    # a flat surface (every frame reads the same heights) is solved once: the same as frame by frame
+    # (heights a femtometre apart, which the solver's tolerance does not see, take the frame-by-frame path)
+    flat = scan.solve(np.zeros_like(truth))
+    each = scan.solve(1e-15 * np.arange(truth.size).reshape(truth.shape))
+    assert np.abs(flat.pressure - each.pressure).max() <= 1e-8 * each.pressure.max()
+    assert np.array_equal(flat.contact, each.contact)
+    assert np.abs(flat.outputs - each.outputs).max() <= 1e-8 * np.abs(each.outputs).max()
     with pytest.raises(ValueError, match="start: expected a ScanState of this scan"):
         scan.solve(truth, start=cold.pressure)
     with pytest.raises(ValueError, match="workers: threads must be a positive integer"):
@@ -148,7 +156,7 @@ def test_noise_free_partial_contact_recovers_the_touched_heights_and_bounds_the_
 
 
 @pytest.mark.slow  # a few seconds; the whole suite runs it
-def test_context_is_marginalised_and_recovered(rng):
+def test_context_is_marginalised_and_recovered(rng, monkeypatch):
     scan, truth, data = _groove_problem(rng)
     sigma = 0.01 * np.abs(data).max()
     noisy = data + sigma * rng.standard_normal(data.shape)
@@ -177,6 +185,26 @@ def test_context_is_marginalised_and_recovered(rng):
     assert np.array_equal(loose.touched, t)
     assert np.abs(loose.mean[t] - lagged.mean[t]).max() < 0.01 * post.std[t].min()
     assert np.abs(loose.std[t] / lagged.std[t] - 1).max() < 1e-3
+    # their iterations in float32 (refined to the same tolerances in float64): the same MAP and Hessian;
+    # a continuation stage starting where the last ended reuses its gradient's solves (no state twice)
+    seen, adjoint = [], ScanJacobian.adjoint
+    monkeypatch.setattr(ScanJacobian, "adjoint", lambda self, *a, **k: seen.append(self.state) or adjoint(self, *a, **k))
+    single = invert_scan(scan, noisy, sigma, prior=StationaryPrior(variance=(10e-6) ** 2, kind="white"),
+                         context={"normal_force": LogNormal(8.0, 0.3), "friction": Normal(0.3, 0.1)},
+                         rng=np.random.default_rng(7), jacobian_every=3, gradient_tol=1e-6, solve_dtype=np.float32)
+    assert np.array_equal(single.touched, t)
+    assert np.abs(single.mean[t] - loose.mean[t]).max() < 0.01 * post.std[t].min()
+    assert np.abs(single.std[t] / loose.std[t] - 1).max() < 1e-3
+    assert "continuation stages" in single.message and len(seen) == len({id(x) for x in seen}) > 1
+    # the search stopped at a decrement of 0.1 nats (here the stall test stops the default first, on a kink):
+    # a MAP within sqrt(0.1) sd per node
+    early = invert_scan(scan, noisy, sigma, prior=StationaryPrior(variance=(10e-6) ** 2, kind="white"),
+                        context={"normal_force": LogNormal(8.0, 0.3), "friction": Normal(0.3, 0.1)},
+                        rng=np.random.default_rng(7), jacobian_every=3, gradient_tol=1e-6, solve_dtype=np.float32,
+                        map_tol=0.1)
+    assert "converged: Gauss-Newton decrement" in early.message, early.message
+    dev = np.abs(early.mean[t] - single.mean[t]) / single.std[t]
+    assert dev.max() < np.sqrt(0.1)
 
 
 def test_surface_posterior_files_and_draws(rng, tmp_path):
@@ -224,6 +252,10 @@ def test_invert_scan_refuses_bad_input(rng):
         invert_scan(scan, data, 1.0, prior=prior, rng=rng, jacobian_tol=0.0)
     with pytest.raises(ValueError, match=r"gradient_tol: the gradients' relative residual must lie in"):
         invert_scan(scan, data, 1.0, prior=prior, rng=rng, gradient_tol=1.0)
+    with pytest.raises(ValueError, match="solve_dtype: expected float32 or float64, got float16"):
+        invert_scan(scan, data, 1.0, prior=prior, rng=rng, solve_dtype=np.float16)
+    with pytest.raises(ValueError, match="map_tol: the Gauss-Newton decrement at which the search stops must be > 0"):
+        invert_scan(scan, data, 1.0, prior=prior, rng=rng, map_tol=float("nan"))
     with pytest.raises(ValueError, match="noise_std: the likelihood needs"):
         invert_scan(scan, data, 0.0, prior=prior, rng=rng)
     with pytest.raises(ValueError, match=r"data: expected finite values of shape \(2, 3\)"):

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tactilab.forward import ContactCompliance, ContactLinearisation, HalfSpace, dottest, solve_contact
+from tactilab.forward import AccuracyWarning, ContactCompliance, ContactLinearisation, HalfSpace, dottest, solve_contact
 from tactilab.inversion.surface_jacobian import ScanJacobian
 from tactilab.inversion.surface_scan import ContactScan, ProfileGrid
 
@@ -105,6 +105,11 @@ def test_scan_jacobian_dot_test_and_explicit_matrix(rng, quantity, geometry):
     assert dottest(jac, rng, rtol=1e-8) < 1e-8
     v = rng.standard_normal(jac.shape[1])
     dense = jac.matrix()
+    # two threads, each a contiguous run of the frames' sets with its own solver: the same matrix
+    two = ScanJacobian(scan, state, free=("normal_force", "friction", "young_modulus"), tol=1e-12, workers=2)
+    two.lin.chunk = scan.n_out  # one set per chunk: 4 chunks, 2 runs
+    assert two._distinct()[0].size == scan.n_frames == 4
+    assert np.abs(two.matrix() - dense).max() < 1e-9 * np.abs(dense).max()
     assert np.abs(dense @ v - jac.matvec(v)).max() < 1e-9 * np.abs(dense @ v).max()
     # a fresh operator's adjoint reads the force and modulus columns without the force responses
     # (<f, g> = <f0, g> - <A f0, S g>): the same as the matrix built from them
@@ -207,6 +212,50 @@ def test_windowed_chunked_solve_equals_the_dense_restricted_system(rng):
         lin.solve(rhs, initial=np.zeros((2, n, n)))
     with pytest.raises(ValueError, match="chunk: right-hand sides per batched solve must be >= 1"):
         ContactLinearisation(comp, masks, force_control=True, chunk=0)
+
+
+@pytest.mark.parametrize("tol", [1e-4, 1e-6, 1e-10])
+def test_float32_iterations_meet_the_tolerance_in_float64(rng, tol):
+    """dtype=float32: the single-precision passes are refined until the float64 residual of the
+    restricted system (projected on the zero-sum fields of the set, with the dense compliance) is
+    below tol, also far below float32's round-off (1e-10: several passes); started or not."""
+    n, dx = 24, 40e-6
+    skin = HalfSpace(E=E, nu=0.5)
+    comp = ContactCompliance(skin, (n, n), (dx, dx), False)
+    sols = [solve_contact(skin, _sphere(n, dx, rng), dx, normal_force=f, tol=1e-12) for f in (0.002, 0.004, 0.003)]
+    masks = np.stack([s.contact for s in sols])
+    A = np.column_stack([comp.normal(e.reshape(n, n)).ravel() for e in np.eye(n * n)])
+    rhs = rng.standard_normal((3, n, n))
+    want = ContactLinearisation(comp, masks, force_control=True, tol=1e-13).solve(rhs)
+    single = ContactLinearisation(comp, masks, force_control=True, tol=tol, chunk=2, dtype=np.float32)
+    for start in (None, want + 0.01 * np.abs(want).max() * rng.standard_normal(want.shape) * masks):
+        got = single.solve(rhs, initial=start)
+        assert got.dtype == np.float64 and not got[~masks].any()
+        for k in range(3):
+            c = np.flatnonzero(masks[k].ravel())
+            b = rhs[k].ravel()[c] - rhs[k].ravel()[c].mean()
+            r = rhs[k].ravel()[c] - A[np.ix_(c, c)] @ got[k].ravel()[c]
+            assert np.linalg.norm(r - r.mean()) <= tol * np.linalg.norm(b)
+            assert abs(got[k].sum()) < 1e-9 * np.abs(got[k]).sum()
+        assert np.abs(got - want).max() < 1e3 * tol * np.abs(want).max()
+    with pytest.raises(ValueError, match="dtype: expected float32 or float64, got float16"):
+        ContactLinearisation(comp, masks, force_control=True, dtype=np.float16)
+    capped = ContactLinearisation(comp, masks, force_control=True, tol=tol, max_iter=1, dtype=np.float32)
+    with pytest.warns(AccuracyWarning, match="did not reach tol .* in 6 float32 passes of at most 1 iterations"):
+        capped.solve(rhs)
+
+
+@pytest.mark.parametrize("shape, periodic", [((64,), True), ((64,), False), ((32, 32), True)])
+def test_float32_iterations_on_periodic_and_line_grids(rng, shape, periodic):
+    """The float32 passes on the other products (periodic cells, 1-D grids): the float64 solve's answer
+    to the tolerance (1e-8: several passes)."""
+    skin = HalfSpace(E=E, nu=0.5)
+    comp = ContactCompliance(skin, shape, (20e-6,) * len(shape), periodic)
+    mask = rng.random(shape) < 0.6
+    rhs = rng.standard_normal((3, *shape))
+    want = ContactLinearisation(comp, mask, force_control=True, tol=1e-13).solve(rhs)
+    got = ContactLinearisation(comp, mask, force_control=True, tol=1e-8, dtype=np.float32).solve(rhs)
+    assert np.abs(got - want).max() < 1e-6 * np.abs(want).max()
 
 
 def test_frames_with_one_contact_set_share_their_solves(rng):

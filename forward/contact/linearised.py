@@ -24,12 +24,17 @@ window is the same operator (exact, not an approximation); a fingertip's contact
 its grid's width then costs a quarter of the padded FFT work. The padded products are pruned (the
 rows of zeros are not transformed, the rows off the window not returned). A start ``initial`` (a
 neighbouring frame's or an earlier iterate's solution) cuts the iterations where it is close.
+Chunks are small enough to stay in cache (:data:`CHUNK_BYTES`), ``workers`` threads take whole
+chunks, and ``dtype=float32`` runs the iterations in single precision (half the FFT work) in
+passes on the float64 residual until that residual meets ``tol``.
 """
 
 from __future__ import annotations
 
 import math
+import threading
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from scipy import fft as sfft
@@ -42,8 +47,14 @@ from .compliance import ContactCompliance
 __all__ = ["ContactLinearisation"]
 
 #: bytes of work memory per chunk of right-hand sides (about ten grid-sized arrays and a padded
-#: spectrum per right-hand side)
-CHUNK_BYTES = 256 * 2**20
+#: spectrum per right-hand side): small enough to stay in cache (a fingertip's 180^2 grid: 10 per
+#: chunk; its Jacobian's solves took 0.6 of the time of 86 per chunk, 256 MiB)
+CHUNK_BYTES = 32 * 2**20
+#: the smallest relative residual a float32 pass is asked for (its round-off is about 1e-7 of the
+#: products); a smaller ``tol`` takes further passes on the float64 residual
+SINGLE_TOL = 1e-5
+#: most float32 passes (each on the float64 residual of the last)
+REFINEMENTS = 6
 
 
 def _fast_size(size: int, limit: int) -> int:
@@ -56,10 +67,11 @@ def _fast_size(size: int, limit: int) -> int:
 
 class _Window:
     """One window of the grid (slices) and its operators: the isolated compliance's pruned padded
-    product and the periodic stiffness of the window (the preconditioner), on stacks."""
+    product and the periodic stiffness of the window (the preconditioner), on stacks of float64 or
+    float32 (their spectra kept in both precisions: a float32 stack is transformed in single precision)."""
 
-    def __init__(self, compliance: ContactCompliance, slices: tuple[slice, ...], workers: int = 1):
-        self.slices, self.workers = slices, workers
+    def __init__(self, compliance: ContactCompliance, slices: tuple[slice, ...]):
+        self.slices = slices  # one FFT thread: the solver's threads take whole chunks
         shape = tuple(s.stop - s.start for s in slices)
         c = compliance if shape == compliance.shape else ContactCompliance(compliance.skin, shape,
                                                                            compliance.spacing, compliance.periodic)
@@ -68,30 +80,34 @@ class _Window:
         self.spectrum = c.spectrum("uz", "p")
         impulse = np.zeros(shape)  # the stiffness's spectrum: read back by a unit impulse
         impulse.flat[0] = 1.0
-        self.stiffness = sfft.rfftn(c.stiffness(impulse), axes=self.axes, workers=self.workers)
+        self.stiffness = sfft.rfftn(c.stiffness(impulse), axes=self.axes)
+        self.single = (self.spectrum.astype(np.complex64), self.stiffness.astype(np.complex64))
+
+    def _spectra(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.single if x.dtype == np.float32 else (self.spectrum, self.stiffness)
 
     def compliance_product(self, x: np.ndarray) -> np.ndarray:
         """``A x`` for a stack ``(k, *window)`` of pressures (Pa -> m)."""
-        c = self.compliance
+        c, spectrum = self.compliance, self._spectra(x)[0]
         if c.periodic:
-            spec = sfft.rfftn(x, axes=self.axes, workers=self.workers)
-            spec *= self.spectrum
-            return sfft.irfftn(spec, s=c.shape, axes=self.axes, workers=self.workers)
+            spec = sfft.rfftn(x, axes=self.axes)
+            spec *= spectrum
+            return sfft.irfftn(spec, s=c.shape, axes=self.axes)
         if self.ndim == 1:
-            spec = sfft.rfft(x, n=c.fft_shape[0], axis=-1, workers=self.workers)
-            spec *= self.spectrum
-            return sfft.irfft(spec, n=c.fft_shape[0], axis=-1, workers=self.workers)[..., : c.shape[0]]
+            spec = sfft.rfft(x, n=c.fft_shape[0], axis=-1)
+            spec *= spectrum
+            return sfft.irfft(spec, n=c.fft_shape[0], axis=-1)[..., : c.shape[0]]
         # pruned: the rows along x only where the data are, the columns zero-padded by the transform
-        rows = sfft.rfft(x, n=c.fft_shape[1], axis=-1, workers=self.workers)
-        spec = sfft.fft(rows, n=c.fft_shape[0], axis=-2, workers=self.workers, overwrite_x=True)
-        spec *= self.spectrum
-        cols = sfft.ifft(spec, axis=-2, workers=self.workers, overwrite_x=True)[..., : c.shape[0], :]
-        return sfft.irfft(cols, n=c.fft_shape[1], axis=-1, workers=self.workers)[..., : c.shape[1]]
+        rows = sfft.rfft(x, n=c.fft_shape[1], axis=-1)
+        spec = sfft.fft(rows, n=c.fft_shape[0], axis=-2, overwrite_x=True)
+        spec *= spectrum
+        cols = sfft.ifft(spec, axis=-2, overwrite_x=True)[..., : c.shape[0], :]
+        return sfft.irfft(cols, n=c.fft_shape[1], axis=-1)[..., : c.shape[1]]
 
     def precondition(self, r: np.ndarray) -> np.ndarray:
-        spec = sfft.rfftn(r, axes=self.axes, workers=self.workers)
-        spec *= self.stiffness
-        return sfft.irfftn(spec, s=self.shape, axes=self.axes, workers=self.workers)
+        spec = sfft.rfftn(r, axes=self.axes)
+        spec *= self._spectra(r)[1]
+        return sfft.irfftn(spec, s=self.shape, axes=self.axes)
 
 
 class ContactLinearisation:
@@ -114,9 +130,14 @@ class ContactLinearisation:
         Right-hand sides per batched solve (default: as many as :data:`CHUNK_BYTES` of work memory
         hold for the grid); each chunk is solved on the window that holds its contact sets.
     workers : int
-        Threads of the batched FFTs (``scipy.fft``'s ``workers``; they split a chunk's right-hand
-        sides). Default 1, as the contact engine; 2 on a 2-core machine measured 1.1x to 1.5x
-        faster for a fingertip scan's Jacobian, depending on the other core's load.
+        Threads, each solving whole chunks (a stack is cut into at least this many). Default 1, as
+        the contact engine; on a 2-core machine 2 solved a fingertip scan's 100 gradient solves
+        1.7x faster (threads over chunks; the FFTs' own threads over one chunk: 1.3x).
+    dtype : float64 or float32
+        Precision of the iterations. float32 halves the FFT work; its passes run on the float64
+        residual, recomputed in float64 after each (one double product), until that residual is
+        below ``tol``: the tolerance holds as in float64 (at most :data:`REFINEMENTS` passes; each
+        asks no more than :data:`SINGLE_TOL`, so a ``tol`` far below it costs several).
 
     Attributes
     ----------
@@ -134,7 +155,8 @@ class ContactLinearisation:
     """
 
     def __init__(self, compliance: ContactCompliance, contact, *, force_control: bool, tol: float = 1e-12,
-                 max_iter: int | None = None, chunk: int | None = None, workers: int = 1):
+                 max_iter: int | None = None, chunk: int | None = None, workers: int = 1,
+                 dtype=np.float64):
         if not isinstance(compliance, ContactCompliance):
             raise ValueError(f"compliance: expected a ContactCompliance, got {type(compliance).__name__}")
         mask = np.asarray(contact)
@@ -142,6 +164,7 @@ class ContactLinearisation:
             raise ValueError(f"contact: expected a boolean mask of shape {compliance.shape} or (m, "
                              f"*{compliance.shape}), got dtype {mask.dtype} and shape {mask.shape}")
         self.workers = rules.workers(workers)
+        self.dtype = rules.float_dtype(dtype)
         if chunk is not None and int(chunk) < 1:
             raise ValueError(f"chunk: right-hand sides per batched solve must be >= 1, got {chunk!r}; or None")
         self.compliance = compliance
@@ -157,6 +180,7 @@ class ContactLinearisation:
         self.max_iter = int(max_iter) if max_iter is not None else int(20 * math.sqrt(n)) + 100
         self.chunk = int(chunk) if chunk is not None else max(1, CHUNK_BYTES // (12 * 8 * n))
         self._windows: dict = {}  # window slices -> _Window (its kernel spectra kept)
+        self._lock = threading.Lock()
         self.last_iterations = 0
         self.total_iterations = 0
 
@@ -180,15 +204,17 @@ class ContactLinearisation:
         if slices not in self._windows:
             if len(self._windows) > 16:
                 self._windows.pop(next(iter(self._windows)))
-            self._windows[slices] = _Window(c, slices, self.workers)
+            self._windows[slices] = _Window(c, slices)
         return self._windows[slices]
 
     def _project(self, x: np.ndarray, mask: np.ndarray, count: np.ndarray) -> np.ndarray:
-        """Onto the admissible fields: zero off the set, zero sum on it under force control."""
+        """Onto the admissible fields: zero off the set, zero sum on it under force control (``mask``
+        as float32 ones and zeros: no casts of booleans in the products)."""
         x = x * mask
         if self.force_control:
-            mean = x.reshape(x.shape[0], -1).sum(axis=1) / np.maximum(count, 1)
-            x -= mean.reshape((-1,) + (1,) * self.compliance.ndim) * mask
+            mean = (x.reshape(x.shape[0], -1).sum(axis=1) / np.maximum(count, 1)).astype(x.dtype)
+            x -= mean.reshape((-1,) + (1,) * self.compliance.ndim)
+            x *= mask
         return x
 
     def _masks(self, k: int, frames) -> np.ndarray:
@@ -253,67 +279,116 @@ class ContactLinearisation:
         return x if self.stacked or frames is not None else x[0]
 
     def _solve_chunks(self, b, idx: np.ndarray, x0) -> np.ndarray:
-        """Solve chunk by chunk, each on its window; ``b`` None: the force responses."""
+        """Solve chunk by chunk, each on its window, ``workers`` chunks at a time (balanced chunks, at
+        least one per thread); ``b`` None: the force responses."""
         out = np.zeros((idx.size, *self.compliance.shape))
         self.last_iterations, self.total_iterations = 0, 0
         shape_k = (-1,) + (1,) * self.compliance.ndim
-        for lo in range(0, idx.size, self.chunk):
-            sel = idx[lo: lo + self.chunk]
-            win = self._window(self.mask[sel])
+        pieces = min(idx.size, max(-(-idx.size // self.chunk), self.workers))
+        edges = np.linspace(0, idx.size, pieces + 1).round().astype(int)
+
+        def chunk(lo: int, hi: int):
+            sel = idx[lo: hi]
+            with self._lock:  # the windows' cache is shared by the threads
+                win = self._window(self.mask[sel])
             at = (slice(None),) + win.slices
-            mask, count = self.mask[sel][at], self.n_contact[sel]
+            mask, count = self.mask[sel][at].astype(np.float32), self.n_contact[sel]
             if b is None:  # the uniform field of unit sum, corrected to zero gap change on the set
                 f0 = mask / np.maximum(count, 1).reshape(shape_k)
                 x = f0 + self._pcg(win, -win.compliance_product(f0), mask, count, None)
             else:
-                start = None if x0 is None else x0[lo: lo + self.chunk][at]
-                x = self._pcg(win, b[lo: lo + self.chunk][at], mask, count, start)
-            out[(slice(lo, lo + sel.size),) + win.slices] = x
+                start = None if x0 is None else x0[lo: hi][at]
+                x = self._pcg(win, b[lo: hi][at], mask, count, start)
+            out[(slice(lo, hi),) + win.slices] = x
+
+        if self.workers == 1 or pieces == 1:
+            for lo, hi in zip(edges[:-1], edges[1:]):
+                chunk(lo, hi)
+        else:  # threads over chunks: their FFTs and array arithmetic release the GIL
+            with ThreadPoolExecutor(max_workers=min(self.workers, pieces)) as pool:
+                list(pool.map(chunk, edges[:-1], edges[1:]))
         return out
 
     def _pcg(self, win: _Window, b: np.ndarray, mask: np.ndarray, count: np.ndarray, x0) -> np.ndarray:
-        """Projected, preconditioned CG on a chunk, each column stopped at its own tolerance; the
-        converged columns leave the batch (its products cost per column)."""
+        """Projected, preconditioned CG on a chunk to ``tol`` per column; in float32 (``dtype``) by
+        refinement: single-precision CG on the float64 residual, which is then recomputed in float64
+        (one product per pass), until it is below ``tol`` (so the tolerance is the true residual's)."""
+        if self.dtype == np.float64:
+            x, live = self._cg(win, b, mask, count, x0, self.tol)
+            self._warn(live.size, b.shape[0])
+            return x
+        k = b.shape[0]
+        r = self._project(b, mask, count)
+        target = self.tol * np.sqrt((r * r).reshape(k, -1).sum(axis=1))
+        x = np.zeros_like(r)
+        if x0 is not None:  # the start's residual in float32: the float64 check below catches its round-off
+            x = self._project(x0, mask, count)
+            r -= self._project(win.compliance_product(x.astype(np.float32)), mask, count)
+        for _ in range(REFINEMENTS):
+            norm = np.sqrt((r * r).reshape(k, -1).sum(axis=1))
+            live = np.flatnonzero(norm > target)
+            if live.size == 0:
+                return x
+            # each pass asks single precision for no more than SINGLE_TOL: beyond, its round-off
+            rtol = np.maximum(target[live] / norm[live], SINGLE_TOL)
+            d, _ = self._cg(win, r[live].astype(np.float32), mask[live], count[live], None, rtol)
+            x[live] += self._project(d.astype(np.float64), mask[live], count[live])  # zero sum in float64
+            r[live] = self._project(b[live] - win.compliance_product(x[live]), mask[live], count[live])
+        norm = np.sqrt((r * r).reshape(k, -1).sum(axis=1))
+        self._warn(int(np.count_nonzero(norm > target)), k, f"{REFINEMENTS} float32 passes of at most")
+        return x
+
+    def _warn(self, failed: int, k: int, passes: str = ""):
+        if failed:
+            warnings.warn(f"ContactLinearisation: conjugate gradients did not reach tol {self.tol:g} in "
+                          f"{passes}{' ' if passes else ''}{self.max_iter} iterations for {failed} of {k} "
+                          "right-hand sides", AccuracyWarning, stacklevel=5)
+
+    def _cg(self, win: _Window, b: np.ndarray, mask: np.ndarray, count: np.ndarray, x0,
+            rtol) -> tuple[np.ndarray, np.ndarray]:
+        """Projected, preconditioned CG on a chunk in ``b``'s precision, column ``i`` stopped at the
+        relative residual ``rtol`` (a float, or one per column); the converged columns leave the batch
+        (its products cost per column). Returns the solutions and the columns that did not converge."""
         k = b.shape[0]
         r = self._project(b, mask, count)
         norm0 = np.sqrt((r * r).reshape(k, -1).sum(axis=1))
+        target = np.broadcast_to(np.asarray(rtol, dtype=r.dtype), (k,)) * norm0
         if x0 is None:
             x = np.zeros_like(r)
         else:
             x = self._project(x0, mask, count)
             r -= self._project(win.compliance_product(x), mask, count)
         out = x
-        live = np.flatnonzero((norm0 > 0) & (np.sqrt((r * r).reshape(k, -1).sum(axis=1)) > self.tol * norm0))
+        live = np.flatnonzero((norm0 > 0) & (np.sqrt((r * r).reshape(k, -1).sum(axis=1)) > target))
         if live.size == 0:
-            return out
-        x, r, mask, count, norm0 = x[live], r[live], mask[live], count[live], norm0[live]
+            return out, live
+        x, r, mask, count, target = x[live], r[live], mask[live], count[live], target[live]
         z = self._project(win.precondition(r), mask, count)
         t = z.copy()
         rz = (r * z).reshape(live.size, -1).sum(axis=1)
         it = 0
+        shape_k = (-1,) + (1,) * self.compliance.ndim
         for it in range(1, self.max_iter + 1):
-            self.total_iterations += live.size
-            shape_k = (-1,) + (1,) * self.compliance.ndim
+            with self._lock:
+                self.total_iterations += live.size
             At = self._project(win.compliance_product(t), mask, count)
             denom = (At * t).reshape(live.size, -1).sum(axis=1)
-            alpha = np.where(denom > 0, rz / np.where(denom > 0, denom, 1.0), 0.0)
+            alpha = np.where(denom > 0, rz / np.where(denom > 0, denom, 1.0), 0.0).astype(r.dtype)
             x += alpha.reshape(shape_k) * t
             r -= alpha.reshape(shape_k) * At
-            active = np.sqrt((r * r).reshape(live.size, -1).sum(axis=1)) > self.tol * norm0
+            active = np.sqrt((r * r).reshape(live.size, -1).sum(axis=1)) > target
             if not active.all():  # the converged columns are done: store them, drop them
                 out[live[~active]] = x[~active]
-                live, x, r, t, mask, count, norm0, rz = (a[active] for a in (live, x, r, t, mask, count, norm0, rz))
+                live, x, r, t, mask, count, target, rz = (a[active] for a in (live, x, r, t, mask, count, target, rz))
                 if live.size == 0:
                     break
             z = self._project(win.precondition(r), mask, count)
             rz_new = (r * z).reshape(live.size, -1).sum(axis=1)
-            beta = rz_new / np.where(rz > 0, rz, 1.0)
+            beta = (rz_new / np.where(rz > 0, rz, 1.0)).astype(r.dtype)
             t = z + beta.reshape(shape_k) * t
             rz = rz_new
-        self.last_iterations = max(self.last_iterations, it)
+        with self._lock:
+            self.last_iterations = max(self.last_iterations, it)
         if live.size:
             out[live] = x
-            warnings.warn(f"ContactLinearisation: conjugate gradients did not reach tol {self.tol:g} in "
-                          f"{self.max_iter} iterations for {live.size} of {k} right-hand sides",
-                          AccuracyWarning, stacklevel=4)
-        return out
+        return out, live
