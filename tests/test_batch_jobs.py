@@ -273,15 +273,24 @@ def logged(item, rng, *, log):
     return xr.Dataset({"v": ("i", rng.standard_normal(2))})
 
 
+def _lost(*args, **kwargs):
+    """A lost task's stand-in: the cluster never ran the task's function."""
+    return None
+
+
 def _cancelling(client, monkeypatch, which):
-    """Make ``client.submit`` cancel the futures whose submission index is in ``which`` (a lost task)."""
+    """Make ``client.submit`` cancel the futures whose submission index is in ``which`` (a lost task).
+    A lost submission runs :func:`_lost` in place of the task, so that it did no work whatever the
+    timing (cancelling the real task raced with a worker that had already run it, on a loaded machine)."""
     real, count = client.submit, [0]
 
-    def submit(*args, **kwargs):
-        fut = real(*args, **kwargs)
-        if which(count[0]):
-            fut.cancel()
+    def submit(fn, *args, **kwargs):
+        lost = which(count[0])
         count[0] += 1
+        if not lost:
+            return real(fn, *args, **kwargs)
+        fut = real(_lost, *args, **kwargs)
+        fut.cancel()
         return fut
 
     monkeypatch.setattr(client, "submit", submit)
