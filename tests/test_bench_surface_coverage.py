@@ -4,6 +4,7 @@ import importlib.util
 import pathlib
 
 import numpy as np
+import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -33,3 +34,13 @@ def test_calibrated_range_of_a_calibrated_method_holds_the_nominal_rate():
     few = bench.calibrated_range([rng.random(200) < 0.9 for _ in range(5)], rng)
     many = bench.calibrated_range([rng.random(200) < 0.9 for _ in range(100)], rng)
     assert few[0] < many[0] < 0.9 < many[1] < few[1]
+
+
+def test_bench_surface_coverage_refuses_empty_studies(capsys):
+    bench = _bench()
+    with pytest.raises(SystemExit):
+        bench.main(["--scans", "0"])
+    assert "--scans, --frames and --workers must be >= 1, got 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        bench.main(["--grid", "8"])
+    assert "--grid: at least 16 nodes a side" in capsys.readouterr().err
