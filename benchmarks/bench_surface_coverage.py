@@ -116,6 +116,8 @@ def one_scan(dim: int, frames: int, n: int, rng: np.random.Generator, workers: i
             "hits": {name: bool(c["q05"] <= value <= c["q95"])
                      for (name, value), c in zip((("normal_force", force), ("friction", friction)),
                                                  (post.context["normal_force"], post.context["friction"]))},
+            "shrink": {name: post.context[name]["sd"] / prior_sd(prior)
+                       for name, prior in (("normal_force", FORCE_PRIOR[dim]), ("friction", FRICTION_PRIOR))},
             "z": {name: (value - post.context[name]["mean"]) / post.context[name]["sd"]
                   for name, value in (("normal_force", force), ("friction", friction))},
             "touched": int(t.sum()), "error": float(np.sqrt(np.mean((mean - truth[t] - offset) ** 2))),
@@ -126,6 +128,14 @@ def one_scan(dim: int, frames: int, n: int, rng: np.random.Generator, workers: i
             "coarse": any(isinstance(w.message, AccuracyWarning) for w in caught + inverting),
             "edge": bool(edge.any()),
             "chi2": float(post.chi2), "n_data": int(data.size)}
+
+
+def prior_sd(prior) -> float:
+    """The sd of a Normal or LogNormal prior, in its own units."""
+    if isinstance(prior, Normal):
+        return prior.sd
+    s2 = prior.sigma_log**2
+    return prior.median * np.exp(s2 / 2) * np.sqrt(np.expm1(s2))
 
 
 def calibrated_range(expected: list[np.ndarray], rng: np.random.Generator, repeats: int = 4000) -> tuple[float, float]:
@@ -171,7 +181,8 @@ def main(argv=None) -> int:
         hits = sum(r["hits"][name] for r in rows)
         z = np.array([r["z"][name] for r in rows])
         print(f"{name + ' 90 % interval holds the truth':<44} {hits:>6} / {k}   binomial 99 %: {lo_b} .. {hi_b} "
-              f"(issue: 79 .. 98 of 100); z = (truth - mean) / sd: mean {z.mean():+.2f}, sd {z.std():.2f}")
+              f"(issue: 79 .. 98 of 100); z = (truth - mean) / sd: mean {z.mean():+.2f}, sd {z.std():.2f}; "
+              f"posterior sd / prior sd: median {np.median([r['shrink'][name] for r in rows]):.2g}")
     print(f"{'relief error, rms over touched nodes (um)':<44} {np.mean([r['error'] for r in rows]) * 1e6:>10.4f}   "
           f"median relief sd {np.median([r['relief_sd'] for r in rows]) * 1e6:.4f} um")
     print(f"{'touched nodes a scan (mean)':<44} {np.mean([r['touched'] for r in rows]):>10.1f}")

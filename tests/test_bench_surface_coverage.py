@@ -44,3 +44,9 @@ def test_bench_surface_coverage_refuses_empty_studies(capsys):
     with pytest.raises(SystemExit):
         bench.main(["--grid", "8"])
     assert "--grid: at least 16 nodes a side" in capsys.readouterr().err
+
+
+def test_prior_sd_matches_the_priors_draws():
+    bench, rng = _bench(), np.random.default_rng(4)
+    for prior in (bench.FORCE_PRIOR[2], bench.FRICTION_PRIOR):
+        assert bench.prior_sd(prior) == pytest.approx(np.std(prior.sample(rng, 400_000)), rel=5e-3)
