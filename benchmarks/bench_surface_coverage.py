@@ -20,6 +20,7 @@ edge; the time (wall and process CPU). Results: docs/inversion.md, "Coverage, th
 
     python benchmarks/bench_surface_coverage.py                 # 100 plane-strain scans, minutes
     python benchmarks/bench_surface_coverage.py --dim 3 --scans 100
+    python benchmarks/bench_surface_coverage.py --height-sd 0.05   # a ten times smoother prior: one patch
 """
 
 from __future__ import annotations
@@ -84,12 +85,13 @@ def build_scan(dim: int, force: float, friction: float, frames: int, n: int) -> 
                        profile=ProfileGrid(x=px), normal_force=force, friction=friction, friction_direction=-1.0)
 
 
-def one_scan(dim: int, frames: int, n: int, rng: np.random.Generator, workers: int) -> dict:
-    """Draw a surface and a context, simulate a noisy scan, invert it with force and friction free."""
+def one_scan(dim: int, frames: int, n: int, rng: np.random.Generator, workers: int, prior=PRIOR) -> dict:
+    """Draw a surface from ``prior`` (a StationaryPrior, m) and a context, simulate a noisy scan, invert it
+    with the same prior and force and friction free."""
     force = float(FORCE_PRIOR[dim].sample(rng, None))
     friction = float(FRICTION_PRIOR.sample(rng, None))
     scan = build_scan(dim, force, friction, frames, n)
-    truth = prior_root(PRIOR, scan.profile.shape, scan.profile.spacing) @ rng.standard_normal(scan.profile.size)
+    truth = prior_root(prior, scan.profile.shape, scan.profile.spacing) @ rng.standard_normal(scan.profile.size)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)
         clean = scan.solve(truth)
@@ -98,7 +100,7 @@ def one_scan(dim: int, frames: int, n: int, rng: np.random.Generator, workers: i
     context = {"normal_force": FORCE_PRIOR[dim], "friction": FRICTION_PRIOR}
     with warnings.catch_warnings(record=True) as inverting:
         warnings.simplefilter("always", UserWarning)  # a local optimum is part of what is measured
-        post = invert_scan(scan, data, sigma, prior=PRIOR, context=context, rng=rng, n_draws=200, workers=workers)
+        post = invert_scan(scan, data, sigma, prior=prior, context=context, rng=rng, n_draws=200, workers=workers)
     t = post.touched
     contact = clean.contact.reshape(clean.contact.shape[0], *scan.grid_shape)
     edge = contact[:, ..., 0] | contact[:, ..., -1]  # the true contact reached the grid's x edges
@@ -116,8 +118,8 @@ def one_scan(dim: int, frames: int, n: int, rng: np.random.Generator, workers: i
             "hits": {name: bool(c["q05"] <= value <= c["q95"])
                      for (name, value), c in zip((("normal_force", force), ("friction", friction)),
                                                  (post.context["normal_force"], post.context["friction"]))},
-            "shrink": {name: post.context[name]["sd"] / prior_sd(prior)
-                       for name, prior in (("normal_force", FORCE_PRIOR[dim]), ("friction", FRICTION_PRIOR))},
+            "shrink": {name: post.context[name]["sd"] / prior_sd(ctx_prior)
+                       for name, ctx_prior in (("normal_force", FORCE_PRIOR[dim]), ("friction", FRICTION_PRIOR))},
             "z": {name: (value - post.context[name]["mean"]) / post.context[name]["sd"]
                   for name, value in (("normal_force", force), ("friction", friction))},
             "touched": int(t.sum()), "error": float(np.sqrt(np.mean((mean - truth[t] - offset) ** 2))),
@@ -153,14 +155,19 @@ def main(argv=None) -> int:
     p.add_argument("--frames", type=int, default=5, help="frames a scan, over 16 nodes of travel")
     p.add_argument("--grid", type=int, default=0, help="contact grid nodes per side (0: 48)")
     p.add_argument("--workers", type=int, default=2, help="invert_scan's threads")
+    p.add_argument("--height-sd", type=float, default=0.5, help="the prior's height sd, um (0.05: one contact patch)")
     args = p.parse_args(argv)
     if args.scans < 1 or args.frames < 1 or args.workers < 1:
         p.error(f"--scans, --frames and --workers must be >= 1, got {args.scans}, {args.frames}, {args.workers}")
     if args.grid and args.grid < 16:
         p.error(f"--grid: at least 16 nodes a side (0: the default 48), got {args.grid}")
+    if not (np.isfinite(args.height_sd) and args.height_sd > 0):
+        p.error(f"--height-sd: the prior's sd in um must be > 0, got {args.height_sd}")
     n = args.grid or 48
+    prior = StationaryPrior(variance=(args.height_sd * 1e-6) ** 2, correlation_length=PRIOR.correlation_length,
+                            kind=PRIOR.kind)
     t0, c0 = time.perf_counter(), time.process_time()
-    rows = [one_scan(args.dim, args.frames, n, np.random.default_rng([args.seed, i]), args.workers)
+    rows = [one_scan(args.dim, args.frames, n, np.random.default_rng([args.seed, i]), args.workers, prior)
             for i in range(args.scans)]
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     pooled = float(np.mean([r["covered"] for r in rows]))
@@ -170,7 +177,7 @@ def main(argv=None) -> int:
     k = args.scans
     print(f"{k} scans, {'plane strain' if args.dim == 2 else '3-D fingertip'}, contact grid {n} per side, "
           f"{args.frames} frames, profile {n + TRAVEL} nodes, force and friction free, seed {args.seed}, "
-          f"{args.workers} threads")
+          f"{args.workers} threads, height sd {args.height_sd:g} um")
     print(f"{'quantity':<44} {'measured':>10}   calibrated range (99 %)")
     print(f"{'touched nodes inside their 90 % band':<44} {pooled:>10.3f}   {low:.3f} .. {high:.3f}  "
           f"({'inside' if low <= pooled <= high else 'OUTSIDE'})")
