@@ -38,6 +38,7 @@ import numpy as np
 from tactilab.core import jit
 
 from .normal import _dot
+from .step_kernels import _dot_kernel
 
 
 # -- the compiled kernels: one loop each, no temporaries -----------------------------------------
@@ -124,15 +125,6 @@ def _residual_single_kernel(g, delta, p, S, r):
         n_set += np.int64(s)
         largest = max(largest, bits[i] & _MAGNITUDE)
     return largest, n_set
-
-
-@jit.njit(reassociate=True)
-def _masked_sum_kernel(z, S):
-    z, S = z.reshape(z.size), S.reshape(S.size)  # 1-D views
-    total = 0.0
-    for i in range(z.size):
-        total += np.float64(z[i]) * np.float64(S[i])
-    return total
 
 
 @jit.njit(reassociate=True)
@@ -279,7 +271,7 @@ def project(z: np.ndarray, S: np.ndarray, n_set: int, r: np.ndarray, z_old: np.n
     """
     if compiled:
         zf, sf = z, S
-        mean = _masked_sum_kernel(zf, sf) / n_set if force else 0.0
+        mean = _dot_kernel(zf, sf) / n_set if force else 0.0  # _dot_kernel: the sum of z over S
         rz, rz_old = _project_kernel(zf, sf, float(mean), r, z_old)
         return float(rz), float(rz_old)
     if z.dtype != np.float64:  # float32 vectors: in float64, rounded once, as compiled
